@@ -1,0 +1,41 @@
+//! Command-line interface of `crom`.
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+/// crom: can contact-mechanics solutions be compressed into a low-rank model, and at what cost?
+#[derive(Debug, Parser)]
+#[command(name = "crom", version, about, long_about = None)]
+pub struct Cli {
+    /// Artifact store directory.
+    #[arg(long, global = true, env = "CROM_STORE", default_value = "data/store")]
+    pub store: PathBuf,
+    /// Directory of scene files (`NAME.toml`).
+    #[arg(long, global = true, env = "CROM_SCENES", default_value = "data/scenes")]
+    pub scenes: PathBuf,
+    /// Only errors and the final summary.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run (or resume) the whole study of a scene; cached stages are not recomputed.
+    Run {
+        /// Scene name (a file in the scenes directory) or path to a scene TOML file.
+        scene: String,
+    },
+    /// List the artifacts in the store.
+    Ls {
+        /// Only this stage (mesh, snapshot, trainset, basis, compactness).
+        #[arg(long)]
+        stage: Option<String>,
+    },
+    /// List the available scenes.
+    Scenes,
+}

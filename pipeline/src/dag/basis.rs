@@ -1,0 +1,94 @@
+//! Basis stage: the primal POD, the dual POD ("dual orth") and the Cone-Projected Greedy dual
+//! bases ("dual cone", full and truncated) of a training set (paper eqs. 9, 10, 12).
+
+use std::collections::BTreeMap;
+
+use crom_schemas::artifact::{basis as names, ArtifactKind};
+use crom_stages::basis::{cpg, pod, Cpg, CpgParams, Pod, PodParams};
+use crom_stages::cone::NnlsParams;
+use serde_json::json;
+
+use super::convert::{to_col, view};
+use super::{trainset, Ctx};
+use crate::cache::{Key, KeySpec};
+use crate::error::CromError;
+use crate::io::h5::{ColMatrix, H5In, H5Out};
+
+/// Bump when POD or CPG change the bases they produce.
+const ALGORITHM_VERSION: u32 = 1;
+
+/// The bases of one training set, as stored.
+#[derive(Debug, Clone)]
+pub(crate) struct Bases {
+    pub primal_pod: ColMatrix,
+    pub dual_pod: ColMatrix,
+    pub dual_cpg: ColMatrix,
+}
+
+pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
+    let st = ctx.scene.study.clone();
+    let params = json!({
+        "primal_tol": st.primal_tol,
+        "dual_orth_tol": st.dual_orth_tol,
+        "dual_cone_tol": st.dual_cone_tol,
+        "dual_cone_tol_truncated": st.dual_cone_tol_truncated,
+    });
+    let spec = KeySpec::new(ArtifactKind::Basis, ALGORITHM_VERSION, params).input("train", train);
+    let key = spec.key();
+    let progress = ctx.progress.stage("basis", 1);
+    let set = trainset::load(ctx, train)?;
+    let scene = ctx.scene.scene.name.clone();
+    let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
+    let (_, computed) = ctx.cached(ArtifactKind::Basis, &spec, |staging| {
+        let primal = pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }).map_err(|e| numerical(e.to_string()))?;
+        let dual = pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol }).map_err(|e| numerical(e.to_string()))?;
+        let cone_params = |tol| CpgParams { tol, nnls: NnlsParams::default() };
+        let full = cpg(view(&set.dual), cone_params(st.dual_cone_tol)).map_err(|e| numerical(e.to_string()))?;
+        let trunc = cpg(view(&set.dual), cone_params(st.dual_cone_tol_truncated)).map_err(|e| numerical(e.to_string()))?;
+        let f = H5Out::create(&staging.path(names::FILE))?;
+        f.attr_str("scene", &scene)?;
+        f.attr_str("kind", "basis")?;
+        f.attr_u64("schema_version", u64::from(ArtifactKind::Basis.schema_version()))?;
+        f.attr_str("cache_key", &staging.key().0)?;
+        write_pod(&f, names::PRIMAL_POD, &primal, st.primal_tol)?;
+        write_pod(&f, names::DUAL_POD, &dual, st.dual_orth_tol)?;
+        write_cpg(&f, names::DUAL_CPG, &full, st.dual_cone_tol)?;
+        write_cpg(&f, names::DUAL_CPG_TRUNCATED, &trunc, st.dual_cone_tol_truncated)?;
+        drop(f);
+        Ok(BTreeMap::from([
+            ("primal_rank".to_string(), json!(primal.modes.ncols())),
+            ("dual_orth_rank".to_string(), json!(dual.modes.ncols())),
+            ("dual_cone_rank".to_string(), json!(full.basis.ncols())),
+            ("dual_cone_truncated_rank".to_string(), json!(trunc.basis.ncols())),
+        ]))
+    })?;
+    progress.finish(if computed { "computed" } else { "cached" });
+    ctx.record("basis", usize::from(computed), usize::from(!computed), ctx.store.dir(ArtifactKind::Basis, &key));
+    Ok(key)
+}
+
+/// Load the untruncated-tolerance bases used by the metrics.
+pub(crate) fn load(ctx: &Ctx<'_>, key: &Key) -> Result<Bases, CromError> {
+    let f = H5In::open(&ctx.store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
+    let m = |g: &str| f.matrix(&format!("{g}/{}", names::MODES));
+    Ok(Bases { primal_pod: m(names::PRIMAL_POD)?, dual_pod: m(names::DUAL_POD)?, dual_cpg: m(names::DUAL_CPG)? })
+}
+
+fn write_pod(f: &H5Out, group: &str, p: &Pod, tol: f64) -> Result<(), CromError> {
+    let g = f.group(group)?;
+    g.attr_f64("tolerance", tol)?;
+    g.attr_u64("rank", p.modes.ncols() as u64)?;
+    g.attr_u64("numerical_rank", p.rank as u64)?;
+    g.matrix(names::MODES, &to_col(p.modes.as_ref()), "orthonormal modes, one per column")?;
+    g.vec_f64(names::SINGULAR_VALUES, &p.singular_values, "singular values, descending")
+}
+
+fn write_cpg(f: &H5Out, group: &str, c: &Cpg, tol: f64) -> Result<(), CromError> {
+    let g = f.group(group)?;
+    g.attr_f64("tolerance", tol)?;
+    g.attr_u64("rank", c.basis.ncols() as u64)?;
+    g.matrix(names::MODES, &to_col(c.basis.as_ref()), "unit-norm non-negative generators, selection order")?;
+    let sel: Vec<u64> = c.selected.iter().map(|&i| i as u64).collect();
+    g.vec_u64(names::SELECTED, &sel)?;
+    g.vec_f64(names::COMPACTNESS, &c.compactness, "C(m) of eq. 16 after each selection")
+}

@@ -1,0 +1,72 @@
+//! Compactness stage: C(m) of eq. 16 for every m, for primal orth, dual orth and dual cone.
+
+use std::collections::BTreeMap;
+
+use crom_schemas::artifact::{compactness as names, ArtifactKind};
+use crom_stages::metrics::{compactness_cone, compactness_orth};
+use serde_json::json;
+
+use super::convert::view;
+use super::{basis, trainset, Ctx};
+use crate::cache::{Key, KeySpec};
+use crate::error::CromError;
+use crate::io::table::{Column, Table};
+
+/// Bump when the compactness computation changes.
+const ALGORITHM_VERSION: u32 = 1;
+
+pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
+    let spec = KeySpec::new(ArtifactKind::Compactness, ALGORITHM_VERSION, json!({}))
+        .input("train", train)
+        .input("basis", basis_key);
+    let key = spec.key();
+    let progress = ctx.progress.stage("compactness", 1);
+    let set = trainset::load(ctx, train)?;
+    let b = basis::load(ctx, basis_key)?;
+    let scene = ctx.scene.scene.name.clone();
+    let (_, computed) = ctx.cached(ArtifactKind::Compactness, &spec, |staging| {
+        let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
+        let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
+        let cone = compactness_cone(view(&set.dual), view(&b.dual_cpg))
+            .map_err(|e| CromError::Numerical { stage: "compactness", scene: scene.clone(), message: e.to_string() })?;
+        let mut t = Rows::default();
+        t.push(&scene, "primal", "orth", &primal);
+        t.push(&scene, "dual", "orth", &dual);
+        t.push(&scene, "dual", "cone", &cone);
+        t.table().write_parquet(&staging.path(names::FILE))?;
+        Ok(BTreeMap::from([("rows".to_string(), json!(primal.len() + dual.len() + cone.len()))]))
+    })?;
+    progress.finish(if computed { "computed" } else { "cached" });
+    ctx.record("compactness", usize::from(computed), usize::from(!computed), ctx.store.dir(ArtifactKind::Compactness, &key));
+    Ok(key)
+}
+
+#[derive(Default)]
+struct Rows {
+    scene: Vec<String>,
+    field: Vec<String>,
+    basis: Vec<String>,
+    m: Vec<u64>,
+    value: Vec<f64>,
+}
+
+impl Rows {
+    fn push(&mut self, scene: &str, field: &str, basis: &str, values: &[f64]) {
+        for (m, v) in values.iter().enumerate() {
+            self.scene.push(scene.to_string());
+            self.field.push(field.to_string());
+            self.basis.push(basis.to_string());
+            self.m.push(m as u64);
+            self.value.push(*v);
+        }
+    }
+
+    fn table(self) -> Table {
+        Table::default()
+            .with("scene", Column::Str(self.scene))
+            .with("field", Column::Str(self.field))
+            .with("basis", Column::Str(self.basis))
+            .with("m", Column::U64(self.m))
+            .with("value", Column::F64(self.value))
+    }
+}

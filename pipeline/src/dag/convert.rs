@@ -1,0 +1,26 @@
+//! Between the pipeline's [`ColMatrix`] (what HDF5 reads and writes) and faer matrices (what the
+//! stages compute with). Both are column-major, so views are free.
+
+use faer::{Mat, MatRef};
+
+use crate::io::h5::ColMatrix;
+
+/// A faer view of a column-major matrix.
+pub(crate) fn view(m: &ColMatrix) -> MatRef<'_, f64> {
+    MatRef::from_column_major_slice(&m.data, m.rows, m.cols)
+}
+
+/// Copy a faer matrix into a [`ColMatrix`].
+pub(crate) fn to_col(m: MatRef<'_, f64>) -> ColMatrix {
+    let mut data = Vec::with_capacity(m.nrows() * m.ncols());
+    for j in 0..m.ncols() {
+        data.extend(m.col(j).iter().copied());
+    }
+    ColMatrix { rows: m.nrows(), cols: m.ncols(), data }
+}
+
+/// An owned faer matrix from a [`ColMatrix`].
+#[allow(dead_code)]
+pub(crate) fn to_mat(m: &ColMatrix) -> Mat<f64> {
+    view(m).to_owned()
+}

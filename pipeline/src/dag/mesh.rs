@@ -1,0 +1,56 @@
+//! Mesh stage: the scene's discretisation as `mesh.h5` + `mesh.xdmf`.
+
+use std::collections::BTreeMap;
+
+use crom_schemas::artifact::{mesh as names, ArtifactKind};
+use serde_json::json;
+
+use super::{Ctx, LazyPhysics};
+use crate::cache::{params, Key, KeySpec};
+use crate::error::CromError;
+use crate::io::h5::H5Out;
+use crate::io::xdmf::write_mesh_xdmf;
+
+/// Bump when the mesh generators change their output.
+const ALGORITHM_VERSION: u32 = 1;
+
+/// The mesh artifact's key: the whole model specification.
+pub(crate) fn spec(ctx: &Ctx<'_>) -> KeySpec {
+    KeySpec::new(ArtifactKind::Mesh, ALGORITHM_VERSION, params(&ctx.scene.model))
+}
+
+pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Key, CromError> {
+    let spec = spec(ctx);
+    let key = spec.key();
+    let scene = ctx.scene.scene.name.clone();
+    let progress = ctx.progress.stage("mesh", 1);
+    let (manifest, computed) = ctx.cached(ArtifactKind::Mesh, &spec, |staging| {
+        let m = physics.get()?.mesh();
+        let path = staging.path(names::FILE);
+        let f = H5Out::create(&path)?;
+        f.attr_str("scene", &scene)?;
+        f.attr_str("kind", "mesh")?;
+        f.attr_u64("schema_version", u64::from(ArtifactKind::Mesh.schema_version()))?;
+        f.attr_str("cache_key", &key.0)?;
+        f.attr_u64("dofs_per_node", m.dofs_per_node as u64)?;
+        let flat: Vec<f64> = m.nodes.iter().flat_map(|p| p.iter().copied()).collect();
+        f.table_f64(names::NODES, m.nodes.len(), 2, &flat, "length")?;
+        let cells: Vec<u64> = m.cells.iter().flatten().copied().collect();
+        f.table_u64(names::CELLS, m.cells.len(), m.nodes_per_cell, &cells)?;
+        f.vec_u64(names::CONTACT_NODES, &m.contact_nodes)?;
+        f.vec_u64(names::NODE_BODY, &m.node_body)?;
+        f.vec_u64(names::CELL_BODY, &m.cell_body)?;
+        drop(f);
+        write_mesh_xdmf(&staging.path(names::XDMF), names::FILE, m.nodes.len(), m.cells.len(), m.nodes_per_cell, &[names::CELL_BODY])?;
+        Ok(BTreeMap::from([
+            ("nodes".to_string(), json!(m.nodes.len())),
+            ("cells".to_string(), json!(m.cells.len())),
+            ("contact_nodes".to_string(), json!(m.contact_nodes.len())),
+        ]))
+    })?;
+    let _ = manifest;
+    progress.finish(if computed { "computed" } else { "cached" });
+    let dir = ctx.store.dir(ArtifactKind::Mesh, &key);
+    ctx.record("mesh", usize::from(computed), usize::from(!computed), dir);
+    Ok(key)
+}

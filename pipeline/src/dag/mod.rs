@@ -1,0 +1,168 @@
+//! The study as a DAG of cached stages (DESIGN.md):
+//!
+//! ```text
+//! scene ─► mesh ─► snapshot (one per parameter point) ─► trainset (train, test)
+//!                                                          └─► basis ─► compactness
+//! ```
+//!
+//! Each stage is named by the content hash of its parameters and inputs ([`crate::cache`]); a
+//! stage whose artifact is in the store and verifies is not run again.
+
+mod basis;
+mod convert;
+mod compactness;
+mod mesh;
+mod snapshots;
+mod trainset;
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use crom_schemas::artifact::ArtifactKind;
+use crom_schemas::SceneConfig;
+
+use crate::cache::{Key, KeySpec};
+use crate::error::CromError;
+use crate::physics::Physics;
+use crate::progress::Progress;
+use crate::store::{Lookup, Manifest, Provenance, Staging, Store};
+
+/// What one stage did in a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StageRecord {
+    /// Stage name.
+    pub stage: &'static str,
+    /// Artifacts computed in this run.
+    pub computed: usize,
+    /// Artifacts found in the store.
+    pub cached: usize,
+    /// Directory of the (last) artifact of the stage.
+    pub dir: PathBuf,
+}
+
+/// Everything a stage needs from the run.
+#[derive(Debug)]
+pub struct Ctx<'a> {
+    /// The open store.
+    pub store: &'a Store,
+    /// The validated scene.
+    pub scene: &'a SceneConfig,
+    /// The command line, recorded in manifests.
+    pub command: String,
+    /// Progress display.
+    pub progress: Progress,
+    /// What each stage did.
+    pub records: Vec<StageRecord>,
+    /// Warnings to show in the summary (e.g. quarantined artifacts).
+    pub warnings: Vec<String>,
+}
+
+/// The keys of a finished run, for callers and tests.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunOutput {
+    /// Mesh artifact.
+    pub mesh: Key,
+    /// Snapshot artifacts of the training points, in order.
+    pub train_snapshots: Vec<Key>,
+    /// Training-set artifact.
+    pub train: Key,
+    /// Test-set artifact.
+    pub test: Key,
+    /// Basis artifact.
+    pub basis: Key,
+    /// Compactness artifact.
+    pub compactness: Key,
+}
+
+impl Ctx<'_> {
+    /// Look an artifact up; on a miss (or a quarantined corrupt one) compute it with `compute`,
+    /// which writes its files into the staging directory and returns summary facts.
+    pub(crate) fn cached(
+        &mut self,
+        kind: ArtifactKind,
+        spec: &KeySpec,
+        compute: impl FnOnce(&Staging) -> Result<BTreeMap<String, serde_json::Value>, CromError>,
+    ) -> Result<(Manifest, bool), CromError> {
+        let key = spec.key();
+        if let Some(m) = self.lookup(kind, &key)? {
+            return Ok((m, false));
+        }
+        let staging = self.store.stage(spec)?;
+        let start = Instant::now();
+        let summary = compute(&staging)?;
+        let m = self.commit(staging, start.elapsed().as_secs_f64(), summary)?;
+        Ok((m, true))
+    }
+
+    /// Verified manifest of a stored artifact, or `None` (after quarantining a corrupt one).
+    pub(crate) fn lookup(&mut self, kind: ArtifactKind, key: &Key) -> Result<Option<Manifest>, CromError> {
+        match self.store.lookup(kind, key)? {
+            Lookup::Hit(m) => Ok(Some(*m)),
+            Lookup::Miss => Ok(None),
+            Lookup::Quarantined(to, why) => {
+                self.warnings.push(format!(
+                    "{} artifact {} failed verification ({why}); moved to {} and recomputed",
+                    kind.name(),
+                    key.short(),
+                    to.display()
+                ));
+                Ok(None)
+            }
+        }
+    }
+
+    /// Commit a staged artifact with this run's provenance.
+    pub(crate) fn commit(
+        &self,
+        staging: Staging,
+        wall_seconds: f64,
+        summary: BTreeMap<String, serde_json::Value>,
+    ) -> Result<Manifest, CromError> {
+        let prov = Provenance { scene: self.scene.scene.name.clone(), command: self.command.clone(), wall_seconds, summary };
+        staging.commit(self.store, prov)
+    }
+
+    pub(crate) fn record(&mut self, stage: &'static str, computed: usize, cached: usize, dir: PathBuf) {
+        self.records.push(StageRecord { stage, computed, cached, dir });
+    }
+}
+
+/// Run every stage of the scene's study.
+pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
+    let scene = ctx.scene;
+    let mut physics = LazyPhysics { scene, built: None };
+    let mesh_key = mesh::run(ctx, &mut physics)?;
+    let train_points = scene.parameter.train();
+    let test_points = scene.parameter.test();
+    let all: Vec<f64> = train_points.iter().chain(&test_points).copied().collect();
+    let keys = snapshots::run(ctx, &mut physics, &mesh_key, &all)?;
+    let (train_keys, test_keys) = keys.split_at(train_points.len());
+    let train = trainset::run(ctx, "train", &train_points, train_keys)?;
+    let test = trainset::run(ctx, "test", &test_points, test_keys)?;
+    let basis = basis::run(ctx, &train)?;
+    let compactness = compactness::run(ctx, &train, &basis)?;
+    Ok(RunOutput { mesh: mesh_key, train_snapshots: train_keys.to_vec(), train, test, basis, compactness })
+}
+
+/// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.
+#[derive(Debug)]
+pub(crate) struct LazyPhysics<'s> {
+    scene: &'s SceneConfig,
+    built: Option<Physics>,
+}
+
+impl LazyPhysics<'_> {
+    /// The model, building it if needed.
+    pub(crate) fn get(&mut self) -> Result<&Physics, CromError> {
+        if self.built.is_none() {
+            let p = Physics::build(self.scene).map_err(|message| CromError::Numerical {
+                stage: "mesh",
+                scene: self.scene.scene.name.clone(),
+                message,
+            })?;
+            self.built = Some(p);
+        }
+        Ok(self.built.as_ref().expect("built above"))
+    }
+}

@@ -1,0 +1,95 @@
+//! Every way a `crom` command can fail, with the exit code it maps to. Messages name the file,
+//! the field and the fix.
+
+use std::path::PathBuf;
+
+use crom_schemas::SceneError;
+
+/// A failed `crom` command.
+#[derive(Debug, thiserror::Error)]
+pub enum CromError {
+    /// Bad scene file (exit 2).
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// `crom run NAME` with no such scene (exit 2).
+    #[error("unknown scene `{name}`: there is no file {path}\n  available scenes: {available}\n  fix: use one of the available names, or give a path to a scene TOML file")]
+    UnknownScene {
+        /// What the user typed.
+        name: String,
+        /// Where it was looked for.
+        path: PathBuf,
+        /// Names found in the scenes directory.
+        available: String,
+    },
+    /// Another process holds the store (exit 3).
+    #[error("store {root} is in use by another crom process (lock file {lock})\n  fix: wait for the other run to finish, or point this run at another store with --store DIR")]
+    Locked {
+        /// Store root.
+        root: PathBuf,
+        /// Lock file.
+        lock: PathBuf,
+    },
+    /// File-system failure in the store (exit 1).
+    #[error("{path}: {action} failed: {source}\n  fix: check permissions and free space of the store (--store DIR or CROM_STORE)")]
+    Io {
+        /// The path involved.
+        path: PathBuf,
+        /// What was being done.
+        action: &'static str,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// An artifact file could not be written or read (exit 1).
+    #[error("{path}: {message}\n  fix: {fix}")]
+    Artifact {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+        /// How to fix it.
+        fix: String,
+    },
+    /// Some snapshots did not converge; the others are stored (exit 1).
+    #[error("{failed} of {total} snapshots of scene `{scene}` failed (the others are stored; downstream stages were skipped):\n{list}\n  fix: raise solver.max_iter or relax solver.rel_tol in the scene file, or exclude these parameter values")]
+    SolveFailures {
+        /// Scene name.
+        scene: String,
+        /// Number of failures.
+        failed: usize,
+        /// Number of points attempted.
+        total: usize,
+        /// One line per failed point.
+        list: String,
+    },
+    /// A reduction stage failed numerically (exit 1).
+    #[error("stage `{stage}` of scene `{scene}` failed: {message}")]
+    Numerical {
+        /// Stage name.
+        stage: &'static str,
+        /// Scene name.
+        scene: String,
+        /// The typed error's message.
+        message: String,
+    },
+}
+
+impl CromError {
+    /// Process exit code: 2 for bad user input, 3 for a busy store, 1 otherwise.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            CromError::Scene(_) | CromError::UnknownScene { .. } => 2,
+            CromError::Locked { .. } => 3,
+            _ => 1,
+        }
+    }
+
+    /// An [`CromError::Io`] at `path`.
+    pub fn io(path: impl Into<PathBuf>, action: &'static str, source: std::io::Error) -> Self {
+        CromError::Io { path: path.into(), action, source }
+    }
+
+    /// An [`CromError::Artifact`] from an HDF5 or Parquet library error.
+    pub fn artifact(path: impl Into<PathBuf>, message: impl std::fmt::Display, fix: &str) -> Self {
+        CromError::Artifact { path: path.into(), message: message.to_string(), fix: fix.to_string() }
+    }
+}

@@ -1,0 +1,204 @@
+//! HDF5 arrays with attributes. Matrices are written with shape `(rows, cols)`, one snapshot per
+//! column (so `f["primal"][:, j]` in h5py is snapshot j), chunked, shuffled and deflated.
+//!
+//! The hdf5 crate serialises every call behind a global lock: call these from one thread.
+
+use std::path::{Path, PathBuf};
+
+use hdf5::types::VarLenUnicode;
+
+use crate::error::CromError;
+
+const FIX_WRITE: &str = "check free space and permissions of the store directory";
+const FIX_READ: &str = "the artifact is damaged or from another tool; delete its directory and rerun to recompute it";
+
+/// A dense matrix stored column-major in memory (`data[i + j * rows]`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ColMatrix {
+    /// Rows (dofs).
+    pub rows: usize,
+    /// Columns (snapshots / modes).
+    pub cols: usize,
+    /// Column-major data.
+    pub data: Vec<f64>,
+}
+
+impl ColMatrix {
+    /// Column `j`.
+    pub fn col(&self, j: usize) -> &[f64] {
+        &self.data[j * self.rows..(j + 1) * self.rows]
+    }
+
+    /// From columns of equal length.
+    pub fn from_columns(rows: usize, columns: &[&[f64]]) -> Self {
+        let mut data = Vec::with_capacity(rows * columns.len());
+        for c in columns {
+            assert_eq!(c.len(), rows, "column length");
+            data.extend_from_slice(c);
+        }
+        Self { rows, cols: columns.len(), data }
+    }
+}
+
+/// An HDF5 file being written, or a group in it.
+#[derive(Debug)]
+pub struct H5Out {
+    path: PathBuf,
+    group: hdf5::Group,
+}
+
+fn werr(path: &Path, what: &str, e: hdf5::Error) -> CromError {
+    CromError::artifact(path, format!("HDF5 write of {what}: {e}"), FIX_WRITE)
+}
+
+fn rerr(path: &Path, what: &str, e: impl std::fmt::Display) -> CromError {
+    CromError::artifact(path, format!("HDF5 read of {what}: {e}"), FIX_READ)
+}
+
+impl H5Out {
+    /// Create a new file.
+    pub fn create(path: &Path) -> Result<Self, CromError> {
+        let file = hdf5::File::create(path).map_err(|e| werr(path, "file", e))?;
+        let group = file.as_group().map_err(|e| werr(path, "root group", e))?;
+        Ok(Self { path: path.to_path_buf(), group })
+    }
+
+    /// Create a child group.
+    pub fn group(&self, name: &str) -> Result<Self, CromError> {
+        let group = self.group.create_group(name).map_err(|e| werr(&self.path, name, e))?;
+        Ok(Self { path: self.path.clone(), group })
+    }
+
+    /// A string attribute on this group.
+    pub fn attr_str(&self, name: &str, value: &str) -> Result<(), CromError> {
+        let v: VarLenUnicode = value.parse().map_err(|e| CromError::artifact(&self.path, format!("attribute {name}: {e}"), FIX_WRITE))?;
+        let a = self.group.new_attr::<VarLenUnicode>().create(name).map_err(|e| werr(&self.path, name, e))?;
+        a.write_scalar(&v).map_err(|e| werr(&self.path, name, e))
+    }
+
+    /// A float attribute on this group.
+    pub fn attr_f64(&self, name: &str, value: f64) -> Result<(), CromError> {
+        let a = self.group.new_attr::<f64>().create(name).map_err(|e| werr(&self.path, name, e))?;
+        a.write_scalar(&value).map_err(|e| werr(&self.path, name, e))
+    }
+
+    /// An integer attribute on this group.
+    pub fn attr_u64(&self, name: &str, value: u64) -> Result<(), CromError> {
+        let a = self.group.new_attr::<u64>().create(name).map_err(|e| werr(&self.path, name, e))?;
+        a.write_scalar(&value).map_err(|e| werr(&self.path, name, e))
+    }
+
+    fn dataset<T: hdf5::H5Type>(&self, name: &str, shape: &[usize]) -> Result<hdf5::Dataset, CromError> {
+        let builder = self.group.new_dataset::<T>();
+        let empty = shape.contains(&0);
+        let ds = if empty || shape.iter().product::<usize>() < 64 {
+            builder.shape(shape).create(name)
+        } else {
+            let chunk: Vec<usize> = match shape {
+                [r] => vec![(*r).min(1 << 16)],
+                [r, c] => vec![(*r).min(1 << 14), (*c).min(8)],
+                _ => shape.to_vec(),
+            };
+            let mut b = builder.shape(shape);
+            b = b.chunk(chunk).shuffle().deflate(4);
+            b.create(name)
+        };
+        ds.map_err(|e| werr(&self.path, name, e))
+    }
+
+    /// A 1-D float dataset with a `units` attribute.
+    pub fn vec_f64(&self, name: &str, data: &[f64], units: &str) -> Result<(), CromError> {
+        let ds = self.dataset::<f64>(name, &[data.len()])?;
+        ds.write_raw(data).map_err(|e| werr(&self.path, name, e))?;
+        set_units(&ds, &self.path, name, units)
+    }
+
+    /// A 1-D integer dataset.
+    pub fn vec_u64(&self, name: &str, data: &[u64]) -> Result<(), CromError> {
+        let ds = self.dataset::<u64>(name, &[data.len()])?;
+        ds.write_raw(data).map_err(|e| werr(&self.path, name, e))
+    }
+
+    /// A 2-D row-major integer dataset `(rows, cols)`.
+    pub fn table_u64(&self, name: &str, rows: usize, cols: usize, row_major: &[u64]) -> Result<(), CromError> {
+        let ds = self.dataset::<u64>(name, &[rows, cols])?;
+        ds.write_raw(row_major).map_err(|e| werr(&self.path, name, e))
+    }
+
+    /// A 2-D row-major float dataset `(rows, cols)`.
+    pub fn table_f64(&self, name: &str, rows: usize, cols: usize, row_major: &[f64], units: &str) -> Result<(), CromError> {
+        let ds = self.dataset::<f64>(name, &[rows, cols])?;
+        ds.write_raw(row_major).map_err(|e| werr(&self.path, name, e))?;
+        set_units(&ds, &self.path, name, units)
+    }
+
+    /// A matrix, one column per snapshot / mode.
+    pub fn matrix(&self, name: &str, m: &ColMatrix, units: &str) -> Result<(), CromError> {
+        let mut row_major = vec![0.0; m.data.len()];
+        for j in 0..m.cols {
+            for i in 0..m.rows {
+                row_major[i * m.cols + j] = m.data[i + j * m.rows];
+            }
+        }
+        self.table_f64(name, m.rows, m.cols, &row_major, units)
+    }
+}
+
+fn set_units(ds: &hdf5::Dataset, path: &Path, name: &str, units: &str) -> Result<(), CromError> {
+    let v: VarLenUnicode = units.parse().map_err(|e| CromError::artifact(path, format!("units of {name}: {e}"), FIX_WRITE))?;
+    let a = ds.new_attr::<VarLenUnicode>().create("units").map_err(|e| werr(path, name, e))?;
+    a.write_scalar(&v).map_err(|e| werr(path, name, e))
+}
+
+/// An HDF5 file opened for reading.
+#[derive(Debug)]
+pub struct H5In {
+    path: PathBuf,
+    file: hdf5::File,
+}
+
+impl H5In {
+    /// Open for reading.
+    pub fn open(path: &Path) -> Result<Self, CromError> {
+        let file = hdf5::File::open(path).map_err(|e| rerr(path, "file", e))?;
+        Ok(Self { path: path.to_path_buf(), file })
+    }
+
+    fn ds(&self, name: &str) -> Result<hdf5::Dataset, CromError> {
+        self.file.dataset(name).map_err(|e| rerr(&self.path, name, e))
+    }
+
+    /// A 1-D float dataset.
+    pub fn vec_f64(&self, name: &str) -> Result<Vec<f64>, CromError> {
+        self.ds(name)?.read_raw::<f64>().map_err(|e| rerr(&self.path, name, e))
+    }
+
+    /// A 2-D float dataset as a column-major matrix.
+    pub fn matrix(&self, name: &str) -> Result<ColMatrix, CromError> {
+        let ds = self.ds(name)?;
+        let shape = ds.shape();
+        let [rows, cols] = shape[..] else {
+            return Err(rerr(&self.path, name, format!("expected a 2-D dataset, found shape {shape:?}")));
+        };
+        let rm = ds.read_raw::<f64>().map_err(|e| rerr(&self.path, name, e))?;
+        let mut data = vec![0.0; rows * cols];
+        for i in 0..rows {
+            for j in 0..cols {
+                data[i + j * rows] = rm[i * cols + j];
+            }
+        }
+        Ok(ColMatrix { rows, cols, data })
+    }
+
+    /// A float attribute of the root group.
+    pub fn attr_f64(&self, name: &str) -> Result<f64, CromError> {
+        let a = self.file.attr(name).map_err(|e| rerr(&self.path, name, e))?;
+        a.read_scalar::<f64>().map_err(|e| rerr(&self.path, name, e))
+    }
+
+    /// An integer attribute of the root group.
+    pub fn attr_u64(&self, name: &str) -> Result<u64, CromError> {
+        let a = self.file.attr(name).map_err(|e| rerr(&self.path, name, e))?;
+        a.read_scalar::<u64>().map_err(|e| rerr(&self.path, name, e))
+    }
+}

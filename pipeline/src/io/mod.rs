@@ -1,0 +1,6 @@
+//! File formats: HDF5 for arrays, Parquet for tables, XDMF sidecars for ParaView. Only the
+//! pipeline does I/O; stages never open a file.
+
+pub mod h5;
+pub mod table;
+pub mod xdmf;

@@ -1,0 +1,78 @@
+//! crom: the contact low-rank study pipeline — store, cache, HDF5/Parquet I/O, the DAG of stages
+//! and the CLI. The numerics live in `crom-stages`; this crate does all the I/O.
+
+pub mod cache;
+pub mod cli;
+pub mod dag;
+pub mod error;
+pub mod io;
+pub mod physics;
+pub mod progress;
+pub mod scenes;
+pub mod store;
+mod summary;
+
+use std::ffi::OsString;
+use std::time::Instant;
+
+use clap::Parser;
+use crom_schemas::SceneConfig;
+
+use crate::cli::{Cli, Command};
+use crate::error::CromError;
+use crate::progress::Progress;
+use crate::store::Store;
+
+/// Run `crom` with these arguments; returns the process exit code.
+pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
+    let cli = match Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { 2 } else { 0 };
+        }
+    };
+    match run(&cli) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            e.exit_code()
+        }
+    }
+}
+
+/// Execute a parsed command line.
+pub fn run(cli: &Cli) -> Result<(), CromError> {
+    match &cli.command {
+        Command::Run { scene } => run_scene(cli, scene),
+        Command::Ls { stage } => {
+            summary::print_ls(&Store::open_read_only(&cli.store), stage.as_deref());
+            Ok(())
+        }
+        Command::Scenes => {
+            for name in scenes::available(&cli.scenes) {
+                println!("{name}");
+            }
+            Ok(())
+        }
+    }
+}
+
+fn run_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
+    let start = Instant::now();
+    let path = scenes::resolve(scene_arg, &cli.scenes)?;
+    let scene = SceneConfig::load(&path)?;
+    let store = Store::open(&cli.store)?;
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let mut ctx = dag::Ctx {
+        store: &store,
+        scene: &scene,
+        command,
+        progress: Progress::new(cli.quiet),
+        records: Vec::new(),
+        warnings: Vec::new(),
+    };
+    let result = dag::run_scene(&mut ctx);
+    summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok());
+    result.map(|_| ())
+}

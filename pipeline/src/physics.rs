@@ -1,0 +1,109 @@
+//! From a scene file to a ready-to-solve high-fidelity model: the mesh description for the mesh
+//! artifact and a thread-safe `solve(parameter)` for the snapshot stage. Everything costly and
+//! parameter-independent (e.g. the factorisation of K) is done once, in [`Physics::build`].
+
+use crom_schemas::scene::{Model, RopeSpec};
+use crom_schemas::SceneConfig;
+use crom_stages::rope::{self, Rope, RopeParams, RopeSolveParams};
+use crom_stages::snapshot::Snapshot;
+
+/// The discretisation as stored in the mesh artifact.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MeshData {
+    /// Node coordinates `(x, y)` (1-D meshes have `y = 0`).
+    pub nodes: Vec<[f64; 2]>,
+    /// Cells, `nodes_per_cell` node ids each.
+    pub cells: Vec<Vec<u64>>,
+    /// 2 (line) or 4 (quad).
+    pub nodes_per_cell: usize,
+    /// Potential-contact nodes, in the order of the dual field.
+    pub contact_nodes: Vec<u64>,
+    /// Body id of each node.
+    pub node_body: Vec<u64>,
+    /// Body id of each cell.
+    pub cell_body: Vec<u64>,
+    /// Degrees of freedom per node.
+    pub dofs_per_node: usize,
+}
+
+/// A scene's high-fidelity model, ready to solve at any parameter value.
+pub enum Physics {
+    /// The rope (1-D obstacle problem).
+    Rope(Rope, RopeSolveParams),
+}
+
+impl std::fmt::Debug for Physics {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Physics::Rope(r, _) => write!(f, "Physics::Rope({} nodes)", r.n_nodes()),
+        }
+    }
+}
+
+/// Units of the stored fields, per model.
+#[derive(Debug, Clone, Copy)]
+pub struct Units {
+    /// Primal field.
+    pub primal: &'static str,
+    /// Dual field.
+    pub dual: &'static str,
+}
+
+impl Physics {
+    /// Build the model of a validated scene (meshing, assembly and factorisation happen here).
+    pub fn build(scene: &SceneConfig) -> Result<Self, String> {
+        match &scene.model {
+            Model::Rope(r) => Ok(Physics::Rope(
+                Rope::new(rope_params(r)),
+                RopeSolveParams { rel_tol: scene.solver.rel_tol, max_iter: scene.solver.max_iter },
+            )),
+            Model::Hertz(_) | Model::Ironing(_) => {
+                Err(format!("the {} model is not available in this build of crom", scene.model.kind()))
+            }
+        }
+    }
+
+    /// Units of the primal and dual fields.
+    pub fn units(&self) -> Units {
+        match self {
+            Physics::Rope(..) => Units { primal: "length (vertical displacement)", dual: "force per unit length (contact pressure)" },
+        }
+    }
+
+    /// The mesh artifact's content.
+    pub fn mesh(&self) -> MeshData {
+        match self {
+            Physics::Rope(r, _) => {
+                let n = r.n_nodes();
+                MeshData {
+                    nodes: r.x.iter().map(|&x| [x, 0.0]).collect(),
+                    cells: (0..n as u64 - 1).map(|i| vec![i, i + 1]).collect(),
+                    nodes_per_cell: 2,
+                    contact_nodes: (0..n as u64).collect(),
+                    node_body: vec![0; n],
+                    cell_body: vec![0; n - 1],
+                    dofs_per_node: 1,
+                }
+            }
+        }
+    }
+
+    /// Solve at one parameter value.
+    pub fn solve(&self, parameter: f64) -> Result<Snapshot, String> {
+        match self {
+            Physics::Rope(r, p) => rope::solve(r, parameter, p).map_err(|e| e.to_string()),
+        }
+    }
+}
+
+fn rope_params(r: &RopeSpec) -> RopeParams {
+    RopeParams {
+        length: r.length,
+        n_elements: r.n_elements,
+        nu: r.nu,
+        f: r.f,
+        modes: r.obstacle.modes.clone(),
+        amplitudes: r.obstacle.amplitudes.clone(),
+        offset: r.obstacle.offset,
+    }
+}

@@ -1,0 +1,44 @@
+//! What a run tells the user at the end, and `crom ls`.
+
+use std::io::Write;
+
+use crom_schemas::artifact::ArtifactKind;
+
+use crate::dag::Ctx;
+use crate::store::Store;
+
+/// The closing summary of `crom run`: what ran, what came from cache, where the artifacts are.
+/// Output errors (a closed pipe) are ignored: the summary is informational.
+pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool) {
+    let mut out = std::io::stdout().lock();
+    let name = &ctx.scene.scene.name;
+    let _ = writeln!(out, "crom run {name}: {} in {seconds:.2} s", if ok { "done" } else { "stopped" });
+    let _ = writeln!(out, "  {:<12} {:>9} {:>7}  artifact", "stage", "computed", "cached");
+    for r in &ctx.records {
+        let _ = writeln!(out, "  {:<12} {:>9} {:>7}  {}", r.stage, r.computed, r.cached, r.dir.display());
+    }
+    for w in &ctx.warnings {
+        let _ = writeln!(out, "  warning: {w}");
+    }
+    let computed: usize = ctx.records.iter().map(|r| r.computed).sum();
+    if ok && computed == 0 {
+        let _ = writeln!(out, "  nothing computed: every artifact came from the cache");
+    }
+    let _ = writeln!(out, "  store: {}", ctx.store.root().display());
+}
+
+/// `crom ls`: one line per artifact.
+pub(crate) fn print_ls(store: &Store, stage: Option<&str>) {
+    let mut out = std::io::stdout().lock();
+    let mut all = store.catalog();
+    let order = |s: &str| ArtifactKind::from_name(s).map_or(usize::MAX, |k| k as usize);
+    all.sort_by(|a, b| order(&a.stage).cmp(&order(&b.stage)).then(a.created_unix.cmp(&b.created_unix)));
+    let _ = writeln!(out, "{:<12} {:<14} {:<16} {:>9}  summary", "stage", "key", "scene", "wall [s]");
+    let mut n = 0;
+    for m in all.iter().filter(|m| stage.is_none_or(|s| s == m.stage)) {
+        let facts: Vec<String> = m.summary.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        let _ = writeln!(out, "{:<12} {:<14} {:<16} {:>9.3}  {}", m.stage, m.key.short(), m.scene, m.wall_seconds, facts.join(" "));
+        n += 1;
+    }
+    let _ = writeln!(out, "{n} artifacts in {}", store.root().display());
+}

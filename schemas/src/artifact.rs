@@ -1,0 +1,174 @@
+//! Artifact kinds of the store, their schema versions, file names, HDF5 dataset paths and
+//! Parquet column names: the contract between the pipeline and anyone reading the store from
+//! h5py, pandas or ParaView.
+//!
+//! Bump a kind's `schema_version` whenever the layout of its files changes: the version is part of
+//! every cache key, so old artifacts are never read with a new layout.
+
+/// One kind of artifact (one stage's output).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ArtifactKind {
+    /// The scene's discretisation: `mesh.h5` (+ `mesh.xdmf`).
+    Mesh,
+    /// One high-fidelity solve at one parameter value: `snapshot.h5`.
+    Snapshot,
+    /// A set of snapshots as matrices: `snapshots.h5` + `solver_stats.parquet`.
+    TrainingSet,
+    /// Reduced bases of one training set: `basis.h5`.
+    Basis,
+    /// Compactness C(m) of every basis: `compactness.parquet`.
+    Compactness,
+}
+
+impl ArtifactKind {
+    /// Every kind, in DAG order.
+    pub const ALL: [ArtifactKind; 5] = [
+        ArtifactKind::Mesh,
+        ArtifactKind::Snapshot,
+        ArtifactKind::TrainingSet,
+        ArtifactKind::Basis,
+        ArtifactKind::Compactness,
+    ];
+
+    /// Directory name under the store root and stage name in manifests.
+    pub fn name(self) -> &'static str {
+        match self {
+            ArtifactKind::Mesh => "mesh",
+            ArtifactKind::Snapshot => "snapshot",
+            ArtifactKind::TrainingSet => "trainset",
+            ArtifactKind::Basis => "basis",
+            ArtifactKind::Compactness => "compactness",
+        }
+    }
+
+    /// Parse a directory / stage name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// Layout version of this kind's files.
+    pub fn schema_version(self) -> u32 {
+        match self {
+            ArtifactKind::Mesh => 1,
+            ArtifactKind::Snapshot => 1,
+            ArtifactKind::TrainingSet => 1,
+            ArtifactKind::Basis => 1,
+            ArtifactKind::Compactness => 1,
+        }
+    }
+}
+
+/// Name of the JSON manifest in every artifact directory.
+pub const MANIFEST: &str = "manifest.json";
+
+/// `mesh.h5`: `/nodes` (n_nodes x dim), `/cells` (n_cells x nodes_per_cell, u64),
+/// `/contact_nodes` (u64, the potential-contact nodes, order of the dual field),
+/// `/node_body`, `/cell_body` (u64 body ids). Attributes: `scene`, `kind`, `schema_version`,
+/// `cache_key`, `command`.
+pub mod mesh {
+    /// HDF5 file.
+    pub const FILE: &str = "mesh.h5";
+    /// XDMF sidecar for ParaView.
+    pub const XDMF: &str = "mesh.xdmf";
+    /// Node coordinates.
+    pub const NODES: &str = "nodes";
+    /// Cell connectivity.
+    pub const CELLS: &str = "cells";
+    /// Potential-contact nodes.
+    pub const CONTACT_NODES: &str = "contact_nodes";
+    /// Body id of each node.
+    pub const NODE_BODY: &str = "node_body";
+    /// Body id of each cell.
+    pub const CELL_BODY: &str = "cell_body";
+}
+
+/// `snapshot.h5`: `/u` (n_dof), `/pressure` (n_contact), attribute `parameter` and the solver
+/// statistics as attributes.
+pub mod snapshot {
+    /// HDF5 file.
+    pub const FILE: &str = "snapshot.h5";
+    /// Primal field (all dofs).
+    pub const U: &str = "u";
+    /// Dual field as pressure.
+    pub const PRESSURE: &str = "pressure";
+}
+
+/// `snapshots.h5`: `/primal` (n_dof x n_snap), `/dual` (n_contact x n_snap), `/parameters`
+/// (n_snap); column j of both matrices is the solve at `parameters[j]`.
+pub mod trainset {
+    /// HDF5 file.
+    pub const FILE: &str = "snapshots.h5";
+    /// Primal snapshot matrix.
+    pub const PRIMAL: &str = "primal";
+    /// Dual snapshot matrix (pressure).
+    pub const DUAL: &str = "dual";
+    /// Parameter value of each column.
+    pub const PARAMETERS: &str = "parameters";
+    /// Per-snapshot solver statistics table.
+    pub const STATS: &str = "solver_stats.parquet";
+    /// Columns of the statistics table, in order.
+    pub const STATS_COLUMNS: [&str; 12] = [
+        "scene",
+        "index",
+        "parameter",
+        "snapshot_key",
+        "iterations",
+        "active",
+        "max_penetration",
+        "min_lambda",
+        "complementarity",
+        "kkt_residual",
+        "vertex_ties",
+        "seconds",
+    ];
+}
+
+/// `basis.h5`: groups `/primal_pod`, `/dual_pod` with `modes` (n x m) and `singular_values`
+/// (all, descending); `/dual_cpg` with `modes` (n x m, unit columns, selection order),
+/// `selected` (u64 snapshot indices) and `compactness` (C(0..=m) of the greedy);
+/// `/dual_cpg_truncated` likewise at the truncation tolerance. Attributes: `tolerance`.
+pub mod basis {
+    /// HDF5 file.
+    pub const FILE: &str = "basis.h5";
+    /// Group of the primal POD.
+    pub const PRIMAL_POD: &str = "primal_pod";
+    /// Group of the dual POD.
+    pub const DUAL_POD: &str = "dual_pod";
+    /// Group of the full CPG dual basis.
+    pub const DUAL_CPG: &str = "dual_cpg";
+    /// Group of the truncated CPG dual basis.
+    pub const DUAL_CPG_TRUNCATED: &str = "dual_cpg_truncated";
+    /// Basis vectors, one per column.
+    pub const MODES: &str = "modes";
+    /// Singular values (POD groups).
+    pub const SINGULAR_VALUES: &str = "singular_values";
+    /// Selected snapshot indices (CPG groups).
+    pub const SELECTED: &str = "selected";
+    /// Greedy compactness trace (CPG groups).
+    pub const COMPACTNESS: &str = "compactness";
+}
+
+/// `compactness.parquet`: columns scene, field, basis, m, value (eq. 16).
+pub mod compactness {
+    /// Parquet file.
+    pub const FILE: &str = "compactness.parquet";
+    /// Columns, in order.
+    pub const COLUMNS: [&str; 5] = ["scene", "field", "basis", "m", "value"];
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_are_unique() {
+        for k in ArtifactKind::ALL {
+            assert_eq!(ArtifactKind::from_name(k.name()), Some(k));
+        }
+        let mut names: Vec<_> = ArtifactKind::ALL.iter().map(|k| k.name()).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), ArtifactKind::ALL.len());
+        assert_eq!(ArtifactKind::from_name("nope"), None);
+    }
+}

@@ -1,0 +1,105 @@
+//! The scalar parameter of a scene and the point sets drawn from it.
+
+use serde::{Deserialize, Serialize};
+
+/// A scalar parameter range with its training grid.
+///
+/// Training points: `n_train` equidistant points from `min` to `max` inclusive. Test points: the
+/// midpoints between consecutive training points. Nested level `n` (paper Sec. 5.2): `2^n + 1`
+/// equidistant points from `min` to `max`, so level `n` is a subset of level `n + 1`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterSpec {
+    /// Name of the parameter (`gamma`, `d`, `d_x`).
+    pub name: String,
+    /// Physical meaning, for tables and figures.
+    pub description: String,
+    /// Lower end of the range (inclusive).
+    pub min: f64,
+    /// Upper end of the range (inclusive).
+    pub max: f64,
+    /// Number of equidistant training points, both ends included (>= 2).
+    pub n_train: usize,
+    /// Nested training levels `1..=nested_levels` (0: none).
+    #[serde(default)]
+    pub nested_levels: u32,
+}
+
+/// `n` equidistant points from `a` to `b` inclusive (exact ends).
+pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
+    match n {
+        0 => Vec::new(),
+        1 => vec![a],
+        _ => (0..n)
+            .map(|i| {
+                if i == n - 1 {
+                    b
+                } else {
+                    a + (b - a) * i as f64 / (n - 1) as f64
+                }
+            })
+            .collect(),
+    }
+}
+
+impl ParameterSpec {
+    /// The training points.
+    pub fn train(&self) -> Vec<f64> {
+        linspace(self.min, self.max, self.n_train)
+    }
+
+    /// The test points: midpoints of consecutive training points.
+    pub fn test(&self) -> Vec<f64> {
+        let t = self.train();
+        t.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect()
+    }
+
+    /// The points of nested level `level` (`2^level + 1` points).
+    pub fn nested(&self, level: u32) -> Vec<f64> {
+        linspace(self.min, self.max, (1usize << level) + 1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(n: usize) -> ParameterSpec {
+        ParameterSpec {
+            name: "g".into(),
+            description: String::new(),
+            min: -0.5,
+            max: 0.5,
+            n_train: n,
+            nested_levels: 3,
+        }
+    }
+
+    #[test]
+    fn train_includes_both_ends_and_test_are_midpoints() {
+        let s = spec(10);
+        let t = s.train();
+        assert_eq!(t.len(), 10);
+        assert_eq!(t[0].to_bits(), (-0.5f64).to_bits());
+        assert_eq!(t[9].to_bits(), 0.5f64.to_bits());
+        let m = s.test();
+        assert_eq!(m.len(), 9);
+        // Midpoint of the first interval: -0.5 + 1/18 (spacing 1/9), to rounding (1e-15).
+        assert!((m[0] - (-0.5 + 1.0 / 18.0)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn nested_levels_are_subsets() {
+        let s = spec(10);
+        for level in 1..3 {
+            let lo = s.nested(level);
+            let hi = s.nested(level + 1);
+            assert_eq!(hi.len(), 2 * lo.len() - 1);
+            for (i, x) in lo.iter().enumerate() {
+                // Bit-identical, not merely close: (b-a)*2i/(2(n-1)) rounds exactly like
+                // (b-a)*i/(n-1) (scaling by 2 is exact), so snapshot cache keys coincide.
+                assert_eq!(hi[2 * i].to_bits(), x.to_bits(), "level {level} point {i}");
+            }
+        }
+    }
+}

@@ -1,0 +1,231 @@
+//! The scene file: `data/scenes/<name>.toml`. Every physical and numerical value of a scene
+//! lives here (SCENES.md); nothing of it is hard-coded in Rust.
+//!
+//! ```toml
+//! [scene]
+//! name = "rope"
+//! description = "..."
+//! [model.rope]          # exactly one of model.rope / model.hertz / model.ironing
+//! ...
+//! [parameter]           # the scalar parameter and its training grid
+//! [solver]              # high-fidelity solver settings
+//! [study]               # basis tolerances and metric settings
+//! ```
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::{ParameterSpec, SceneError};
+
+/// A whole, validated scene file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneConfig {
+    /// Name and description.
+    pub scene: SceneMeta,
+    /// The physical model.
+    pub model: Model,
+    /// The scalar parameter.
+    pub parameter: ParameterSpec,
+    /// High-fidelity solver settings.
+    pub solver: SolverSpec,
+    /// Reduced-basis and metric settings.
+    pub study: StudySpec,
+}
+
+/// Name and description of a scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneMeta {
+    /// Scene name (the file stem by convention).
+    pub name: String,
+    /// One line for humans.
+    pub description: String,
+}
+
+/// The physical model of a scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Model {
+    /// 1-D rope over a rigid obstacle (Type-1, paper Sec. 3).
+    Rope(RopeSpec),
+    /// Two half-disks pressed together (Type-2, paper Sec. 5.1).
+    Hertz(HertzSpec),
+    /// An iron sliding on a slab (Type-2, paper Sec. 5.2).
+    Ironing(IroningSpec),
+}
+
+impl Model {
+    /// `rope`, `hertz` or `ironing`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Model::Rope(_) => "rope",
+            Model::Hertz(_) => "hertz",
+            Model::Ironing(_) => "ironing",
+        }
+    }
+}
+
+/// Rope: minimise `∫ ½ ν u'² + f u dx` on `[0, length]`, `u(0) = u(L) = 0`, `u >= g(x, γ)`, with
+/// `g(x, γ) = Σ_k a_k sin(m_k π x) + offset + γ x` (paper eqs. 14–15).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RopeSpec {
+    /// Length of the rope (domain `[0, length]`).
+    pub length: f64,
+    /// Number of uniform P1 elements.
+    pub n_elements: usize,
+    /// Tension ν.
+    pub nu: f64,
+    /// Distributed load f (positive pulls the rope down).
+    pub f: f64,
+    /// Obstacle shape.
+    pub obstacle: ObstacleSpec,
+}
+
+/// Obstacle `g(x, γ) = Σ_k amplitudes[k] sin(modes[k] π x) + offset + γ x`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleSpec {
+    /// Sine mode numbers `m_k`.
+    pub modes: Vec<f64>,
+    /// Sine amplitudes `a_k` (same length as `modes`).
+    pub amplitudes: Vec<f64>,
+    /// Constant offset.
+    pub offset: f64,
+}
+
+/// Linear isotropic material.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Young's modulus E (> 0).
+    pub young: f64,
+    /// Poisson ratio ν (in (-1, 0.5)).
+    pub poisson: f64,
+}
+
+/// Hertz: two identical half-disks; parameter d = imposed downward displacement of the top face.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HertzSpec {
+    /// Radius of both half-disks.
+    pub radius: f64,
+    /// Material of both bodies.
+    pub material: MaterialSpec,
+    /// Elements on each curved edge.
+    pub n_arc: usize,
+}
+
+/// Ironing: an iron with a circular sole pressed into a slab and moved by `d_x` (the parameter).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IroningSpec {
+    /// The slab `[0, length] x [-height, 0]`.
+    pub slab: SlabSpec,
+    /// The iron.
+    pub iron: IronSpec,
+    /// Imposed downward displacement of the iron's top edge.
+    pub d_y: f64,
+}
+
+/// The slab of the ironing scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlabSpec {
+    /// Length along x.
+    pub length: f64,
+    /// Height (the slab spans y in [-height, 0]).
+    pub height: f64,
+    /// Elements along x.
+    pub nx: usize,
+    /// Elements along y.
+    pub ny: usize,
+    /// Material.
+    pub material: MaterialSpec,
+}
+
+/// The iron of the ironing scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IronSpec {
+    /// Width of the block.
+    pub width: f64,
+    /// Height of the block (sole's lowest point to the flat top).
+    pub height: f64,
+    /// Radius of the convex circular sole.
+    pub sole_radius: f64,
+    /// x of the sole's lowest point in the reference position (it touches the slab top there).
+    pub contact_x: f64,
+    /// Elements along x.
+    pub nx: usize,
+    /// Elements along y.
+    pub ny: usize,
+    /// Material.
+    pub material: MaterialSpec,
+}
+
+/// High-fidelity solver settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    /// Relative KKT / complementarity residual to reach (> 0).
+    pub rel_tol: f64,
+    /// Iteration cap of the active-set loop (>= 1).
+    pub max_iter: usize,
+}
+
+/// Reduced-basis and metric settings (SCENES.md → Study settings).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudySpec {
+    /// Relative Frobenius truncation tolerance δ of the primal POD (eq. 9); 0 keeps the numerical rank.
+    pub primal_tol: f64,
+    /// Same for the dual POD ("dual orth").
+    pub dual_orth_tol: f64,
+    /// Stopping tolerance of the Cone-Projected Greedy dual basis ("dual cone", full basis).
+    pub dual_cone_tol: f64,
+    /// Tolerance of the truncated CPG basis (paper Tables 1–2).
+    pub dual_cone_tol_truncated: f64,
+    /// Number of random samples for specificity (eq. 18).
+    pub specificity_samples: usize,
+    /// Seed of the specificity sampler.
+    pub seed: u64,
+}
+
+impl SceneConfig {
+    /// Parse and validate a scene file's text; `path` only names the file in errors.
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Self, SceneError> {
+        let cfg: SceneConfig = toml::from_str(text).map_err(|e| SceneError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string().trim_end().to_string(),
+            fix: parse_fix(e.message()),
+        })?;
+        cfg.validate(path)?;
+        Ok(cfg)
+    }
+
+    /// Read, parse and validate a scene file.
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_toml_str(&text, path)
+    }
+}
+
+fn parse_fix(message: &str) -> String {
+    if message.contains("unknown field") {
+        "remove or rename the key; the expected keys are listed above (see data/scenes/rope.toml for a complete example)".into()
+    } else if message.contains("missing field") {
+        "add the missing key; see data/scenes/*.toml for complete examples".into()
+    } else if message.contains("unknown variant") {
+        "use exactly one of [model.rope], [model.hertz], [model.ironing]".into()
+    } else if message.contains("invalid type") {
+        "give the value the type named above (numbers for numeric fields, integers without a decimal point for counts)".into()
+    } else {
+        "correct the TOML at the line shown above".into()
+    }
+}

@@ -1,0 +1,200 @@
+//! Range checks of a parsed scene file. Parsing (serde + TOML) already rejects unknown keys,
+//! missing fields and wrong types; this rejects values that parse but make no sense, each with the
+//! field's dotted path and a fix.
+
+use std::path::Path;
+
+use crate::scene::{
+    HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec, SceneConfig, SolverSpec, StudySpec,
+};
+use crate::SceneError;
+
+struct Checker<'a> {
+    path: &'a Path,
+}
+
+impl Checker<'_> {
+    fn fail(&self, field: &str, problem: String, fix: &str) -> SceneError {
+        SceneError::Invalid {
+            path: self.path.to_path_buf(),
+            field: field.to_string(),
+            problem,
+            fix: fix.to_string(),
+        }
+    }
+
+    fn finite(&self, field: &str, v: f64) -> Result<(), SceneError> {
+        if v.is_finite() {
+            Ok(())
+        } else {
+            Err(self.fail(field, format!("is {v}, not a finite number"), "give a finite number"))
+        }
+    }
+
+    fn positive(&self, field: &str, v: f64) -> Result<(), SceneError> {
+        self.finite(field, v)?;
+        if v > 0.0 {
+            Ok(())
+        } else {
+            Err(self.fail(field, format!("is {v}, must be > 0"), "give a positive number"))
+        }
+    }
+
+    fn non_negative(&self, field: &str, v: f64) -> Result<(), SceneError> {
+        self.finite(field, v)?;
+        if v >= 0.0 {
+            Ok(())
+        } else {
+            Err(self.fail(
+                field,
+                format!("is {v}, must be >= 0"),
+                "give 0 (keep everything) or a positive tolerance",
+            ))
+        }
+    }
+
+    fn tolerance(&self, field: &str, v: f64) -> Result<(), SceneError> {
+        self.non_negative(field, v)?;
+        if v <= 1.0 {
+            Ok(())
+        } else {
+            Err(self.fail(
+                field,
+                format!("is {v}, a relative tolerance above 1 keeps nothing"),
+                "give a relative tolerance in [0, 1]",
+            ))
+        }
+    }
+
+    fn at_least(&self, field: &str, v: usize, min: usize) -> Result<(), SceneError> {
+        if v >= min {
+            Ok(())
+        } else {
+            Err(self.fail(field, format!("is {v}, must be at least {min}"), &format!("give an integer >= {min}")))
+        }
+    }
+
+    fn material(&self, field: &str, m: &MaterialSpec) -> Result<(), SceneError> {
+        self.positive(&format!("{field}.young"), m.young)?;
+        self.finite(&format!("{field}.poisson"), m.poisson)?;
+        if m.poisson > -1.0 && m.poisson < 0.5 {
+            Ok(())
+        } else {
+            Err(self.fail(
+                &format!("{field}.poisson"),
+                format!("is {}, must lie in (-1, 0.5) for a stable plane-strain material", m.poisson),
+                "give a Poisson ratio such as 0.3",
+            ))
+        }
+    }
+}
+
+impl SceneConfig {
+    /// Check every value's range. Called by [`SceneConfig::from_toml_str`].
+    pub(crate) fn validate(&self, path: &Path) -> Result<(), SceneError> {
+        let c = Checker { path };
+        if self.scene.name.trim().is_empty() {
+            return Err(c.fail("scene.name", "is empty".into(), "give the scene a name, e.g. the file stem"));
+        }
+        self.check_parameter(&c)?;
+        check_solver(&c, &self.solver)?;
+        check_study(&c, &self.study)?;
+        match &self.model {
+            Model::Rope(r) => check_rope(&c, r),
+            Model::Hertz(h) => check_hertz(&c, h),
+            Model::Ironing(i) => check_ironing(&c, i),
+        }
+    }
+
+    fn check_parameter(&self, c: &Checker<'_>) -> Result<(), SceneError> {
+        let p = &self.parameter;
+        if p.name.trim().is_empty() {
+            return Err(c.fail("parameter.name", "is empty".into(), "name the parameter, e.g. \"gamma\""));
+        }
+        c.finite("parameter.min", p.min)?;
+        c.finite("parameter.max", p.max)?;
+        if p.max <= p.min {
+            return Err(c.fail(
+                "parameter.max",
+                format!("is {} but parameter.min is {}: the range is empty or reversed", p.max, p.min),
+                "make parameter.max greater than parameter.min",
+            ));
+        }
+        c.at_least("parameter.n_train", p.n_train, 2)?;
+        if p.nested_levels > 12 {
+            return Err(c.fail(
+                "parameter.nested_levels",
+                format!("is {}, i.e. 2^{} + 1 points per level", p.nested_levels, p.nested_levels),
+                "use at most 12 nested levels",
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn check_solver(c: &Checker<'_>, s: &SolverSpec) -> Result<(), SceneError> {
+    c.positive("solver.rel_tol", s.rel_tol)?;
+    if s.rel_tol >= 1.0 {
+        return Err(c.fail("solver.rel_tol", format!("is {}, must be < 1", s.rel_tol), "use e.g. 1e-10"));
+    }
+    c.at_least("solver.max_iter", s.max_iter, 1)
+}
+
+fn check_study(c: &Checker<'_>, s: &StudySpec) -> Result<(), SceneError> {
+    c.tolerance("study.primal_tol", s.primal_tol)?;
+    c.tolerance("study.dual_orth_tol", s.dual_orth_tol)?;
+    c.tolerance("study.dual_cone_tol", s.dual_cone_tol)?;
+    c.tolerance("study.dual_cone_tol_truncated", s.dual_cone_tol_truncated)?;
+    c.at_least("study.specificity_samples", s.specificity_samples, 1)
+}
+
+fn check_rope(c: &Checker<'_>, r: &RopeSpec) -> Result<(), SceneError> {
+    c.positive("model.rope.length", r.length)?;
+    c.at_least("model.rope.n_elements", r.n_elements, 2)?;
+    c.positive("model.rope.nu", r.nu)?;
+    c.finite("model.rope.f", r.f)?;
+    let o = &r.obstacle;
+    if o.modes.len() != o.amplitudes.len() {
+        return Err(c.fail(
+            "model.rope.obstacle.amplitudes",
+            format!("has {} entries but modes has {}", o.amplitudes.len(), o.modes.len()),
+            "give one amplitude per sine mode",
+        ));
+    }
+    for (i, m) in o.modes.iter().enumerate() {
+        c.finite(&format!("model.rope.obstacle.modes[{i}]"), *m)?;
+    }
+    for (i, a) in o.amplitudes.iter().enumerate() {
+        c.finite(&format!("model.rope.obstacle.amplitudes[{i}]"), *a)?;
+    }
+    c.finite("model.rope.obstacle.offset", o.offset)
+}
+
+fn check_hertz(c: &Checker<'_>, h: &HertzSpec) -> Result<(), SceneError> {
+    c.positive("model.hertz.radius", h.radius)?;
+    c.material("model.hertz.material", &h.material)?;
+    c.at_least("model.hertz.n_arc", h.n_arc, 6)
+}
+
+fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
+    c.positive("model.ironing.slab.length", i.slab.length)?;
+    c.positive("model.ironing.slab.height", i.slab.height)?;
+    c.at_least("model.ironing.slab.nx", i.slab.nx, 1)?;
+    c.at_least("model.ironing.slab.ny", i.slab.ny, 1)?;
+    c.material("model.ironing.slab.material", &i.slab.material)?;
+    c.positive("model.ironing.iron.width", i.iron.width)?;
+    c.positive("model.ironing.iron.height", i.iron.height)?;
+    c.positive("model.ironing.iron.sole_radius", i.iron.sole_radius)?;
+    if i.iron.sole_radius <= 0.5 * i.iron.width {
+        return Err(c.fail(
+            "model.ironing.iron.sole_radius",
+            format!("is {}, but the sole spans the width {}", i.iron.sole_radius, i.iron.width),
+            "give a sole radius larger than half the iron's width",
+        ));
+    }
+    c.finite("model.ironing.iron.contact_x", i.iron.contact_x)?;
+    c.at_least("model.ironing.iron.nx", i.iron.nx, 1)?;
+    c.at_least("model.ironing.iron.ny", i.iron.ny, 1)?;
+    c.material("model.ironing.iron.material", &i.iron.material)?;
+    c.finite("model.ironing.d_y", i.d_y)
+}

@@ -1,0 +1,115 @@
+//! Every shipped scene file loads, and every kind of bad input gives an error that names the file,
+//! the field and a fix.
+
+use std::path::{Path, PathBuf};
+
+use crom_schemas::{Model, SceneConfig, SceneError};
+
+fn scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes")
+}
+
+fn rope_text() -> String {
+    std::fs::read_to_string(scenes_dir().join("rope.toml")).expect("rope.toml is shipped")
+}
+
+fn load_err(text: &str) -> SceneError {
+    SceneConfig::from_toml_str(text, Path::new("bad.toml")).expect_err("must be rejected")
+}
+
+#[test]
+fn every_shipped_scene_loads_and_matches_scenes_md() {
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(scenes_dir()).expect("data/scenes exists") {
+        let path = entry.expect("dir entry").path();
+        let cfg = SceneConfig::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(cfg.scene.name, path.file_stem().and_then(|s| s.to_str()).unwrap_or(""));
+        names.push(cfg.scene.name.clone());
+        match (&cfg.model, cfg.scene.name.as_str()) {
+            (Model::Rope(r), "rope") => {
+                assert_eq!(r.n_elements, 200);
+                assert_eq!(cfg.parameter.n_train, 10);
+            }
+            (Model::Hertz(h), "hertz") => assert_eq!(h.n_arc, 78),
+            (Model::Hertz(h), "hertz-fine") => assert_eq!(h.n_arc, 312),
+            (Model::Ironing(i), "ironing-coarse") => {
+                assert_eq!((i.slab.nx, i.slab.ny, i.iron.nx, i.iron.ny), (100, 20, 30, 30));
+                assert_eq!(cfg.parameter.n_train, 128);
+                assert_eq!(cfg.parameter.nested_levels, 7);
+            }
+            (Model::Ironing(i), "ironing-fine") => {
+                assert_eq!((i.slab.nx, i.slab.ny, i.iron.nx, i.iron.ny), (200, 40, 60, 60));
+            }
+            (m, n) => panic!("scene {n} has unexpected model {}", m.kind()),
+        }
+    }
+    names.sort();
+    assert_eq!(names, ["hertz", "hertz-fine", "ironing-coarse", "ironing-fine", "rope"]);
+}
+
+fn assert_names(err: &SceneError, needles: &[&str]) {
+    let msg = err.to_string();
+    assert!(msg.contains("bad.toml"), "no file name in: {msg}");
+    assert!(msg.contains("fix:"), "no fix in: {msg}");
+    for n in needles {
+        assert!(msg.contains(n), "`{n}` missing from: {msg}");
+    }
+}
+
+#[test]
+fn unknown_key_is_named() {
+    let text = rope_text().replace("n_elements = 200", "n_elements = 200\nn_elemnts = 3");
+    assert_names(&load_err(&text), &["n_elemnts"]);
+}
+
+#[test]
+fn missing_field_is_named() {
+    let text = rope_text().replace("nu = 30.0\n", "");
+    assert_names(&load_err(&text), &["nu"]);
+}
+
+#[test]
+fn wrong_type_is_named() {
+    let text = rope_text().replace("n_elements = 200", "n_elements = \"many\"");
+    assert_names(&load_err(&text), &["n_elements"]);
+}
+
+#[test]
+fn too_few_elements() {
+    let text = rope_text().replace("n_elements = 200", "n_elements = 1");
+    assert_names(&load_err(&text), &["model.rope.n_elements", "at least 2"]);
+}
+
+#[test]
+fn negative_tolerance() {
+    let text = rope_text().replace("dual_cone_tol_truncated = 0.2", "dual_cone_tol_truncated = -0.2");
+    assert_names(&load_err(&text), &["study.dual_cone_tol_truncated", ">= 0"]);
+}
+
+#[test]
+fn reversed_and_empty_ranges() {
+    let text = rope_text().replace("max = 0.5", "max = -0.6");
+    assert_names(&load_err(&text), &["parameter.max", "reversed"]);
+    let text = rope_text().replace("max = 0.5", "max = -0.5");
+    assert_names(&load_err(&text), &["parameter.max", "empty"]);
+}
+
+#[test]
+fn non_finite_numbers() {
+    let text = rope_text().replace("nu = 30.0", "nu = nan");
+    assert_names(&load_err(&text), &["model.rope.nu", "finite"]);
+    let text = rope_text().replace("f = 250.0", "f = inf");
+    assert_names(&load_err(&text), &["model.rope.f", "finite"]);
+}
+
+#[test]
+fn two_models_or_unknown_model() {
+    let text = rope_text().replace("[model.rope]", "[model.rop]");
+    assert_names(&load_err(&text), &["rop"]);
+}
+
+#[test]
+fn unreadable_file() {
+    let err = SceneConfig::load(Path::new("/nonexistent/bad.toml")).expect_err("missing file");
+    assert_names(&err, &["cannot read"]);
+}

@@ -1,0 +1,17 @@
+//! Reduced bases built from snapshot matrices (n x N, one snapshot per column).
+//!
+//! * Primal and "dual orth" bases: POD, the left singular vectors of the snapshot matrix
+//!   truncated by a relative Frobenius tolerance `delta` (paper eq. 9): keep the smallest m with
+//!   `sqrt(sum_{i>m} s_i^2) / sqrt(sum_i s_i^2) <= delta` (never more than the numerical rank).
+//! * "Dual cone" basis: the Cone-Projected Greedy (CPG) selection of snapshots (paper
+//!   Sec. 2.3.1, eq. 12), stopped when the compactness `C(m)` of eq. 16 is at most the
+//!   tolerance; generators are the selected snapshots scaled to unit norm, so every
+//!   non-negative combination is a non-negative pressure field (eq. 10).
+
+mod cpg;
+mod pod;
+
+pub use cpg::{cpg, Cpg, CpgParams};
+pub use pod::{
+    numerical_rank, pod, pod_full, tail_energies, truncation_rank, Pod, PodError, PodParams,
+};

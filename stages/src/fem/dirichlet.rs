@@ -1,0 +1,103 @@
+//! Dirichlet conditions by elimination: split dofs into free `F` and fixed `D`, solve
+//! `K_FF u_F = f_F - K_FD u_D`.
+
+use super::CsrMatrix;
+use faer::sparse::Triplet;
+
+/// The partition of the dofs into free and fixed ones.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DofSplit {
+    free_index: Vec<usize>,
+    free: Vec<usize>,
+    fixed: Vec<usize>,
+}
+
+impl DofSplit {
+    /// Marker in `free_index` for a fixed dof.
+    pub const FIXED: usize = usize::MAX;
+
+    /// Split `0..n_dof` given the fixed dofs (duplicates allowed).
+    pub fn new(n_dof: usize, fixed_dofs: &[usize]) -> Self {
+        let mut is_fixed = vec![false; n_dof];
+        for &d in fixed_dofs {
+            assert!(d < n_dof, "fixed dof {d} out of range {n_dof}");
+            is_fixed[d] = true;
+        }
+        let mut free_index = vec![Self::FIXED; n_dof];
+        let (mut free, mut fixed) = (Vec::new(), Vec::new());
+        for (d, &f) in is_fixed.iter().enumerate() {
+            if f {
+                fixed.push(d);
+            } else {
+                free_index[d] = free.len();
+                free.push(d);
+            }
+        }
+        Self { free_index, free, fixed }
+    }
+
+    /// Number of dofs.
+    pub fn n_dof(&self) -> usize {
+        self.free_index.len()
+    }
+    /// Number of free dofs.
+    pub fn n_free(&self) -> usize {
+        self.free.len()
+    }
+    /// Free dofs (global ids, increasing); position = free index.
+    pub fn free(&self) -> &[usize] {
+        &self.free
+    }
+    /// Fixed dofs (global ids, increasing).
+    pub fn fixed(&self) -> &[usize] {
+        &self.fixed
+    }
+    /// Free index of global dof `d`, `None` if fixed.
+    pub fn free_index(&self, d: usize) -> Option<usize> {
+        let i = self.free_index[d];
+        (i != Self::FIXED).then_some(i)
+    }
+
+    /// Lower triangle of `K_FF` as faer triplets (free indices).
+    pub fn free_block_lower_triplets(&self, k: &CsrMatrix) -> Vec<Triplet<usize, usize, f64>> {
+        assert_eq!(k.n, self.n_dof(), "matrix/dof-split size mismatch");
+        let mut t = Vec::with_capacity(k.nnz() / 2 + k.n);
+        for (fr, &r) in self.free.iter().enumerate() {
+            let (cols, vals) = k.row(r);
+            for (&c, &v) in cols.iter().zip(vals) {
+                let fc = self.free_index[c];
+                if fc != Self::FIXED && fc >= fr {
+                    // row fc >= column fr: lower triangle in (row, col) = (fc, fr)
+                    t.push(Triplet::new(fc, fr, v));
+                }
+            }
+        }
+        t
+    }
+
+    /// The lifted load `-K_FD u_D` over the free dofs, reading `u_D` from the fixed entries of
+    /// the full vector `u_full` (its free entries are ignored).
+    pub fn lift(&self, k: &CsrMatrix, u_full: &[f64]) -> Vec<f64> {
+        assert_eq!(u_full.len(), self.n_dof(), "vector/dof-split size mismatch");
+        self.free
+            .iter()
+            .map(|&r| {
+                let (cols, vals) = k.row(r);
+                -cols
+                    .iter()
+                    .zip(vals)
+                    .filter(|(&c, _)| self.free_index[c] == Self::FIXED)
+                    .map(|(&c, &v)| v * u_full[c])
+                    .sum::<f64>()
+            })
+            .collect()
+    }
+
+    /// Write free values `u_free` into their places in `u_full`.
+    pub fn scatter_free(&self, u_free: &[f64], u_full: &mut [f64]) {
+        assert!(u_free.len() == self.n_free() && u_full.len() == self.n_dof(), "size mismatch");
+        for (&d, &v) in self.free.iter().zip(u_free) {
+            u_full[d] = v;
+        }
+    }
+}

@@ -1,0 +1,14 @@
+//! The numerics of crom: meshes, finite elements, contact solvers, cone projection, reduced
+//! bases, metrics and the online reduced solve. Nothing here opens a file or hashes anything:
+//! every function is a pure function of its inputs (see DESIGN.md).
+
+pub mod approx;
+pub mod basis;
+pub mod cone;
+pub mod contact;
+pub mod fem;
+pub mod mesh;
+pub mod metrics;
+pub mod rng;
+pub mod rope;
+pub mod snapshot;

@@ -1,0 +1,26 @@
+//! The rope-on-obstacle problem (Type-1, paper Sec. 3, eqs. 14–15; SCENES.md → rope).
+//!
+//! Find `u` on `[0, L]`, `u(0) = u(L) = 0`, minimising `∫ ½ ν u'² + f u dx` subject to
+//! `u(x) >= g(x, γ)`. Strong form: `-ν u'' + f = λ`, `λ >= 0`, `u - g >= 0`, `λ (u - g) = 0`.
+//!
+//! P1 elements on a uniform grid of `n` elements (`h = L / n`), nodes `x_i = i h`. With
+//! `K = ν/h · tridiag(-1, 2, -1)` and the consistent load `F_i = f h`, the discrete KKT system
+//! (paper eq. 7 with `C = -I` on the interior nodes, contact pairs static) is
+//!
+//! ```text
+//! K u + F - Λ = 0,   Λ >= 0,   u - g >= 0,   Λ_i (u_i - g_i) = 0,
+//! ```
+//!
+//! where `Λ_i` is the nodal contact force; the stored pressure is `λ_i = Λ_i / h` (force per unit
+//! length, tributary length `h`). Every node is a potential contact node; the two Dirichlet end
+//! nodes carry zero pressure by convention.
+//!
+//! [`solve`] uses the primal-dual active set method (a semismooth Newton method on
+//! `Λ - max(0, Λ + c (g - u)) = 0`, Hintermüller–Ito–Kunisch 2002): for an M-matrix `K` it
+//! terminates in finitely many steps with the exact discrete solution.
+
+mod problem;
+mod solve;
+
+pub use problem::{Rope, RopeParams};
+pub use solve::{solve, RopeError, RopeSolveParams};
