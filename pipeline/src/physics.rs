@@ -66,7 +66,9 @@ impl Physics {
     /// Units of the primal and dual fields.
     pub fn units(&self) -> Units {
         match self {
-            Physics::Rope(..) => Units { primal: "length (vertical displacement)", dual: "force per unit length (contact pressure)" },
+            Physics::Rope(..) => {
+                Units { primal: "length (vertical displacement)", dual: "force per unit length (contact pressure)" }
+            }
         }
     }
 

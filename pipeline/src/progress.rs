@@ -32,7 +32,15 @@ impl Progress {
         } else {
             None
         };
-        StageProgress { name: name.to_string(), len, done: 0, bar, quiet: self.quiet, start: Instant::now(), last_line: Instant::now() }
+        StageProgress {
+            name: name.to_string(),
+            len,
+            done: 0,
+            bar,
+            quiet: self.quiet,
+            start: Instant::now(),
+            last_line: Instant::now(),
+        }
     }
 }
 

@@ -37,7 +37,15 @@ pub(crate) fn print_ls(store: &Store, stage: Option<&str>) {
     let mut n = 0;
     for m in all.iter().filter(|m| stage.is_none_or(|s| s == m.stage)) {
         let facts: Vec<String> = m.summary.iter().map(|(k, v)| format!("{k}={v}")).collect();
-        let _ = writeln!(out, "{:<12} {:<14} {:<16} {:>9.3}  {}", m.stage, m.key.short(), m.scene, m.wall_seconds, facts.join(" "));
+        let _ = writeln!(
+            out,
+            "{:<12} {:<14} {:<16} {:>9.3}  {}",
+            m.stage,
+            m.key.short(),
+            m.scene,
+            m.wall_seconds,
+            facts.join(" ")
+        );
         n += 1;
     }
     let _ = writeln!(out, "{n} artifacts in {}", store.root().display());

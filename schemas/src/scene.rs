@@ -208,10 +208,8 @@ impl SceneConfig {
 
     /// Read, parse and validate a scene file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|source| SceneError::Read { path: path.to_path_buf(), source })?;
         Self::from_toml_str(&text, path)
     }
 }
@@ -224,7 +222,8 @@ fn parse_fix(message: &str) -> String {
     } else if message.contains("unknown variant") {
         "use exactly one of [model.rope], [model.hertz], [model.ironing]".into()
     } else if message.contains("invalid type") {
-        "give the value the type named above (numbers for numeric fields, integers without a decimal point for counts)".into()
+        "give the value the type named above (numbers for numeric fields, integers without a decimal point for counts)"
+            .into()
     } else {
         "correct the TOML at the line shown above".into()
     }

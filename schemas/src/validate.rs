@@ -4,9 +4,7 @@
 
 use std::path::Path;
 
-use crate::scene::{
-    HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec, SceneConfig, SolverSpec, StudySpec,
-};
+use crate::scene::{HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec, SceneConfig, SolverSpec, StudySpec};
 use crate::SceneError;
 
 struct Checker<'a> {
@@ -15,12 +13,7 @@ struct Checker<'a> {
 
 impl Checker<'_> {
     fn fail(&self, field: &str, problem: String, fix: &str) -> SceneError {
-        SceneError::Invalid {
-            path: self.path.to_path_buf(),
-            field: field.to_string(),
-            problem,
-            fix: fix.to_string(),
-        }
+        SceneError::Invalid { path: self.path.to_path_buf(), field: field.to_string(), problem, fix: fix.to_string() }
     }
 
     fn finite(&self, field: &str, v: f64) -> Result<(), SceneError> {
@@ -45,11 +38,7 @@ impl Checker<'_> {
         if v >= 0.0 {
             Ok(())
         } else {
-            Err(self.fail(
-                field,
-                format!("is {v}, must be >= 0"),
-                "give 0 (keep everything) or a positive tolerance",
-            ))
+            Err(self.fail(field, format!("is {v}, must be >= 0"), "give 0 (keep everything) or a positive tolerance"))
         }
     }
 

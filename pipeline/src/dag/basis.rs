@@ -40,11 +40,14 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
     let scene = ctx.scene.scene.name.clone();
     let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
     let (_, computed) = ctx.cached(ArtifactKind::Basis, &spec, |staging| {
-        let primal = pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }).map_err(|e| numerical(e.to_string()))?;
-        let dual = pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol }).map_err(|e| numerical(e.to_string()))?;
+        let primal =
+            pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }).map_err(|e| numerical(e.to_string()))?;
+        let dual =
+            pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol }).map_err(|e| numerical(e.to_string()))?;
         let cone_params = |tol| CpgParams { tol, nnls: NnlsParams::default() };
         let full = cpg(view(&set.dual), cone_params(st.dual_cone_tol)).map_err(|e| numerical(e.to_string()))?;
-        let trunc = cpg(view(&set.dual), cone_params(st.dual_cone_tol_truncated)).map_err(|e| numerical(e.to_string()))?;
+        let trunc =
+            cpg(view(&set.dual), cone_params(st.dual_cone_tol_truncated)).map_err(|e| numerical(e.to_string()))?;
         let f = H5Out::create(&staging.path(names::FILE))?;
         f.attr_str("scene", &scene)?;
         f.attr_str("kind", "basis")?;

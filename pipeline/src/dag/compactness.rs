@@ -27,8 +27,11 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key
     let (_, computed) = ctx.cached(ArtifactKind::Compactness, &spec, |staging| {
         let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
         let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
-        let cone = compactness_cone(view(&set.dual), view(&b.dual_cpg))
-            .map_err(|e| CromError::Numerical { stage: "compactness", scene: scene.clone(), message: e.to_string() })?;
+        let cone = compactness_cone(view(&set.dual), view(&b.dual_cpg)).map_err(|e| CromError::Numerical {
+            stage: "compactness",
+            scene: scene.clone(),
+            message: e.to_string(),
+        })?;
         let mut t = Rows::default();
         t.push(&scene, "primal", "orth", &primal);
         t.push(&scene, "dual", "orth", &dual);
@@ -37,7 +40,12 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key
         Ok(BTreeMap::from([("rows".to_string(), json!(primal.len() + dual.len() + cone.len()))]))
     })?;
     progress.finish(if computed { "computed" } else { "cached" });
-    ctx.record("compactness", usize::from(computed), usize::from(!computed), ctx.store.dir(ArtifactKind::Compactness, &key));
+    ctx.record(
+        "compactness",
+        usize::from(computed),
+        usize::from(!computed),
+        ctx.store.dir(ArtifactKind::Compactness, &key),
+    );
     Ok(key)
 }
 

@@ -41,7 +41,14 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Ke
         f.vec_u64(names::NODE_BODY, &m.node_body)?;
         f.vec_u64(names::CELL_BODY, &m.cell_body)?;
         drop(f);
-        write_mesh_xdmf(&staging.path(names::XDMF), names::FILE, m.nodes.len(), m.cells.len(), m.nodes_per_cell, &[names::CELL_BODY])?;
+        write_mesh_xdmf(
+            &staging.path(names::XDMF),
+            names::FILE,
+            m.nodes.len(),
+            m.cells.len(),
+            m.nodes_per_cell,
+            &[names::CELL_BODY],
+        )?;
         Ok(BTreeMap::from([
             ("nodes".to_string(), json!(m.nodes.len())),
             ("cells".to_string(), json!(m.cells.len())),

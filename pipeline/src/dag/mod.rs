@@ -9,8 +9,8 @@
 //! stage whose artifact is in the store and verifies is not run again.
 
 mod basis;
-mod convert;
 mod compactness;
+mod convert;
 mod mesh;
 mod snapshots;
 mod trainset;
@@ -119,7 +119,8 @@ impl Ctx<'_> {
         wall_seconds: f64,
         summary: BTreeMap<String, serde_json::Value>,
     ) -> Result<Manifest, CromError> {
-        let prov = Provenance { scene: self.scene.scene.name.clone(), command: self.command.clone(), wall_seconds, summary };
+        let prov =
+            Provenance { scene: self.scene.scene.name.clone(), command: self.command.clone(), wall_seconds, summary };
         staging.commit(self.store, prov)
     }
 

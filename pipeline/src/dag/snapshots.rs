@@ -32,13 +32,19 @@ struct SnapshotParams<'a> {
 
 /// The key spec of the snapshot at `parameter` on the mesh `mesh`.
 pub(crate) fn spec(mesh: &Key, solver: &SolverSpec, parameter: f64) -> KeySpec {
-    KeySpec::new(ArtifactKind::Snapshot, ALGORITHM_VERSION, params(&SnapshotParams { parameter, solver })).input("mesh", mesh)
+    KeySpec::new(ArtifactKind::Snapshot, ALGORITHM_VERSION, params(&SnapshotParams { parameter, solver }))
+        .input("mesh", mesh)
 }
 
 type Solved = (usize, f64, Result<Snapshot, String>, f64);
 
 /// Ensure a snapshot artifact exists for every point; their keys in the order of `points`.
-pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>, mesh: &Key, points: &[f64]) -> Result<Vec<Key>, CromError> {
+pub(crate) fn run(
+    ctx: &mut Ctx<'_>,
+    physics: &mut LazyPhysics<'_>,
+    mesh: &Key,
+    points: &[f64],
+) -> Result<Vec<Key>, CromError> {
     let specs: Vec<KeySpec> = points.iter().map(|&p| spec(mesh, &ctx.scene.solver, p)).collect();
     let keys: Vec<Key> = specs.iter().map(KeySpec::key).collect();
     let mut first_of: HashMap<&Key, usize> = HashMap::new();
@@ -98,7 +104,12 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>, mesh: &Key, 
             .map(|(p, m)| format!("  {} = {p}: {m}", ctx.scene.parameter.name))
             .collect::<Vec<_>>()
             .join("\n");
-        return Err(CromError::SolveFailures { scene: ctx.scene.scene.name.clone(), failed: failures.len(), total: computed, list });
+        return Err(CromError::SolveFailures {
+            scene: ctx.scene.scene.name.clone(),
+            failed: failures.len(),
+            total: computed,
+            list,
+        });
     }
     Ok(keys)
 }
@@ -117,7 +128,15 @@ fn stats_summary(s: &SolveStats, seconds: f64) -> BTreeMap<String, serde_json::V
     ])
 }
 
-fn write(ctx: &Ctx<'_>, spec: &KeySpec, snap: &Snapshot, p: f64, name: &str, secs: f64, units: Units) -> Result<(), CromError> {
+fn write(
+    ctx: &Ctx<'_>,
+    spec: &KeySpec,
+    snap: &Snapshot,
+    p: f64,
+    name: &str,
+    secs: f64,
+    units: Units,
+) -> Result<(), CromError> {
     let staging = ctx.store.stage(spec)?;
     let path = staging.path(names::FILE);
     let f = H5Out::create(&path)?;

@@ -27,7 +27,8 @@ pub(crate) struct TrainingSet {
 }
 
 pub(crate) fn run(ctx: &mut Ctx<'_>, set: &str, points: &[f64], snapshots: &[Key]) -> Result<Key, CromError> {
-    let mut spec = KeySpec::new(ArtifactKind::TrainingSet, ALGORITHM_VERSION, json!({ "set": set, "parameters": points }));
+    let mut spec =
+        KeySpec::new(ArtifactKind::TrainingSet, ALGORITHM_VERSION, json!({ "set": set, "parameters": points }));
     for (i, k) in snapshots.iter().enumerate() {
         spec = spec.input(&format!("snapshot{i:05}"), k);
     }
@@ -78,7 +79,11 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, set: &str, points: &[f64], snapshots: &[Key
 pub(crate) fn load(ctx: &Ctx<'_>, key: &Key) -> Result<TrainingSet, CromError> {
     let path = ctx.store.dir(ArtifactKind::TrainingSet, key).join(names::FILE);
     let f = H5In::open(&path)?;
-    Ok(TrainingSet { primal: f.matrix(names::PRIMAL)?, dual: f.matrix(names::DUAL)?, parameters: f.vec_f64(names::PARAMETERS)? })
+    Ok(TrainingSet {
+        primal: f.matrix(names::PRIMAL)?,
+        dual: f.matrix(names::DUAL)?,
+        parameters: f.vec_f64(names::PARAMETERS)?,
+    })
 }
 
 fn read_manifest(dir: &std::path::Path) -> Result<crate::store::Manifest, CromError> {
@@ -90,7 +95,11 @@ fn read_manifest(dir: &std::path::Path) -> Result<crate::store::Manifest, CromEr
 fn matrix(cols: &[Vec<f64>], path: std::path::PathBuf) -> Result<ColMatrix, CromError> {
     let rows = cols.first().map_or(0, Vec::len);
     if cols.iter().any(|c| c.len() != rows) {
-        return Err(CromError::artifact(path, "snapshots of one set have different lengths", "delete the store's snapshot directory and rerun"));
+        return Err(CromError::artifact(
+            path,
+            "snapshots of one set have different lengths",
+            "delete the store's snapshot directory and rerun",
+        ));
     }
     let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
     Ok(ColMatrix::from_columns(rows, &refs))

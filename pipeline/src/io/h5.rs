@@ -71,7 +71,8 @@ impl H5Out {
 
     /// A string attribute on this group.
     pub fn attr_str(&self, name: &str, value: &str) -> Result<(), CromError> {
-        let v: VarLenUnicode = value.parse().map_err(|e| CromError::artifact(&self.path, format!("attribute {name}: {e}"), FIX_WRITE))?;
+        let v: VarLenUnicode =
+            value.parse().map_err(|e| CromError::artifact(&self.path, format!("attribute {name}: {e}"), FIX_WRITE))?;
         let a = self.group.new_attr::<VarLenUnicode>().create(name).map_err(|e| werr(&self.path, name, e))?;
         a.write_scalar(&v).map_err(|e| werr(&self.path, name, e))
     }
@@ -126,7 +127,14 @@ impl H5Out {
     }
 
     /// A 2-D row-major float dataset `(rows, cols)`.
-    pub fn table_f64(&self, name: &str, rows: usize, cols: usize, row_major: &[f64], units: &str) -> Result<(), CromError> {
+    pub fn table_f64(
+        &self,
+        name: &str,
+        rows: usize,
+        cols: usize,
+        row_major: &[f64],
+        units: &str,
+    ) -> Result<(), CromError> {
         let ds = self.dataset::<f64>(name, &[rows, cols])?;
         ds.write_raw(row_major).map_err(|e| werr(&self.path, name, e))?;
         set_units(&ds, &self.path, name, units)
@@ -145,7 +153,8 @@ impl H5Out {
 }
 
 fn set_units(ds: &hdf5::Dataset, path: &Path, name: &str, units: &str) -> Result<(), CromError> {
-    let v: VarLenUnicode = units.parse().map_err(|e| CromError::artifact(path, format!("units of {name}: {e}"), FIX_WRITE))?;
+    let v: VarLenUnicode =
+        units.parse().map_err(|e| CromError::artifact(path, format!("units of {name}: {e}"), FIX_WRITE))?;
     let a = ds.new_attr::<VarLenUnicode>().create("units").map_err(|e| werr(path, name, e))?;
     a.write_scalar(&v).map_err(|e| werr(path, name, e))
 }

@@ -79,7 +79,11 @@ impl Table {
             })
             .collect();
         let fail = |e: &dyn std::fmt::Display| {
-            CromError::artifact(path, format!("Parquet write: {e}"), "check free space and permissions of the store directory")
+            CromError::artifact(
+                path,
+                format!("Parquet write: {e}"),
+                "check free space and permissions of the store directory",
+            )
         };
         let schema = Arc::new(Schema::new(fields));
         let batch = RecordBatch::try_new(schema.clone(), arrays).map_err(|e| fail(&e))?;

@@ -43,6 +43,13 @@ impl Store {
     pub fn open(root: &Path) -> Result<Self, CromError> {
         std::fs::create_dir_all(root).map_err(|e| CromError::io(root, "creating the store", e))?;
         let lock = lock::StoreLock::acquire(root)?;
+        // Holding the lock, no other writer exists: staging directories left by a killed run
+        // are garbage (never under a valid key) and can go.
+        let staging = root.join(".staging");
+        if staging.exists() {
+            std::fs::remove_dir_all(&staging)
+                .map_err(|e| CromError::io(&staging, "clearing stale staging directories", e))?;
+        }
         Ok(Self { root: root.to_path_buf(), _lock: Some(lock) })
     }
 
@@ -70,12 +77,7 @@ impl Store {
         match verify(&dir, kind, key) {
             Ok(m) => Ok(Lookup::Hit(Box::new(m))),
             Err(problem) => {
-                let q = self.root.join(".quarantine").join(format!(
-                    "{}-{}-{}",
-                    kind.name(),
-                    key.short(),
-                    unix_now()
-                ));
+                let q = self.root.join(".quarantine").join(format!("{}-{}-{}", kind.name(), key.short(), unix_now()));
                 let parent = self.root.join(".quarantine");
                 std::fs::create_dir_all(&parent).map_err(|e| CromError::io(&parent, "creating the quarantine", e))?;
                 std::fs::rename(&dir, &q).map_err(|e| CromError::io(&dir, "moving a corrupt artifact aside", e))?;

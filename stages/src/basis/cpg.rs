@@ -27,10 +27,7 @@ pub struct CpgParams {
 
 impl Default for CpgParams {
     fn default() -> Self {
-        Self {
-            tol: 0.0,
-            nnls: NnlsParams::default(),
-        }
+        Self { tol: 0.0, nnls: NnlsParams::default() }
     }
 }
 
@@ -55,11 +52,7 @@ pub fn cpg(s: MatRef<'_, f64>, params: CpgParams) -> Result<Cpg, ConeError> {
     let mut cone = GrowingCone::new(s, params.nnls);
     let mut selected = Vec::new();
     if total <= 0.0 {
-        return Ok(Cpg {
-            basis: Mat::zeros(s.nrows(), 0),
-            selected,
-            compactness: vec![0.0],
-        });
+        return Ok(Cpg { basis: Mat::zeros(s.nrows(), 0), selected, compactness: vec![0.0] });
     }
     let mut compactness = vec![1.0];
     let mut column = vec![0.0; s.nrows()];
@@ -74,11 +67,7 @@ pub fn cpg(s: MatRef<'_, f64>, params: CpgParams) -> Result<Cpg, ConeError> {
         selected.push(j);
         compactness.push(cone.frobenius_residual() / total);
     }
-    Ok(Cpg {
-        basis: cone.basis().to_owned(),
-        selected,
-        compactness,
-    })
+    Ok(Cpg { basis: cone.basis().to_owned(), selected, compactness })
 }
 
 /// The not-yet-selected snapshot with the largest relative error above `IN_CONE_REL_TOL`.
@@ -132,9 +121,7 @@ mod tests {
     fn relative_cone_errors(basis: MatRef<'_, f64>, s: MatRef<'_, f64>) -> Vec<f64> {
         let mut proj = ConeProjector::new(basis, NnlsParams::default());
         let (_, res) = proj.project_many(s).expect("converges");
-        (0..s.ncols())
-            .map(|j| res[j] / s.col(j).norm_l2().max(f64::MIN_POSITIVE))
-            .collect()
+        (0..s.ncols()).map(|j| res[j] / s.col(j).norm_l2().max(f64::MIN_POSITIVE)).collect()
     }
 
     #[test]
@@ -142,20 +129,13 @@ mod tests {
         let mut rng = Rng::new(51);
         let s = bumps(&mut rng, 40, 25);
         let out = cpg(s.as_ref(), CpgParams::default()).expect("converges");
-        for (j, e) in relative_cone_errors(out.basis.as_ref(), s.as_ref())
-            .iter()
-            .enumerate()
-        {
+        for (j, e) in relative_cone_errors(out.basis.as_ref(), s.as_ref()).iter().enumerate() {
             // Every training snapshot is in the final cone: 1e-10 relative (round-off of a
             // Gram-matrix NNLS on unit generators).
             assert!(*e <= 1e-10, "snapshot {j} has relative cone error {e:e}");
         }
         // Compactness ends at ~0 (same 1e-10) and the basis has unit columns.
-        assert_close!(
-            *out.compactness.last().expect("nonempty"),
-            0.0,
-            Tol::abs(1e-10)
-        );
+        assert_close!(*out.compactness.last().expect("nonempty"), 0.0, Tol::abs(1e-10));
         for m in 0..out.basis.ncols() {
             assert_close!(out.basis.col(m).norm_l2(), 1.0, Tol::abs(1e-14)); // one division
         }
@@ -174,11 +154,7 @@ mod tests {
             _ => base[(i, 0)],
         });
         let out = cpg(s.as_ref(), CpgParams::default()).expect("converges");
-        assert!(
-            !out.selected.contains(&10),
-            "zero snapshot selected: {:?}",
-            out.selected
-        );
+        assert!(!out.selected.contains(&10), "zero snapshot selected: {:?}", out.selected);
         for (a, b) in [(2, 8), (5, 9), (0, 11)] {
             let both = out.selected.contains(&a) && out.selected.contains(&b);
             assert!(!both, "rays {a} and {b} both selected: {:?}", out.selected);
@@ -187,11 +163,7 @@ mod tests {
         sorted.sort_unstable();
         sorted.dedup();
         assert_eq!(sorted.len(), out.selected.len(), "an index selected twice");
-        assert!(
-            out.selected.len() <= 8,
-            "at most the 8 distinct rays: {:?}",
-            out.selected
-        );
+        assert!(out.selected.len() <= 8, "at most the 8 distinct rays: {:?}", out.selected);
     }
 
     #[test]
@@ -205,14 +177,7 @@ mod tests {
             assert!(w[1] <= w[0] + 1e-12, "compactness increased: {w:?}");
         }
         let tol = 0.2;
-        let cut = cpg(
-            s.as_ref(),
-            CpgParams {
-                tol,
-                ..CpgParams::default()
-            },
-        )
-        .expect("converges");
+        let cut = cpg(s.as_ref(), CpgParams { tol, ..CpgParams::default() }).expect("converges");
         let m = cut.selected.len();
         assert!(cut.compactness[m] <= tol && cut.compactness[m - 1] > tol);
         // Greedy and deterministic: the truncated run is a prefix of the full one.
@@ -247,10 +212,7 @@ mod tests {
     fn cone_of_the_snapshots_reproduces_them() {
         let mut rng = Rng::new(54);
         let s = bumps(&mut rng, 30, 10);
-        for (j, e) in relative_cone_errors(s.as_ref(), s.as_ref())
-            .iter()
-            .enumerate()
-        {
+        for (j, e) in relative_cone_errors(s.as_ref(), s.as_ref()).iter().enumerate() {
             // s_j = Theta e_j exactly: the residual is round-off, 1e-12 relative.
             assert!(*e <= 1e-12, "snapshot {j}: relative error {e:e}");
         }

@@ -12,6 +12,4 @@ mod cpg;
 mod pod;
 
 pub use cpg::{cpg, Cpg, CpgParams};
-pub use pod::{
-    numerical_rank, pod, pod_full, tail_energies, truncation_rank, Pod, PodError, PodParams,
-};
+pub use pod::{numerical_rank, pod, pod_full, tail_energies, truncation_rank, Pod, PodError, PodParams};

@@ -54,22 +54,14 @@ pub fn pod(s: MatRef<'_, f64>, params: PodParams) -> Result<Pod, PodError> {
     }
     let len = n.min(count);
     if len == 0 || s.norm_l2() <= 0.0 {
-        return Ok(Pod {
-            modes: Mat::zeros(n, 0),
-            singular_values: vec![0.0; len],
-            rank: 0,
-        });
+        return Ok(Pod { modes: Mat::zeros(n, 0), singular_values: vec![0.0; len], rank: 0 });
     }
     let svd = s.thin_svd().map_err(|_| PodError::SvdNoConvergence)?;
     let singular_values: Vec<f64> = svd.S().column_vector().iter().copied().collect();
     let rank = numerical_rank(&singular_values, n, count);
     let m = truncation_rank(&singular_values, params.rel_tol).min(rank);
     let modes = svd.U().subcols(0, m).to_owned();
-    Ok(Pod {
-        modes,
-        singular_values,
-        rank,
-    })
+    Ok(Pod { modes, singular_values, rank })
 }
 
 /// POD keeping the numerical rank (no truncation).
@@ -90,9 +82,7 @@ pub fn numerical_rank(singular_values: &[f64], nrows: usize, ncols: usize) -> us
 pub fn truncation_rank(singular_values: &[f64], rel_tol: f64) -> usize {
     let tails = tail_energies(singular_values);
     let total = tails.first().copied().unwrap_or(0.0).sqrt();
-    (0..=singular_values.len())
-        .find(|&m| tails[m].sqrt() <= rel_tol * total)
-        .unwrap_or(singular_values.len())
+    (0..=singular_values.len()).find(|&m| tails[m].sqrt() <= rel_tol * total).unwrap_or(singular_values.len())
 }
 
 /// `tails[m] = sum_{i>=m} s_i^2` for m = 0..=len (so `tails[len] = 0`).
@@ -113,9 +103,7 @@ mod tests {
 
     /// n x k matrix with orthonormal columns (thin Q of a random matrix).
     fn random_orthonormal(rng: &mut Rng, n: usize, k: usize) -> Mat<f64> {
-        Mat::from_fn(n, k, |_, _| rng.uniform_in(-1.0, 1.0))
-            .qr()
-            .compute_thin_Q()
+        Mat::from_fn(n, k, |_, _| rng.uniform_in(-1.0, 1.0)).qr().compute_thin_Q()
     }
 
     /// S = U diag(s) V^T with random orthonormal U (n x r), V (N x r).
@@ -138,10 +126,7 @@ mod tests {
         let recon = &pod.modes * (pod.modes.transpose() * &s);
         // Full-rank reconstruction: 1e-12 relative to ||S||_F.
         assert!((recon - &s).norm_l2() <= 1e-12 * s.norm_l2());
-        assert!(
-            pod.singular_values.windows(2).all(|w| w[0] >= w[1]),
-            "descending"
-        );
+        assert!(pod.singular_values.windows(2).all(|w| w[0] >= w[1]), "descending");
     }
 
     #[test]
@@ -167,30 +152,12 @@ mod tests {
         let tail = |m: usize| sv[m..].iter().map(|v| v * v).sum::<f64>().sqrt() / total;
         for m in 0..5 {
             // A tolerance just above tail(m) keeps m modes; just below it keeps m + 1.
-            let above = PodParams {
-                rel_tol: tail(m) * (1.0 + 1e-6),
-            };
-            let below = PodParams {
-                rel_tol: tail(m) * (1.0 - 1e-6),
-            };
-            assert_eq!(
-                pod(s.as_ref(), above).expect("svd").modes.ncols(),
-                m,
-                "above tail({m})"
-            );
-            assert_eq!(
-                pod(s.as_ref(), below).expect("svd").modes.ncols(),
-                m + 1,
-                "below"
-            );
+            let above = PodParams { rel_tol: tail(m) * (1.0 + 1e-6) };
+            let below = PodParams { rel_tol: tail(m) * (1.0 - 1e-6) };
+            assert_eq!(pod(s.as_ref(), above).expect("svd").modes.ncols(), m, "above tail({m})");
+            assert_eq!(pod(s.as_ref(), below).expect("svd").modes.ncols(), m + 1, "below");
         }
-        assert_eq!(
-            pod(s.as_ref(), PodParams { rel_tol: 1.0 })
-                .expect("svd")
-                .modes
-                .ncols(),
-            0
-        );
+        assert_eq!(pod(s.as_ref(), PodParams { rel_tol: 1.0 }).expect("svd").modes.ncols(), 0);
         // rel_tol = 0 stops at the numerical rank, not at min(n, N) = 12.
         assert_eq!(pod_full(s.as_ref()).expect("svd").modes.ncols(), 5);
     }

@@ -51,11 +51,7 @@ pub struct NnlsParams {
 
 impl Default for NnlsParams {
     fn default() -> Self {
-        Self {
-            max_iter: None,
-            tol: 1e-12,
-            pivot_tol: 1e-12,
-        }
+        Self { max_iter: None, tol: 1e-12, pivot_tol: 1e-12 }
     }
 }
 
@@ -114,11 +110,7 @@ pub struct Nnls {
 impl Nnls {
     /// A solver for the Gram matrix `gram` (k x k, symmetric positive semi-definite).
     pub fn new(gram: Mat<f64>, params: NnlsParams) -> Self {
-        assert_eq!(
-            gram.nrows(),
-            gram.ncols(),
-            "Nnls::new: Gram matrix must be square"
-        );
+        assert_eq!(gram.nrows(), gram.ncols(), "Nnls::new: Gram matrix must be square");
         let k = gram.ncols();
         let gmax = (0..k).map(|j| gram[(j, j)]).fold(0.0, f64::max);
         let gram_finite = (0..k).all(|j| gram.col_as_slice(j).iter().all(|g| g.is_finite()));
@@ -165,11 +157,7 @@ impl Nnls {
     /// `cross[k] = a_new^T a_new`. Reallocates the workspaces (call outside hot loops).
     pub fn push_column(&mut self, cross: &[f64]) {
         let k = self.ncols();
-        assert_eq!(
-            cross.len(),
-            k + 1,
-            "Nnls::push_column: need k + 1 inner products"
-        );
+        assert_eq!(cross.len(), k + 1, "Nnls::push_column: need k + 1 inner products");
         let old = std::mem::replace(&mut self.gram, Mat::zeros(0, 0));
         let gram = Mat::from_fn(k + 1, k + 1, |i, j| match (i == k, j == k) {
             (false, false) => old[(i, j)],
@@ -185,11 +173,7 @@ impl Nnls {
     /// [`solve_passive`](Self::solve_passive).
     pub fn solve_normal(&mut self, atb: &[f64], x: &mut [f64]) -> Result<NnlsStats, ConeError> {
         let k = self.ncols();
-        assert_eq!(
-            atb.len(),
-            k,
-            "Nnls::solve_normal: A^T b has the wrong length"
-        );
+        assert_eq!(atb.len(), k, "Nnls::solve_normal: A^T b has the wrong length");
         assert_eq!(x.len(), k, "Nnls::solve_normal: x has the wrong length");
         let finite = |v: &[f64]| v.iter().all(|a| a.is_finite());
         if !finite(atb) || !finite(x) || !self.gram_finite {
@@ -202,17 +186,11 @@ impl Nnls {
         loop {
             let scale = self.update_dual(atb, x);
             let Some(t) = self.entering(scale) else {
-                return Ok(NnlsStats {
-                    iterations,
-                    kkt_residual: self.kkt_residual(scale),
-                });
+                return Ok(NnlsStats { iterations, kkt_residual: self.kkt_residual(scale) });
             };
             if iterations >= max_iter {
                 let kkt_residual = self.kkt_residual(scale);
-                return Err(ConeError::NotConverged {
-                    iterations,
-                    kkt_residual,
-                });
+                return Err(ConeError::NotConverged { iterations, kkt_residual });
             }
             if !self.try_add(t) {
                 self.blocked[t] = true;
@@ -237,16 +215,8 @@ impl Nnls {
     /// (length k) receives `d` at the passive columns and 0 elsewhere. Used for iterative
     /// refinement (corrected semi-normal equations).
     pub fn solve_passive(&mut self, rhs: &[f64], out: &mut [f64]) {
-        assert_eq!(
-            rhs.len(),
-            self.ncols(),
-            "Nnls::solve_passive: rhs has the wrong length"
-        );
-        assert_eq!(
-            out.len(),
-            self.ncols(),
-            "Nnls::solve_passive: out has the wrong length"
-        );
+        assert_eq!(rhs.len(), self.ncols(), "Nnls::solve_passive: rhs has the wrong length");
+        assert_eq!(out.len(), self.ncols(), "Nnls::solve_passive: out has the wrong length");
         self.solve_z(rhs);
         out.fill(0.0);
         for (q, &j) in self.passive.iter().enumerate() {
@@ -333,13 +303,7 @@ impl Nnls {
             return 0.0;
         }
         let worst = (0..self.ncols())
-            .map(|j| {
-                if self.in_passive[j] {
-                    self.w[j].abs()
-                } else {
-                    self.w[j].max(0.0)
-                }
-            })
+            .map(|j| if self.in_passive[j] { self.w[j].abs() } else { self.w[j].max(0.0) })
             .fold(0.0, f64::max);
         worst / scale
     }
@@ -439,13 +403,7 @@ pub(crate) fn at_b(a: MatRef<'_, f64>, b: &[f64], out: &mut [f64]) {
 /// Solve `min ||A x - b||, x >= 0` for one right-hand side (cold start); `a` is n x k, `b`
 /// has length n. The residual norm comes from the explicit residual.
 pub fn nnls(a: MatRef<'_, f64>, b: &[f64], params: NnlsParams) -> Result<NnlsSolution, ConeError> {
-    assert_eq!(
-        a.nrows(),
-        b.len(),
-        "nnls: A has {} rows but b has length {}",
-        a.nrows(),
-        b.len()
-    );
+    assert_eq!(a.nrows(), b.len(), "nnls: A has {} rows but b has length {}", a.nrows(), b.len());
     let k = a.ncols();
     let mut solver = Nnls::from_columns(a, params);
     let mut atb = vec![0.0; k];
@@ -454,12 +412,7 @@ pub fn nnls(a: MatRef<'_, f64>, b: &[f64], params: NnlsParams) -> Result<NnlsSol
     let stats = solver.solve_normal(&atb, &mut x)?;
     let mut r = vec![0.0; b.len()];
     residual_into(a, &x, b, &mut r);
-    Ok(NnlsSolution {
-        x,
-        residual_norm: norm2(&r),
-        iterations: stats.iterations,
-        kkt_residual: stats.kkt_residual,
-    })
+    Ok(NnlsSolution { x, residual_norm: norm2(&r), iterations: stats.iterations, kkt_residual: stats.kkt_residual })
 }
 
 #[cfg(test)]
@@ -485,18 +438,12 @@ mod tests {
         residual_into(a, x, b, &mut r);
         let mut w = vec![0.0; a.ncols()];
         at_b(a, &r, &mut w);
-        let amax = (0..a.ncols())
-            .map(|j| a.col(j).norm_l2())
-            .fold(0.0, f64::max);
+        let amax = (0..a.ncols()).map(|j| a.col(j).norm_l2()).fold(0.0, f64::max);
         let tol = rel * amax * norm2(b);
         for j in 0..x.len() {
             assert!(x[j] >= 0.0, "x[{j}] = {} < 0", x[j]);
             if x[j] > 0.0 {
-                assert!(
-                    w[j].abs() <= tol,
-                    "passive w[{j}] = {:e} (tol {tol:e})",
-                    w[j]
-                );
+                assert!(w[j].abs() <= tol, "passive w[{j}] = {:e} (tol {tol:e})", w[j]);
             } else {
                 assert!(w[j] <= tol, "zero-set w[{j}] = {:e} > tol {tol:e}", w[j]);
             }
@@ -513,10 +460,7 @@ mod tests {
         assert_kkt(a, b, &slow.x, 1e-10);
         // The residual norm is unique even when x is not: 1e-9 relative to ||b|| (the
         // residuals are O(||b||) or zero; both solvers reach ~1e-14).
-        let tol = Tol {
-            abs: 1e-9 * norm2(b),
-            rel: 1e-9,
-        };
+        let tol = Tol { abs: 1e-9 * norm2(b), rel: 1e-9 };
         assert_close!(fast.residual_norm, slow.residual_norm, tol);
     }
 
@@ -564,10 +508,7 @@ mod tests {
             }
             let b = random_vec(&mut rng, 30);
             let sol = nnls(a.as_ref(), &b, NnlsParams::default()).expect("converges");
-            assert!(
-                sol.x.iter().all(|v| v.is_finite()),
-                "no NaN with dependent columns"
-            );
+            assert!(sol.x.iter().all(|v| v.is_finite()), "no NaN with dependent columns");
             check_against_reference(a.as_ref(), &b);
         }
     }
@@ -589,28 +530,13 @@ mod tests {
         let mut rng = Rng::new(16);
         for _ in 0..10 {
             let a = random_mat(&mut rng, 50, 10, -1.0, 1.0);
-            let x0: Vec<f64> = (0..10)
-                .map(|j| {
-                    if j % 3 == 0 {
-                        0.0
-                    } else {
-                        rng.uniform_in(0.5, 2.0)
-                    }
-                })
-                .collect();
+            let x0: Vec<f64> = (0..10).map(|j| if j % 3 == 0 { 0.0 } else { rng.uniform_in(0.5, 2.0) }).collect();
             let mut b = vec![0.0; 50];
             residual_into(a.as_ref(), &x0, &vec![0.0; 50], &mut b);
             b.iter_mut().for_each(|v| *v = -*v); // b = A x0
             let sol = nnls(a.as_ref(), &b, NnlsParams::default()).expect("converges");
             // cond(A) ~ 10 here: 1e-12 is ~1000 eps of headroom on x and on the residual.
-            assert_all_close!(
-                sol.x,
-                x0,
-                Tol {
-                    abs: 1e-12,
-                    rel: 1e-12
-                }
-            );
+            assert_all_close!(sol.x, x0, Tol { abs: 1e-12, rel: 1e-12 });
             assert_close!(sol.residual_norm, 0.0, Tol::abs(1e-12 * norm2(&b)));
         }
     }
@@ -653,14 +579,7 @@ mod tests {
             let mut x: Vec<f64> = (0..12).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
             solver.solve_normal(&atb, &mut x).expect("converges");
             // Full column rank: unique minimiser; both are Gram solves of cond ~ 100.
-            assert_all_close!(
-                x,
-                cold.x,
-                Tol {
-                    abs: 1e-11,
-                    rel: 1e-11
-                }
-            );
+            assert_all_close!(x, cold.x, Tol { abs: 1e-11, rel: 1e-11 });
         }
     }
 
@@ -669,15 +588,9 @@ mod tests {
         let mut rng = Rng::new(19);
         let a = random_mat(&mut rng, 10, 4, 0.0, 1.0);
         let b = vec![1.0; 10]; // A^T b > 0: at least one column must enter
-        let capped = NnlsParams {
-            max_iter: Some(0),
-            ..NnlsParams::default()
-        };
+        let capped = NnlsParams { max_iter: Some(0), ..NnlsParams::default() };
         let err = nnls(a.as_ref(), &b, capped).expect_err("cap of 0 iterations");
-        assert!(
-            matches!(err, ConeError::NotConverged { iterations: 0, .. }),
-            "{err}"
-        );
+        assert!(matches!(err, ConeError::NotConverged { iterations: 0, .. }), "{err}");
         let mut bad = b.clone();
         bad[3] = f64::NAN;
         let err = nnls(a.as_ref(), &bad, NnlsParams::default()).expect_err("NaN input");
@@ -699,15 +612,9 @@ mod tests {
         let k = solver.ncols();
         for i in 0..p.len() {
             for j in 0..=i {
-                let llt: f64 = (0..=j)
-                    .map(|q| solver.chol[i * k + q] * solver.chol[j * k + q])
-                    .sum();
+                let llt: f64 = (0..=j).map(|q| solver.chol[i * k + q] * solver.chol[j * k + q]).sum();
                 // Givens rotations are backward stable: 1e-13 of G entries that are O(10).
-                assert_close!(
-                    llt,
-                    solver.gram[(p[i], p[j])],
-                    Tol::abs(1e-13 * solver.gmax)
-                );
+                assert_close!(llt, solver.gram[(p[i], p[j])], Tol::abs(1e-13 * solver.gmax));
             }
             for j in i + 1..p.len() {
                 assert_close!(solver.chol[i * k + j], 0.0, Tol::abs(0.0)); // stays triangular
@@ -721,11 +628,7 @@ mod tests {
         let a = random_mat(&mut rng, 15, 5, -1.0, 1.0);
         let mut grown = Nnls::from_columns(a.subcols(0, 4), NnlsParams::default());
         let mut cross = vec![0.0; 5];
-        at_b(
-            a.as_ref(),
-            &a.col(4).iter().copied().collect::<Vec<_>>(),
-            &mut cross,
-        );
+        at_b(a.as_ref(), &a.col(4).iter().copied().collect::<Vec<_>>(), &mut cross);
         grown.push_column(&cross);
         let full = Nnls::from_columns(a.as_ref(), NnlsParams::default());
         for j in 0..5 {

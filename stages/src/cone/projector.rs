@@ -23,7 +23,7 @@ pub const IN_CONE_REL_TOL: f64 = 1e-12;
 /// A warm-started relative residual between `IN_CONE_REL_TOL` and
 /// `AMBIGUOUS_FACTOR * sqrt(NnlsParams::tol)` is confirmed by a cold start (see
 /// [`ConeProjector::project_warm`]).
-const AMBIGUOUS_FACTOR: f64 = 0.0;
+const AMBIGUOUS_FACTOR: f64 = 1e3;
 
 /// The projection of one vector onto the cone.
 #[derive(Debug, Clone, PartialEq)]
@@ -86,23 +86,14 @@ impl ConeProjector {
     /// Append a generator (length n) to the cone. Reallocates; call outside hot loops.
     pub fn push_column(&mut self, column: &[f64]) {
         let (n, k) = (self.nrows(), self.ncols());
-        assert_eq!(
-            column.len(),
-            n,
-            "ConeProjector::push_column: column length differs from n"
-        );
+        assert_eq!(column.len(), n, "ConeProjector::push_column: column length differs from n");
         let mut cross = vec![0.0; k + 1];
         at_b(self.theta.as_ref(), column, &mut cross[..k]);
         cross[k] = column.iter().map(|v| v * v).sum();
         let old = std::mem::replace(&mut self.theta, Mat::zeros(0, 0));
         self.theta = Mat::from_fn(n, k + 1, |i, j| if j < k { old[(i, j)] } else { column[i] });
         self.nnls.push_column(&cross);
-        for buf in [
-            &mut self.atb,
-            &mut self.correction,
-            &mut self.trial,
-            &mut self.cold,
-        ] {
+        for buf in [&mut self.atb, &mut self.correction, &mut self.trial, &mut self.cold] {
             buf.resize(k + 1, 0.0);
         }
     }
@@ -111,10 +102,7 @@ impl ConeProjector {
     pub fn project(&mut self, lambda: &[f64]) -> Result<ConeProjection, ConeError> {
         let mut coeffs = vec![0.0; self.ncols()];
         let residual_norm = self.project_warm(lambda, &mut coeffs)?;
-        Ok(ConeProjection {
-            coeffs,
-            residual_norm,
-        })
+        Ok(ConeProjection { coeffs, residual_norm })
     }
 
     /// Project `lambda` starting from the coefficients in `coeffs` (length k; zeros = cold
@@ -128,11 +116,7 @@ impl ConeProjector {
     /// (KKT residual above `tol`). In both cases the projection is repeated from a cold start,
     /// which enters the most correlated generator first, and the smaller residual is kept.
     pub fn project_warm(&mut self, lambda: &[f64], coeffs: &mut [f64]) -> Result<f64, ConeError> {
-        assert_eq!(
-            lambda.len(),
-            self.nrows(),
-            "ConeProjector: vector length differs from n"
-        );
+        assert_eq!(lambda.len(), self.nrows(), "ConeProjector: vector length differs from n");
         let warm = coeffs.iter().any(|c| *c > 0.0);
         let (mut norm, kkt) = self.solve_refined(lambda, coeffs)?;
         let tol = self.nnls.params().tol;
@@ -154,11 +138,7 @@ impl ConeProjector {
     /// NNLS from `coeffs`, then one refinement step on the passive set
     /// (`alpha_P += G_PP^{-1} Theta_P^T r`, kept only if it stays feasible and lowers the
     /// explicit residual). Returns the residual norm and the NNLS KKT residual.
-    fn solve_refined(
-        &mut self,
-        lambda: &[f64],
-        coeffs: &mut [f64],
-    ) -> Result<(f64, f64), ConeError> {
+    fn solve_refined(&mut self, lambda: &[f64], coeffs: &mut [f64]) -> Result<(f64, f64), ConeError> {
         let theta = self.theta.as_ref();
         at_b(theta, lambda, &mut self.atb);
         let stats = self.nnls.solve_normal(&self.atb, coeffs)?;
@@ -166,12 +146,7 @@ impl ConeProjector {
         let mut norm = norm2(&self.residual);
         at_b(theta, &self.residual, &mut self.atb);
         self.nnls.solve_passive(&self.atb, &mut self.correction);
-        for ((t, c), d) in self
-            .trial
-            .iter_mut()
-            .zip(coeffs.iter())
-            .zip(&self.correction)
-        {
+        for ((t, c), d) in self.trial.iter_mut().zip(coeffs.iter()).zip(&self.correction) {
             *t = c + d;
         }
         if self.trial.iter().all(|t| *t >= 0.0) {
@@ -187,15 +162,8 @@ impl ConeProjector {
 
     /// Project every column of `snapshots` (n x N), each from a cold start: returns the
     /// coefficients (k x N) and the residual norms (length N).
-    pub fn project_many(
-        &mut self,
-        snapshots: MatRef<'_, f64>,
-    ) -> Result<(Mat<f64>, Vec<f64>), ConeError> {
-        assert_eq!(
-            snapshots.nrows(),
-            self.nrows(),
-            "ConeProjector: snapshot rows differ from n"
-        );
+    pub fn project_many(&mut self, snapshots: MatRef<'_, f64>) -> Result<(Mat<f64>, Vec<f64>), ConeError> {
+        assert_eq!(snapshots.nrows(), self.nrows(), "ConeProjector: snapshot rows differ from n");
         let (k, count) = (self.ncols(), snapshots.ncols());
         let mut coeffs = Mat::zeros(k, count);
         let mut norms = Vec::with_capacity(count);
@@ -254,9 +222,7 @@ impl<'a> GrowingCone<'a> {
             self.coeffs[j].push(0.0);
             if self.residuals[j] > IN_CONE_REL_TOL * self.norms[j] {
                 copy_column(self.snapshots, j, &mut self.lambda);
-                self.residuals[j] = self
-                    .projector
-                    .project_warm(&self.lambda, &mut self.coeffs[j])?;
+                self.residuals[j] = self.projector.project_warm(&self.lambda, &mut self.coeffs[j])?;
             }
         }
         Ok(())
@@ -327,11 +293,7 @@ mod tests {
     }
 
     fn diff_norm(a: &[f64], b: &[f64]) -> f64 {
-        a.iter()
-            .zip(b)
-            .map(|(x, y)| (x - y) * (x - y))
-            .sum::<f64>()
-            .sqrt()
+        a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()
     }
 
     #[test]
@@ -341,10 +303,7 @@ mod tests {
         let mut proj = ConeProjector::new(theta.as_ref(), NnlsParams::default());
         for _ in 0..20 {
             let lambda = random_vec(&mut rng, 40);
-            let p1 = image(
-                theta.as_ref(),
-                &proj.project(&lambda).expect("converges").coeffs,
-            );
+            let p1 = image(theta.as_ref(), &proj.project(&lambda).expect("converges").coeffs);
             let second = proj.project(&p1).expect("converges");
             let p2 = image(theta.as_ref(), &second.coeffs);
             // P(P(a)) = P(a): cond(Theta) ~ 30 for uniform [0,1] generators, so 1e-11 of
@@ -364,8 +323,7 @@ mod tests {
             let a = random_vec(&mut rng, 30);
             let mut b = a.clone();
             let step = rng.uniform_in(1e-3, 1.0);
-            b.iter_mut()
-                .for_each(|v| *v += step * rng.uniform_in(-1.0, 1.0));
+            b.iter_mut().for_each(|v| *v += step * rng.uniform_in(-1.0, 1.0));
             let pa = image(theta.as_ref(), &proj.project(&a).expect("converges").coeffs);
             let pb = image(theta.as_ref(), &proj.project(&b).expect("converges").coeffs);
             // ||P(a) - P(b)|| <= ||a - b||; slack 1e-12 (relative) + 1e-12 ||a|| (absolute)

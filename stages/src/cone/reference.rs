@@ -12,16 +12,8 @@ use super::nnls::{norm2, residual_into, ConeError, NnlsParams, NnlsSolution};
 ///
 /// Stops when `max_{j not in P} w_j <= tol * ||A||_max-col * ||b||` with `w = A^T (b - A x)`;
 /// `NnlsParams::pivot_tol` is unused. `kkt_residual` in the result uses that same scale.
-pub fn nnls_reference(
-    a: MatRef<'_, f64>,
-    b: &[f64],
-    params: NnlsParams,
-) -> Result<NnlsSolution, ConeError> {
-    assert_eq!(
-        a.nrows(),
-        b.len(),
-        "nnls_reference: A rows and b length differ"
-    );
+pub fn nnls_reference(a: MatRef<'_, f64>, b: &[f64], params: NnlsParams) -> Result<NnlsSolution, ConeError> {
+    assert_eq!(a.nrows(), b.len(), "nnls_reference: A rows and b length differ");
     let k = a.ncols();
     let amax = (0..k).map(|j| a.col(j).norm_l2()).fold(0.0, f64::max);
     let scale = amax * norm2(b);
@@ -31,19 +23,14 @@ pub fn nnls_reference(
     let mut iterations = 0;
     loop {
         let w = dual(a, b, &x);
-        let entering = (0..k)
-            .filter(|&j| !passive[j] && w[j] > tol)
-            .max_by(|&i, &j| w[i].total_cmp(&w[j]));
+        let entering = (0..k).filter(|&j| !passive[j] && w[j] > tol).max_by(|&i, &j| w[i].total_cmp(&w[j]));
         let Some(t) = entering else {
             let kkt = kkt_residual(&w, &passive, scale);
             return Ok(solution(a, b, x, iterations, kkt));
         };
         if iterations >= params.max_iter_for(k) {
             let kkt_residual = kkt_residual(&w, &passive, scale);
-            return Err(ConeError::NotConverged {
-                iterations,
-                kkt_residual,
-            });
+            return Err(ConeError::NotConverged { iterations, kkt_residual });
         }
         iterations += 1;
         passive[t] = true;
@@ -52,16 +39,7 @@ pub fn nnls_reference(
             // Step length to the first passive coefficient that would turn non-positive.
             let blocking = (0..k)
                 .filter(|&j| passive[j] && z[j] <= 0.0)
-                .map(|j| {
-                    (
-                        if x[j] > z[j] {
-                            x[j] / (x[j] - z[j])
-                        } else {
-                            0.0
-                        },
-                        j,
-                    )
-                })
+                .map(|j| (if x[j] > z[j] { x[j] / (x[j] - z[j]) } else { 0.0 }, j))
                 .min_by(|p, q| p.0.total_cmp(&q.0));
             let Some((alpha, jmin)) = blocking else {
                 x = z;
@@ -85,9 +63,7 @@ pub fn nnls_reference(
 fn dual(a: MatRef<'_, f64>, b: &[f64], x: &[f64]) -> Vec<f64> {
     let mut r = vec![0.0; b.len()];
     residual_into(a, x, b, &mut r);
-    (0..a.ncols())
-        .map(|j| (0..b.len()).map(|i| a[(i, j)] * r[i]).sum())
-        .collect()
+    (0..a.ncols()).map(|j| (0..b.len()).map(|i| a[(i, j)] * r[i]).sum()).collect()
 }
 
 /// Minimum-norm least-squares solution on the passive columns (zeros elsewhere), from the thin
@@ -116,27 +92,12 @@ fn kkt_residual(w: &[f64], passive: &[bool], scale: f64) -> f64 {
     if scale <= 0.0 {
         return 0.0;
     }
-    let worst = w
-        .iter()
-        .zip(passive)
-        .map(|(&wj, &p)| if p { wj.abs() } else { wj.max(0.0) })
-        .fold(0.0, f64::max);
+    let worst = w.iter().zip(passive).map(|(&wj, &p)| if p { wj.abs() } else { wj.max(0.0) }).fold(0.0, f64::max);
     worst / scale
 }
 
-fn solution(
-    a: MatRef<'_, f64>,
-    b: &[f64],
-    x: Vec<f64>,
-    iterations: usize,
-    kkt_residual: f64,
-) -> NnlsSolution {
+fn solution(a: MatRef<'_, f64>, b: &[f64], x: Vec<f64>, iterations: usize, kkt_residual: f64) -> NnlsSolution {
     let mut r = vec![0.0; b.len()];
     residual_into(a, &x, b, &mut r);
-    NnlsSolution {
-        x,
-        residual_norm: norm2(&r),
-        iterations,
-        kkt_residual,
-    }
+    NnlsSolution { x, residual_norm: norm2(&r), iterations, kkt_residual }
 }

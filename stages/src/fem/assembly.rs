@@ -97,16 +97,7 @@ pub fn assemble_stiffness(mesh: &Mesh2d, materials: &[Material]) -> Result<CsrMa
             det: b.det,
         })?;
         let q = mesh.quads[e];
-        let dofs = [
-            2 * q[0],
-            2 * q[0] + 1,
-            2 * q[1],
-            2 * q[1] + 1,
-            2 * q[2],
-            2 * q[2] + 1,
-            2 * q[3],
-            2 * q[3] + 1,
-        ];
+        let dofs = [2 * q[0], 2 * q[0] + 1, 2 * q[1], 2 * q[1] + 1, 2 * q[2], 2 * q[2] + 1, 2 * q[3], 2 * q[3] + 1];
         for (r, &dr) in dofs.iter().enumerate() {
             for (c, &dc) in dofs.iter().enumerate() {
                 t.push((dr, dc, ke[r][c]));
@@ -122,10 +113,7 @@ mod tests {
 
     #[test]
     fn csr_sums_duplicates_and_multiplies() {
-        let a = CsrMatrix::from_triplets(
-            3,
-            vec![(0, 0, 1.0), (2, 1, 4.0), (0, 0, 2.0), (1, 2, -1.0), (0, 2, 5.0)],
-        );
+        let a = CsrMatrix::from_triplets(3, vec![(0, 0, 1.0), (2, 1, 4.0), (0, 0, 2.0), (1, 2, -1.0), (0, 2, 5.0)]);
         assert_eq!(a.nnz(), 4);
         assert_eq!(a.row_ptr, vec![0, 2, 3, 4]);
         let y = a.matvec(&[1.0, 2.0, 3.0]);

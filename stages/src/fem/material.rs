@@ -26,11 +26,7 @@ impl Material {
     pub fn plane_strain(&self) -> [[f64; 3]; 3] {
         let (e, nu) = (self.young, self.poisson);
         let c = e / ((1.0 + nu) * (1.0 - 2.0 * nu));
-        [
-            [c * (1.0 - nu), c * nu, 0.0],
-            [c * nu, c * (1.0 - nu), 0.0],
-            [0.0, 0.0, c * (1.0 - 2.0 * nu) / 2.0],
-        ]
+        [[c * (1.0 - nu), c * nu, 0.0], [c * nu, c * (1.0 - nu), 0.0], [0.0, 0.0, c * (1.0 - 2.0 * nu) / 2.0]]
     }
 
     /// Plane-strain modulus `E / (1 - nu^2)` (Hertz theory uses `1/E* = sum (1 - nu_i^2)/E_i`).

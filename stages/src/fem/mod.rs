@@ -55,15 +55,11 @@ mod tests {
         mesh.check_jacobians().expect("distorted but valid");
         let mat = Material { young: 7.0, poisson: 0.3 };
         let k = assemble_stiffness(&mesh, &[mat]).expect("assembly");
-        let field = |p: [f64; 2]| {
-            [0.1 + 0.02 * p[0] - 0.03 * p[1], -0.05 + 0.04 * p[0] + 0.01 * p[1]]
-        };
+        let field = |p: [f64; 2]| [0.1 + 0.02 * p[0] - 0.03 * p[1], -0.05 + 0.04 * p[0] + 0.01 * p[1]];
         let mut fixed = Vec::new();
         for (n, p) in mesh.nodes.iter().enumerate() {
-            let on_boundary = p[0].abs() < 1e-12
-                || (p[0] - 2.0).abs() < 1e-12
-                || p[1].abs() < 1e-12
-                || (p[1] - 1.5).abs() < 1e-12;
+            let on_boundary =
+                p[0].abs() < 1e-12 || (p[0] - 2.0).abs() < 1e-12 || p[1].abs() < 1e-12 || (p[1] - 1.5).abs() < 1e-12;
             if on_boundary {
                 fixed.extend([2 * n, 2 * n + 1]);
             }

@@ -63,10 +63,7 @@ pub fn jacobian(xe: &[[f64; 2]; 4], xi: f64, eta: f64) -> Jacobian {
     let inv = [[j[1][1] / det, -j[0][1] / det], [-j[1][0] / det, j[0][0] / det]];
     let mut dn_dx = [[0.0; 2]; 4];
     for a in 0..4 {
-        dn_dx[a] = [
-            dn[a][0] * inv[0][0] + dn[a][1] * inv[1][0],
-            dn[a][0] * inv[0][1] + dn[a][1] * inv[1][1],
-        ];
+        dn_dx[a] = [dn[a][0] * inv[0][0] + dn[a][1] * inv[1][0], dn[a][0] * inv[0][1] + dn[a][1] * inv[1][1]];
     }
     Jacobian { det, dn_dx }
 }

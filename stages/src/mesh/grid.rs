@@ -42,12 +42,7 @@ impl Grid {
         let mut q = Vec::with_capacity(self.nx * self.ny);
         for j in 0..self.ny {
             for i in 0..self.nx {
-                q.push([
-                    self.node(i, j),
-                    self.node(i + 1, j),
-                    self.node(i + 1, j + 1),
-                    self.node(i, j + 1),
-                ]);
+                q.push([self.node(i, j), self.node(i + 1, j), self.node(i + 1, j + 1), self.node(i, j + 1)]);
             }
         }
         q

@@ -61,9 +61,7 @@ pub fn iron(g: &IronGeometry, nx: usize, ny: usize) -> Result<Grid, MeshError> {
         )));
     }
     if nx == 0 || ny == 0 {
-        return Err(MeshError::BadParameter(format!(
-            "iron needs at least one element per direction, got {nx} x {ny}"
-        )));
+        return Err(MeshError::BadParameter(format!("iron needs at least one element per direction, got {nx} x {ny}")));
     }
     Ok(Grid::from_fn(nx, ny, |i, j| {
         let x = g.contact_x - 0.5 * g.width + g.width * i as f64 / nx as f64;

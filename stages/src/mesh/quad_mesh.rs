@@ -50,12 +50,7 @@ impl Mesh2d {
     /// Concatenate grids, grid `b` becoming body `b`. Returns the mesh and the node offset of
     /// every grid (global id = offset + grid-local id).
     pub fn from_grids(grids: &[&Grid]) -> (Self, Vec<usize>) {
-        let mut mesh = Self {
-            nodes: Vec::new(),
-            quads: Vec::new(),
-            element_body: Vec::new(),
-            node_body: Vec::new(),
-        };
+        let mut mesh = Self { nodes: Vec::new(), quads: Vec::new(), element_body: Vec::new(), node_body: Vec::new() };
         let mut offsets = Vec::with_capacity(grids.len());
         for (body, g) in grids.iter().enumerate() {
             let off = mesh.nodes.len();
@@ -141,11 +136,7 @@ mod tests {
         //   3---2        2   3
         //   |   |  --->   \ /
         //   0---1         / \ (crossed)
-        let g = Grid {
-            nx: 1,
-            ny: 1,
-            nodes: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
-        };
+        let g = Grid { nx: 1, ny: 1, nodes: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]] };
         let (mut m, _) = Mesh2d::from_grids(&[&g]);
         m.quads[0] = [0, 1, 3, 2];
         match m.check_jacobians() {
@@ -154,9 +145,6 @@ mod tests {
         }
         // A clockwise element is negative everywhere.
         m.quads[0] = [0, 3, 2, 1];
-        assert!(matches!(
-            m.check_jacobians(),
-            Err(MeshError::NonPositiveJacobian { gauss_point: 0, .. })
-        ));
+        assert!(matches!(m.check_jacobians(), Err(MeshError::NonPositiveJacobian { gauss_point: 0, .. })));
     }
 }

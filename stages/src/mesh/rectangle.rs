@@ -4,14 +4,7 @@ use super::{Grid, MeshError};
 
 /// A uniform `nx x ny` grid of the rectangle with lower-left corner `(x0, y0)` and side lengths
 /// `lx`, `ly`. Errors if a size is not positive and finite or a count is zero.
-pub fn rectangle(
-    x0: f64,
-    y0: f64,
-    lx: f64,
-    ly: f64,
-    nx: usize,
-    ny: usize,
-) -> Result<Grid, MeshError> {
+pub fn rectangle(x0: f64, y0: f64, lx: f64, ly: f64, nx: usize, ny: usize) -> Result<Grid, MeshError> {
     if !(lx.is_finite() && ly.is_finite() && lx > 0.0 && ly > 0.0) {
         return Err(MeshError::BadParameter(format!(
             "rectangle side lengths must be positive and finite, got {lx} x {ly}"
@@ -22,9 +15,7 @@ pub fn rectangle(
             "rectangle needs at least one element per direction, got {nx} x {ny}"
         )));
     }
-    Ok(Grid::from_fn(nx, ny, |i, j| {
-        [x0 + lx * i as f64 / nx as f64, y0 + ly * j as f64 / ny as f64]
-    }))
+    Ok(Grid::from_fn(nx, ny, |i, j| [x0 + lx * i as f64 / nx as f64, y0 + ly * j as f64 / ny as f64]))
 }
 
 #[cfg(test)]

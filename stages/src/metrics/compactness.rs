@@ -14,11 +14,7 @@ use crate::cone::{copy_column, norm2, ConeError, GrowingCone, NnlsParams};
 
 /// `C(m)` for m = 0..=M for orthonormal `modes` (n x M); `s` is n x N.
 pub fn compactness_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>) -> Vec<f64> {
-    assert_eq!(
-        s.nrows(),
-        modes.nrows(),
-        "compactness_orth: S and modes have different rows"
-    );
+    assert_eq!(s.nrows(), modes.nrows(), "compactness_orth: S and modes have different rows");
     let total = s.norm_l2();
     let m_max = modes.ncols();
     if total <= 0.0 {
@@ -39,10 +35,7 @@ pub fn compactness_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>) -> Vec<f64> 
 
 /// `C(m)` for m = 0..=k using the first m columns of `cone_basis` (n x k) as cone generators,
 /// with default [`NnlsParams`].
-pub fn compactness_cone(
-    s: MatRef<'_, f64>,
-    cone_basis: MatRef<'_, f64>,
-) -> Result<Vec<f64>, ConeError> {
+pub fn compactness_cone(s: MatRef<'_, f64>, cone_basis: MatRef<'_, f64>) -> Result<Vec<f64>, ConeError> {
     compactness_cone_with(s, cone_basis, NnlsParams::default())
 }
 
@@ -52,11 +45,7 @@ pub fn compactness_cone_with(
     cone_basis: MatRef<'_, f64>,
     params: NnlsParams,
 ) -> Result<Vec<f64>, ConeError> {
-    assert_eq!(
-        s.nrows(),
-        cone_basis.nrows(),
-        "compactness_cone: S and basis rows differ"
-    );
+    assert_eq!(s.nrows(), cone_basis.nrows(), "compactness_cone: S and basis rows differ");
     let total = s.norm_l2();
     let k = cone_basis.ncols();
     if total <= 0.0 {
@@ -77,11 +66,7 @@ pub fn compactness_cone_with(
 /// Relative orthogonal projection error of each snapshot on orthonormal `modes` (n x m):
 /// `||s_j - Psi Psi^T s_j|| / ||s_j||` from the explicit residual; `None` for a zero snapshot.
 pub fn relative_errors_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>) -> Vec<Option<f64>> {
-    assert_eq!(
-        s.nrows(),
-        modes.nrows(),
-        "relative_errors_orth: S and modes rows differ"
-    );
+    assert_eq!(s.nrows(), modes.nrows(), "relative_errors_orth: S and modes rows differ");
     let q: Mat<f64> = modes.transpose() * s;
     let perp = s - modes * &q;
     let mut column = vec![0.0; s.nrows()];
@@ -116,9 +101,7 @@ mod tests {
         let c = compactness_orth(s.as_ref(), pod.modes.as_ref());
         let tails = tail_energies(&pod.singular_values);
         let total = tails[0].sqrt();
-        let expected: Vec<f64> = (0..=pod.modes.ncols())
-            .map(|m| tails[m].sqrt() / total)
-            .collect();
+        let expected: Vec<f64> = (0..=pod.modes.ncols()).map(|m| tails[m].sqrt() / total).collect();
         // Two independent formulas (projection residual vs singular values): both exact to
         // ~n eps; 1e-10 absolute (C is relative to ||S||) as required.
         assert_all_close!(c, expected, Tol::abs(1e-10));
@@ -140,13 +123,7 @@ mod tests {
             (2, 0) => 4.0,
             _ => 0.0,
         });
-        let modes = Mat::from_fn(3, 2, |i, j| {
-            if (i, j) == (0, 0) || (i, j) == (2, 1) {
-                1.0
-            } else {
-                0.0
-            }
-        });
+        let modes = Mat::from_fn(3, 2, |i, j| if (i, j) == (0, 0) || (i, j) == (2, 1) { 1.0 } else { 0.0 });
         let c = compactness_orth(s.as_ref(), modes.as_ref());
         assert_all_close!(c, [1.0, 0.8, 0.0], Tol::abs(1e-15)); // one sqrt and one division
     }

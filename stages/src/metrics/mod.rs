@@ -8,6 +8,4 @@
 
 mod compactness;
 
-pub use compactness::{
-    compactness_cone, compactness_cone_with, compactness_orth, relative_errors_orth,
-};
+pub use compactness::{compactness_cone, compactness_cone_with, compactness_orth, relative_errors_orth};

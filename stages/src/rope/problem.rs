@@ -49,12 +49,7 @@ impl Rope {
     /// Obstacle height at `x` for parameter `gamma` (paper eq. 15).
     pub fn obstacle(&self, x: f64, gamma: f64) -> f64 {
         let p = &self.params;
-        let waves: f64 = p
-            .modes
-            .iter()
-            .zip(&p.amplitudes)
-            .map(|(m, a)| a * (m * std::f64::consts::PI * x).sin())
-            .sum();
+        let waves: f64 = p.modes.iter().zip(&p.amplitudes).map(|(m, a)| a * (m * std::f64::consts::PI * x).sin()).sum();
         waves + p.offset + gamma * x
     }
 

