@@ -92,6 +92,11 @@ impl FactoredModel {
         self.llt.solve_in_place(MatMut::from_column_major_slice_mut(b, nf, 1));
     }
 
+    /// Potential-contact nodes: the slaves, then the master polyline (global ids).
+    pub fn contact_nodes(&self) -> &[usize] {
+        &self.cnodes
+    }
+
     /// Number of potential-contact dofs (size of the Delassus operator).
     pub fn n_contact_dof(&self) -> usize {
         self.cfree.len()

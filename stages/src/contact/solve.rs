@@ -105,6 +105,7 @@ struct Work {
     g: Vec<f64>,
     act: Vec<bool>,
     lam_s: Vec<f64>,
+    lam_s_new: Vec<f64>,
     f_old: Vec<f64>,
     f_new: Vec<f64>,
     lcp: LcpWork,
@@ -138,6 +139,7 @@ impl FactoredModel {
             g: vec![0.0; ns],
             act: vec![false; ns],
             lam_s: vec![0.0; ns],
+            lam_s_new: vec![0.0; ns],
             f_old: vec![0.0; ncd],
             f_new: vec![0.0; ncd],
             lcp: LcpWork::new(ns),
@@ -213,21 +215,16 @@ impl FactoredModel {
                     },
                 })?;
             iterations += out.iterations;
-            // active set change (per slave) and new multipliers
-            let mut active_same = !first;
+            // new multipliers per slave; did the active set change?
+            ws.lam_s_new.fill(0.0);
             let mut lam_new_inf = 0.0f64;
-            for s in 0..ns {
-                let was = ws.lam_s[s] > 0.0;
-                ws.lam_s[s] = 0.0;
-                let _ = was;
-            }
             for (r, &s) in ws.pidx.iter().enumerate() {
-                ws.lam_s[s] = ws.lam[r];
+                ws.lam_s_new[s] = ws.lam[r];
                 lam_new_inf = lam_new_inf.max(ws.lam[r]);
             }
-            // (recompute "was" from the previous pairing's multipliers kept in ws.g? no: track
-            // the previous active flags through `prev_active` below)
-            active_same &= self.same_active(&ws.pidx, &ws.act[..np], &ws.pairs, ns);
+            let active_same =
+                !first && ws.lam_s.iter().zip(&ws.lam_s_new).all(|(a, b)| (*a > 0.0) == (*b > 0.0));
+            std::mem::swap(&mut ws.lam_s, &mut ws.lam_s_new);
             // --- update u_c = a + V lambda and positions ---
             ws.uc.copy_from_slice(&ws.a);
             ws.f_old.fill(0.0);
@@ -267,7 +264,7 @@ impl FactoredModel {
                     fnew_inf = fnew_inf.max(ws.f_new[cd].abs());
                 }
             }
-            // unpaired slaves that still carry force are an equilibrium defect too
+            // (a slave that lost its pairing but carries force shows up in f_new - f_old)
             let f_ref = lift_inf.max(fnew_inf).max(f64::MIN_POSITIVE);
             let eq = eq / f_ref;
             let comp = comp / lam_new_inf.max(neg_gap).max(f64::MIN_POSITIVE);
@@ -288,11 +285,6 @@ impl FactoredModel {
         };
         let _ = (eq_res, comp_res);
         Ok(self.finish(mu, &ws, lift_inf, c_scale, iterations, ties.count()))
-    }
-
-    /// Whether the active flags of this LCP equal the previous solve's (kept per slave).
-    fn same_active(&self, _pidx: &[usize], _act: &[bool], _pairs: &[Pair], _ns: usize) -> bool {
-        true
     }
 
     #[allow(clippy::too_many_arguments)]
