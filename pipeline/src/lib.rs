@@ -8,6 +8,7 @@ pub mod error;
 pub mod io;
 pub mod physics;
 pub mod progress;
+pub mod report;
 pub mod scenes;
 pub mod store;
 mod summary;

@@ -98,7 +98,8 @@ impl Physics {
     }
 }
 
-fn rope_params(r: &RopeSpec) -> RopeParams {
+/// The rope stage parameters of a rope scene.
+pub fn rope_params(r: &RopeSpec) -> RopeParams {
     RopeParams {
         length: r.length,
         n_elements: r.n_elements,

@@ -18,16 +18,19 @@ pub enum ArtifactKind {
     Basis,
     /// Compactness C(m) of every basis: `compactness.parquet`.
     Compactness,
+    /// Figures, tables and `index.html` of a scene's study.
+    Report,
 }
 
 impl ArtifactKind {
     /// Every kind, in DAG order.
-    pub const ALL: [ArtifactKind; 5] = [
+    pub const ALL: [ArtifactKind; 6] = [
         ArtifactKind::Mesh,
         ArtifactKind::Snapshot,
         ArtifactKind::TrainingSet,
         ArtifactKind::Basis,
         ArtifactKind::Compactness,
+        ArtifactKind::Report,
     ];
 
     /// Directory name under the store root and stage name in manifests.
@@ -38,6 +41,7 @@ impl ArtifactKind {
             ArtifactKind::TrainingSet => "trainset",
             ArtifactKind::Basis => "basis",
             ArtifactKind::Compactness => "compactness",
+            ArtifactKind::Report => "report",
         }
     }
 
@@ -54,6 +58,7 @@ impl ArtifactKind {
             ArtifactKind::TrainingSet => 1,
             ArtifactKind::Basis => 1,
             ArtifactKind::Compactness => 1,
+            ArtifactKind::Report => 1,
         }
     }
 }

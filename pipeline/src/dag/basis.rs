@@ -77,6 +77,32 @@ pub(crate) fn load(ctx: &Ctx<'_>, key: &Key) -> Result<Bases, CromError> {
     Ok(Bases { primal_pod: m(names::PRIMAL_POD)?, dual_pod: m(names::DUAL_POD)?, dual_cpg: m(names::DUAL_CPG)? })
 }
 
+/// Singular values and ranks, for the report.
+#[derive(Debug, Clone)]
+pub(crate) struct BasisFacts {
+    pub primal_sv: Vec<f64>,
+    pub dual_sv: Vec<f64>,
+    /// primal POD, dual POD, dual CPG, truncated dual CPG.
+    pub ranks: [usize; 4],
+}
+
+/// Singular values and ranks of a stored basis artifact.
+pub(crate) fn load_full(ctx: &Ctx<'_>, key: &Key) -> Result<BasisFacts, CromError> {
+    let f = H5In::open(&ctx.store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
+    let sv = |g: &str| f.vec_f64(&format!("{g}/{}", names::SINGULAR_VALUES));
+    let rank = |g: &str| f.attr_u64_at(g, "rank").map(|r| r as usize);
+    Ok(BasisFacts {
+        primal_sv: sv(names::PRIMAL_POD)?,
+        dual_sv: sv(names::DUAL_POD)?,
+        ranks: [
+            rank(names::PRIMAL_POD)?,
+            rank(names::DUAL_POD)?,
+            rank(names::DUAL_CPG)?,
+            rank(names::DUAL_CPG_TRUNCATED)?,
+        ],
+    })
+}
+
 fn write_pod(f: &H5Out, group: &str, p: &Pod, tol: f64) -> Result<(), CromError> {
     let g = f.group(group)?;
     g.attr_f64("tolerance", tol)?;

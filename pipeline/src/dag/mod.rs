@@ -8,12 +8,12 @@
 //! Each stage is named by the content hash of its parameters and inputs ([`crate::cache`]); a
 //! stage whose artifact is in the store and verifies is not run again.
 
-mod basis;
+pub(crate) mod basis;
 mod compactness;
 mod convert;
 mod mesh;
 mod snapshots;
-mod trainset;
+pub(crate) mod trainset;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -73,6 +73,8 @@ pub struct RunOutput {
     pub basis: Key,
     /// Compactness artifact.
     pub compactness: Key,
+    /// Report artifact.
+    pub report: Key,
 }
 
 impl Ctx<'_> {
@@ -143,7 +145,14 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     let test = trainset::run(ctx, "test", &test_points, test_keys)?;
     let basis = basis::run(ctx, &train)?;
     let compactness = compactness::run(ctx, &train, &basis)?;
-    Ok(RunOutput { mesh: mesh_key, train_snapshots: train_keys.to_vec(), train, test, basis, compactness })
+    let inputs = crate::report::ReportInputs {
+        mesh: mesh_key.clone(),
+        train: train.clone(),
+        basis: basis.clone(),
+        compactness: compactness.clone(),
+    };
+    let report = crate::report::run(ctx, &inputs)?;
+    Ok(RunOutput { mesh: mesh_key, train_snapshots: train_keys.to_vec(), train, test, basis, compactness, report })
 }
 
 /// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.

@@ -199,6 +199,23 @@ impl H5In {
         Ok(ColMatrix { rows, cols, data })
     }
 
+    /// A 1-D integer dataset.
+    pub fn vec_u64(&self, name: &str) -> Result<Vec<u64>, CromError> {
+        self.ds(name)?.read_raw::<u64>().map_err(|e| rerr(&self.path, name, e))
+    }
+
+    /// Shape of a dataset.
+    pub fn shape(&self, name: &str) -> Result<Vec<usize>, CromError> {
+        Ok(self.ds(name)?.shape())
+    }
+
+    /// An integer attribute of a dataset or group at `path` (e.g. `primal_pod` / `rank`).
+    pub fn attr_u64_at(&self, path: &str, name: &str) -> Result<u64, CromError> {
+        let g = self.file.group(path).map_err(|e| rerr(&self.path, path, e))?;
+        let a = g.attr(name).map_err(|e| rerr(&self.path, name, e))?;
+        a.read_scalar::<u64>().map_err(|e| rerr(&self.path, name, e))
+    }
+
     /// A float attribute of the root group.
     pub fn attr_f64(&self, name: &str) -> Result<f64, CromError> {
         let a = self.file.attr(name).map_err(|e| rerr(&self.path, name, e))?;

@@ -125,3 +125,80 @@ fn csv_quote(s: &str) -> String {
         s.to_string()
     }
 }
+
+/// Read a Parquet file written by [`Table::write_parquet`] (Utf8, UInt64 and Float64 columns).
+pub fn read_parquet(path: &Path) -> Result<Table, CromError> {
+    use arrow_array::Array;
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+    let fail = |e: &dyn std::fmt::Display| {
+        CromError::artifact(
+            path,
+            format!("Parquet read: {e}"),
+            "delete the artifact directory and rerun to recompute it",
+        )
+    };
+    let file = std::fs::File::open(path).map_err(|e| CromError::io(path, "opening a Parquet file", e))?;
+    let reader = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| fail(&e))?.build().map_err(|e| fail(&e))?;
+    let mut table = Table::default();
+    for batch in reader {
+        let batch = batch.map_err(|e| fail(&e))?;
+        let schema = batch.schema();
+        for (i, field) in schema.fields().iter().enumerate() {
+            let col = batch.column(i);
+            let values = if let Some(a) = col.as_any().downcast_ref::<StringArray>() {
+                Column::Str((0..a.len()).map(|k| a.value(k).to_string()).collect())
+            } else if let Some(a) = col.as_any().downcast_ref::<UInt64Array>() {
+                Column::U64(a.values().to_vec())
+            } else if let Some(a) = col.as_any().downcast_ref::<Float64Array>() {
+                Column::F64(a.values().to_vec())
+            } else {
+                return Err(fail(&format!("column {} has unsupported type {}", field.name(), field.data_type())));
+            };
+            match table.columns.iter_mut().find(|(n, _)| n == field.name()) {
+                Some((_, Column::Str(v))) => {
+                    if let Column::Str(w) = values {
+                        v.extend(w)
+                    }
+                }
+                Some((_, Column::U64(v))) => {
+                    if let Column::U64(w) = values {
+                        v.extend(w)
+                    }
+                }
+                Some((_, Column::F64(v))) => {
+                    if let Column::F64(w) = values {
+                        v.extend(w)
+                    }
+                }
+                None => table.columns.push((field.name().clone(), values)),
+            }
+        }
+    }
+    Ok(table)
+}
+
+impl Table {
+    /// A float column by name.
+    pub fn f64s(&self, name: &str) -> Option<&[f64]> {
+        self.columns.iter().find_map(|(n, c)| match c {
+            Column::F64(v) if n == name => Some(v.as_slice()),
+            _ => None,
+        })
+    }
+
+    /// An integer column by name.
+    pub fn u64s(&self, name: &str) -> Option<&[u64]> {
+        self.columns.iter().find_map(|(n, c)| match c {
+            Column::U64(v) if n == name => Some(v.as_slice()),
+            _ => None,
+        })
+    }
+
+    /// A string column by name.
+    pub fn strs(&self, name: &str) -> Option<&[String]> {
+        self.columns.iter().find_map(|(n, c)| match c {
+            Column::Str(v) if n == name => Some(v.as_slice()),
+            _ => None,
+        })
+    }
+}

@@ -89,10 +89,7 @@ pub fn solve_lcp(
     max_iter: usize,
 ) -> Result<LcpOutcome, LcpError> {
     let n = lcp.n();
-    assert!(
-        lcp.d.len() >= n * n && active.len() == n && lambda.len() == n && g.len() == n,
-        "LCP shape mismatch"
-    );
+    assert!(lcp.d.len() >= n * n && active.len() == n && lambda.len() == n && g.len() == n, "LCP shape mismatch");
     assert!(ws.z.len() >= n, "LCP workspace too small");
     let pdas_budget = max_iter.min(2 * n + 20);
     let mut it = 0;
@@ -303,8 +300,8 @@ mod tests {
             let mut d = vec![0.0; n * n];
             for i in 0..n {
                 for j in 0..n {
-                    d[i * n + j] = (0..n).map(|k| mm[i * n + k] * mm[j * n + k]).sum::<f64>()
-                        + if i == j { 0.1 } else { 0.0 };
+                    d[i * n + j] =
+                        (0..n).map(|k| mm[i * n + k] * mm[j * n + k]).sum::<f64>() + if i == j { 0.1 } else { 0.0 };
                 }
             }
             let q: Vec<f64> = (0..n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();

@@ -20,22 +20,40 @@ use faer::Mat;
 pub const BLOCK: usize = 64;
 
 /// `W` (row-major `n_cd x n_cd`) from the factor of `K_FF`. `cfree[cd]` is the free index of
-/// contact dof `cd`, or `None` if it is Dirichlet.
-pub fn compliance(llt: &Llt<usize, f64>, n_free: usize, cfree: &[Option<usize>]) -> Vec<f64> {
+/// contact dof `cd`, or `None` if it is Dirichlet. The blocks of right-hand sides are spread
+/// over up to `threads` scoped threads (the factor is shared read-only).
+pub fn compliance(llt: &Llt<usize, f64>, n_free: usize, cfree: &[Option<usize>], threads: usize) -> Vec<f64> {
     let ncd = cfree.len();
-    let cols: Vec<(usize, usize)> =
-        cfree.iter().enumerate().filter_map(|(cd, f)| f.map(|fi| (cd, fi))).collect();
-    let mut w = vec![0.0; ncd * ncd];
-    for chunk in cols.chunks(BLOCK) {
-        let mut rhs = Mat::<f64>::zeros(n_free, chunk.len());
-        for (j, &(_, fi)) in chunk.iter().enumerate() {
-            rhs[(fi, j)] = 1.0;
-        }
-        llt.solve_in_place(rhs.as_mut());
-        for (j, &(cdj, _)) in chunk.iter().enumerate() {
-            for &(cdi, fi) in &cols {
-                w[cdi * ncd + cdj] = rhs[(fi, j)];
+    let cols: Vec<(usize, usize)> = cfree.iter().enumerate().filter_map(|(cd, f)| f.map(|fi| (cd, fi))).collect();
+    let chunks: Vec<&[(usize, usize)]> = cols.chunks(BLOCK).collect();
+    let threads = threads.clamp(1, chunks.len().max(1));
+    // each worker returns, for its chunks, the contact-dof rows of K^{-1} e_j: (cd_j, column)
+    let work = |first: usize| -> Vec<(usize, Vec<f64>)> {
+        let mut out = Vec::new();
+        for chunk in chunks.iter().skip(first).step_by(threads) {
+            let mut rhs = Mat::<f64>::zeros(n_free, chunk.len());
+            for (j, &(_, fi)) in chunk.iter().enumerate() {
+                rhs[(fi, j)] = 1.0;
             }
+            llt.solve_in_place(rhs.as_mut());
+            for (j, &(cdj, _)) in chunk.iter().enumerate() {
+                out.push((cdj, cols.iter().map(|&(_, fi)| rhs[(fi, j)]).collect()));
+            }
+        }
+        out
+    };
+    let parts: Vec<Vec<(usize, Vec<f64>)>> = if threads == 1 {
+        vec![work(0)]
+    } else {
+        std::thread::scope(|sc| {
+            let hs: Vec<_> = (0..threads).map(|t| sc.spawn(move || work(t))).collect();
+            hs.into_iter().map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e))).collect()
+        })
+    };
+    let mut w = vec![0.0; ncd * ncd];
+    for (cdj, col) in parts.into_iter().flatten() {
+        for (&(cdi, _), v) in cols.iter().zip(col) {
+            w[cdi * ncd + cdj] = v;
         }
     }
     // symmetrise away the solve's rounding (W is symmetric in exact arithmetic)

@@ -44,12 +44,8 @@ impl ContactModel {
     pub fn factor(&self) -> Result<FactoredModel, ModelError> {
         let split = &self.split;
         let nf = split.n_free();
-        let kff = SparseColMat::<usize, f64>::try_new_from_triplets(
-            nf,
-            nf,
-            &split.free_block_lower_triplets(&self.k),
-        )
-        .map_err(|e| ModelError::Sparse(format!("{e:?}")))?;
+        let kff = SparseColMat::<usize, f64>::try_new_from_triplets(nf, nf, &split.free_block_lower_triplets(&self.k))
+            .map_err(|e| ModelError::Sparse(format!("{e:?}")))?;
         let llt = kff.sp_cholesky(Side::Lower).map_err(|e| ModelError::Singular(format!("{e:?}")))?;
         let lift = [split.lift(&self.k, &self.u_d0), split.lift(&self.k, &self.u_d1)];
         let mut r2 = Vec::with_capacity(2 * nf);
@@ -72,7 +68,8 @@ impl ContactModel {
                 .map(|d| split.free_index(d).map_or(ud[d], |fi| r[fi]))
                 .collect::<Vec<f64>>()
         });
-        let w = compliance(&llt, nf, &cfree);
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(4);
+        let w = compliance(&llt, nf, &cfree, threads);
         let slave_fixed =
             (0..self.slaves.len()).map(|s| cfree[2 * s].is_none() && cfree[2 * s + 1].is_none()).collect();
         Ok(FactoredModel { model: self.clone(), llt, resp, lift, cnodes, x_ref, cfree, a, w, slave_fixed })

@@ -132,11 +132,7 @@ pub fn closest_point(xs: [f64; 2], m: &[[f64; 2]]) -> Pair {
         let d2 = dot(r, r);
         if d2 < best_d2 {
             best_d2 = d2;
-            best = if v == 0 || v == last {
-                Pair::NONE
-            } else {
-                vertex_pair(xs, m, v, PairKind::Vertex(v))
-            };
+            best = if v == 0 || v == last { Pair::NONE } else { vertex_pair(xs, m, v, PairKind::Vertex(v)) };
         }
     }
     best
@@ -189,7 +185,7 @@ mod tests {
         assert_eq!(Segment(4).shared_vertex(Segment(3)), Some(4));
         assert_eq!(Segment(3).shared_vertex(Vertex(4)), Some(4));
         assert_eq!(Vertex(3).shared_vertex(Segment(3)), Some(3));
-        assert_eq!(Segment(3).shared_vertex(Segment(5)), None);
+        assert_eq!(Segment(3).shared_vertex(Segment(5)), Option::None);
         assert_eq!(Segment(3).shared_vertex(None), Option::None);
         assert!(Segment(3).touches_vertex(4) && Segment(4).touches_vertex(4));
         assert!(!Segment(5).touches_vertex(4));

@@ -25,7 +25,7 @@ use super::error::ContactError;
 use super::factor::FactoredModel;
 use super::pairing::{closest_point, vertex_pair, Pair, PairKind};
 use super::vertex::VertexTies;
-use crate::snapshot::{SolveStats, Snapshot};
+use crate::snapshot::{Snapshot, SolveStats};
 
 /// Settings of the contact solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -114,6 +114,17 @@ struct Work {
 impl FactoredModel {
     /// Solve the contact problem at parameter `mu` (Hertz: approach `d`; ironing: travel `d_x`).
     pub fn solve(&self, mu: f64, p: &ContactSolveParams) -> Result<Snapshot, ContactError> {
+        self.solve_impl(mu, p, true)
+    }
+
+    /// [`Self::solve`] with vertex ties switchable (off only to demonstrate, in tests, that
+    /// some ironing-fine points need them).
+    pub(crate) fn solve_impl(
+        &self,
+        mu: f64,
+        p: &ContactSolveParams,
+        allow_ties: bool,
+    ) -> Result<Snapshot, ContactError> {
         if !mu.is_finite() {
             return Err(ContactError::BadParameter(mu));
         }
@@ -147,12 +158,10 @@ impl FactoredModel {
         for (i, xa) in ws.xa.iter_mut().enumerate() {
             *xa = self.x_ref[i / 2][i % 2] + ws.a[i];
         }
-        let lift_inf = self.lift[0]
-            .iter()
-            .zip(&self.lift[1])
-            .fold(0.0f64, |acc, (l0, l1)| acc.max((l0 + mu * l1).abs()));
+        let lift_inf =
+            self.lift[0].iter().zip(&self.lift[1]).fold(0.0f64, |acc, (l0, l1)| acc.max((l0 + mu * l1).abs()));
         ws.uc.copy_from_slice(&ws.a);
-        let mut ties = VertexTies::new(ns);
+        let mut ties = if allow_ties { VertexTies::new(ns) } else { VertexTies::disabled(ns) };
         let mut repairings = 0;
         self.pair_all(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ties, repairings, &mut ws.pairs)?;
         repairings += 1;
@@ -222,8 +231,7 @@ impl FactoredModel {
                 ws.lam_s_new[s] = ws.lam[r];
                 lam_new_inf = lam_new_inf.max(ws.lam[r]);
             }
-            let active_same =
-                !first && ws.lam_s.iter().zip(&ws.lam_s_new).all(|(a, b)| (*a > 0.0) == (*b > 0.0));
+            let active_same = !first && ws.lam_s.iter().zip(&ws.lam_s_new).all(|(a, b)| (*a > 0.0) == (*b > 0.0));
             std::mem::swap(&mut ws.lam_s, &mut ws.lam_s_new);
             // --- update u_c = a + V lambda and positions ---
             ws.uc.copy_from_slice(&ws.a);
@@ -273,12 +281,7 @@ impl FactoredModel {
                 break (eq, comp);
             }
             if iterations >= p.max_iter {
-                return Err(ContactError::NoConvergence {
-                    param: mu,
-                    iterations,
-                    repairings,
-                    residual: eq.max(comp),
-                });
+                return Err(ContactError::NoConvergence { param: mu, iterations, repairings, residual: eq.max(comp) });
             }
             std::mem::swap(&mut ws.pairs, &mut ws.pairs_new);
             first = false;

@@ -19,6 +19,7 @@ pub const STALL_REPAIRINGS: usize = 12;
 /// Per-slave pairing history and ties.
 #[derive(Debug, Clone)]
 pub struct VertexTies {
+    enabled: bool,
     tie: Vec<Option<usize>>,
     last: Vec<PairKind>,
     before_last: Vec<PairKind>,
@@ -27,12 +28,20 @@ pub struct VertexTies {
 impl VertexTies {
     /// No history, no ties, for `n` slaves.
     pub fn new(n: usize) -> Self {
-        Self { tie: vec![None; n], last: vec![PairKind::None; n], before_last: vec![PairKind::None; n] }
+        Self { enabled: true, tie: vec![None; n], last: vec![PairKind::None; n], before_last: vec![PairKind::None; n] }
+    }
+
+    /// A tracker that never ties (plain closest-point pairing).
+    pub fn disabled(n: usize) -> Self {
+        Self { enabled: false, ..Self::new(n) }
     }
 
     /// Record the natural pairing `nat` of slave `s` at re-pairing number `repairing` and return
     /// the pairing to use (`nat` or [`PairKind::Tied`]).
     pub fn resolve(&mut self, s: usize, nat: PairKind, repairing: usize) -> PairKind {
+        if !self.enabled {
+            return nat;
+        }
         let (h1, h2) = (self.last[s], self.before_last[s]);
         self.before_last[s] = h1;
         self.last[s] = nat;

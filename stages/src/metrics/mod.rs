@@ -5,7 +5,30 @@
 //! * Per-snapshot relative projection errors `||s - Pi(s)|| / ||s||` (the summands of the
 //!   generalization G(m), eq. 17, and of the specificity S(m), eq. 18); a snapshot with zero
 //!   norm has no relative error (`None`), it is reported, never divided by.
+//! * Generalization by leave-one-out (eq. 17):
+//!   `G(m) = 1/N sum_i ||s_i - Pi_{Psi(S \ s_i)[:m]}(s_i)|| / ||s_i||`, the basis rebuilt
+//!   without `s_i` (POD at numerical rank, or CPG at tolerance 0 in selection order); a fold
+//!   whose basis has fewer than m vectors uses all of them (`Psi[:m]` slicing).
+//! * Specificity (eq. 18): `S(m) = 1/N_s sum_i min_j ||s_j - Psi[:, :m] alpha_i|| / ||s_j||`,
+//!   `alpha_i` uniform in `mu +- sigma` of the training snapshots' reduced coordinates (POD
+//!   coordinates, or NNLS coefficients on the first m generators with the interval clipped
+//!   at 0), one random stream per m.
+//! * Nested error (eq. 19): `H(n) = ||S^{n+1} - Pi_{S^n}(S^{n+1})||_F / ||S^{n+1}||_F`, the
+//!   projection onto the span or the cone of the coarser level's snapshots.
+//!
+//! G and S are [`MetricCurve`]s: mean, population standard deviation and count for
+//! m = 1..=M, with zero-norm snapshots counted in `n_zero` instead of divided by.
 
 mod compactness;
+mod generalization;
+mod nested;
+mod specificity;
+mod stats;
 
 pub use compactness::{compactness_cone, compactness_cone_with, compactness_orth, relative_errors_orth};
+pub use generalization::{
+    combine_folds, generalization_cone, generalization_orth, loo_fold_cone, loo_fold_orth, LooFold, LooOrth,
+};
+pub use nested::{nested_error_cone, nested_error_orth};
+pub use specificity::{specificity_cone, specificity_orth, SpecificityParams};
+pub use stats::{MetricCurve, RunningStats};

@@ -1,0 +1,311 @@
+//! Line charts (optionally log-scale, with ±1σ bands) and sparsity ("spy") plots, rendered to PNG
+//! and SVG with plotters. Text uses the committed DejaVu Sans (no system fonts needed).
+
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::error::CromError;
+
+static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+static REGISTER: Once = Once::new();
+
+/// Register the committed font under "sans-serif" (idempotent).
+pub fn register_font() {
+    REGISTER.call_once(|| {
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+/// How a series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mark {
+    /// A line.
+    Line,
+    /// Markers only.
+    Points,
+    /// A line with markers.
+    LinePoints,
+}
+
+/// One series of a [`Chart`].
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Legend label.
+    pub name: String,
+    /// Abscissae.
+    pub x: Vec<f64>,
+    /// Ordinates.
+    pub y: Vec<f64>,
+    /// Optional shaded band (lower, upper), e.g. mean ± 1σ.
+    pub band: Option<(Vec<f64>, Vec<f64>)>,
+    /// How to draw it.
+    pub mark: Mark,
+}
+
+impl Series {
+    /// A line series.
+    pub fn line(name: &str, x: Vec<f64>, y: Vec<f64>) -> Self {
+        Self { name: name.to_string(), x, y, band: None, mark: Mark::LinePoints }
+    }
+
+    /// Change the mark.
+    pub fn mark(mut self, mark: Mark) -> Self {
+        self.mark = mark;
+        self
+    }
+
+    /// Add a band.
+    pub fn band(mut self, lo: Vec<f64>, hi: Vec<f64>) -> Self {
+        self.band = Some((lo, hi));
+        self
+    }
+}
+
+/// A 2-D line chart.
+#[derive(Debug, Clone)]
+pub struct Chart {
+    /// Title.
+    pub title: String,
+    /// x-axis label.
+    pub x_label: String,
+    /// y-axis label.
+    pub y_label: String,
+    /// Log-scale y axis (non-positive values are drawn at the floor of the axis).
+    pub log_y: bool,
+    /// Log-scale x axis.
+    pub log_x: bool,
+    /// The series.
+    pub series: Vec<Series>,
+    /// Where the legend goes.
+    pub legend: Legend,
+}
+
+/// Legend placement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Legend {
+    /// Upper right corner.
+    #[default]
+    UpperRight,
+    /// Lower left corner.
+    LowerLeft,
+    /// Lower right corner.
+    LowerRight,
+    /// Upper left corner.
+    UpperLeft,
+}
+
+impl Legend {
+    fn position(self) -> SeriesLabelPosition {
+        match self {
+            Legend::UpperRight => SeriesLabelPosition::UpperRight,
+            Legend::LowerLeft => SeriesLabelPosition::LowerLeft,
+            Legend::LowerRight => SeriesLabelPosition::LowerRight,
+            Legend::UpperLeft => SeriesLabelPosition::UpperLeft,
+        }
+    }
+}
+
+/// Tick label: `1e-6` style on log axes, a short decimal otherwise.
+fn tick(v: f64, log: bool) -> String {
+    if log {
+        let e = v.log10().round();
+        if (v.log10() - e).abs() < 1e-6 {
+            return format!("1e{}", e as i64);
+        }
+        return format!("{v:.0e}");
+    }
+    let s = format!("{v:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".to_string()
+    } else {
+        s.to_string()
+    }
+}
+
+const PALETTE: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+];
+
+/// Render `chart` to `<stem>.png` and `<stem>.svg` in `dir`.
+pub fn render(chart: &Chart, dir: &Path, stem: &str) -> Result<(), CromError> {
+    register_font();
+    let png = dir.join(format!("{stem}.png"));
+    let svg = dir.join(format!("{stem}.svg"));
+    let fail = |p: &Path, e: String| CromError::artifact(p, format!("drawing figure: {e}"), "report this as a bug");
+    {
+        let root = BitMapBackend::new(&png, (900, 600)).into_drawing_area();
+        draw(&root, chart).map_err(|e| fail(&png, e))?;
+        root.present().map_err(|e| fail(&png, e.to_string()))?;
+    }
+    {
+        let root = SVGBackend::new(&svg, (900, 600)).into_drawing_area();
+        draw(&root, chart).map_err(|e| fail(&svg, e))?;
+        root.present().map_err(|e| fail(&svg, e.to_string()))?;
+    }
+    Ok(())
+}
+
+fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for v in values.filter(|v| v.is_finite() && (!log || *v > 0.0)) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return if log { (1e-16, 1.0) } else { (0.0, 1.0) };
+    }
+    if log {
+        let (l, h) = (lo.log10().floor(), hi.log10().ceil());
+        let h = if h <= l { l + 1.0 } else { h };
+        (10f64.powf(l), 10f64.powf(h))
+    } else {
+        let pad = if hi > lo { 0.05 * (hi - lo) } else { lo.abs().max(1.0) * 0.05 };
+        (lo - pad, hi + pad)
+    }
+}
+
+fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) -> Result<(), String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let xs = chart.series.iter().flat_map(|s| s.x.iter().copied());
+    let ys = chart
+        .series
+        .iter()
+        .flat_map(|s| s.y.iter().copied().chain(s.band.iter().flat_map(|(l, h)| l.iter().chain(h.iter()).copied())));
+    let (x0, x1) = range(xs, chart.log_x);
+    let (y0, y1) = range(ys, chart.log_y);
+    let clamp = |v: f64| if chart.log_y { v.max(y0) } else { v };
+    let mut builder = ChartBuilder::on(root);
+    builder.caption(&chart.title, ("sans-serif", 22)).margin(15).x_label_area_size(45).y_label_area_size(75);
+    macro_rules! body {
+        ($ctx:expr) => {{
+            let mut ctx = $ctx;
+            let xf = |v: &f64| tick(*v, chart.log_x);
+            let yf = |v: &f64| tick(*v, chart.log_y);
+            ctx.configure_mesh()
+                .x_label_formatter(&xf)
+                .y_label_formatter(&yf)
+                .x_desc(chart.x_label.as_str())
+                .y_desc(chart.y_label.as_str())
+                .label_style(("sans-serif", 14))
+                .axis_desc_style(("sans-serif", 16))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            for (i, s) in chart.series.iter().enumerate() {
+                let color = PALETTE[i % PALETTE.len()];
+                if let Some((lo, hi)) = &s.band {
+                    let mut poly: Vec<(f64, f64)> = s.x.iter().zip(hi).map(|(x, y)| (*x, clamp(*y))).collect();
+                    poly.extend(s.x.iter().zip(lo).rev().map(|(x, y)| (*x, clamp(*y))));
+                    ctx.draw_series(std::iter::once(Polygon::new(poly, color.mix(0.18).filled())))
+                        .map_err(|e| e.to_string())?;
+                }
+                let pts: Vec<(f64, f64)> =
+                    s.x.iter().zip(&s.y).filter(|(_, y)| y.is_finite()).map(|(x, y)| (*x, clamp(*y))).collect();
+                let style = ShapeStyle::from(&color).stroke_width(2);
+                if s.mark == Mark::LinePoints && pts.len() <= 200 {
+                    ctx.draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))
+                        .map_err(|e| e.to_string())?;
+                }
+                let anno = if s.mark == Mark::Points {
+                    ctx.draw_series(pts.iter().map(|p| Circle::new(*p, 4, color.filled())))
+                        .map_err(|e| e.to_string())?
+                } else {
+                    ctx.draw_series(LineSeries::new(pts, style)).map_err(|e| e.to_string())?
+                };
+                anno.label(s.name.as_str())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(3)));
+            }
+            ctx.configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .position(chart.legend.position())
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }};
+    }
+    match (chart.log_x, chart.log_y) {
+        (false, false) => body!(builder.build_cartesian_2d(x0..x1, y0..y1).map_err(|e| e.to_string())?),
+        (false, true) => body!(builder.build_cartesian_2d(x0..x1, (y0..y1).log_scale()).map_err(|e| e.to_string())?),
+        (true, false) => body!(builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1).map_err(|e| e.to_string())?),
+        (true, true) => {
+            body!(builder.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale()).map_err(|e| e.to_string())?)
+        }
+    }
+    Ok(())
+}
+
+/// A sparsity pattern: row i = snapshot i, a dark cell where the field is non-zero.
+#[derive(Debug, Clone)]
+pub struct Spy {
+    /// Title.
+    pub title: String,
+    /// x-axis label (node index).
+    pub x_label: String,
+    /// y-axis label (snapshot index).
+    pub y_label: String,
+    /// `nonzero[i][j]`: snapshot i, node j.
+    pub nonzero: Vec<Vec<bool>>,
+}
+
+/// Render a [`Spy`] to `<stem>.png` and `<stem>.svg`.
+pub fn render_spy(spy: &Spy, dir: &Path, stem: &str) -> Result<(), CromError> {
+    register_font();
+    let png = dir.join(format!("{stem}.png"));
+    let svg = dir.join(format!("{stem}.svg"));
+    let fail = |p: &Path, e: String| CromError::artifact(p, format!("drawing figure: {e}"), "report this as a bug");
+    {
+        let root = BitMapBackend::new(&png, (900, 600)).into_drawing_area();
+        draw_spy(&root, spy).map_err(|e| fail(&png, e))?;
+        root.present().map_err(|e| fail(&png, e.to_string()))?;
+    }
+    {
+        let root = SVGBackend::new(&svg, (900, 600)).into_drawing_area();
+        draw_spy(&root, spy).map_err(|e| fail(&svg, e))?;
+        root.present().map_err(|e| fail(&svg, e.to_string()))?;
+    }
+    Ok(())
+}
+
+fn draw_spy<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, spy: &Spy) -> Result<(), String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let rows = spy.nonzero.len().max(1);
+    let cols = spy.nonzero.first().map_or(1, Vec::len).max(1);
+    let mut ctx = ChartBuilder::on(root)
+        .caption(&spy.title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0f64..cols as f64, (rows as f64)..0f64)
+        .map_err(|e| e.to_string())?;
+    let f = |v: &f64| tick(*v, false);
+    ctx.configure_mesh()
+        .disable_mesh()
+        .x_label_formatter(&f)
+        .y_label_formatter(&f)
+        .x_desc(spy.x_label.as_str())
+        .y_desc(spy.y_label.as_str())
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 16))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let cells = spy.nonzero.iter().enumerate().flat_map(|(i, row)| {
+        row.iter()
+            .enumerate()
+            .filter(|(_, nz)| **nz)
+            .map(move |(j, _)| Rectangle::new([(j as f64, i as f64), (j as f64 + 1.0, i as f64 + 1.0)], BLACK.filled()))
+    });
+    ctx.draw_series(cells).map_err(|e| e.to_string())?;
+    Ok(())
+}

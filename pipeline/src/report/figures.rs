@@ -1,0 +1,165 @@
+//! The paper's figures, from the artifacts.
+
+use std::path::Path;
+
+use crom_schemas::scene::Model;
+use crom_schemas::SceneConfig;
+use crom_stages::rope::Rope;
+
+use super::chart::{render, render_spy, Chart, Legend, Mark, Series, Spy};
+use super::{Figure, ReportData};
+use crate::error::CromError;
+use crate::physics::rope_params;
+
+/// At most this many snapshot curves in one figure (every k-th otherwise).
+const MAX_CURVES: usize = 12;
+
+/// Draw every figure that applies to the scene into `dir`.
+pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec<Figure>, CromError> {
+    let mut figs = Vec::new();
+    if let Model::Rope(spec) = &scene.model {
+        figs.push(rope_primal(scene, &Rope::new(rope_params(spec)), d, dir)?);
+    }
+    figs.push(dual_snapshots(scene, d, dir)?);
+    figs.push(singular_values(scene, d, dir)?);
+    figs.push(sparsity(scene, d, dir)?);
+    figs.push(compactness(scene, d, dir)?);
+    Ok(figs)
+}
+
+fn every(n: usize) -> usize {
+    n.div_ceil(MAX_CURVES).max(1)
+}
+
+fn label(scene: &SceneConfig, p: f64) -> String {
+    format!("{} = {:.3}", scene.parameter.name, p)
+}
+
+fn rope_primal(scene: &SceneConfig, rope: &Rope, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
+    let mut series = Vec::new();
+    let step = every(d.train.parameters.len());
+    for (j, &p) in d.train.parameters.iter().enumerate().step_by(step) {
+        series.push(
+            Series::line(&format!("u, {}", label(scene, p)), d.line_x.clone(), d.train.primal.col(j).to_vec())
+                .mark(Mark::Line),
+        );
+    }
+    for &p in [d.train.parameters.first(), d.train.parameters.last()].into_iter().flatten() {
+        let g = d.line_x.iter().map(|&x| rope.obstacle(x, p)).collect();
+        series.push(Series::line(&format!("obstacle g, {}", label(scene, p)), d.line_x.clone(), g).mark(Mark::Line));
+    }
+    let chart = Chart {
+        title: format!("{}: deformation and obstacle snapshots", scene.scene.name),
+        x_label: "x".into(),
+        y_label: "u(x), g(x)".into(),
+        log_y: false,
+        log_x: false,
+        series,
+        legend: Legend::LowerRight,
+    };
+    render(&chart, dir, "fig02_primal_snapshots")?;
+    Ok(Figure {
+        stem: "fig02_primal_snapshots".into(),
+        caption: "Deformation u(x, γ) and obstacle g(x, γ) at training points (paper Fig. 2, left).".into(),
+    })
+}
+
+fn dual_snapshots(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
+    let step = every(d.train.parameters.len());
+    let mut order: Vec<usize> = (0..d.contact_x.len()).collect();
+    order.sort_by(|&a, &b| d.contact_x[a].total_cmp(&d.contact_x[b]));
+    let xs: Vec<f64> = order.iter().map(|&i| d.contact_x[i]).collect();
+    let series = d
+        .train
+        .parameters
+        .iter()
+        .enumerate()
+        .step_by(step)
+        .map(|(j, &p)| {
+            let col = d.train.dual.col(j);
+            Series::line(&label(scene, p), xs.clone(), order.iter().map(|&i| col[i]).collect()).mark(Mark::Line)
+        })
+        .collect();
+    let chart = Chart {
+        title: format!("{}: contact pressure snapshots", scene.scene.name),
+        x_label: "x of the potential-contact node".into(),
+        y_label: "contact pressure λ".into(),
+        log_y: false,
+        log_x: false,
+        series,
+        legend: Legend::UpperRight,
+    };
+    render(&chart, dir, "fig_dual_snapshots")?;
+    Ok(Figure {
+        stem: "fig_dual_snapshots".into(),
+        caption: "Contact pressure snapshots at training points (paper Figs. 2 right, 6b, 12).".into(),
+    })
+}
+
+fn singular_values(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
+    let norm = |name: &str, s: &[f64]| {
+        let s0 = s.first().copied().unwrap_or(1.0).max(f64::MIN_POSITIVE);
+        Series::line(name, (1..=s.len()).map(|i| i as f64).collect(), s.iter().map(|v| v / s0).collect())
+    };
+    let (p, q) = (norm("primal σ_i / σ_1", &d.primal_sv), norm("dual σ_i / σ_1", &d.dual_sv));
+    let chart = Chart {
+        title: format!("{}: singular value decay", scene.scene.name),
+        x_label: "index i".into(),
+        y_label: "normalised singular value".into(),
+        log_y: true,
+        log_x: false,
+        series: vec![p, q],
+        legend: Legend::UpperRight,
+    };
+    render(&chart, dir, "fig04_singular_values")?;
+    Ok(Figure {
+        stem: "fig04_singular_values".into(),
+        caption: "Decay of the normalised singular values of the primal and dual snapshot matrices (paper Fig. 4)."
+            .into(),
+    })
+}
+
+fn sparsity(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
+    let mut order: Vec<usize> = (0..d.contact_x.len()).collect();
+    order.sort_by(|&a, &b| d.contact_x[a].total_cmp(&d.contact_x[b]));
+    let max = d.train.dual.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    // "Non-zero" relative to the largest pressure: solver tolerance is 1e-10, so 1e-12 of the
+    // maximum separates contact from rounding.
+    let thresh = 1e-12 * max;
+    let nonzero =
+        (0..d.train.dual.cols).map(|j| order.iter().map(|&i| d.train.dual.col(j)[i] > thresh).collect()).collect();
+    let spy = Spy {
+        title: format!("{}: sparsity pattern of the dual snapshots", scene.scene.name),
+        x_label: "potential-contact node (sorted by x)".into(),
+        y_label: "snapshot".into(),
+        nonzero,
+    };
+    render_spy(&spy, dir, "fig05_sparsity")?;
+    Ok(Figure {
+        stem: "fig05_sparsity".into(),
+        caption: "Non-zero pattern of the contact pressure snapshots, one row per snapshot (paper Figs. 5, 8, 13)."
+            .into(),
+    })
+}
+
+fn compactness(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
+    let series = [("primal", "orth", "primal orth"), ("dual", "orth", "dual orth"), ("dual", "cone", "dual cone")]
+        .iter()
+        .filter_map(|(f, b, name)| {
+            d.compactness
+                .get(&(f.to_string(), b.to_string()))
+                .map(|v| Series::line(name, (0..v.len()).map(|m| m as f64).collect(), v.clone()))
+        })
+        .collect();
+    let chart = Chart {
+        title: format!("{}: compactness", scene.scene.name),
+        x_label: "rank m".into(),
+        y_label: "C(m) (eq. 16)".into(),
+        log_y: true,
+        log_x: false,
+        series,
+        legend: Legend::UpperRight,
+    };
+    render(&chart, dir, "fig09_compactness")?;
+    Ok(Figure { stem: "fig09_compactness".into(), caption: "Compactness C(m) of the primal POD, dual POD and dual CPG bases (paper Figs. 9, 14); values at 0 are drawn at the axis floor.".into() })
+}

@@ -1,0 +1,56 @@
+//! `index.html`: every figure with its caption and the run's key numbers.
+
+use std::path::Path;
+
+use crom_schemas::SceneConfig;
+
+use super::{Figure, ReportData};
+use crate::error::CromError;
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+/// Write `index.html` into `dir`.
+pub(crate) fn write_index(
+    scene: &SceneConfig,
+    d: &ReportData,
+    figures: &[Figure],
+    dir: &Path,
+) -> Result<(), CromError> {
+    let p = &scene.parameter;
+    let [pr, dr, cr, ctr] = d.ranks;
+    let facts = [
+        ("scene".to_string(), esc(&scene.scene.name)),
+        ("description".to_string(), esc(&scene.scene.description)),
+        ("parameter".to_string(), format!("{} ∈ [{}, {}] ({})", esc(&p.name), p.min, p.max, esc(&p.description))),
+        ("training snapshots".to_string(), d.train.parameters.len().to_string()),
+        ("primal dofs / contact nodes".to_string(), format!("{} / {}", d.train.primal.rows, d.train.dual.rows)),
+        ("primal POD rank (δ = ".to_string() + &scene.study.primal_tol.to_string() + ")", pr.to_string()),
+        ("dual POD rank (δ = ".to_string() + &scene.study.dual_orth_tol.to_string() + ")", dr.to_string()),
+        ("dual CPG rank (tol = ".to_string() + &scene.study.dual_cone_tol.to_string() + ")", cr.to_string()),
+        (
+            "truncated dual CPG rank (tol = ".to_string() + &scene.study.dual_cone_tol_truncated.to_string() + ")",
+            ctr.to_string(),
+        ),
+    ];
+    let mut html = String::new();
+    html.push_str(&format!(
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>crom report: {0}</title>\n<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:4px 10px;text-align:left}}figure{{margin:2em 0}}img{{max-width:100%;border:1px solid #eee}}figcaption{{color:#555}}</style></head><body>\n<h1>crom report: {0}</h1>\n<table>\n",
+        esc(&scene.scene.name)
+    ));
+    for (k, v) in facts {
+        html.push_str(&format!("<tr><th>{}</th><td>{v}</td></tr>\n", esc(&k)));
+    }
+    html.push_str("</table>\n");
+    for f in figures {
+        html.push_str(&format!(
+            "<figure><img src=\"{0}.png\" alt=\"{1}\"><figcaption>{1} <a href=\"{0}.svg\">SVG</a></figcaption></figure>\n",
+            f.stem,
+            esc(&f.caption)
+        ));
+    }
+    html.push_str("</body></html>\n");
+    let path = dir.join("index.html");
+    std::fs::write(&path, html).map_err(|e| CromError::io(&path, "writing index.html", e))
+}

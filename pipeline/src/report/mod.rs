@@ -1,0 +1,103 @@
+//! Report stage: every paper figure that applies to the scene (PNG + SVG), the tables (CSV +
+//! Markdown) and an `index.html` showing them with the run's key numbers. A cached artifact like
+//! any other: its key is the keys of everything it shows.
+
+pub mod chart;
+mod figures;
+mod html;
+
+use std::collections::BTreeMap;
+
+use crom_schemas::artifact::{compactness as cnames, mesh as mnames, ArtifactKind};
+use serde_json::json;
+
+use crate::cache::{Key, KeySpec};
+use crate::dag::{basis, trainset, Ctx};
+use crate::error::CromError;
+use crate::io::h5::H5In;
+use crate::io::table::read_parquet;
+
+/// Bump when the report's content changes.
+const ALGORITHM_VERSION: u32 = 1;
+
+/// The artifacts a report shows.
+#[derive(Debug, Clone)]
+pub struct ReportInputs {
+    /// Mesh.
+    pub mesh: Key,
+    /// Training set.
+    pub train: Key,
+    /// Bases.
+    pub basis: Key,
+    /// Compactness table.
+    pub compactness: Key,
+}
+
+/// One figure of the report.
+#[derive(Debug, Clone)]
+pub(crate) struct Figure {
+    /// File stem (PNG and SVG).
+    pub stem: String,
+    /// Caption, with the paper's figure number.
+    pub caption: String,
+}
+
+/// Build (or find) the report; returns its key.
+pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
+    let spec = KeySpec::new(ArtifactKind::Report, ALGORITHM_VERSION, json!({}))
+        .input("mesh", &inputs.mesh)
+        .input("train", &inputs.train)
+        .input("basis", &inputs.basis)
+        .input("compactness", &inputs.compactness);
+    let key = spec.key();
+    let progress = ctx.progress.stage("report", 1);
+    let scene = ctx.scene.clone();
+    let data = gather(ctx, inputs)?;
+    let (_, computed) = ctx.cached(ArtifactKind::Report, &spec, |staging| {
+        let dir = staging.path("");
+        let figures = figures::all(&scene, &data, &dir)?;
+        html::write_index(&scene, &data, &figures, &dir)?;
+        Ok(BTreeMap::from([("figures".to_string(), json!(figures.len()))]))
+    })?;
+    progress.finish(if computed { "written" } else { "cached" });
+    ctx.record("report", usize::from(computed), usize::from(!computed), ctx.store.dir(ArtifactKind::Report, &key));
+    Ok(key)
+}
+
+/// Everything the figures need, read from the artifacts.
+#[derive(Debug)]
+pub(crate) struct ReportData {
+    /// x coordinate of each potential-contact node (dual field abscissa).
+    pub contact_x: Vec<f64>,
+    /// Node x coordinates of a 1-D mesh (primal abscissa), empty for 2-D.
+    pub line_x: Vec<f64>,
+    /// Training set.
+    pub train: trainset::TrainingSet,
+    /// Singular values of the primal and dual snapshot matrices.
+    pub primal_sv: Vec<f64>,
+    /// Dual singular values.
+    pub dual_sv: Vec<f64>,
+    /// Ranks of the stored bases: primal, dual orth, dual cone, dual cone truncated.
+    pub ranks: [usize; 4],
+    /// (field, basis) → C(m).
+    pub compactness: BTreeMap<(String, String), Vec<f64>>,
+}
+
+fn gather(ctx: &Ctx<'_>, inputs: &ReportInputs) -> Result<ReportData, CromError> {
+    let mesh = H5In::open(&ctx.store.dir(ArtifactKind::Mesh, &inputs.mesh).join(mnames::FILE))?;
+    let nodes = mesh.matrix(mnames::NODES)?; // n x 2, column-major
+    let contact = mesh.vec_u64(mnames::CONTACT_NODES)?;
+    let cells = mesh.shape(mnames::CELLS)?;
+    let contact_x = contact.iter().map(|&i| nodes.data[i as usize]).collect();
+    let line_x = if cells.get(1) == Some(&2) { nodes.col(0).to_vec() } else { Vec::new() };
+    let train = trainset::load(ctx, &inputs.train)?;
+    let b = basis::load_full(ctx, &inputs.basis)?;
+    let table = read_parquet(&ctx.store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
+    let mut compactness: BTreeMap<(String, String), Vec<f64>> = BTreeMap::new();
+    if let (Some(f), Some(bs), Some(v)) = (table.strs("field"), table.strs("basis"), table.f64s("value")) {
+        for ((f, b), v) in f.iter().zip(bs).zip(v) {
+            compactness.entry((f.clone(), b.clone())).or_default().push(*v);
+        }
+    }
+    Ok(ReportData { contact_x, line_x, train, primal_sv: b.primal_sv, dual_sv: b.dual_sv, ranks: b.ranks, compactness })
+}

@@ -1,0 +1,431 @@
+//! Generalization ability by leave-one-out (paper eq. 17):
+//!
+//! ```text
+//! G(m) = 1/N sum_i ||s_i - Pi_{Psi(S \ s_i)[:m]}(s_i)|| / ||s_i||
+//! ```
+//!
+//! For each fold i the basis `Psi(S \ s_i)` is rebuilt from the N - 1 other snapshots, exactly
+//! as for the training set, and the left-out `s_i` is projected on its first m vectors:
+//!
+//! * "primal orth" / "dual orth": POD of `S \ s_i` at its numerical rank (thin SVD, the rank
+//!   rule of [`pod_full`]), orthogonal projection;
+//! * "dual cone": CPG of `S \ s_i` at tolerance 0 (every snapshot not already in the cone, in
+//!   CPG's selection order), cone projection (eq. 12) on the first m generators.
+//!
+//! Conventions (SCENES.md "Study settings"):
+//!
+//! * The curve covers m = 1..=max_m. A fold whose basis has fewer than m vectors (rank of
+//!   `S \ s_i` below m, or CPG stopped earlier) uses its whole basis — the python slicing
+//!   `Psi[:m]` of the paper's notation — so every fold contributes at every m; such folds are
+//!   counted in [`MetricCurve::padded`].
+//! * A left-out snapshot with zero norm (no contact) has no relative error: it is skipped and
+//!   counted in [`MetricCurve::n_zero`], never divided by. The mean and the (population)
+//!   standard deviation are over the others, so `1/N` in eq. 17 is `1/count`.
+//! * A duplicated snapshot left out is still in the span / cone of the other folds' bases:
+//!   its error is round-off at full rank.
+//!
+//! Folds are independent. [`LooOrth::fold`] and [`loo_fold_cone`] compute one fold each (the
+//! pipeline runs them in parallel), [`combine_folds`] reduces them to a [`MetricCurve`], and
+//! [`generalization_orth`] / [`generalization_cone`] do all folds sequentially.
+//!
+//! # Orthogonal folds in reduced coordinates
+//!
+//! With the thin QR factorisation `S = Q R` (Q n x q orthonormal, q = min(n, N)), every fold
+//! satisfies `S \ s_i = Q (R \ r_i)` and `s_i = Q r_i`, so the POD modes of `S \ s_i` are `Q`
+//! times those of `R \ r_i` (same singular values) and projection errors are the same in
+//! either coordinates. [`LooOrth`] factors S once and runs each fold's SVD on the q x (N - 1)
+//! matrix `R \ r_i` instead of n x (N - 1) (for a primal field n >> N). The numerical rank uses
+//! the cut of the full-size fold, `max(n, N - 1) eps s_max`. [`loo_fold_orth`] is the direct
+//! definition (POD of the n x (N - 1) fold), kept as the reference.
+//!
+//! For orthonormal modes `U` (k of them), `c = U^T s` and the explicit residual
+//! `s_perp = s - U c`, the error on the first m modes is
+//! `||s - U_m U_m^T s||^2 = ||s_perp||^2 + sum_{l >= m} c_l^2`: a sum of non-negative terms
+//! (no cancellation), so errors reach round-off when `s` is in the span.
+
+use std::borrow::Borrow;
+
+use faer::{Mat, MatRef};
+
+use super::compactness::compactness_cone_with;
+use super::stats::{MetricCurve, RunningStats};
+use crate::basis::{cpg, numerical_rank, pod_full, CpgParams, PodError};
+use crate::cone::{ConeError, NnlsParams};
+
+/// The relative projection errors of one left-out snapshot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LooFold {
+    /// `errors[k]` is the relative error on the first m = k + 1 basis vectors (length max_m);
+    /// beyond `basis_len` it repeats the error on the whole basis.
+    pub errors: Vec<f64>,
+    /// Number of vectors in this fold's basis (POD rank or CPG size of `S \ s_i`).
+    pub basis_len: usize,
+}
+
+/// Reduce folds to a curve for m = 1..=max_m. `None` folds (zero-norm left-out snapshots) are
+/// counted in `n_zero`; every `Some` fold must have `max_m` errors.
+pub fn combine_folds<B, I>(folds: I, max_m: usize) -> MetricCurve
+where
+    B: Borrow<Option<LooFold>>,
+    I: IntoIterator<Item = B>,
+{
+    let mut stats = vec![RunningStats::new(); max_m];
+    let mut padded = vec![0; max_m];
+    let mut n_zero = 0;
+    for fold in folds {
+        let Some(fold) = fold.borrow() else {
+            n_zero += 1;
+            continue;
+        };
+        assert_eq!(fold.errors.len(), max_m, "combine_folds: fold has the wrong number of errors");
+        for (k, e) in fold.errors.iter().enumerate() {
+            stats[k].push(*e);
+            if fold.basis_len <= k {
+                padded[k] += 1;
+            }
+        }
+    }
+    MetricCurve::from_stats(&stats, padded, n_zero)
+}
+
+/// S without column i (n x (N - 1)).
+fn without_column(s: MatRef<'_, f64>, i: usize) -> Mat<f64> {
+    Mat::from_fn(s.nrows(), s.ncols() - 1, |r, c| s[(r, if c < i { c } else { c + 1 })])
+}
+
+fn check_finite(s: MatRef<'_, f64>) -> Result<(), PodError> {
+    if (0..s.ncols()).any(|j| s.col(j).iter().any(|v| !v.is_finite())) {
+        return Err(PodError::NonFinite);
+    }
+    Ok(())
+}
+
+/// Errors of `x` (a column) on the first m of the orthonormal `modes`, m = 1..=max_m, relative
+/// to `norm` (> 0); padded with the whole-basis error beyond `modes.ncols()`.
+fn orth_fold_errors(modes: MatRef<'_, f64>, x: MatRef<'_, f64>, norm: f64, max_m: usize) -> LooFold {
+    let k = modes.ncols();
+    let c: Mat<f64> = modes.transpose() * x;
+    let perp = x - modes * &c;
+    // tails[m] = ||s_perp||^2 + sum_{l >= m} c_l^2, accumulated from the last mode up.
+    let mut tails = vec![0.0; k + 1];
+    tails[k] = perp.squared_norm_l2();
+    for l in (0..k).rev() {
+        tails[l] = tails[l + 1] + c[(l, 0)] * c[(l, 0)];
+    }
+    let errors = (1..=max_m).map(|m| tails[m.min(k)].sqrt() / norm).collect();
+    LooFold { errors, basis_len: k }
+}
+
+/// One orthogonal leave-one-out fold by definition: POD (numerical rank) of the n x (N - 1)
+/// matrix `S \ s_i`, errors of `s_i` for m = 1..=max_m. `None` when `||s_i|| = 0`.
+/// [`LooOrth::fold`] computes the same in reduced coordinates, faster.
+pub fn loo_fold_orth(s: MatRef<'_, f64>, i: usize, max_m: usize) -> Result<Option<LooFold>, PodError> {
+    assert!(i < s.ncols(), "loo_fold_orth: fold {i} out of {} snapshots", s.ncols());
+    check_finite(s)?;
+    let norm = s.col(i).norm_l2();
+    if norm <= 0.0 {
+        return Ok(None);
+    }
+    let pod = pod_full(without_column(s, i).as_ref())?;
+    Ok(Some(orth_fold_errors(pod.modes.as_ref(), s.subcols(i, 1), norm, max_m)))
+}
+
+/// Orthogonal leave-one-out folds of one snapshot matrix, sharing one QR factorisation
+/// (see the [module docs](self)). `Sync`: folds can run in parallel on a shared reference.
+#[derive(Debug, Clone)]
+pub struct LooOrth {
+    /// `R` of `S = Q R`, q x N (the snapshots in the orthonormal frame Q).
+    coords: Mat<f64>,
+    /// `||s_j||` from the original columns (length N).
+    norms: Vec<f64>,
+    /// Rows n of S (for the numerical-rank cut of a full-size fold).
+    nrows: usize,
+}
+
+impl LooOrth {
+    /// Factor the snapshots `s` (n x N).
+    pub fn new(s: MatRef<'_, f64>) -> Result<Self, PodError> {
+        check_finite(s)?;
+        let (n, count) = (s.nrows(), s.ncols());
+        let norms = (0..count).map(|j| s.col(j).norm_l2()).collect();
+        let coords = if n.min(count) == 0 { Mat::zeros(0, count) } else { s.qr().thin_R().to_owned() };
+        Ok(Self { coords, norms, nrows: n })
+    }
+
+    /// Number of snapshots N (folds).
+    pub fn ncols(&self) -> usize {
+        self.norms.len()
+    }
+
+    /// Fold i: the errors of `s_i` on the POD modes of `S \ s_i`, m = 1..=max_m; `None` when
+    /// `||s_i|| = 0`.
+    pub fn fold(&self, i: usize, max_m: usize) -> Result<Option<LooFold>, PodError> {
+        let count = self.ncols();
+        assert!(i < count, "LooOrth::fold: fold {i} out of {count} snapshots");
+        let norm = self.norms[i];
+        if norm <= 0.0 {
+            return Ok(None);
+        }
+        let rest = without_column(self.coords.as_ref(), i);
+        let q = rest.nrows();
+        let modes = if rest.ncols() == 0 || rest.norm_l2() <= 0.0 {
+            Mat::zeros(q, 0)
+        } else {
+            let svd = rest.thin_svd().map_err(|_| PodError::SvdNoConvergence)?;
+            let values: Vec<f64> = svd.S().column_vector().iter().copied().collect();
+            let rank = numerical_rank(&values, self.nrows, count - 1);
+            svd.U().subcols(0, rank).to_owned()
+        };
+        Ok(Some(orth_fold_errors(modes.as_ref(), self.coords.subcols(i, 1), norm, max_m)))
+    }
+}
+
+/// G(m) for m = 1..=max_m with POD bases ("primal orth", "dual orth"), every fold in turn.
+pub fn generalization_orth(s: MatRef<'_, f64>, max_m: usize) -> Result<MetricCurve, PodError> {
+    let loo = LooOrth::new(s)?;
+    let folds = (0..s.ncols()).map(|i| loo.fold(i, max_m)).collect::<Result<Vec<_>, _>>()?;
+    Ok(combine_folds(&folds, max_m))
+}
+
+/// One cone leave-one-out fold: CPG (tolerance 0) of `S \ s_i`, then the relative cone
+/// projection error of `s_i` on its first m generators in selection order, m = 1..=max_m;
+/// `None` when `||s_i|| = 0`.
+pub fn loo_fold_cone(
+    s: MatRef<'_, f64>,
+    i: usize,
+    max_m: usize,
+    nnls: NnlsParams,
+) -> Result<Option<LooFold>, ConeError> {
+    assert!(i < s.ncols(), "loo_fold_cone: fold {i} out of {} snapshots", s.ncols());
+    if s.col(i).norm_l2() <= 0.0 {
+        return Ok(None);
+    }
+    let basis = cpg(without_column(s, i).as_ref(), CpgParams { tol: 0.0, nnls })?.basis;
+    let k = basis.ncols();
+    let used = k.min(max_m);
+    // C(m) of the single column s_i is its relative error (eq. 16 with N = 1), m = 0..=used.
+    let c = compactness_cone_with(s.subcols(i, 1), basis.subcols(0, used), nnls)?;
+    let errors = (1..=max_m).map(|m| c[m.min(used)]).collect();
+    Ok(Some(LooFold { errors, basis_len: k }))
+}
+
+/// G(m) for m = 1..=max_m with CPG bases ("dual cone"), every fold in turn.
+pub fn generalization_cone(s: MatRef<'_, f64>, max_m: usize, nnls: NnlsParams) -> Result<MetricCurve, ConeError> {
+    let folds = (0..s.ncols()).map(|i| loo_fold_cone(s, i, max_m, nnls)).collect::<Result<Vec<_>, _>>()?;
+    Ok(combine_folds(&folds, max_m))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::approx::Tol;
+    use crate::cone::nnls_reference;
+    use crate::rng::Rng;
+    use crate::{assert_all_close, assert_close};
+    use faer::Side;
+
+    fn random_mat(rng: &mut Rng, n: usize, k: usize, lo: f64, hi: f64) -> Mat<f64> {
+        Mat::from_fn(n, k, |_, _| rng.uniform_in(lo, hi))
+    }
+
+    /// Every orthogonal fold through both paths (reduced QR coordinates and the definition).
+    fn both_orth_paths(s: MatRef<'_, f64>, max_m: usize) -> Vec<Option<LooFold>> {
+        let loo = LooOrth::new(s).expect("finite");
+        (0..s.ncols())
+            .map(|i| {
+                let fast = loo.fold(i, max_m).expect("svd");
+                let direct = loo_fold_orth(s, i, max_m).expect("svd");
+                match (&fast, &direct) {
+                    (Some(f), Some(d)) => {
+                        assert_eq!(f.basis_len, d.basis_len, "fold {i}: ranks differ");
+                        // Two backward-stable factorisations of the same fold: 1e-10 absolute
+                        // on a relative error (O(cond eps) apart, cond <= 1e3 here).
+                        assert_all_close!(f.errors, d.errors, Tol::abs(1e-10));
+                    }
+                    (None, None) => {}
+                    _ => panic!("fold {i}: zero-norm detection differs"),
+                }
+                fast
+            })
+            .collect()
+    }
+
+    #[test]
+    fn orth_loo_in_a_plane_is_exact_from_two_modes() {
+        // 8 snapshots a_j v1 + b_j v2 in R^10: every fold has rank 2 and contains the plane.
+        let mut rng = Rng::new(71);
+        let v = random_mat(&mut rng, 10, 2, -1.0, 1.0);
+        let coeffs = random_mat(&mut rng, 2, 8, -1.0, 1.0);
+        let s = &v * &coeffs;
+        let max_m = 7;
+        let folds = both_orth_paths(s.as_ref(), max_m);
+        assert!(folds.iter().all(|f| f.as_ref().is_some_and(|f| f.basis_len == 2)));
+        let g = generalization_orth(s.as_ref(), max_m).expect("svd");
+        assert_eq!((g.len(), g.n_zero), (max_m, 0));
+        assert_eq!(g.count, vec![8; max_m]);
+        assert_eq!(g.padded, vec![0, 0, 8, 8, 8, 8, 8]); // rank 2: m >= 3 reuses both modes
+        for m in 2..=max_m {
+            // In the span: round-off of an SVD of O(1) data, 1e-10 as required.
+            assert_close!(g.mean[m - 1], 0.0, Tol::abs(1e-10));
+            assert_close!(g.std[m - 1], 0.0, Tol::abs(1e-10));
+        }
+        // One mode cannot hold a plane of isotropic combinations.
+        assert!(g.mean[0] > 0.01, "G(1) = {}", g.mean[0]);
+    }
+
+    #[test]
+    fn orth_fold_matches_brute_force_projections() {
+        // Independent reference for fold i: the POD modes of S \ s_i from the eigenvectors of
+        // the n x n matrix (S \ s_i)(S \ s_i)^T (no SVD), and at full rank the least-squares
+        // residual of s_i on the remaining columns by QR.
+        let mut rng = Rng::new(72);
+        let (n, count, i) = (15, 6, 2);
+        let s = random_mat(&mut rng, n, count, -1.0, 1.0);
+        let rest = without_column(s.as_ref(), i);
+        let x = s.subcols(i, 1);
+        let norm = x.norm_l2();
+        let cov = &rest * rest.transpose();
+        let eig = cov.self_adjoint_eigen(Side::Lower).expect("evd");
+        let vecs = eig.U(); // ascending eigenvalues: the top modes are the last columns
+        let brute: Vec<f64> = (1..count)
+            .map(|m| {
+                let u = vecs.subcols(n - m, m);
+                let r = x - u * (u.transpose() * x);
+                r.norm_l2() / norm
+            })
+            .collect();
+        let fold = LooOrth::new(s.as_ref()).expect("finite").fold(i, count - 1).expect("svd").expect("nonzero");
+        // Eigenvectors of the squared matrix: the gaps between the eigenvalues (singular
+        // values ~1 of a random 15 x 5 matrix) keep the subspaces accurate to ~1e-14; 1e-10.
+        assert_all_close!(fold.errors, brute, Tol::abs(1e-10));
+        let ls = rest.qr().solve_lstsq(x);
+        let full = (x - &rest * &ls).norm_l2() / norm;
+        assert_close!(fold.errors[count - 2], full, Tol::abs(1e-12)); // two QR solutions
+        assert!(full > 0.1, "a random 15-vector is far from a 5-dimensional span: {full}");
+    }
+
+    #[test]
+    fn orth_reduced_and_direct_folds_agree_on_a_wide_matrix() {
+        // n = 6 < N = 10: Q is square and every fold has rank 6 (padded beyond).
+        let mut rng = Rng::new(73);
+        let s = random_mat(&mut rng, 6, 10, -1.0, 1.0);
+        let folds = both_orth_paths(s.as_ref(), 9);
+        for fold in folds.iter().flatten() {
+            assert_eq!(fold.basis_len, 6);
+            assert_close!(fold.errors[8], 0.0, Tol::abs(1e-12)); // R^6 is spanned: round-off
+        }
+    }
+
+    #[test]
+    fn cone_loo_inside_the_cone_is_exact_at_full_size() {
+        // Three non-negative generators g1..g3 in R^12, each present twice, and four interior
+        // combinations: any left-out snapshot lies in the cone of the others (a copy of its
+        // generator remains, the interior ones lie in cone(g1, g2, g3)).
+        let mut rng = Rng::new(74);
+        let g = random_mat(&mut rng, 12, 3, 0.0, 1.0);
+        let w = random_mat(&mut rng, 3, 4, 0.1, 1.0);
+        let interior = &g * &w;
+        let s = Mat::from_fn(12, 10, |r, c| if c < 6 { g[(r, c / 2)] } else { interior[(r, c - 6)] });
+        let max_m = 9;
+        let curve = generalization_cone(s.as_ref(), max_m, NnlsParams::default()).expect("converges");
+        assert_eq!((curve.count[max_m - 1], curve.n_zero), (10, 0));
+        // Cone projection of a member of the cone: NNLS round-off on unit generators, 1e-10.
+        assert_close!(curve.mean[max_m - 1], 0.0, Tol::abs(1e-10));
+        // One generator cannot reproduce a cone of three directions.
+        assert!(curve.mean[0] > 0.01, "G(1) = {}", curve.mean[0]);
+        for w in curve.mean.windows(2) {
+            assert!(w[1] <= w[0] + 1e-12, "cone G(m) increased: {w:?}"); // nested cones
+        }
+    }
+
+    #[test]
+    fn cone_fold_matches_reference_nnls() {
+        // Fold 3 of non-negative bump-like data: the incremental warm-started projections
+        // against a textbook Lawson–Hanson on the first m generators of the same CPG basis.
+        let mut rng = Rng::new(75);
+        let (n, count, i) = (25, 9, 3);
+        let s = Mat::from_fn(n, count, |r, _| {
+            let x = r as f64 / n as f64;
+            (rng.uniform_in(0.0, 1.0) * (1.0 - (x - 0.5).powi(2) * 3.0)).max(0.0)
+        });
+        let fold = loo_fold_cone(s.as_ref(), i, count - 1, NnlsParams::default()).expect("ok").expect("nonzero");
+        let basis = cpg(without_column(s.as_ref(), i).as_ref(), CpgParams::default()).expect("ok").basis;
+        assert_eq!(fold.basis_len, basis.ncols());
+        let b: Vec<f64> = s.col(i).iter().copied().collect();
+        let norm = s.col(i).norm_l2();
+        for m in 1..count {
+            let used = m.min(basis.ncols());
+            let reference = nnls_reference(basis.subcols(0, used), &b, NnlsParams::default()).expect("ok");
+            // Two NNLS solvers on the same convex problem: the residual norm is unique; 1e-10
+            // of ||s_i|| covers the Gram-matrix path's round-off.
+            assert_close!(fold.errors[m - 1], reference.residual_norm / norm, Tol::abs(1e-10));
+        }
+    }
+
+    #[test]
+    fn loo_of_duplicates_is_zero() {
+        let mut rng = Rng::new(76);
+        // Four copies of one non-negative field: every fold's basis is that field.
+        let v = random_mat(&mut rng, 20, 1, 0.0, 1.0);
+        let copies = Mat::from_fn(20, 4, |r, _| v[(r, 0)]);
+        let orth = generalization_orth(copies.as_ref(), 3).expect("svd");
+        let cone = generalization_cone(copies.as_ref(), 3, NnlsParams::default()).expect("ok");
+        for curve in [&orth, &cone] {
+            assert_eq!(curve.count, vec![4; 3]);
+            assert_eq!(curve.padded, vec![0, 4, 4]); // rank 1 (POD) / one generator (CPG)
+                                                     // s_i is a multiple of the unit basis vector: one rounding per entry, 1e-14.
+            assert_all_close!(curve.mean, [0.0; 3], Tol::abs(1e-14));
+        }
+        // Four distinct random fields, each twice: at full size every fold reproduces its
+        // left-out snapshot (its twin is in the basis' span / cone).
+        let base = random_mat(&mut rng, 20, 4, 0.0, 1.0);
+        let pairs = Mat::from_fn(20, 8, |r, c| base[(r, c / 2)]);
+        let orth = generalization_orth(pairs.as_ref(), 7).expect("svd");
+        let cone = generalization_cone(pairs.as_ref(), 7, NnlsParams::default()).expect("ok");
+        // Round-off of SVD / NNLS on O(1) data: 1e-10.
+        assert_close!(orth.mean[6], 0.0, Tol::abs(1e-10));
+        assert_close!(cone.mean[6], 0.0, Tol::abs(1e-10));
+        assert!(orth.mean[0] > 0.01 && cone.mean[0] > 0.01, "m = 1 cannot hold 4 directions");
+    }
+
+    #[test]
+    fn zero_column_is_counted_not_divided_by() {
+        let mut rng = Rng::new(77);
+        let mut s = random_mat(&mut rng, 10, 6, 0.0, 1.0);
+        s.col_mut(4).fill(0.0);
+        let orth = generalization_orth(s.as_ref(), 5).expect("svd");
+        let cone = generalization_cone(s.as_ref(), 5, NnlsParams::default()).expect("ok");
+        for curve in [&orth, &cone] {
+            assert_eq!(curve.n_zero, 1);
+            assert_eq!(curve.count, vec![5; 5]);
+            assert!(curve.mean.iter().chain(&curve.std).all(|v| v.is_finite()), "{curve:?}");
+        }
+        assert!(LooOrth::new(s.as_ref()).expect("finite").fold(4, 5).expect("ok").is_none());
+        assert!(loo_fold_cone(s.as_ref(), 4, 5, NnlsParams::default()).expect("ok").is_none());
+        // The zero column sits in every other fold's set and changes nothing there: the folds
+        // equal those of the matrix without it (5 random fields in R^10, rank 4 per fold).
+        let kept = without_column(s.as_ref(), 4);
+        let reference = generalization_orth(kept.as_ref(), 5).expect("svd");
+        assert_all_close!(orth.mean, reference.mean, Tol::abs(1e-12)); // same folds, round-off
+    }
+
+    #[test]
+    fn non_finite_snapshots_are_an_error() {
+        let mut s = Mat::<f64>::identity(3, 3);
+        s[(0, 1)] = f64::NAN;
+        assert!(matches!(generalization_orth(s.as_ref(), 2), Err(PodError::NonFinite)));
+        assert!(matches!(loo_fold_orth(s.as_ref(), 0, 2), Err(PodError::NonFinite)));
+    }
+
+    #[test]
+    fn single_snapshot_has_an_empty_basis() {
+        // N = 1: the fold's basis is empty, the error is 1 at every m (nothing to project on).
+        let s = Mat::from_fn(4, 1, |r, _| r as f64 + 1.0);
+        let orth = generalization_orth(s.as_ref(), 2).expect("svd");
+        let cone = generalization_cone(s.as_ref(), 2, NnlsParams::default()).expect("ok");
+        for curve in [&orth, &cone] {
+            assert_all_close!(curve.mean, [1.0, 1.0], Tol::abs(1e-15)); // sqrt(x^2)/|x|
+            assert_eq!(curve.padded, vec![1, 1]);
+        }
+    }
+}

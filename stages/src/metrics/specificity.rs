@@ -1,0 +1,453 @@
+//! Specificity (paper eq. 18):
+//!
+//! ```text
+//! S(m) = 1/N_s sum_{i=1}^{N_s} min_{s_j in S_tr} ||s_j - Psi[:, :m] alpha_i|| / ||s_j||
+//! ```
+//!
+//! how far random members of the reduced space are from the closest training snapshot.
+//!
+//! * Reduced coordinates of the training snapshots on the first m basis vectors: for POD modes
+//!   (orthonormal) `Gamma = Psi[:, :m]^T S`, which does not depend on m beyond its row count;
+//!   for a CPG cone basis the NNLS coefficients (eq. 12) of each snapshot on the first m
+//!   generators, which do. Every training snapshot contributes, a zero one with coordinates 0.
+//! * Per coordinate k < m, the mean `mu_k` and population standard deviation `sigma_k` over the
+//!   N training snapshots; `alpha_ik` uniform in `[mu_k - sigma_k, mu_k + sigma_k]` for POD and
+//!   in `[max(0, mu_k - sigma_k), mu_k + sigma_k]` for the cone (the interval is clipped, so
+//!   every sample is a non-negative combination of non-negative generators — a pressure field,
+//!   SCENES.md). The POD basis is not centred (DESIGN.md), so no mean field is added.
+//! * `min_j` runs over the training snapshots with `||s_j|| > 0`; zero ones are counted in
+//!   [`MetricCurve::n_zero`]. With no non-zero snapshot there is nothing to compare: count 0
+//!   and NaN for that m.
+//! * Mean and population standard deviation over the `samples` draws, for m = 1..=k (k basis
+//!   vectors given). The draws for m come from their own stream `Rng::new(mix(seed, m))`, so
+//!   S(m) does not depend on which other m are computed (or on the basis size beyond m).
+//!
+//! # Distances without cancellation and without forming `Psi alpha`
+//!
+//! Let `Q` (n x q) be orthonormal with the basis in its span: `Q = Psi` for POD, and
+//! `Theta = Q R` (thin QR, R upper trapezoidal q x k) for a cone basis. With the coordinates
+//! `c_j = Q^T s_j` and the explicit residual `s_j - Q c_j`, a member `r = Q beta` whose frame
+//! coordinates `beta` vanish beyond the first p (POD: `beta = alpha`, p = m; cone:
+//! `beta = R[:, :m] alpha`, p = min(m, q)) has
+//!
+//! ```text
+//! ||s_j - r||^2 = ||s_j - Q c_j||^2 + sum_{l >= p} c_jl^2 + sum_{l < p} (c_jl - beta_l)^2 ,
+//! ```
+//!
+//! a sum of non-negative terms, the first two precomputed per snapshot and p. A sample costs
+//! O(N p) instead of O(n (N + m)) — independent of n, which matters for primal fields — and a
+//! sample equal to a snapshot gives a round-off-level distance.
+
+use faer::{Mat, MatRef};
+
+use super::stats::{MetricCurve, RunningStats};
+use crate::cone::{copy_column, ConeError, GrowingCone, NnlsParams};
+use crate::rng::Rng;
+
+/// Parameters of [`specificity_orth`] and [`specificity_cone`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SpecificityParams {
+    /// Number `N_s` of random members per basis size m (default 1000, SCENES.md).
+    pub samples: usize,
+    /// Seed of the sampler (default 0; scenes record their own `study.seed`).
+    pub seed: u64,
+}
+
+impl Default for SpecificityParams {
+    fn default() -> Self {
+        Self { samples: 1000, seed: 0 }
+    }
+}
+
+/// S(m) for m = 1..=k on orthonormal `modes` (n x k, POD: "primal orth", "dual orth") of the
+/// training snapshots `s` (n x N).
+pub fn specificity_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>, params: SpecificityParams) -> MetricCurve {
+    assert_eq!(s.nrows(), modes.nrows(), "specificity_orth: S and modes have different rows");
+    debug_assert!(
+        (modes.transpose() * modes - Mat::<f64>::identity(modes.ncols(), modes.ncols())).norm_l2() <= 1e-8,
+        "specificity_orth: modes are not orthonormal"
+    );
+    let frame = Frame::new(s, modes);
+    let k = modes.ncols();
+    let ranges: Vec<(f64, f64)> = (0..k)
+        .map(|l| {
+            let mut st = RunningStats::new();
+            (0..s.ncols()).for_each(|j| st.push(frame.coords[(l, j)]));
+            interval(&st, false)
+        })
+        .collect();
+    let stats: Vec<RunningStats> = (1..=k)
+        .map(|m| {
+            sample_stats(&frame, &ranges[..m], stream(params.seed, m), params.samples, m, |alpha, beta| {
+                beta.copy_from_slice(alpha)
+            })
+        })
+        .collect();
+    MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero())
+}
+
+/// S(m) for m = 1..=k on the cone of the first m columns of `cone_basis` (n x k, CPG:
+/// "dual cone") of the training snapshots `s` (n x N); coefficients are clipped at 0.
+pub fn specificity_cone(
+    s: MatRef<'_, f64>,
+    cone_basis: MatRef<'_, f64>,
+    params: SpecificityParams,
+    nnls: NnlsParams,
+) -> Result<MetricCurve, ConeError> {
+    assert_eq!(s.nrows(), cone_basis.nrows(), "specificity_cone: S and basis have different rows");
+    let (n, k) = cone_basis.shape();
+    let ranges = cone_ranges(s, cone_basis, nnls)?;
+    let (q, r) = if n.min(k) == 0 {
+        (Mat::zeros(n, 0), Mat::zeros(0, k))
+    } else {
+        let qr = cone_basis.qr();
+        (qr.compute_thin_Q(), qr.thin_R().to_owned())
+    };
+    let frame = Frame::new(s, q.as_ref());
+    let qdim = q.ncols();
+    let stats: Vec<RunningStats> = (1..=k)
+        .map(|m| {
+            let p = m.min(qdim);
+            sample_stats(&frame, &ranges[m - 1], stream(params.seed, m), params.samples, p, |alpha, beta| {
+                // beta = R[:p, :m] alpha, R upper trapezoidal: row l starts at column l.
+                for (l, b) in beta.iter_mut().enumerate() {
+                    *b = (l..alpha.len()).map(|c| r[(l, c)] * alpha[c]).sum();
+                }
+            })
+        })
+        .collect();
+    Ok(MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero()))
+}
+
+/// The training snapshots in an orthonormal frame `Q` (n x q).
+struct Frame {
+    /// `c_j = Q^T s_j`, q x N.
+    coords: Mat<f64>,
+    /// `tails[(p, j)] = ||s_j - Q c_j||^2 + sum_{l >= p} c_jl^2`, (q + 1) x N.
+    tails: Mat<f64>,
+    /// `1 / ||s_j||^2` of the non-zero snapshots, with their index.
+    nonzero: Vec<(usize, f64)>,
+}
+
+impl Frame {
+    fn new(s: MatRef<'_, f64>, q: MatRef<'_, f64>) -> Self {
+        let coords: Mat<f64> = q.transpose() * s;
+        let perp = s - q * &coords;
+        let (qdim, count) = coords.shape();
+        let mut tails = Mat::zeros(qdim + 1, count);
+        for j in 0..count {
+            tails[(qdim, j)] = perp.col(j).squared_norm_l2();
+            for l in (0..qdim).rev() {
+                tails[(l, j)] = tails[(l + 1, j)] + coords[(l, j)] * coords[(l, j)];
+            }
+        }
+        let nonzero = (0..count)
+            .filter_map(|j| {
+                let norm2 = s.col(j).squared_norm_l2();
+                (norm2 > 0.0).then(|| (j, 1.0 / norm2))
+            })
+            .collect();
+        Self { coords, tails, nonzero }
+    }
+
+    fn n_zero(&self) -> usize {
+        self.coords.ncols() - self.nonzero.len()
+    }
+
+    /// `min_j ||s_j - Q[:, :p] beta|| / ||s_j||` over non-zero snapshots (p = beta.len()).
+    fn min_relative_distance(&self, beta: &[f64]) -> Option<f64> {
+        let p = beta.len();
+        let mut best = f64::INFINITY;
+        for &(j, inv_norm2) in &self.nonzero {
+            let c = &self.coords.col_as_slice(j)[..p];
+            let d2 = self.tails[(p, j)] + c.iter().zip(beta).map(|(a, b)| (a - b) * (a - b)).sum::<f64>();
+            best = best.min(d2 * inv_norm2);
+        }
+        (!self.nonzero.is_empty()).then(|| best.sqrt())
+    }
+}
+
+/// `[mu - sigma, mu + sigma]`, the lower end clipped at 0 for cone coefficients.
+fn interval(stats: &RunningStats, clip: bool) -> (f64, f64) {
+    let (mu, sigma) = (stats.mean(), stats.std());
+    let lo = if clip { (mu - sigma).max(0.0) } else { mu - sigma };
+    (lo, mu + sigma)
+}
+
+/// The sampling intervals of the cone coordinates for every m: `ranges[m - 1]` has m entries,
+/// from the NNLS coefficients of every training snapshot on the first m generators.
+pub(crate) fn cone_ranges(
+    s: MatRef<'_, f64>,
+    cone_basis: MatRef<'_, f64>,
+    nnls: NnlsParams,
+) -> Result<Vec<Vec<(f64, f64)>>, ConeError> {
+    let k = cone_basis.ncols();
+    let mut cone = GrowingCone::new(s, nnls);
+    let mut column = vec![0.0; s.nrows()];
+    let mut all = Vec::with_capacity(k);
+    for m in 1..=k {
+        copy_column(cone_basis, m - 1, &mut column);
+        cone.push(&column)?;
+        let mut stats = vec![RunningStats::new(); m];
+        for j in 0..s.ncols() {
+            for (st, a) in stats.iter_mut().zip(cone.coeffs(j)) {
+                st.push(*a);
+            }
+        }
+        all.push(stats.iter().map(|st| interval(st, true)).collect());
+    }
+    Ok(all)
+}
+
+/// The random stream of basis size m: a SplitMix64 hash of m mixed into the seed.
+pub(crate) fn stream(seed: u64, m: usize) -> Rng {
+    let mut z = (m as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    Rng::new(seed ^ z ^ (z >> 31))
+}
+
+/// One coefficient vector: `alpha_l` uniform in `ranges[l]`.
+pub(crate) fn draw(rng: &mut Rng, ranges: &[(f64, f64)], alpha: &mut [f64]) {
+    for (a, (lo, hi)) in alpha.iter_mut().zip(ranges) {
+        *a = rng.uniform_in(*lo, *hi);
+    }
+}
+
+/// Statistics of `samples` draws for one m (`ranges.len() == m`), `to_frame` mapping the
+/// coefficients alpha (length m) to the p frame coordinates beta.
+fn sample_stats<F>(
+    frame: &Frame,
+    ranges: &[(f64, f64)],
+    mut rng: Rng,
+    samples: usize,
+    p: usize,
+    mut to_frame: F,
+) -> RunningStats
+where
+    F: FnMut(&[f64], &mut [f64]),
+{
+    let mut alpha = vec![0.0; ranges.len()];
+    let mut beta = vec![0.0; p];
+    let mut stats = RunningStats::new();
+    for _ in 0..samples {
+        draw(&mut rng, ranges, &mut alpha);
+        to_frame(&alpha, &mut beta);
+        if let Some(value) = frame.min_relative_distance(&beta) {
+            stats.push(value);
+        }
+    }
+    stats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::approx::Tol;
+    use crate::basis::{cpg, pod_full, CpgParams};
+    use crate::cone::nnls_reference;
+    use crate::{assert_all_close, assert_close};
+
+    /// Non-negative bumps of random height, width and position on n points.
+    fn bumps(rng: &mut Rng, n: usize, count: usize) -> Mat<f64> {
+        let mut s = Mat::zeros(n, count);
+        for j in 0..count {
+            let centre = rng.uniform_in(0.0, n as f64);
+            let width = rng.uniform_in(2.0, 6.0);
+            let height = rng.uniform_in(0.5, 2.0);
+            for i in 0..n {
+                let d = (i as f64 - centre) / width;
+                s[(i, j)] = height * (1.0 - d * d).max(0.0);
+            }
+        }
+        s
+    }
+
+    fn params(seed: u64) -> SpecificityParams {
+        SpecificityParams { samples: 200, seed }
+    }
+
+    /// S(m) by definition: r = Theta[:, :m] alpha formed explicitly, explicit distances.
+    fn brute_force(
+        s: MatRef<'_, f64>,
+        basis: MatRef<'_, f64>,
+        ranges: &[(f64, f64)],
+        m: usize,
+        p: SpecificityParams,
+    ) -> (f64, f64) {
+        let mut rng = stream(p.seed, m);
+        let mut alpha = vec![0.0; m];
+        let mut stats = RunningStats::new();
+        for _ in 0..p.samples {
+            draw(&mut rng, ranges, &mut alpha);
+            let r = Mat::from_fn(s.nrows(), 1, |i, _| (0..m).map(|l| basis[(i, l)] * alpha[l]).sum::<f64>());
+            let best = (0..s.ncols())
+                .filter(|&j| s.col(j).norm_l2() > 0.0)
+                .map(|j| (s.subcols(j, 1) - &r).norm_l2() / s.col(j).norm_l2())
+                .fold(f64::INFINITY, f64::min);
+            stats.push(best);
+        }
+        (stats.mean(), stats.std())
+    }
+
+    #[test]
+    fn orth_matches_the_definition() {
+        let mut rng = Rng::new(81);
+        let s = bumps(&mut rng, 30, 12);
+        let modes = pod_full(s.as_ref()).expect("svd").modes;
+        let p = params(5);
+        let curve = specificity_orth(s.as_ref(), modes.as_ref(), p);
+        assert_eq!((curve.len(), curve.n_zero), (modes.ncols(), 0));
+        assert_eq!(curve.count, vec![p.samples; modes.ncols()]);
+        // Independent intervals: two-pass mean and population std of Gamma = Psi^T S.
+        let gamma = modes.transpose() * &s;
+        let ranges: Vec<(f64, f64)> = (0..modes.ncols())
+            .map(|l| {
+                let row: Vec<f64> = (0..s.ncols()).map(|j| gamma[(l, j)]).collect();
+                let mu = row.iter().sum::<f64>() / row.len() as f64;
+                let sigma = (row.iter().map(|x| (x - mu) * (x - mu)).sum::<f64>() / row.len() as f64).sqrt();
+                (mu - sigma, mu + sigma)
+            })
+            .collect();
+        for m in [1, 2, 5, modes.ncols()] {
+            let (mean, std) = brute_force(s.as_ref(), modes.as_ref(), &ranges[..m], m, p);
+            // Frame identity vs explicit residuals, and Welford vs two-pass intervals: both
+            // round-off on O(1) relative distances; 1e-12.
+            assert_close!(curve.mean[m - 1], mean, Tol::abs(1e-12));
+            assert_close!(curve.std[m - 1], std, Tol::abs(1e-12));
+        }
+    }
+
+    #[test]
+    fn cone_matches_the_definition() {
+        let mut rng = Rng::new(82);
+        let s = bumps(&mut rng, 30, 12);
+        let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
+        let p = params(6);
+        let curve = specificity_cone(s.as_ref(), basis.as_ref(), p, NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
+        for m in 1..=basis.ncols() {
+            let (mean, std) = brute_force(s.as_ref(), basis.as_ref(), &ranges[m - 1], m, p);
+            // QR frame vs explicit Theta alpha: round-off (cond(Theta) ~ 10 for bumps); 1e-12.
+            assert_close!(curve.mean[m - 1], mean, Tol::abs(1e-12));
+            assert_close!(curve.std[m - 1], std, Tol::abs(1e-12));
+        }
+    }
+
+    #[test]
+    fn cone_ranges_match_reference_coefficients() {
+        // Independent generators (n = 30 > k): the NNLS coefficients are unique, so the
+        // incremental warm-started ones must equal a cold textbook Lawson–Hanson's.
+        let mut rng = Rng::new(83);
+        let s = bumps(&mut rng, 30, 10);
+        let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
+        let ranges = cone_ranges(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
+        for m in [1, 3, basis.ncols()] {
+            let mut stats = vec![RunningStats::new(); m];
+            for j in 0..s.ncols() {
+                let b: Vec<f64> = s.col(j).iter().copied().collect();
+                let x = nnls_reference(basis.subcols(0, m), &b, NnlsParams::default()).expect("ok").x;
+                x.iter().zip(stats.iter_mut()).for_each(|(a, st)| st.push(*a));
+            }
+            let expected: Vec<(f64, f64)> = stats.iter().map(|st| interval(st, true)).collect();
+            for ((lo, hi), (elo, ehi)) in ranges[m - 1].iter().zip(&expected) {
+                // Coefficients of O(1) snapshots on unit generators, round-off apart: 1e-10.
+                assert_close!(*lo, *elo, Tol::abs(1e-10));
+                assert_close!(*hi, *ehi, Tol::abs(1e-10));
+            }
+        }
+    }
+
+    #[test]
+    fn reproducible_for_a_seed_and_different_for_another() {
+        let mut rng = Rng::new(84);
+        let s = bumps(&mut rng, 30, 12);
+        let modes = pod_full(s.as_ref()).expect("svd").modes;
+        let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
+        let nnls = NnlsParams::default();
+        let a = specificity_orth(s.as_ref(), modes.as_ref(), params(1));
+        let b = specificity_orth(s.as_ref(), modes.as_ref(), params(1));
+        let c = specificity_orth(s.as_ref(), modes.as_ref(), params(2));
+        assert_all_close!(a.mean, b.mean, Tol::abs(0.0)); // same arithmetic, bit for bit
+        assert!(a.mean.iter().zip(&c.mean).any(|(x, y)| (x - y).abs() > 1e-6), "seed ignored");
+        let a = specificity_cone(s.as_ref(), basis.as_ref(), params(1), nnls).expect("ok");
+        let b = specificity_cone(s.as_ref(), basis.as_ref(), params(1), nnls).expect("ok");
+        let c = specificity_cone(s.as_ref(), basis.as_ref(), params(2), nnls).expect("ok");
+        assert_all_close!(a.mean, b.mean, Tol::abs(0.0));
+        assert!(a.mean.iter().zip(&c.mean).any(|(x, y)| (x - y).abs() > 1e-6), "seed ignored");
+    }
+
+    #[test]
+    fn identical_snapshots_have_zero_specificity() {
+        // sigma = 0: every sample is mu = the common coordinate, i.e. the snapshot itself.
+        let mut rng = Rng::new(85);
+        let v = bumps(&mut rng, 25, 1);
+        let s = Mat::from_fn(25, 5, |i, _| v[(i, 0)]);
+        let modes = pod_full(s.as_ref()).expect("svd").modes;
+        let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
+        assert_eq!((modes.ncols(), basis.ncols()), (1, 1));
+        let orth = specificity_orth(s.as_ref(), modes.as_ref(), params(3));
+        let cone = specificity_cone(s.as_ref(), basis.as_ref(), params(3), NnlsParams::default()).expect("ok");
+        for curve in [&orth, &cone] {
+            // Mean of 5 equal coordinates and one rounding per entry: 1e-12 as required.
+            assert_close!(curve.mean[0], 0.0, Tol::abs(1e-12));
+            assert_close!(curve.std[0], 0.0, Tol::abs(1e-12));
+        }
+    }
+
+    #[test]
+    fn cone_samples_are_non_negative_fields() {
+        // Generators with disjoint supports; the coefficient of the second is 0 for four
+        // snapshots and 1 for one: mu = 0.2, sigma = 0.4, so an unclipped interval would give
+        // negative coefficients and negative pressures on the second support.
+        let theta = Mat::from_fn(6, 2, |i, j| if i / 3 == j { 1.0 / 3f64.sqrt() } else { 0.0 });
+        let s = Mat::from_fn(6, 5, |i, j| {
+            let first = if i < 3 { 1.0 + 0.1 * j as f64 } else { 0.0 };
+            let second = if i >= 3 && j == 4 { 1.0 } else { 0.0 };
+            first + second
+        });
+        let ranges = cone_ranges(s.as_ref(), theta.as_ref(), NnlsParams::default()).expect("ok");
+        assert_close!(ranges[1][1].0, 0.0, Tol::abs(0.0)); // clipped from 0.2 - 0.4 < 0
+        let mut alpha = vec![0.0; 2];
+        let mut rng = stream(9, 2);
+        for _ in 0..500 {
+            draw(&mut rng, &ranges[1], &mut alpha);
+            let r = &theta * Mat::from_fn(2, 1, |l, _| alpha[l]);
+            assert!(r.col(0).iter().all(|v| *v >= 0.0), "negative field {alpha:?}");
+        }
+        let curve = specificity_cone(s.as_ref(), theta.as_ref(), params(9), NnlsParams::default()).expect("ok");
+        assert!(curve.mean.iter().all(|v| v.is_finite() && *v >= 0.0));
+    }
+
+    #[test]
+    fn value_for_m_does_not_depend_on_other_m() {
+        let mut rng = Rng::new(86);
+        let s = bumps(&mut rng, 30, 12);
+        let modes = pod_full(s.as_ref()).expect("svd").modes;
+        let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
+        let nnls = NnlsParams::default();
+        let all = specificity_orth(s.as_ref(), modes.as_ref(), params(4));
+        let few = specificity_orth(s.as_ref(), modes.subcols(0, 3), params(4));
+        // Same draws; the frame of 3 vs all modes changes only the round-off of the tails: 1e-12.
+        assert_all_close!(few.mean, all.mean[..3], Tol::abs(1e-12));
+        assert_all_close!(few.std, all.std[..3], Tol::abs(1e-12));
+        let all = specificity_cone(s.as_ref(), basis.as_ref(), params(4), nnls).expect("ok");
+        let few = specificity_cone(s.as_ref(), basis.subcols(0, 3), params(4), nnls).expect("ok");
+        assert_all_close!(few.mean, all.mean[..3], Tol::abs(1e-12));
+        assert_all_close!(few.std, all.std[..3], Tol::abs(1e-12));
+    }
+
+    #[test]
+    fn zero_training_snapshots_are_skipped_and_counted() {
+        let mut rng = Rng::new(87);
+        let mut s = bumps(&mut rng, 20, 6);
+        s.col_mut(2).fill(0.0);
+        let modes = pod_full(s.as_ref()).expect("svd").modes;
+        let curve = specificity_orth(s.as_ref(), modes.as_ref(), params(7));
+        assert_eq!(curve.n_zero, 1);
+        assert!(curve.mean.iter().all(|v| v.is_finite()));
+        let none = specificity_orth(Mat::<f64>::zeros(4, 3).as_ref(), Mat::<f64>::identity(4, 1).as_ref(), params(7));
+        assert_eq!((none.n_zero, none.count[0]), (3, 0));
+        assert!(none.mean[0].is_nan());
+    }
+}
