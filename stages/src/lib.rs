@@ -10,5 +10,6 @@ pub mod fem;
 pub mod mesh;
 pub mod metrics;
 pub mod rng;
+pub mod rom;
 pub mod rope;
 pub mod snapshot;

@@ -163,7 +163,7 @@ pub fn cholesky_solve_in_place(a: &mut [f64], m: usize, b: &mut [f64]) -> Result
         for k in 0..j {
             s -= a[j * m + k] * a[j * m + k];
         }
-        if !(s > 0.0) {
+        if s.is_nan() || s <= 0.0 {
             return Err(LcpError::NotPositiveDefinite(s));
         }
         let ljj = s.sqrt();

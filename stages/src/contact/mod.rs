@@ -19,6 +19,7 @@
 //! - [`delassus`]: the compliance `W = E_c^T K^{-1} E_c` on the contact dofs;
 //! - [`active_set`]: the condensed LCP `g = q + B W B^T lambda` (PDAS, fallback primal active set);
 //! - [`vertex`]: vertex-flip detection and ties;
+//! - [`anderson`]: acceleration of the re-pairing fixed point;
 //! - `model`, `factor`, `solve`: the scenes, the factorisation, the re-pairing loop.
 //!
 //! The stored pressure is `lambda_i / l_i`, `l_i` the slave's tributary length (reference
@@ -26,6 +27,7 @@
 //! by the node's tributary length".
 
 pub mod active_set;
+pub mod anderson;
 pub mod delassus;
 mod error;
 mod factor;

@@ -62,6 +62,15 @@ impl VertexTies {
         nat
     }
 
+    /// The pairing [`Self::resolve`] would keep for an existing tie, without recording
+    /// anything: `Tied(v)` if slave `s` is tied to `v` and `nat` is around `v`, else `nat`.
+    pub fn peek(&self, s: usize, nat: PairKind) -> PairKind {
+        match self.tie[s] {
+            Some(v) if self.enabled && nat.touches_vertex(v) => PairKind::Tied(v),
+            _ => nat,
+        }
+    }
+
     /// Number of slaves currently tied.
     pub fn count(&self) -> usize {
         self.tie.iter().filter(|t| t.is_some()).count()

@@ -82,7 +82,7 @@ pub fn stiffness(xe: &[[f64; 2]; 4], d: &[[f64; 3]; 3]) -> Result<[[f64; 8]; 8],
     let mut k = [[0.0; 8]; 8];
     for (gp, &[xi, eta]) in GAUSS_2X2.iter().enumerate() {
         let jac = jacobian(xe, xi, eta);
-        if !(jac.det > 0.0) {
+        if jac.det.is_nan() || jac.det <= 0.0 {
             return Err(BadJacobian { gauss_point: gp, det: jac.det });
         }
         // B (3 x 8): strain = B u_e, rows xx, yy, xy (engineering).
@@ -145,10 +145,10 @@ mod tests {
         let d = mat.plane_strain();
         let k = stiffness(&xe, &d).expect("valid element");
         let scale = k.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-        for r in 0..8 {
-            for c in 0..8 {
+        for (r, row) in k.iter().enumerate() {
+            for (c, &krc) in row.iter().enumerate() {
                 // Symmetric by construction up to the summation order: 1e-14 relative.
-                assert_close!(k[r][c], k[c][r], Tol::abs(1e-14 * scale));
+                assert_close!(krc, k[c][r], Tol::abs(1e-14 * scale));
             }
         }
         // rigid modes: tx, ty, rotation about origin

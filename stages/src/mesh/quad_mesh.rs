@@ -94,8 +94,8 @@ impl Mesh2d {
             let xe = self.element_coords(e);
             for (gp, &[xi, eta]) in q1::GAUSS_2X2.iter().enumerate() {
                 let det = q1::jacobian(&xe, xi, eta).det;
-                // `!(det > 0)` also rejects NaN coordinates.
-                if !(det > 0.0) {
+                // NaN coordinates give a NaN determinant: rejected too.
+                if det.is_nan() || det <= 0.0 {
                     return Err(MeshError::NonPositiveJacobian {
                         element: e,
                         body: self.element_body[e],

@@ -222,6 +222,7 @@ mod tests {
     use crate::cone::nnls_reference;
     use crate::rng::Rng;
     use crate::{assert_all_close, assert_close};
+    use faer::prelude::SolveLstsq;
     use faer::Side;
 
     fn random_mat(rng: &mut Rng, n: usize, k: usize, lo: f64, hi: f64) -> Mat<f64> {

@@ -28,6 +28,8 @@ pub struct Rope {
     pub x: Vec<f64>,
     /// Element size.
     pub h: f64,
+    /// Tributary length of each node as a contact node: `h` inside, 0 at the Dirichlet ends.
+    pub weights: Vec<f64>,
 }
 
 impl Rope {
@@ -38,7 +40,8 @@ impl Rope {
         let n = params.n_elements;
         let h = params.length / n as f64;
         let x = (0..=n).map(|i| if i == n { params.length } else { i as f64 * h }).collect();
-        Self { params, x, h }
+        let weights = (0..=n).map(|i| if i == 0 || i == n { 0.0 } else { h }).collect();
+        Self { params, x, h, weights }
     }
 
     /// Number of nodes (= number of dofs = number of potential-contact nodes).

@@ -104,6 +104,23 @@ pub fn solve(rope: &Rope, gamma: f64, params: &RopeSolveParams) -> Result<Snapsh
     }
 }
 
+/// The contact-free solution `K u + F = 0`, `u(0) = u(L) = 0` (the lift of the online solve).
+pub fn unconstrained(rope: &Rope) -> Vec<f64> {
+    let n = rope.n_nodes();
+    let (h, nu, f) = (rope.h, rope.params.nu, rope.params.f);
+    let (k_diag, k_off) = (2.0 * nu / h, -nu / h);
+    let mut sub = vec![k_off; n];
+    let mut diag = vec![k_diag; n];
+    let mut sup = vec![k_off; n];
+    let mut rhs = vec![-f * h; n];
+    for i in [0, n - 1] {
+        (sub[i], diag[i], sup[i], rhs[i]) = (0.0, 1.0, 0.0, 0.0);
+    }
+    let mut u = vec![0.0; n];
+    thomas(&sub, &mut diag, &sup, &mut rhs, &mut u);
+    u
+}
+
 /// `|| min(Λ, c (u - g)) ||_2` over interior nodes (zero exactly at a KKT point).
 fn complementarity(force: &[f64], u: &[f64], g: &[f64], c: f64) -> f64 {
     let n = u.len();
