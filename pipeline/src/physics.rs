@@ -4,6 +4,7 @@
 
 use crom_schemas::scene::{Model, RopeSpec};
 use crom_schemas::SceneConfig;
+use crom_stages::rom::ContactOperator;
 use crom_stages::rope::{self, Rope, RopeParams, RopeSolveParams};
 use crom_stages::snapshot::Snapshot;
 
@@ -87,6 +88,13 @@ impl Physics {
                     dofs_per_node: 1,
                 }
             }
+        }
+    }
+
+    /// The model as the online reduced solve sees it.
+    pub fn operator(&self) -> &dyn ContactOperator {
+        match self {
+            Physics::Rope(r, _) => r,
         }
     }
 

@@ -18,18 +18,21 @@ pub enum ArtifactKind {
     Basis,
     /// Compactness C(m) of every basis: `compactness.parquet`.
     Compactness,
+    /// Online reduced solves: errors and timings (`rom_errors.parquet`, `tradeoff.parquet`).
+    Rom,
     /// Figures, tables and `index.html` of a scene's study.
     Report,
 }
 
 impl ArtifactKind {
     /// Every kind, in DAG order.
-    pub const ALL: [ArtifactKind; 6] = [
+    pub const ALL: [ArtifactKind; 7] = [
         ArtifactKind::Mesh,
         ArtifactKind::Snapshot,
         ArtifactKind::TrainingSet,
         ArtifactKind::Basis,
         ArtifactKind::Compactness,
+        ArtifactKind::Rom,
         ArtifactKind::Report,
     ];
 
@@ -41,6 +44,7 @@ impl ArtifactKind {
             ArtifactKind::TrainingSet => "trainset",
             ArtifactKind::Basis => "basis",
             ArtifactKind::Compactness => "compactness",
+            ArtifactKind::Rom => "rom",
             ArtifactKind::Report => "report",
         }
     }
@@ -58,6 +62,7 @@ impl ArtifactKind {
             ArtifactKind::TrainingSet => 1,
             ArtifactKind::Basis => 1,
             ArtifactKind::Compactness => 1,
+            ArtifactKind::Rom => 1,
             ArtifactKind::Report => 1,
         }
     }
@@ -159,6 +164,45 @@ pub mod compactness {
     pub const FILE: &str = "compactness.parquet";
     /// Columns, in order.
     pub const COLUMNS: [&str; 5] = ["scene", "field", "basis", "m", "value"];
+}
+
+/// `rom_errors.parquet` (one row per query point and dual basis) and `tradeoff.parquet` (one row
+/// per primal/dual rank pair, over the test points).
+pub mod rom {
+    /// Errors of the online solve at training and test points.
+    pub const ERRORS: &str = "rom_errors.parquet";
+    /// Columns of [`ERRORS`].
+    pub const ERROR_COLUMNS: [&str; 13] = [
+        "scene",
+        "set",
+        "dual_basis",
+        "parameter",
+        "r_primal",
+        "r_dual",
+        "primal_error",
+        "dual_error",
+        "iterations",
+        "nonzero_dual",
+        "outcome",
+        "online_seconds",
+        "fom_seconds",
+    ];
+    /// Speed/accuracy trade over rank pairs.
+    pub const TRADEOFF: &str = "tradeoff.parquet";
+    /// Columns of [`TRADEOFF`].
+    pub const TRADEOFF_COLUMNS: [&str; 11] = [
+        "scene",
+        "r_primal",
+        "r_dual",
+        "points",
+        "converged",
+        "mean_primal_error",
+        "max_primal_error",
+        "mean_dual_error",
+        "online_seconds",
+        "fom_seconds",
+        "speedup",
+    ];
 }
 
 #[cfg(test)]

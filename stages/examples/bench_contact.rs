@@ -54,6 +54,8 @@ struct Row {
     iters_mean: f64,
     max_iters: usize,
     ties_points: usize,
+    ever_in_contact: usize,
+    n_slaves: usize,
     fsolve: Duration,
 }
 
@@ -64,10 +66,14 @@ fn run(name: &'static str, model: ContactModel, params: &[f64]) -> (Row, Factore
     let p = ContactSolveParams::default();
     let mut total = Duration::ZERO;
     let (mut iters, mut max_iters, mut ties_points) = (0usize, 0usize, 0usize);
+    let mut ever = vec![false; fm.model().slave_nodes().len()];
     for &mu in params {
         let t = Instant::now();
         let s = fm.solve(mu, &p).expect("solve");
         total += t.elapsed();
+        for (e, &pr) in ever.iter_mut().zip(&s.pressure) {
+            *e |= pr > 0.0;
+        }
         iters += s.stats.iterations;
         max_iters = max_iters.max(s.stats.iterations);
         ties_points += usize::from(s.stats.vertex_ties > 0);
@@ -93,6 +99,8 @@ fn run(name: &'static str, model: ContactModel, params: &[f64]) -> (Row, Factore
         iters_mean: iters as f64 / params.len() as f64,
         max_iters,
         ties_points,
+        ever_in_contact: ever.iter().filter(|&&e| e).count(),
+        n_slaves: ever.len(),
         fsolve: times[4],
     };
     (row, fm)
@@ -130,11 +138,11 @@ fn main() {
     let (r, fine) = run("ironing-fine", ironing(true), &sweep);
     rows.push(r);
 
-    println!("| scene | n_dof | free dofs | contact dofs | factor + Delassus [ms] | snapshots | mean snapshot [ms] | mean / max iterations | points with vertex ties | factor-solve [ms] | snapshot / factor-solve |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| scene | n_dof | free dofs | contact dofs | factor + Delassus [ms] | snapshots | mean snapshot [ms] | mean / max iterations | points with vertex ties | slaves ever in contact | factor-solve [ms] | snapshot / factor-solve |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (r, n) in rows.iter().zip([12, 12, 128, 128]) {
         println!(
-            "| {} | {} | {} | {} | {:.1} | {} | {:.2} | {:.1} / {} | {} | {:.3} | {:.1} |",
+            "| {} | {} | {} | {} | {:.1} | {} | {:.2} | {:.1} / {} | {} | {} / {} | {:.3} | {:.1} |",
             r.name,
             r.n_dof,
             r.n_free,
@@ -145,6 +153,8 @@ fn main() {
             r.iters_mean,
             r.max_iters,
             r.ties_points,
+            r.ever_in_contact,
+            r.n_slaves,
             ms(r.fsolve),
             r.snap_mean.as_secs_f64() / r.fsolve.as_secs_f64(),
         );

@@ -12,6 +12,7 @@ pub(crate) mod basis;
 mod compactness;
 mod convert;
 mod mesh;
+mod rom;
 mod snapshots;
 pub(crate) mod trainset;
 
@@ -73,6 +74,8 @@ pub struct RunOutput {
     pub basis: Key,
     /// Compactness artifact.
     pub compactness: Key,
+    /// Online ROM artifact.
+    pub rom: Key,
     /// Report artifact.
     pub report: Key,
 }
@@ -145,6 +148,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     let test = trainset::run(ctx, "test", &test_points, test_keys)?;
     let basis = basis::run(ctx, &train)?;
     let compactness = compactness::run(ctx, &train, &basis)?;
+    let rom = rom::run(ctx, &mut physics, &train, &test, &basis)?;
     let inputs = crate::report::ReportInputs {
         mesh: mesh_key.clone(),
         train: train.clone(),
@@ -152,7 +156,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
         compactness: compactness.clone(),
     };
     let report = crate::report::run(ctx, &inputs)?;
-    Ok(RunOutput { mesh: mesh_key, train_snapshots: train_keys.to_vec(), train, test, basis, compactness, report })
+    Ok(RunOutput { mesh: mesh_key, train_snapshots: train_keys.to_vec(), train, test, basis, compactness, rom, report })
 }
 
 /// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.
