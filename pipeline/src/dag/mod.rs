@@ -154,6 +154,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
         train: train.clone(),
         basis: basis.clone(),
         compactness: compactness.clone(),
+        rom: rom.clone(),
     };
     let report = crate::report::run(ctx, &inputs)?;
     Ok(RunOutput { mesh: mesh_key, train_snapshots: train_keys.to_vec(), train, test, basis, compactness, rom, report })

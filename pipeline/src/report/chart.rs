@@ -95,6 +95,8 @@ pub enum Legend {
     LowerRight,
     /// Upper left corner.
     UpperLeft,
+    /// Middle of the right edge.
+    MiddleRight,
 }
 
 impl Legend {
@@ -104,13 +106,14 @@ impl Legend {
             Legend::LowerLeft => SeriesLabelPosition::LowerLeft,
             Legend::LowerRight => SeriesLabelPosition::LowerRight,
             Legend::UpperLeft => SeriesLabelPosition::UpperLeft,
+            Legend::MiddleRight => SeriesLabelPosition::MiddleRight,
         }
     }
 }
 
 /// Tick label: `1e-6` style on log axes, a short decimal otherwise.
 fn tick(v: f64, log: bool) -> String {
-    if log {
+    if log && !(1e-3..1e4).contains(&v) {
         let e = v.log10().round();
         if (v.log10() - e).abs() < 1e-6 {
             return format!("1e{}", e as i64);

@@ -24,6 +24,10 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
     figs.push(singular_values(scene, d, dir)?);
     figs.push(sparsity(scene, d, dir)?);
     figs.push(compactness(scene, d, dir)?);
+    for basis in ["full", "truncated"] {
+        figs.push(rom_errors(scene, d, dir, basis)?);
+    }
+    figs.push(tradeoff(scene, d, dir)?);
     Ok(figs)
 }
 
@@ -162,4 +166,93 @@ fn compactness(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure
     };
     render(&chart, dir, "fig09_compactness")?;
     Ok(Figure { stem: "fig09_compactness".into(), caption: "Compactness C(m) of the primal POD, dual POD and dual CPG bases (paper Figs. 9, 14); values at 0 are drawn at the axis floor.".into() })
+}
+
+/// Rows of the ROM error table for one set and dual basis: (parameter, primal error, dual error).
+fn rom_rows(d: &ReportData, set: &str, basis: &str) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let t = &d.rom_errors;
+    let (Some(sets), Some(bases), Some(mu), Some(pe), Some(de)) =
+        (t.strs("set"), t.strs("dual_basis"), t.f64s("parameter"), t.f64s("primal_error"), t.f64s("dual_error"))
+    else {
+        return Default::default();
+    };
+    let mut out: (Vec<f64>, Vec<f64>, Vec<f64>) = Default::default();
+    for i in 0..mu.len() {
+        if sets[i] == set && bases[i] == basis {
+            out.0.push(mu[i]);
+            out.1.push(pe[i]);
+            out.2.push(de[i]);
+        }
+    }
+    out
+}
+
+fn rom_errors(scene: &SceneConfig, d: &ReportData, dir: &Path, basis: &str) -> Result<Figure, CromError> {
+    let mut series = Vec::new();
+    for set in ["train", "test"] {
+        let (mu, pe, de) = rom_rows(d, set, basis);
+        let what = if set == "train" { "training points" } else { "test points" };
+        series.push(Series::line(&format!("primal (H1), {what}"), mu.clone(), pe).mark(Mark::Points));
+        series.push(Series::line(&format!("dual (L2), {what}"), mu, de).mark(Mark::Points));
+    }
+    let rank = |name: &str| {
+        d.rom_errors.u64s(name).and_then(|v| {
+            let bases = d.rom_errors.strs("dual_basis")?;
+            bases.iter().position(|b| b == basis).map(|i| v[i])
+        })
+    };
+    let chart = Chart {
+        title: format!(
+            "{}: online reconstruction error, {basis} dual basis (r_u = {}, r_λ = {})",
+            scene.scene.name,
+            rank("r_primal").unwrap_or(0),
+            rank("r_dual").unwrap_or(0)
+        ),
+        x_label: scene.parameter.name.clone(),
+        y_label: "relative error".into(),
+        log_y: true,
+        log_x: false,
+        series,
+        legend: Legend::MiddleRight,
+    };
+    let stem = format!("fig03_rom_errors_{basis}");
+    render(&chart, dir, &stem)?;
+    Ok(Figure {
+        stem,
+        caption: format!(
+            "Relative errors of the online reduced solve (Algorithm 1) at training and test points with the {basis} CPG dual basis (paper Figs. 3, 7)."
+        ),
+    })
+}
+
+fn tradeoff(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
+    let t = &d.tradeoff;
+    let (Some(ru), Some(rl), Some(err), Some(sp)) =
+        (t.u64s("r_primal"), t.u64s("r_dual"), t.f64s("mean_primal_error"), t.f64s("speedup"))
+    else {
+        return Err(CromError::artifact(dir, "tradeoff table lacks columns", "delete the rom artifact and rerun"));
+    };
+    let (ru_max, rl_max) = (ru.iter().max().copied().unwrap_or(0), rl.iter().max().copied().unwrap_or(0));
+    let pick = |f: &dyn Fn(usize) -> bool| -> (Vec<f64>, Vec<f64>) {
+        (0..ru.len()).filter(|&i| f(i)).map(|i| (sp[i], err[i])).unzip()
+    };
+    let (x1, y1) = pick(&|i| rl[i] == rl_max);
+    let (x2, y2) = pick(&|i| ru[i] == ru_max);
+    let chart = Chart {
+        title: format!("{}: speed/accuracy trade over the test points", scene.scene.name),
+        x_label: "speed-up over the full-order solve".into(),
+        y_label: "mean relative primal error (H1)".into(),
+        log_y: true,
+        log_x: true,
+        series: vec![
+            Series::line(&format!("primal rank 1…{ru_max}, full dual basis"), x1, y1),
+            Series::line(&format!("dual rank 1…{rl_max}, full primal basis"), x2, y2),
+        ],
+        legend: Legend::UpperRight,
+    };
+    render(&chart, dir, "fig_tradeoff")?;
+    Ok(Figure {
+        stem: "fig_tradeoff".into(),
+        caption: "Pareto view of the speed/accuracy trade: each point is one (primal rank, dual rank) pair, error and speed-up averaged over the test points.".into(),
+    })
 }

@@ -4,6 +4,7 @@ use std::path::Path;
 
 use crom_schemas::SceneConfig;
 
+use super::tables::ReportTable;
 use super::{Figure, ReportData};
 use crate::error::CromError;
 
@@ -16,6 +17,7 @@ pub(crate) fn write_index(
     scene: &SceneConfig,
     d: &ReportData,
     figures: &[Figure],
+    tables: &[ReportTable],
     dir: &Path,
 ) -> Result<(), CromError> {
     let p = &scene.parameter;
@@ -50,7 +52,31 @@ pub(crate) fn write_index(
             esc(&f.caption)
         ));
     }
+    for t in tables {
+        html.push_str(&format!(
+            "<h2>{}</h2>\n{}<p><a href=\"{}.csv\">CSV</a> · <a href=\"{}.md\">Markdown</a></p>\n",
+            esc(&t.title),
+            md_to_html(&t.markdown),
+            t.stem,
+            t.stem
+        ));
+    }
     html.push_str("</body></html>\n");
     let path = dir.join("index.html");
     std::fs::write(&path, html).map_err(|e| CromError::io(&path, "writing index.html", e))
+}
+
+/// A Markdown pipe table (as written by the report) to an HTML table.
+fn md_to_html(md: &str) -> String {
+    let mut rows = md.lines().filter(|l| l.starts_with('|') && !l.starts_with("|---"));
+    let cells = |l: &str| -> Vec<String> { l.trim_matches('|').split('|').map(|c| esc(c.trim())).collect() };
+    let mut s = String::from("<table>\n");
+    if let Some(h) = rows.next() {
+        s.push_str(&format!("<tr>{}</tr>\n", cells(h).iter().map(|c| format!("<th>{c}</th>")).collect::<String>()));
+    }
+    for r in rows {
+        s.push_str(&format!("<tr>{}</tr>\n", cells(r).iter().map(|c| format!("<td>{c}</td>")).collect::<String>()));
+    }
+    s.push_str("</table>\n");
+    s
 }

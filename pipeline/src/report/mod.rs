@@ -5,17 +5,18 @@
 pub mod chart;
 mod figures;
 mod html;
+mod tables;
 
 use std::collections::BTreeMap;
 
-use crom_schemas::artifact::{compactness as cnames, mesh as mnames, ArtifactKind};
+use crom_schemas::artifact::{compactness as cnames, mesh as mnames, rom as rnames, ArtifactKind};
 use serde_json::json;
 
 use crate::cache::{Key, KeySpec};
 use crate::dag::{basis, trainset, Ctx};
 use crate::error::CromError;
 use crate::io::h5::H5In;
-use crate::io::table::read_parquet;
+use crate::io::table::{read_parquet, Table};
 
 /// Bump when the report's content changes.
 const ALGORITHM_VERSION: u32 = 1;
@@ -31,6 +32,8 @@ pub struct ReportInputs {
     pub basis: Key,
     /// Compactness table.
     pub compactness: Key,
+    /// Online ROM tables.
+    pub rom: Key,
 }
 
 /// One figure of the report.
@@ -48,7 +51,8 @@ pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
         .input("mesh", &inputs.mesh)
         .input("train", &inputs.train)
         .input("basis", &inputs.basis)
-        .input("compactness", &inputs.compactness);
+        .input("compactness", &inputs.compactness)
+        .input("rom", &inputs.rom);
     let key = spec.key();
     let progress = ctx.progress.stage("report", 1);
     let scene = ctx.scene.clone();
@@ -56,7 +60,8 @@ pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
     let (_, computed) = ctx.cached(ArtifactKind::Report, &spec, |staging| {
         let dir = staging.path("");
         let figures = figures::all(&scene, &data, &dir)?;
-        html::write_index(&scene, &data, &figures, &dir)?;
+        let tables = tables::write_all(&scene, &data, &dir)?;
+        html::write_index(&scene, &data, &figures, &tables, &dir)?;
         Ok(BTreeMap::from([("figures".to_string(), json!(figures.len()))]))
     })?;
     progress.finish(if computed { "written" } else { "cached" });
@@ -81,6 +86,10 @@ pub(crate) struct ReportData {
     pub ranks: [usize; 4],
     /// (field, basis) → C(m).
     pub compactness: BTreeMap<(String, String), Vec<f64>>,
+    /// Online errors per query (`rom_errors.parquet`).
+    pub rom_errors: Table,
+    /// Speed/accuracy trade (`tradeoff.parquet`).
+    pub tradeoff: Table,
 }
 
 fn gather(ctx: &Ctx<'_>, inputs: &ReportInputs) -> Result<ReportData, CromError> {
@@ -99,5 +108,16 @@ fn gather(ctx: &Ctx<'_>, inputs: &ReportInputs) -> Result<ReportData, CromError>
             compactness.entry((f.clone(), b.clone())).or_default().push(*v);
         }
     }
-    Ok(ReportData { contact_x, line_x, train, primal_sv: b.primal_sv, dual_sv: b.dual_sv, ranks: b.ranks, compactness })
+    let rom_dir = ctx.store.dir(ArtifactKind::Rom, &inputs.rom);
+    Ok(ReportData {
+        contact_x,
+        line_x,
+        train,
+        primal_sv: b.primal_sv,
+        dual_sv: b.dual_sv,
+        ranks: b.ranks,
+        compactness,
+        rom_errors: read_parquet(&rom_dir.join(rnames::ERRORS))?,
+        tradeoff: read_parquet(&rom_dir.join(rnames::TRADEOFF))?,
+    })
 }

@@ -13,7 +13,12 @@
 //!    complementarity `||min(lambda, c g')||_inf / max(||lambda||_inf, c ||g'^-||_inf)` with the
 //!    actual gaps `g'` and `c = 1 / mean(diag D)` turning lengths into forces;
 //! 3. stop when the discrete pairing and the active set did not change and both residuals are
-//!    `<= rel_tol`, otherwise go to the LCP with the new pairing (warm-started active set).
+//!    `<= rel_tol`, otherwise go to the LCP with the new pairing (warm-started active set);
+//! 4. once pairing kinds and active set have settled, the configuration the next pairing is
+//!    computed at is Anderson-mixed ([`super::anderson`]) instead of taken as the last `u_c`
+//!    (the re-pairing fixed point is otherwise only linearly convergent); the stopping test of
+//!    step 3 is always evaluated on a plain step, so acceleration never changes what counts as
+//!    converged.
 //!
 //! `f_ref = ||B'^T lambda||_inf` (the contact forces, which in every scene balance the
 //! reactions) or, without contact, `||K_FD u_D||_inf` (the lifted load; not used with contact

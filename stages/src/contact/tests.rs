@@ -175,6 +175,22 @@ fn hertz_global_equilibrium() {
         // symmetric problem: no net horizontal force (up to the vertex tie-break asymmetry of
         // NTS at the apex, bounded by sin(pi/n_arc) of one nodal force)
         assert!(r_top[0].abs() <= (PI / 78.0).sin() * p_load, "{r_top:?}");
+        // The contact force on each slave node is (K u) at its dofs (equilibrium of the free
+        // slave dofs): its magnitude must be the reported nodal force lambda_s = p_s l_s, and
+        // the vertical sum must balance the driven face's reaction; 1e-8 relative to the load
+        // (KKT residual 1e-10 per dof over ~20 active nodes, plus the recovery's rounding).
+        let ku = m.stiffness().matvec(&s.u);
+        let mut f_contact_y = 0.0;
+        for (i, &n) in m.slave_nodes().iter().enumerate() {
+            if m.driven_nodes().contains(&n) {
+                continue; // the arc's two end nodes are on the flat face (Dirichlet)
+            }
+            let f = [ku[2 * n], ku[2 * n + 1]];
+            let lam = s.pressure[i] * m.tributary_lengths()[i];
+            assert_close!((f[0] * f[0] + f[1] * f[1]).sqrt(), lam, Tol::abs(1e-8 * p_load));
+            f_contact_y += f[1];
+        }
+        assert_close!(f_contact_y, -r_top[1], Tol::rel(1e-8));
         // -R_top,y = sum lambda_s n_s,y <= sum lambda_s; the widest active slave is at
         // ~a/R ~ 0.3 rad, so n_y >= cos(0.3) > 0.95
         let up = -r_top[1];

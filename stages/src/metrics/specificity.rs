@@ -294,9 +294,12 @@ mod tests {
     fn orth_matches_the_definition() {
         let mut rng = Rng::new(81);
         let s = bumps(&mut rng, 30, 12);
-        let modes = pod_full(s.as_ref()).expect("svd").modes;
+        let full = pod_full(s.as_ref()).expect("svd").modes;
+        // Truncated to 6 of 12 modes, so the snapshots have a part outside the span (the
+        // ||s_j - Q c_j||^2 term of the frame identity matters).
+        let modes = full.subcols(0, 6);
         let p = params(5);
-        let curve = specificity_orth(s.as_ref(), modes.as_ref(), p);
+        let curve = specificity_orth(s.as_ref(), modes, p);
         assert_eq!((curve.len(), curve.n_zero), (modes.ncols(), 0));
         assert_eq!(curve.count, vec![p.samples; modes.ncols()]);
         // Independent intervals: two-pass mean and population std of Gamma = Psi^T S.
@@ -310,7 +313,7 @@ mod tests {
             })
             .collect();
         for m in [1, 2, 5, modes.ncols()] {
-            let (mean, std) = brute_force(s.as_ref(), modes.as_ref(), &ranges[..m], m, p);
+            let (mean, std) = brute_force(s.as_ref(), modes, &ranges[..m], m, p);
             // Frame identity vs explicit residuals, and Welford vs two-pass intervals: both
             // round-off on O(1) relative distances; 1e-12.
             assert_close!(curve.mean[m - 1], mean, Tol::abs(1e-12));
@@ -322,13 +325,36 @@ mod tests {
     fn cone_matches_the_definition() {
         let mut rng = Rng::new(82);
         let s = bumps(&mut rng, 30, 12);
-        let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
+        let full = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
+        // Truncated to 7 generators: the snapshots stick out of span(Theta) (the residual
+        // term of the frame identity matters), and the last m equals the QR width.
+        let basis = full.subcols(0, 7);
         let p = params(6);
+        let curve = specificity_cone(s.as_ref(), basis, p, NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges(s.as_ref(), basis, NnlsParams::default()).expect("ok");
+        for m in 1..=basis.ncols() {
+            let (mean, std) = brute_force(s.as_ref(), basis, &ranges[m - 1], m, p);
+            // QR frame vs explicit Theta alpha: round-off (cond(Theta) ~ 10 for bumps); 1e-12.
+            assert_close!(curve.mean[m - 1], mean, Tol::abs(1e-12));
+            assert_close!(curve.std[m - 1], std, Tol::abs(1e-12));
+        }
+    }
+
+    #[test]
+    fn cone_with_more_generators_than_rows_matches_the_definition() {
+        // n = 8 nodes, 16 bumps: CPG keeps more generators than n (a cone needs them), so the
+        // QR frame is square and R is wide (m > q uses p = q rows).
+        let mut rng = Rng::new(88);
+        let s = bumps(&mut rng, 8, 16);
+        let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
+        assert!(basis.ncols() > 8, "only {} generators", basis.ncols());
+        let p = params(8);
         let curve = specificity_cone(s.as_ref(), basis.as_ref(), p, NnlsParams::default()).expect("ok");
         let ranges = cone_ranges(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
         for m in 1..=basis.ncols() {
             let (mean, std) = brute_force(s.as_ref(), basis.as_ref(), &ranges[m - 1], m, p);
-            // QR frame vs explicit Theta alpha: round-off (cond(Theta) ~ 10 for bumps); 1e-12.
+            // As above; cond(Theta) of overlapping bumps on 8 nodes is larger, still 1e-12
+            // of O(1) relative distances.
             assert_close!(curve.mean[m - 1], mean, Tol::abs(1e-12));
             assert_close!(curve.std[m - 1], std, Tol::abs(1e-12));
         }
