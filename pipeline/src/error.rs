@@ -50,7 +50,7 @@ pub enum CromError {
         fix: String,
     },
     /// Some snapshots did not converge; the others are stored (exit 1).
-    #[error("{failed} of {total} snapshots of scene `{scene}` failed (the others are stored; downstream stages were skipped):\n{list}\n  fix: raise solver.max_iter or relax solver.rel_tol in the scene file, or exclude these parameter values")]
+    #[error("{failed} of {total} snapshots of scene `{scene}` failed (the others are stored; downstream stages were skipped):\n{list}\n  table: {}\n  fix: raise solver.max_iter or relax solver.rel_tol in the scene file, or exclude these parameter values", table.display())]
     SolveFailures {
         /// Scene name.
         scene: String,
@@ -60,6 +60,8 @@ pub enum CromError {
         total: usize,
         /// One line per failed point.
         list: String,
+        /// The failure table written for this run.
+        table: PathBuf,
     },
     /// A reduction stage failed numerically (exit 1).
     #[error("stage `{stage}` of scene `{scene}` failed: {message}")]

@@ -2,8 +2,11 @@
 //! artifact and a thread-safe `solve(parameter)` for the snapshot stage. Everything costly and
 //! parameter-independent (e.g. the factorisation of K) is done once, in [`Physics::build`].
 
-use crom_schemas::scene::{Model, RopeSpec};
+use crom_schemas::scene::{HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec};
 use crom_schemas::SceneConfig;
+use crom_stages::contact::{
+    build_hertz, build_ironing, ContactSolveParams, FactoredModel, HertzParams, IroningParams, Material,
+};
 use crom_stages::rom::ContactOperator;
 use crom_stages::rope::{self, Rope, RopeParams, RopeSolveParams};
 use crom_stages::snapshot::Snapshot;
@@ -31,12 +34,15 @@ pub struct MeshData {
 pub enum Physics {
     /// The rope (1-D obstacle problem).
     Rope(Rope, RopeSolveParams),
+    /// A 2-D two-body contact problem (hertz, ironing), factored once.
+    Contact(Box<FactoredModel>, ContactSolveParams),
 }
 
 impl std::fmt::Debug for Physics {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Physics::Rope(r, _) => write!(f, "Physics::Rope({} nodes)", r.n_nodes()),
+            Physics::Contact(m, _) => write!(f, "Physics::Contact({} dofs)", m.model().n_dof()),
         }
     }
 }
@@ -58,9 +64,8 @@ impl Physics {
                 Rope::new(rope_params(r)),
                 RopeSolveParams { rel_tol: scene.solver.rel_tol, max_iter: scene.solver.max_iter },
             )),
-            Model::Hertz(_) | Model::Ironing(_) => {
-                Err(format!("the {} model is not available in this build of crom", scene.model.kind()))
-            }
+            Model::Hertz(h) => contact(build_hertz(&hertz_params(h)), scene),
+            Model::Ironing(i) => contact(build_ironing(&ironing_params(i)), scene),
         }
     }
 
@@ -70,6 +75,10 @@ impl Physics {
             Physics::Rope(..) => {
                 Units { primal: "length (vertical displacement)", dual: "force per unit length (contact pressure)" }
             }
+            Physics::Contact(..) => Units {
+                primal: "length (displacement, (ux, uy) interleaved per node, both bodies)",
+                dual: "force per unit length (contact pressure at the slave nodes)",
+            },
         }
     }
 
@@ -88,6 +97,19 @@ impl Physics {
                     dofs_per_node: 1,
                 }
             }
+            Physics::Contact(f, _) => {
+                let model = f.model();
+                let m = model.mesh();
+                MeshData {
+                    nodes: m.nodes.clone(),
+                    cells: m.quads.iter().map(|q| q.iter().map(|&i| i as u64).collect()).collect(),
+                    nodes_per_cell: 4,
+                    contact_nodes: model.slave_nodes().iter().map(|&i| i as u64).collect(),
+                    node_body: m.node_body.iter().map(|&b| b as u64).collect(),
+                    cell_body: m.element_body.iter().map(|&b| b as u64).collect(),
+                    dofs_per_node: 2,
+                }
+            }
         }
     }
 
@@ -95,6 +117,7 @@ impl Physics {
     pub fn operator(&self) -> &dyn ContactOperator {
         match self {
             Physics::Rope(r, _) => r,
+            Physics::Contact(f, _) => f.as_ref(),
         }
     }
 
@@ -102,6 +125,7 @@ impl Physics {
     pub fn solve(&self, parameter: f64) -> Result<Snapshot, String> {
         match self {
             Physics::Rope(r, p) => rope::solve(r, parameter, p).map_err(|e| e.to_string()),
+            Physics::Contact(f, p) => f.solve(parameter, p).map_err(|e| e.to_string()),
         }
     }
 }
@@ -116,5 +140,40 @@ pub fn rope_params(r: &RopeSpec) -> RopeParams {
         modes: r.obstacle.modes.clone(),
         amplitudes: r.obstacle.amplitudes.clone(),
         offset: r.obstacle.offset,
+    }
+}
+
+fn contact(
+    built: Result<crom_stages::contact::ContactModel, crom_stages::contact::ModelError>,
+    scene: &SceneConfig,
+) -> Result<Physics, String> {
+    let factored = built.and_then(|m| m.factor()).map_err(|e| e.to_string())?;
+    let params = ContactSolveParams { rel_tol: scene.solver.rel_tol, max_iter: scene.solver.max_iter };
+    Ok(Physics::Contact(Box::new(factored), params))
+}
+
+fn material(m: &MaterialSpec) -> Material {
+    Material { young: m.young, poisson: m.poisson }
+}
+
+fn hertz_params(h: &HertzSpec) -> HertzParams {
+    HertzParams { radius: h.radius, material: material(&h.material), n_arc: h.n_arc, n_side: None }
+}
+
+fn ironing_params(i: &IroningSpec) -> IroningParams {
+    IroningParams {
+        slab_length: i.slab.length,
+        slab_height: i.slab.height,
+        slab_nx: i.slab.nx,
+        slab_ny: i.slab.ny,
+        slab: material(&i.slab.material),
+        iron_width: i.iron.width,
+        iron_height: i.iron.height,
+        sole_radius: i.iron.sole_radius,
+        iron_nx: i.iron.nx,
+        iron_ny: i.iron.ny,
+        iron: material(&i.iron.material),
+        contact_x: i.iron.contact_x,
+        d_y: i.d_y,
     }
 }

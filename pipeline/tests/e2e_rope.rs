@@ -54,12 +54,26 @@ fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
     assert!(first.status.success(), "{}", text(&first));
     let rows = summary(&first);
     let stages: Vec<&str> = rows.iter().map(|r| r.0.as_str()).collect();
-    assert_eq!(stages, ["mesh", "snapshot", "trainset", "testset", "basis", "compactness"]);
+    assert_eq!(
+        stages,
+        [
+            "mesh",
+            "snapshot",
+            "trainset",
+            "testset",
+            "basis",
+            "compactness",
+            "generalization",
+            "specificity",
+            "rom",
+            "report"
+        ]
+    );
     // 10 training + 9 test points, all new.
     assert_eq!(rows[1], ("snapshot".to_string(), 19, 0));
     assert!(rows.iter().all(|r| r.2 == 0), "nothing cached on a fresh store");
 
-    for stage in ["mesh", "trainset", "basis", "compactness"] {
+    for stage in ["mesh", "trainset", "basis", "compactness", "generalization", "specificity", "rom", "report"] {
         for dir in artifact_dirs(&store, stage) {
             let manifest: serde_json::Value =
                 serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).expect("manifest"))
@@ -158,6 +172,25 @@ fn ls_lists_every_artifact() {
     assert!(crom(&store, &["run", "rope"]).status.success());
     let out = crom(&store, &["ls"]);
     assert!(out.status.success());
-    // mesh + 19 snapshots + train + test + basis + compactness
-    assert!(String::from_utf8_lossy(&out.stdout).contains("24 artifacts"), "{}", text(&out));
+    // mesh + 19 snapshots + train + test + basis + compactness + G + S + rom + report
+    assert!(String::from_utf8_lossy(&out.stdout).contains("28 artifacts"), "{}", text(&out));
+}
+
+#[test]
+fn failed_points_are_named_tabled_and_exit_1() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let scene = tmp.path().join("rope-strict.toml");
+    let rope = std::fs::read_to_string(repo().join("data/scenes/rope.toml")).expect("rope.toml");
+    // One active-set iteration cannot settle the contact set of any training point.
+    std::fs::write(&scene, rope.replace("max_iter = 100", "max_iter = 1")).expect("write scene");
+    let out = crom(&store, &["run", scene.to_str().expect("utf8 path")]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    let msg = text(&out);
+    assert!(
+        msg.contains("19 of 19 snapshots") && msg.contains("gamma = -0.5") && msg.contains("no convergence"),
+        "{msg}"
+    );
+    assert!(store.join("runs/rope/solver_failures.parquet").is_file(), "{msg}");
+    assert!(artifact_dirs(&store, "trainset").is_empty(), "nothing downstream of failed snapshots");
 }

@@ -18,6 +18,12 @@ pub enum ArtifactKind {
     Basis,
     /// Compactness C(m) of every basis: `compactness.parquet`.
     Compactness,
+    /// Leave-one-out generalization G(m) (eq. 17): `generalization.parquet`.
+    Generalization,
+    /// Specificity S(m) (eq. 18): `specificity.parquet`.
+    Specificity,
+    /// Nested-training-set error H(n) (eq. 19): `nested.parquet`.
+    Nested,
     /// Online reduced solves: errors and timings (`rom_errors.parquet`, `tradeoff.parquet`).
     Rom,
     /// Figures, tables and `index.html` of a scene's study.
@@ -26,12 +32,15 @@ pub enum ArtifactKind {
 
 impl ArtifactKind {
     /// Every kind, in DAG order.
-    pub const ALL: [ArtifactKind; 7] = [
+    pub const ALL: [ArtifactKind; 10] = [
         ArtifactKind::Mesh,
         ArtifactKind::Snapshot,
         ArtifactKind::TrainingSet,
         ArtifactKind::Basis,
         ArtifactKind::Compactness,
+        ArtifactKind::Generalization,
+        ArtifactKind::Specificity,
+        ArtifactKind::Nested,
         ArtifactKind::Rom,
         ArtifactKind::Report,
     ];
@@ -44,6 +53,9 @@ impl ArtifactKind {
             ArtifactKind::TrainingSet => "trainset",
             ArtifactKind::Basis => "basis",
             ArtifactKind::Compactness => "compactness",
+            ArtifactKind::Generalization => "generalization",
+            ArtifactKind::Specificity => "specificity",
+            ArtifactKind::Nested => "nested",
             ArtifactKind::Rom => "rom",
             ArtifactKind::Report => "report",
         }
@@ -62,6 +74,9 @@ impl ArtifactKind {
             ArtifactKind::TrainingSet => 1,
             ArtifactKind::Basis => 1,
             ArtifactKind::Compactness => 1,
+            ArtifactKind::Generalization => 1,
+            ArtifactKind::Specificity => 1,
+            ArtifactKind::Nested => 1,
             ArtifactKind::Rom => 1,
             ArtifactKind::Report => 1,
         }
@@ -164,6 +179,21 @@ pub mod compactness {
     pub const FILE: &str = "compactness.parquet";
     /// Columns, in order.
     pub const COLUMNS: [&str; 5] = ["scene", "field", "basis", "m", "value"];
+}
+
+/// Metric tables (`generalization.parquet`, `specificity.parquet`): one row per field, basis and
+/// rank m; `nested.parquet`: one row per field, projection and level n.
+pub mod metrics {
+    /// G(m) table.
+    pub const GENERALIZATION: &str = "generalization.parquet";
+    /// S(m) table.
+    pub const SPECIFICITY: &str = "specificity.parquet";
+    /// Columns of the G(m) and S(m) tables.
+    pub const CURVE_COLUMNS: [&str; 9] = ["scene", "field", "basis", "m", "mean", "std", "count", "padded", "n_zero"];
+    /// H(n) table.
+    pub const NESTED: &str = "nested.parquet";
+    /// Columns of the H(n) table.
+    pub const NESTED_COLUMNS: [&str; 7] = ["scene", "field", "basis", "n", "value", "snapshots", "n_zero"];
 }
 
 /// `rom_errors.parquet` (one row per query point and dual basis) and `tradeoff.parquet` (one row

@@ -105,3 +105,41 @@ def test_mesh_opens_and_xdmf_points_at_it(rope_store):
         assert len(f["contact_nodes"]) == 201
     xdmf = (path.parent / "mesh.xdmf").read_text()
     assert "mesh.h5:/nodes" in xdmf and "Polyline" in xdmf
+
+
+def loo_orth_errors(s, i, ms):
+    """Leave-one-out orthogonal projection errors of column i, POD at numerical rank (numpy)."""
+    rest = np.delete(s, i, axis=1)
+    u, sv, _ = np.linalg.svd(rest, full_matrices=False)
+    rank = int((sv > max(rest.shape) * np.finfo(float).eps * sv[0]).sum())
+    out = []
+    for m in ms:
+        q = u[:, :min(m, rank)]
+        r = s[:, i] - q @ (q.T @ s[:, i])
+        out.append(np.linalg.norm(r) / np.linalg.norm(s[:, i]))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("field", ["primal", "dual"])
+def test_generalization_matches_numpy_leave_one_out(rope_store, field):
+    with h5py.File(train_file(rope_store), "r") as f:
+        s = f[field][:]
+    ms = [1, 3, 5]
+    errs = np.array([loo_orth_errors(s, i, ms) for i in range(s.shape[1])])
+    table = pd.read_parquet(only_artifact(rope_store, "generalization", "generalization.parquet"))
+    assert list(table.columns) == ["scene", "field", "basis", "m", "mean", "std", "count", "padded", "n_zero"]
+    rows = table[(table.field == field) & (table.basis == "orth")].set_index("m")
+    for k, m in enumerate(ms):
+        assert abs(rows.loc[m, "mean"] - errs[:, k].mean()) <= 1e-8
+        # Population standard deviation over the folds.
+        assert abs(rows.loc[m, "std"] - errs[:, k].std()) <= 1e-8
+        assert rows.loc[m, "count"] == 10 and rows.loc[m, "n_zero"] == 0
+
+
+def test_specificity_table_is_complete_and_seeded(rope_store):
+    table = pd.read_parquet(only_artifact(rope_store, "specificity", "specificity.parquet"))
+    manifest = json.loads((only_artifact(rope_store, "specificity", "manifest.json")).read_text())
+    assert manifest["parameters"] == {"samples": 1000, "seed": 20231}
+    for (field, basis), g in table.groupby(["field", "basis"]):
+        assert (g["count"] == 1000).all(), (field, basis)
+        assert (g["mean"] > 0).all()

@@ -36,7 +36,7 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
     let spec = KeySpec::new(ArtifactKind::Basis, ALGORITHM_VERSION, params).input("train", train);
     let key = spec.key();
     let progress = ctx.progress.stage("basis", 1);
-    let set = trainset::load(ctx, train)?;
+    let set = trainset::load_from(ctx.store, train)?;
     let scene = ctx.scene.scene.name.clone();
     let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
     let (_, computed) = ctx.cached(ArtifactKind::Basis, &spec, |staging| {
@@ -71,8 +71,8 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
 }
 
 /// Load the untruncated-tolerance bases used by the metrics.
-pub(crate) fn load(ctx: &Ctx<'_>, key: &Key) -> Result<Bases, CromError> {
-    let f = H5In::open(&ctx.store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
+pub(crate) fn load_from(store: &crate::store::Store, key: &Key) -> Result<Bases, CromError> {
+    let f = H5In::open(&store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
     let m = |g: &str| f.matrix(&format!("{g}/{}", names::MODES));
     Ok(Bases { primal_pod: m(names::PRIMAL_POD)?, dual_pod: m(names::DUAL_POD)?, dual_cpg: m(names::DUAL_CPG)? })
 }
@@ -87,8 +87,8 @@ pub(crate) struct BasisFacts {
 }
 
 /// Singular values and ranks of a stored basis artifact.
-pub(crate) fn load_full(ctx: &Ctx<'_>, key: &Key) -> Result<BasisFacts, CromError> {
-    let f = H5In::open(&ctx.store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
+pub(crate) fn load_full(store: &crate::store::Store, key: &Key) -> Result<BasisFacts, CromError> {
+    let f = H5In::open(&store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
     let sv = |g: &str| f.vec_f64(&format!("{g}/{}", names::SINGULAR_VALUES));
     let rank = |g: &str| f.attr_u64_at(g, "rank").map(|r| r as usize);
     Ok(BasisFacts {

@@ -21,8 +21,8 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key
         .input("basis", basis_key);
     let key = spec.key();
     let progress = ctx.progress.stage("compactness", 1);
-    let set = trainset::load(ctx, train)?;
-    let b = basis::load(ctx, basis_key)?;
+    let set = trainset::load_from(ctx.store, train)?;
+    let b = basis::load_from(ctx.store, basis_key)?;
     let scene = ctx.scene.scene.name.clone();
     let (_, computed) = ctx.cached(ArtifactKind::Compactness, &spec, |staging| {
         let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));

@@ -12,6 +12,7 @@ pub(crate) mod basis;
 mod compactness;
 mod convert;
 mod mesh;
+mod metrics;
 mod rom;
 mod snapshots;
 pub(crate) mod trainset;
@@ -74,6 +75,12 @@ pub struct RunOutput {
     pub basis: Key,
     /// Compactness artifact.
     pub compactness: Key,
+    /// Generalization artifact.
+    pub generalization: Key,
+    /// Specificity artifact.
+    pub specificity: Key,
+    /// Nested-error artifact (scenes with nested levels).
+    pub nested: Option<Key>,
     /// Online ROM artifact.
     pub rom: Key,
     /// Report artifact.
@@ -148,6 +155,22 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     let test = trainset::run(ctx, "test", &test_points, test_keys)?;
     let basis = basis::run(ctx, &train)?;
     let compactness = compactness::run(ctx, &train, &basis)?;
+    let generalization = metrics::generalization(ctx, &train)?;
+    let specificity = metrics::specificity(ctx, &train, &basis)?;
+    let nested = if scene.parameter.nested_levels > 0 {
+        let levels: Vec<Vec<f64>> = (1..=scene.parameter.nested_levels).map(|n| scene.parameter.nested(n)).collect();
+        let flat: Vec<f64> = levels.iter().flatten().copied().collect();
+        let keys = snapshots::run(ctx, &mut physics, &mesh_key, &flat)?;
+        let mut sets = Vec::new();
+        let mut at = 0;
+        for (n, pts) in levels.iter().enumerate() {
+            sets.push(trainset::run(ctx, &format!("nested-{}", n + 1), pts, &keys[at..at + pts.len()])?);
+            at += pts.len();
+        }
+        Some(metrics::nested(ctx, &sets)?)
+    } else {
+        None
+    };
     let rom = rom::run(ctx, &mut physics, &train, &test, &basis)?;
     let inputs = crate::report::ReportInputs {
         mesh: mesh_key.clone(),
@@ -155,9 +178,24 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
         basis: basis.clone(),
         compactness: compactness.clone(),
         rom: rom.clone(),
+        generalization: generalization.clone(),
+        specificity: specificity.clone(),
+        nested: nested.clone(),
     };
     let report = crate::report::run(ctx, &inputs)?;
-    Ok(RunOutput { mesh: mesh_key, train_snapshots: train_keys.to_vec(), train, test, basis, compactness, rom, report })
+    Ok(RunOutput {
+        mesh: mesh_key,
+        train_snapshots: train_keys.to_vec(),
+        train,
+        test,
+        basis,
+        compactness,
+        generalization,
+        specificity,
+        nested,
+        rom,
+        report,
+    })
 }
 
 /// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.

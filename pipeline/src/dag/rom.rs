@@ -55,8 +55,8 @@ pub(crate) fn run(
     let scene = ctx.scene.scene.name.clone();
     let fail = |m: String| CromError::Numerical { stage: "rom", scene: scene.clone(), message: m };
     let sets = [
-        ("train", trainset::load(ctx, train)?, fom_seconds(ctx, train)?),
-        ("test", trainset::load(ctx, test)?, fom_seconds(ctx, test)?),
+        ("train", trainset::load_from(ctx.store, train)?, fom_seconds(ctx, train)?),
+        ("test", trainset::load_from(ctx.store, test)?, fom_seconds(ctx, test)?),
     ];
     let bfile = H5In::open(&ctx.store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
     let theta_full = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;

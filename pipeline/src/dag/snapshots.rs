@@ -19,6 +19,7 @@ use super::{Ctx, LazyPhysics};
 use crate::cache::{params, Key, KeySpec};
 use crate::error::CromError;
 use crate::io::h5::H5Out;
+use crate::io::table::{Column, Table};
 use crate::physics::Units;
 
 /// Bump when the solvers change the numbers they produce.
@@ -99,6 +100,7 @@ pub(crate) fn run(
     ctx.record("snapshot", computed - failures.len(), cached, dir);
     if !failures.is_empty() {
         failures.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let table_path = write_failures(ctx, &failures, points, &keys)?;
         let list = failures
             .iter()
             .map(|(p, m)| format!("  {} = {p}: {m}", ctx.scene.parameter.name))
@@ -109,6 +111,7 @@ pub(crate) fn run(
             failed: failures.len(),
             total: computed,
             list,
+            table: table_path,
         });
     }
     Ok(keys)
@@ -155,4 +158,30 @@ fn write(
     summary.insert("parameter".to_string(), json!(p));
     ctx.commit(staging, secs, summary)?;
     Ok(())
+}
+
+/// The failed points of this run as `<store>/runs/<scene>/solver_failures.parquet` (replaced by
+/// each run that has failures; written under a temporary name and renamed). Failures are not
+/// cached: the next run tries those points again.
+fn write_failures(
+    ctx: &Ctx<'_>,
+    failures: &[(f64, String)],
+    points: &[f64],
+    keys: &[Key],
+) -> Result<std::path::PathBuf, CromError> {
+    let dir = ctx.store.root().join("runs").join(&ctx.scene.scene.name);
+    std::fs::create_dir_all(&dir).map_err(|e| CromError::io(&dir, "creating the run directory", e))?;
+    let key_of =
+        |p: f64| points.iter().position(|q| q.to_bits() == p.to_bits()).map(|i| keys[i].0.clone()).unwrap_or_default();
+    let n = failures.len();
+    let table = Table::default()
+        .with("scene", Column::Str(vec![ctx.scene.scene.name.clone(); n]))
+        .with("parameter", Column::F64(failures.iter().map(|f| f.0).collect()))
+        .with("snapshot_key", Column::Str(failures.iter().map(|f| key_of(f.0)).collect()))
+        .with("error", Column::Str(failures.iter().map(|f| f.1.clone()).collect()));
+    let tmp = dir.join(format!(".solver_failures.{}.tmp", std::process::id()));
+    table.write_parquet(&tmp)?;
+    let path = dir.join("solver_failures.parquet");
+    std::fs::rename(&tmp, &path).map_err(|e| CromError::io(&path, "moving the failure table into place", e))?;
+    Ok(path)
 }

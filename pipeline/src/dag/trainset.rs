@@ -71,13 +71,18 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, set: &str, points: &[f64], snapshots: &[Key
     })?;
     progress.finish(if computed { "assembled" } else { "cached" });
     let dir = ctx.store.dir(ArtifactKind::TrainingSet, &key);
-    ctx.record(if set == "train" { "trainset" } else { "testset" }, usize::from(computed), usize::from(!computed), dir);
+    let label = match set {
+        "train" => "trainset",
+        "test" => "testset",
+        _ => "nested-set",
+    };
+    ctx.record(label, usize::from(computed), usize::from(!computed), dir);
     Ok(key)
 }
 
 /// Load a training set artifact's matrices.
-pub(crate) fn load(ctx: &Ctx<'_>, key: &Key) -> Result<TrainingSet, CromError> {
-    let path = ctx.store.dir(ArtifactKind::TrainingSet, key).join(names::FILE);
+pub(crate) fn load_from(store: &crate::store::Store, key: &Key) -> Result<TrainingSet, CromError> {
+    let path = store.dir(ArtifactKind::TrainingSet, key).join(names::FILE);
     let f = H5In::open(&path)?;
     Ok(TrainingSet {
         primal: f.matrix(names::PRIMAL)?,

@@ -9,6 +9,7 @@ use crom_stages::rope::Rope;
 use super::chart::{render, render_spy, Chart, Legend, Mark, Series, Spy};
 use super::{Figure, ReportData};
 use crate::error::CromError;
+use crate::io::table::Table;
 use crate::physics::rope_params;
 
 /// At most this many snapshot curves in one figure (every k-th otherwise).
@@ -24,6 +25,25 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
     figs.push(singular_values(scene, d, dir)?);
     figs.push(sparsity(scene, d, dir)?);
     figs.push(compactness(scene, d, dir)?);
+    figs.push(curve(
+        scene,
+        &d.generalization,
+        dir,
+        "fig10_generalization",
+        "G(m) (eq. 17)",
+        "Generalization ability by leave-one-out, mean ± 1σ over the left-out snapshots (paper Figs. 10, 16 left).",
+    )?);
+    figs.push(curve(
+        scene,
+        &d.specificity,
+        dir,
+        "fig10_specificity",
+        "S(m) (eq. 18)",
+        "Specificity, mean ± 1σ over random members of the (sub)space or (sub)cone (paper Figs. 10, 16 right).",
+    )?);
+    if let Some(t) = &d.nested {
+        figs.push(nested(scene, t, dir)?);
+    }
     for basis in ["full", "truncated"] {
         figs.push(rom_errors(scene, d, dir, basis)?);
     }
@@ -254,5 +274,79 @@ fn tradeoff(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, C
     Ok(Figure {
         stem: "fig_tradeoff".into(),
         caption: "Pareto view of the speed/accuracy trade: each point is one (primal rank, dual rank) pair, error and speed-up averaged over the test points.".into(),
+    })
+}
+
+const FIELDS: [(&str, &str, &str); 3] =
+    [("primal", "orth", "primal orth"), ("dual", "orth", "dual orth"), ("dual", "cone", "dual cone")];
+
+/// Rows of a metric table for one (field, basis), as (x, y, std) by the x column `xcol`.
+fn metric_rows(t: &Table, field: &str, basis: &str, xcol: &str, ycol: &str) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (Some(f), Some(b), Some(x), Some(y)) = (t.strs("field"), t.strs("basis"), t.u64s(xcol), t.f64s(ycol)) else {
+        return Default::default();
+    };
+    let sd = t.f64s("std");
+    let mut out: (Vec<f64>, Vec<f64>, Vec<f64>) = Default::default();
+    for i in 0..x.len() {
+        if f[i] == field && b[i] == basis {
+            out.0.push(x[i] as f64);
+            out.1.push(y[i]);
+            out.2.push(sd.map_or(0.0, |s| s[i]));
+        }
+    }
+    out
+}
+
+fn curve(
+    scene: &SceneConfig,
+    t: &Table,
+    dir: &Path,
+    stem: &str,
+    ylabel: &str,
+    caption: &str,
+) -> Result<Figure, CromError> {
+    let series = FIELDS
+        .iter()
+        .map(|(f, b, name)| {
+            let (x, y, sd) = metric_rows(t, f, b, "m", "mean");
+            let lo = y.iter().zip(&sd).map(|(m, s)| m - s).collect();
+            let hi = y.iter().zip(&sd).map(|(m, s)| m + s).collect();
+            Series::line(name, x, y).band(lo, hi)
+        })
+        .collect();
+    let chart = Chart {
+        title: format!("{}: {}", scene.scene.name, ylabel.split(' ').next().unwrap_or(ylabel)),
+        x_label: "rank m".into(),
+        y_label: ylabel.into(),
+        log_y: true,
+        log_x: false,
+        series,
+        legend: Legend::UpperRight,
+    };
+    render(&chart, dir, stem)?;
+    Ok(Figure { stem: stem.into(), caption: format!("{caption} Bands below the axis floor are clipped.") })
+}
+
+fn nested(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figure, CromError> {
+    let series = FIELDS
+        .iter()
+        .map(|(f, b, name)| {
+            let (x, y, _) = metric_rows(t, f, b, "n", "value");
+            Series::line(name, x, y)
+        })
+        .collect();
+    let chart = Chart {
+        title: format!("{}: nested training-set error", scene.scene.name),
+        x_label: "level n (2^n + 1 points)".into(),
+        y_label: "H(n) (eq. 19)".into(),
+        log_y: true,
+        log_x: false,
+        series,
+        legend: Legend::LowerLeft,
+    };
+    render(&chart, dir, "fig15_nested")?;
+    Ok(Figure {
+        stem: "fig15_nested".into(),
+        caption: "Projection error of level n+1 snapshots on the span / cone of level n (paper Fig. 15).".into(),
     })
 }

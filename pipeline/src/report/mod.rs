@@ -9,7 +9,9 @@ mod tables;
 
 use std::collections::BTreeMap;
 
-use crom_schemas::artifact::{compactness as cnames, mesh as mnames, rom as rnames, ArtifactKind};
+use crom_schemas::artifact::{
+    compactness as cnames, mesh as mnames, metrics as metric_names, rom as rnames, ArtifactKind,
+};
 use serde_json::json;
 
 use crate::cache::{Key, KeySpec};
@@ -34,6 +36,12 @@ pub struct ReportInputs {
     pub compactness: Key,
     /// Online ROM tables.
     pub rom: Key,
+    /// G(m) table.
+    pub generalization: Key,
+    /// S(m) table.
+    pub specificity: Key,
+    /// H(n) table, for scenes with nested levels.
+    pub nested: Option<Key>,
 }
 
 /// One figure of the report.
@@ -52,7 +60,13 @@ pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
         .input("train", &inputs.train)
         .input("basis", &inputs.basis)
         .input("compactness", &inputs.compactness)
-        .input("rom", &inputs.rom);
+        .input("rom", &inputs.rom)
+        .input("generalization", &inputs.generalization)
+        .input("specificity", &inputs.specificity);
+    let spec = match &inputs.nested {
+        Some(k) => spec.input("nested", k),
+        None => spec,
+    };
     let key = spec.key();
     let progress = ctx.progress.stage("report", 1);
     let scene = ctx.scene.clone();
@@ -90,6 +104,12 @@ pub(crate) struct ReportData {
     pub rom_errors: Table,
     /// Speed/accuracy trade (`tradeoff.parquet`).
     pub tradeoff: Table,
+    /// G(m).
+    pub generalization: Table,
+    /// S(m).
+    pub specificity: Table,
+    /// H(n), if the scene has nested levels.
+    pub nested: Option<Table>,
 }
 
 fn gather(ctx: &Ctx<'_>, inputs: &ReportInputs) -> Result<ReportData, CromError> {
@@ -99,8 +119,8 @@ fn gather(ctx: &Ctx<'_>, inputs: &ReportInputs) -> Result<ReportData, CromError>
     let cells = mesh.shape(mnames::CELLS)?;
     let contact_x = contact.iter().map(|&i| nodes.data[i as usize]).collect();
     let line_x = if cells.get(1) == Some(&2) { nodes.col(0).to_vec() } else { Vec::new() };
-    let train = trainset::load(ctx, &inputs.train)?;
-    let b = basis::load_full(ctx, &inputs.basis)?;
+    let train = trainset::load_from(ctx.store, &inputs.train)?;
+    let b = basis::load_full(ctx.store, &inputs.basis)?;
     let table = read_parquet(&ctx.store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
     let mut compactness: BTreeMap<(String, String), Vec<f64>> = BTreeMap::new();
     if let (Some(f), Some(bs), Some(v)) = (table.strs("field"), table.strs("basis"), table.f64s("value")) {
@@ -119,5 +139,15 @@ fn gather(ctx: &Ctx<'_>, inputs: &ReportInputs) -> Result<ReportData, CromError>
         compactness,
         rom_errors: read_parquet(&rom_dir.join(rnames::ERRORS))?,
         tradeoff: read_parquet(&rom_dir.join(rnames::TRADEOFF))?,
+        generalization: read_parquet(
+            &ctx.store.dir(ArtifactKind::Generalization, &inputs.generalization).join(metric_names::GENERALIZATION),
+        )?,
+        specificity: read_parquet(
+            &ctx.store.dir(ArtifactKind::Specificity, &inputs.specificity).join(metric_names::SPECIFICITY),
+        )?,
+        nested: match &inputs.nested {
+            Some(k) => Some(read_parquet(&ctx.store.dir(ArtifactKind::Nested, k).join(metric_names::NESTED))?),
+            None => None,
+        },
     })
 }

@@ -32,6 +32,7 @@ pub mod delassus;
 mod error;
 mod factor;
 mod model;
+mod operator;
 pub mod pairing;
 mod solve;
 pub mod vertex;

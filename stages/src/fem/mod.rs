@@ -7,6 +7,7 @@
 
 mod assembly;
 mod dirichlet;
+pub mod h1;
 mod material;
 pub mod q1;
 

@@ -131,7 +131,9 @@ pub fn loo_fold_orth(s: MatRef<'_, f64>, i: usize, max_m: usize) -> Result<Optio
 }
 
 /// Orthogonal leave-one-out folds of one snapshot matrix, sharing one QR factorisation
-/// (see the [module docs](self)). `Sync`: folds can run in parallel on a shared reference.
+/// `S = Q R`: fold i is the POD of the q x (N - 1) matrix `R \ r_i` (q = min(n, N)), whose
+/// modes are those of `S \ s_i` in the frame Q, with the numerical-rank cut of the full-size
+/// fold. `Sync`: folds can run in parallel on a shared reference.
 #[derive(Debug, Clone)]
 pub struct LooOrth {
     /// `R` of `S = Q R`, q x N (the snapshots in the orthonormal frame Q).

@@ -47,7 +47,7 @@ impl RunningStats {
         if self.count == 0 {
             f64::NAN
         } else {
-            (self.m2.max(0.0) / (self.count as f64 - 1.0).max(1.0)).sqrt()
+            (self.m2.max(0.0) / self.count as f64).sqrt()
         }
     }
 }

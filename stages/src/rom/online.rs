@@ -11,11 +11,15 @@ pub struct RomParams {
     /// A reduced constraint counts as violated when its gap is below `-gap_tol * scale`, with
     /// `scale` the largest `|ĝ0|` at the query (default 1e-12: rounding of the projections).
     pub gap_tol: f64,
+    /// Type-2 only: the linearisation (pairing, normals) is frozen during each saddle solve, so
+    /// the iterate is converged only once `||û_k - û_{k-1}|| <= u_tol ||û_k||` as well
+    /// (default 1e-12).
+    pub u_tol: f64,
 }
 
 impl Default for RomParams {
     fn default() -> Self {
-        Self { max_iter: 100, gap_tol: 1e-12 }
+        Self { max_iter: 100, gap_tol: 1e-12, u_tol: 1e-12 }
     }
 }
 
@@ -193,7 +197,9 @@ impl OnlineRom {
         let (mut c_a, mut g_a, mut lam_a, mut work) =
             (Vec::with_capacity(rl * ru), Vec::with_capacity(rl), vec![0.0; rl], Vec::new());
         let mut gap = vec![0.0; rl];
+        let mut prev_u_hat = vec![0.0; ru];
         for it in 1..=p.max_iter {
+            prev_u_hat.copy_from_slice(&u_hat);
             c_a.clear();
             g_a.clear();
             let idx: Vec<usize> = (0..rl).filter(|&a| mask[a]).collect();
@@ -219,10 +225,20 @@ impl OnlineRom {
                 gap[a] = chat[a * ru..(a + 1) * ru].iter().zip(&u_hat).map(|(c, x)| c * x).sum::<f64>() + ghat[a];
             }
             let new: Vec<bool> = (0..rl).map(|a| if mask[a] { lam[a] >= 0.0 } else { violated(gap[a]) }).collect();
-            if new == mask && !pairing_changed {
+            let settled = new == mask && !pairing_changed;
+            let moved = {
+                let du: f64 = u_hat.iter().zip(&prev_u_hat).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+                let un: f64 = u_hat.iter().map(|a| a * a).sum::<f64>().sqrt();
+                op.repairs() && du > p.u_tol * un
+            };
+            if settled && !moved {
                 let active = mask.iter().filter(|m| **m).count();
                 self.reconstruct_into(&u0, &u_hat, &mut u);
                 return self.finish(u, u_hat, lam, it, active, RomOutcome::Converged);
+            }
+            if settled {
+                // Same discrete state, geometry still moving: keep iterating on the normals.
+                continue;
             }
             let state = (new.clone(), lin.pairing.clone());
             if history.contains(&state) {

@@ -15,7 +15,7 @@
 //! length, tributary length `h`). Every node is a potential contact node; the two Dirichlet end
 //! nodes carry zero pressure by convention.
 //!
-//! [`solve`] uses the primal-dual active set method (a semismooth Newton method on
+//! [`solve()`] uses the primal-dual active set method (a semismooth Newton method on
 //! `Λ - max(0, Λ + c (g - u)) = 0`, Hintermüller–Ito–Kunisch 2002): for an M-matrix `K` it
 //! terminates in finitely many steps with the exact discrete solution.
 
