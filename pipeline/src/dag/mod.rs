@@ -136,8 +136,16 @@ impl Ctx<'_> {
         staging.commit(self.store, prov)
     }
 
+    /// Count a stage's artifacts in the run summary (one line per stage name).
     pub(crate) fn record(&mut self, stage: &'static str, computed: usize, cached: usize, dir: PathBuf) {
-        self.records.push(StageRecord { stage, computed, cached, dir });
+        match self.records.iter_mut().find(|r| r.stage == stage) {
+            Some(r) => {
+                r.computed += computed;
+                r.cached += cached;
+                r.dir = dir;
+            }
+            None => self.records.push(StageRecord { stage, computed, cached, dir }),
+        }
     }
 }
 

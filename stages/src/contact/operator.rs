@@ -134,6 +134,14 @@ impl ContactOperator for FactoredModel {
         h1_norm_sq(&self.model.mesh, u)
     }
 
+    fn read_dofs(&self) -> Vec<usize> {
+        let m = &self.model;
+        let mut d: Vec<usize> = m.slaves.iter().chain(&m.masters).flat_map(|&n| [2 * n, 2 * n + 1]).collect();
+        d.sort_unstable();
+        d.dedup();
+        d
+    }
+
     fn repairs(&self) -> bool {
         true
     }
@@ -413,6 +421,9 @@ mod tests {
         }
         fn repairs(&self) -> bool {
             false
+        }
+        fn read_dofs(&self) -> Vec<usize> {
+            Vec::new()
         }
     }
 

@@ -81,6 +81,9 @@ pub struct OnlineRom {
     theta: Vec<f64>,
     /// Cholesky factor of `K̂` (column-major `r_u x r_u`).
     khat_l: Vec<f64>,
+    /// The dofs the linearisation reads, and `Phi` restricted to them (column-major).
+    read_dofs: Vec<usize>,
+    phi_read: Vec<f64>,
 }
 
 /// Why an [`OnlineRom`] could not be built.
@@ -118,12 +121,47 @@ impl OnlineRom {
         if !cholesky(&mut khat, r_u) {
             return Err(RomError::SingularStiffness);
         }
-        Ok(Self { n_dof, n_contact, r_u, r_l, phi: phi.to_vec(), theta: theta.to_vec(), khat_l: khat })
+        let read_dofs = op.read_dofs();
+        let phi_read = (0..r_u).flat_map(|j| read_dofs.iter().map(move |&d| phi[d + j * n_dof])).collect();
+        Ok(Self {
+            n_dof,
+            n_contact,
+            r_u,
+            r_l,
+            phi: phi.to_vec(),
+            theta: theta.to_vec(),
+            khat_l: khat,
+            read_dofs,
+            phi_read,
+        })
     }
 
     /// Primal and dual ranks.
     pub fn ranks(&self) -> (usize, usize) {
         (self.r_u, self.r_l)
+    }
+
+    /// The reduced model on the first `r_u` primal and `r_l` dual basis vectors, without
+    /// recomputing `K̂`: `Phi[:, :r]^T K Phi[:, :r]` is the leading block of `K̂`, and the
+    /// Cholesky factor of a leading block is the leading block of the factor.
+    pub fn leading(&self, r_u: usize, r_l: usize) -> Self {
+        assert!(r_u <= self.r_u && r_l <= self.r_l, "leading ranks exceed the model's");
+        let mut khat_l = vec![0.0; r_u * r_u];
+        for j in 0..r_u {
+            khat_l[j * r_u..(j + 1) * r_u].copy_from_slice(&self.khat_l[j * self.r_u..j * self.r_u + r_u]);
+        }
+        let nd = self.read_dofs.len();
+        Self {
+            n_dof: self.n_dof,
+            n_contact: self.n_contact,
+            r_u,
+            r_l,
+            phi: self.phi[..r_u * self.n_dof].to_vec(),
+            theta: self.theta[..r_l * self.n_contact].to_vec(),
+            khat_l,
+            read_dofs: self.read_dofs.clone(),
+            phi_read: self.phi_read[..r_u * nd].to_vec(),
+        }
     }
 
     /// Ĉ (row-major `r_l x r_u`) and ĝ0 from a linearisation and the lift.
@@ -215,7 +253,7 @@ impl OnlineRom {
             }
             let mut pairing_changed = false;
             if op.repairs() {
-                self.reconstruct_into(&u0, &u_hat, &mut u);
+                self.reconstruct_read_dofs(&u0, &u_hat, &mut u);
                 let old = std::mem::take(&mut lin.pairing);
                 op.linearize(mu, &u, &mut lin);
                 pairing_changed = old != lin.pairing;
@@ -252,6 +290,14 @@ impl OnlineRom {
         self.reconstruct_into(&u0, &u_hat, &mut u);
         let active = mask.iter().filter(|m| **m).count();
         self.finish(u, u_hat, lam, p.max_iter, active, RomOutcome::NotConverged)
+    }
+
+    /// `u = u0 + Phi û` on the dofs the linearisation reads only (the rest of `u` is stale).
+    fn reconstruct_read_dofs(&self, u0: &[f64], u_hat: &[f64], u: &mut [f64]) {
+        let nd = self.read_dofs.len();
+        for (k, &d) in self.read_dofs.iter().enumerate() {
+            u[d] = u0[d] + u_hat.iter().enumerate().map(|(j, c)| c * self.phi_read[k + j * nd]).sum::<f64>();
+        }
     }
 
     fn reconstruct_into(&self, u0: &[f64], u_hat: &[f64], u: &mut [f64]) {

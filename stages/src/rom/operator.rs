@@ -57,4 +57,8 @@ pub trait ContactOperator: Sync {
     fn primal_norm_sq(&self, u: &[f64]) -> f64;
     /// True when the pairing depends on the displacement (Type-2).
     fn repairs(&self) -> bool;
+    /// The dofs of `u` that [`ContactOperator::linearize`] reads (the contact surfaces' nodes);
+    /// the online loop updates only these between linearisations and reconstructs the whole
+    /// displacement once at the end. Empty when `linearize` ignores `u` (Type-1).
+    fn read_dofs(&self) -> Vec<usize>;
 }
