@@ -50,7 +50,7 @@ pub enum CromError {
         fix: String,
     },
     /// Some snapshots did not converge; the others are stored (exit 1).
-    #[error("{failed} of {total} snapshots of scene `{scene}` failed (the others are stored; downstream stages were skipped):\n{list}\n  table: {}\n  fix: raise solver.max_iter or relax solver.rel_tol in the scene file, or exclude these parameter values", table.display())]
+    #[error("{failed} of {total} snapshots of scene `{scene}` failed (the others are stored; downstream stages were skipped):\n{list}\n  table: {}\n  fix: for `no convergence`, raise solver.max_iter (or relax solver.rel_tol) in the scene file; for `infeasible`, change the geometry or the parameter range so that the fixed ends lie on or above the obstacle", table.display())]
     SolveFailures {
         /// Scene name.
         scene: String,

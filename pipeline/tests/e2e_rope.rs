@@ -194,3 +194,61 @@ fn failed_points_are_named_tabled_and_exit_1() {
     assert!(store.join("runs/rope/solver_failures.parquet").is_file(), "{msg}");
     assert!(artifact_dirs(&store, "trainset").is_empty(), "nothing downstream of failed snapshots");
 }
+
+fn variant(dir: &Path, name: &str, edit: impl Fn(String) -> String) -> PathBuf {
+    let rope = std::fs::read_to_string(repo().join("data/scenes/rope.toml")).expect("rope.toml");
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, edit(rope)).expect("write scene");
+    path
+}
+
+fn table(store: &Path, stage: &str, file: &str) -> crom_pipeline::io::table::Table {
+    let dir = &artifact_dirs(store, stage)[0];
+    crom_pipeline::io::table::read_parquet(&dir.join(file)).expect("table reads")
+}
+
+/// Extreme: the obstacle is far below, no point touches it. Every dual snapshot is zero: the
+/// dual bases are empty, the metrics count the zero snapshots instead of dividing by them, the
+/// online solve returns the lift, and the report is still written.
+#[test]
+fn no_contact_anywhere_runs_to_the_report() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let scene = variant(tmp.path(), "rope-free", |t| t.replace("offset = -0.5 }", "offset = -10.0 }"));
+    let out = crom(&store, &["run", scene.to_str().expect("utf8")]);
+    assert!(out.status.success(), "{}", text(&out));
+    let g = table(&store, "generalization", "generalization.parquet");
+    let (fields, n_zero) = (g.strs("field").expect("field"), g.u64s("n_zero").expect("n_zero"));
+    assert!(fields.iter().zip(n_zero).all(|(f, z)| f != "dual" || *z == 10), "all 10 dual snapshots are zero");
+    let rom = table(&store, "rom", "rom_errors.parquet");
+    // The primal error is exactly 0 (the ROM returns the lift, which is the snapshot); the dual
+    // error is undefined (NaN), not a division by zero.
+    assert!(rom.f64s("primal_error").expect("col").iter().all(|e| e.abs() < 1e-12));
+    assert!(rom.f64s("dual_error").expect("col").iter().all(|e| e.is_nan()));
+    assert!(artifact_dirs(&store, "report")[0].join("index.html").is_file());
+}
+
+/// Extreme: at gamma = 0 every interior node is in contact (obstacle -0.2 sin(pi x): the
+/// multiplier f - nu g'' = 250 - 59 sin(pi x) > 0 everywhere).
+#[test]
+fn full_contact_runs_to_the_report() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let scene = variant(tmp.path(), "rope-full", |t| {
+        t.replace(
+            "modes = [1.0, 3.0], amplitudes = [-0.2, 0.2], offset = -0.5",
+            "modes = [1.0], amplitudes = [-0.2], offset = 0.0",
+        )
+        .replace("max = 0.5", "max = 0.0")
+    });
+    let out = crom(&store, &["run", scene.to_str().expect("utf8")]);
+    assert!(out.status.success(), "{}", text(&out));
+    let train = artifact_dirs(&store, "trainset")
+        .into_iter()
+        .map(|d| crom_pipeline::io::table::read_parquet(&d.join("solver_stats.parquet")).expect("stats"))
+        .find(|t| t.f64s("parameter").is_some_and(|p| p.iter().any(|x| x.abs() < 1e-15)))
+        .expect("the training set holds gamma = 0");
+    let active = train.u64s("active").expect("active");
+    assert_eq!(*active.last().expect("rows"), 199, "all 199 interior nodes in contact at gamma = 0");
+    assert!(artifact_dirs(&store, "report")[0].join("index.html").is_file());
+}

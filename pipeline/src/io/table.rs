@@ -138,8 +138,19 @@ pub fn read_parquet(path: &Path) -> Result<Table, CromError> {
         )
     };
     let file = std::fs::File::open(path).map_err(|e| CromError::io(path, "opening a Parquet file", e))?;
-    let reader = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| fail(&e))?.build().map_err(|e| fail(&e))?;
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| fail(&e))?;
+    // Columns come from the schema, so a table with no rows still has them.
     let mut table = Table::default();
+    for field in builder.schema().fields() {
+        let empty = match field.data_type() {
+            arrow_schema::DataType::Utf8 => Column::Str(Vec::new()),
+            arrow_schema::DataType::UInt64 => Column::U64(Vec::new()),
+            arrow_schema::DataType::Float64 => Column::F64(Vec::new()),
+            t => return Err(fail(&format!("column {} has unsupported type {t}", field.name()))),
+        };
+        table.columns.push((field.name().clone(), empty));
+    }
+    let reader = builder.build().map_err(|e| fail(&e))?;
     for batch in reader {
         let batch = batch.map_err(|e| fail(&e))?;
         let schema = batch.schema();
