@@ -30,6 +30,12 @@ pub enum Command {
         /// Scene name (a file in the scenes directory) or path to a scene TOML file.
         scene: String,
     },
+    /// Bring a scene's study up to date (cached stages are not recomputed) and print where its
+    /// report is.
+    Report {
+        /// Scene name or path to a scene TOML file.
+        scene: String,
+    },
     /// List the artifacts in the store.
     Ls {
         /// Only this stage (mesh, snapshot, trainset, basis, compactness).

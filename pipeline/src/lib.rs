@@ -45,7 +45,15 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
 /// Execute a parsed command line.
 pub fn run(cli: &Cli) -> Result<(), CromError> {
     match &cli.command {
-        Command::Run { scene } => run_scene(cli, scene),
+        Command::Run { scene } => run_scene(cli, scene).map(|_| ()),
+        Command::Report { scene } => {
+            let out = run_scene(cli, scene)?;
+            let index = store::Store::open_read_only(&cli.store)
+                .dir(crom_schemas::artifact::ArtifactKind::Report, &out.report)
+                .join("index.html");
+            println!("{}", index.display());
+            Ok(())
+        }
         Command::Ls { stage } => {
             summary::print_ls(&Store::open_read_only(&cli.store), stage.as_deref());
             Ok(())
@@ -59,7 +67,7 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
     }
 }
 
-fn run_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
+fn run_scene(cli: &Cli, scene_arg: &str) -> Result<dag::RunOutput, CromError> {
     let start = Instant::now();
     let path = scenes::resolve(scene_arg, &cli.scenes)?;
     let scene = SceneConfig::load(&path)?;
@@ -74,6 +82,7 @@ fn run_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
         warnings: Vec::new(),
     };
     let result = dag::run_scene(&mut ctx);
-    summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok());
-    result.map(|_| ())
+    let report = result.as_ref().ok().map(|o| store.dir(crom_schemas::artifact::ArtifactKind::Report, &o.report));
+    summary::print_run(&ctx, start.elapsed().as_secs_f64(), report.as_deref());
+    result
 }

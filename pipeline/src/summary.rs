@@ -9,7 +9,8 @@ use crate::store::Store;
 
 /// The closing summary of `crom run`: what ran, what came from cache, where the artifacts are.
 /// Output errors (a closed pipe) are ignored: the summary is informational.
-pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool) {
+pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, report: Option<&std::path::Path>) {
+    let ok = report.is_some();
     let mut out = std::io::stdout().lock();
     let name = &ctx.scene.scene.name;
     let _ = writeln!(out, "crom run {name}: {} in {seconds:.2} s", if ok { "done" } else { "stopped" });
@@ -25,6 +26,9 @@ pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool) {
         let _ = writeln!(out, "  nothing computed: every artifact came from the cache");
     }
     let _ = writeln!(out, "  store: {}", ctx.store.root().display());
+    if let Some(r) = report {
+        let _ = writeln!(out, "  report: {}", r.join("index.html").display());
+    }
 }
 
 /// `crom ls`: one line per artifact.

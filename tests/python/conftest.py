@@ -18,12 +18,21 @@ def crom_bin() -> pathlib.Path:
     return path
 
 
-@pytest.fixture(scope="session")
-def rope_store(tmp_path_factory) -> pathlib.Path:
-    store = tmp_path_factory.mktemp("store")
-    subprocess.run([str(crom_bin()), "--store", str(store), "--quiet", "run", "rope"], cwd=REPO, check=True,
+def run_scene(tmp_path_factory, scene: str) -> pathlib.Path:
+    store = tmp_path_factory.mktemp(f"store-{scene}")
+    subprocess.run([str(crom_bin()), "--store", str(store), "--quiet", "run", scene], cwd=REPO, check=True,
                    capture_output=True)
     return store
+
+
+@pytest.fixture(scope="session")
+def rope_store(tmp_path_factory) -> pathlib.Path:
+    return run_scene(tmp_path_factory, "rope")
+
+
+@pytest.fixture(scope="session")
+def hertz_store(tmp_path_factory) -> pathlib.Path:
+    return run_scene(tmp_path_factory, "hertz")
 
 
 def only_artifact(store: pathlib.Path, stage: str, file: str, where=None) -> pathlib.Path:
