@@ -36,6 +36,8 @@ clippy:
 # What CI runs: fmt check, clippy, tests.
 ci: fmt clippy test
 
-# Benchmarks (release build), printed as tables.
+# Benchmarks (release build), printed as tables: contact solver, metrics/NNLS, whole pipeline.
 bench:
     cargo run --release --quiet -p crom-stages --example bench_contact
+    cargo run --release --quiet -p crom-stages --example bench_metrics
+    {{python}} scripts/bench_pipeline.py ironing-fine ironing-coarse hertz rope
