@@ -13,3 +13,5 @@ pub mod rng;
 pub mod rom;
 pub mod rope;
 pub mod snapshot;
+#[cfg(test)]
+mod testing;

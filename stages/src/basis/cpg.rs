@@ -102,21 +102,7 @@ mod tests {
     use crate::assert_close;
     use crate::cone::ConeProjector;
     use crate::rng::Rng;
-
-    /// Non-negative "pressure-like" snapshots: a bump of random width at a random position.
-    fn bumps(rng: &mut Rng, n: usize, count: usize) -> Mat<f64> {
-        let mut s = Mat::zeros(n, count);
-        for j in 0..count {
-            let centre = rng.uniform_in(0.0, n as f64);
-            let width = rng.uniform_in(1.0, 4.0);
-            let height = rng.uniform_in(0.5, 2.0);
-            for i in 0..n {
-                let d = (i as f64 - centre) / width;
-                s[(i, j)] = height * (1.0 - d * d).max(0.0);
-            }
-        }
-        s
-    }
+    use crate::testing::bumps;
 
     fn relative_cone_errors(basis: MatRef<'_, f64>, s: MatRef<'_, f64>) -> Vec<f64> {
         let mut proj = ConeProjector::new(basis, NnlsParams::default());
@@ -127,7 +113,7 @@ mod tests {
     #[test]
     fn tolerance_zero_spans_every_snapshot() {
         let mut rng = Rng::new(51);
-        let s = bumps(&mut rng, 40, 25);
+        let s = bumps(&mut rng, 40, 25, (1.0, 4.0));
         let out = cpg(s.as_ref(), CpgParams::default()).expect("converges");
         for (j, e) in relative_cone_errors(out.basis.as_ref(), s.as_ref()).iter().enumerate() {
             // Every training snapshot is in the final cone: 1e-10 relative (round-off of a
@@ -144,7 +130,7 @@ mod tests {
     #[test]
     fn duplicates_multiples_and_zeros_are_not_selected() {
         let mut rng = Rng::new(52);
-        let base = bumps(&mut rng, 30, 8);
+        let base = bumps(&mut rng, 30, 8, (1.0, 4.0));
         // Columns: 0..8 base, 8 = copy of 2, 9 = 3 * column 5, 10 = zero, 11 = copy of 0.
         let s = Mat::from_fn(30, 12, |i, j| match j {
             0..=7 => base[(i, j)],
@@ -169,7 +155,7 @@ mod tests {
     #[test]
     fn compactness_is_non_increasing_and_stops_at_tolerance() {
         let mut rng = Rng::new(53);
-        let s = bumps(&mut rng, 50, 40);
+        let s = bumps(&mut rng, 50, 40, (1.0, 4.0));
         let full = cpg(s.as_ref(), CpgParams::default()).expect("converges");
         assert_close!(full.compactness[0], 1.0, Tol::abs(0.0)); // set exactly
         for w in full.compactness.windows(2) {
@@ -211,7 +197,7 @@ mod tests {
     #[test]
     fn cone_of_the_snapshots_reproduces_them() {
         let mut rng = Rng::new(54);
-        let s = bumps(&mut rng, 30, 10);
+        let s = bumps(&mut rng, 30, 10, (1.0, 4.0));
         for (j, e) in relative_cone_errors(s.as_ref(), s.as_ref()).iter().enumerate() {
             // s_j = Theta e_j exactly: the residual is round-off, 1e-12 relative.
             assert!(*e <= 1e-12, "snapshot {j}: relative error {e:e}");

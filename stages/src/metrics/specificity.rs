@@ -246,22 +246,8 @@ mod tests {
     use crate::approx::Tol;
     use crate::basis::{cpg, pod_full, CpgParams};
     use crate::cone::nnls_reference;
+    use crate::testing::bumps;
     use crate::{assert_all_close, assert_close};
-
-    /// Non-negative bumps of random height, width and position on n points.
-    fn bumps(rng: &mut Rng, n: usize, count: usize) -> Mat<f64> {
-        let mut s = Mat::zeros(n, count);
-        for j in 0..count {
-            let centre = rng.uniform_in(0.0, n as f64);
-            let width = rng.uniform_in(2.0, 6.0);
-            let height = rng.uniform_in(0.5, 2.0);
-            for i in 0..n {
-                let d = (i as f64 - centre) / width;
-                s[(i, j)] = height * (1.0 - d * d).max(0.0);
-            }
-        }
-        s
-    }
 
     fn params(seed: u64) -> SpecificityParams {
         SpecificityParams { samples: 200, seed }
@@ -293,7 +279,7 @@ mod tests {
     #[test]
     fn orth_matches_the_definition() {
         let mut rng = Rng::new(81);
-        let s = bumps(&mut rng, 30, 12);
+        let s = bumps(&mut rng, 30, 12, (2.0, 6.0));
         let full = pod_full(s.as_ref()).expect("svd").modes;
         // Truncated to 6 of 12 modes, so the snapshots have a part outside the span (the
         // ||s_j - Q c_j||^2 term of the frame identity matters).
@@ -324,7 +310,7 @@ mod tests {
     #[test]
     fn cone_matches_the_definition() {
         let mut rng = Rng::new(82);
-        let s = bumps(&mut rng, 30, 12);
+        let s = bumps(&mut rng, 30, 12, (2.0, 6.0));
         let full = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
         // Truncated to 7 generators: the snapshots stick out of span(Theta) (the residual
         // term of the frame identity matters), and the last m equals the QR width.
@@ -345,7 +331,7 @@ mod tests {
         // n = 8 nodes, 16 bumps: CPG keeps more generators than n (a cone needs them), so the
         // QR frame is square and R is wide (m > q uses p = q rows).
         let mut rng = Rng::new(88);
-        let s = bumps(&mut rng, 8, 16);
+        let s = bumps(&mut rng, 8, 16, (2.0, 6.0));
         let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
         assert!(basis.ncols() > 8, "only {} generators", basis.ncols());
         let p = params(8);
@@ -365,7 +351,7 @@ mod tests {
         // Independent generators (n = 30 > k): the NNLS coefficients are unique, so the
         // incremental warm-started ones must equal a cold textbook Lawson–Hanson's.
         let mut rng = Rng::new(83);
-        let s = bumps(&mut rng, 30, 10);
+        let s = bumps(&mut rng, 30, 10, (2.0, 6.0));
         let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
         let ranges = cone_ranges(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
         for m in [1, 3, basis.ncols()] {
@@ -387,7 +373,7 @@ mod tests {
     #[test]
     fn reproducible_for_a_seed_and_different_for_another() {
         let mut rng = Rng::new(84);
-        let s = bumps(&mut rng, 30, 12);
+        let s = bumps(&mut rng, 30, 12, (2.0, 6.0));
         let modes = pod_full(s.as_ref()).expect("svd").modes;
         let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
         let nnls = NnlsParams::default();
@@ -407,7 +393,7 @@ mod tests {
     fn identical_snapshots_have_zero_specificity() {
         // sigma = 0: every sample is mu = the common coordinate, i.e. the snapshot itself.
         let mut rng = Rng::new(85);
-        let v = bumps(&mut rng, 25, 1);
+        let v = bumps(&mut rng, 25, 1, (2.0, 6.0));
         let s = Mat::from_fn(25, 5, |i, _| v[(i, 0)]);
         let modes = pod_full(s.as_ref()).expect("svd").modes;
         let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
@@ -451,7 +437,7 @@ mod tests {
     #[test]
     fn value_for_m_does_not_depend_on_other_m() {
         let mut rng = Rng::new(86);
-        let s = bumps(&mut rng, 30, 12);
+        let s = bumps(&mut rng, 30, 12, (2.0, 6.0));
         let modes = pod_full(s.as_ref()).expect("svd").modes;
         let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
         let nnls = NnlsParams::default();
@@ -469,7 +455,7 @@ mod tests {
     #[test]
     fn zero_training_snapshots_are_skipped_and_counted() {
         let mut rng = Rng::new(87);
-        let mut s = bumps(&mut rng, 20, 6);
+        let mut s = bumps(&mut rng, 20, 6, (2.0, 6.0));
         s.col_mut(2).fill(0.0);
         let modes = pod_full(s.as_ref()).expect("svd").modes;
         let curve = specificity_orth(s.as_ref(), modes.as_ref(), params(7));

@@ -25,3 +25,35 @@ mod solve;
 
 pub use problem::{Rope, RopeParams};
 pub use solve::{solve, unconstrained, RopeError, RopeSolveParams};
+
+/// Test fixtures shared by the rope's test modules.
+#[cfg(test)]
+pub(crate) mod fixtures {
+    use super::{solve, unconstrained, Rope, RopeParams, RopeSolveParams};
+    use crate::snapshot::Snapshot;
+
+    /// The paper's rope (SCENES.md → rope).
+    pub(crate) fn paper_rope() -> Rope {
+        Rope::new(RopeParams {
+            length: 1.0,
+            n_elements: 200,
+            nu: 30.0,
+            f: 250.0,
+            modes: vec![1.0, 3.0],
+            amplitudes: vec![-0.2, 0.2],
+            offset: -0.5,
+        })
+    }
+
+    /// The 10 training points and snapshots, the contact responses `u - u0` and the pressures,
+    /// both column-major `n x 10`.
+    pub(crate) fn training(rope: &Rope) -> (Vec<f64>, Vec<Snapshot>, Vec<f64>, Vec<f64>) {
+        let gammas: Vec<f64> = (0..10).map(|k| -0.5 + k as f64 / 9.0).collect();
+        let snaps: Vec<Snapshot> =
+            gammas.iter().map(|&g| solve(rope, g, &RopeSolveParams::default()).expect("solves")).collect();
+        let u0 = unconstrained(rope);
+        let responses = snaps.iter().flat_map(|s| s.u.iter().zip(&u0).map(|(a, b)| a - b)).collect();
+        let duals = snaps.iter().flat_map(|s| s.pressure.iter().copied()).collect();
+        (gammas, snaps, responses, duals)
+    }
+}

@@ -64,22 +64,25 @@ impl ContactOperator for Rope {
 
 #[cfg(test)]
 mod tests {
-    use faer::MatRef;
+    use faer::{Mat, MatRef};
 
     use crate::basis::{cpg, pod, CpgParams, PodParams};
     use crate::rom::{ContactOperator, OnlineRom, RomOutcome, RomParams};
-    use crate::rope::{solve, Rope, RopeParams, RopeSolveParams};
+    use crate::rope::fixtures::{paper_rope, training};
+    use crate::rope::{Rope, RopeParams};
 
-    fn paper_rope() -> Rope {
-        Rope::new(RopeParams {
-            length: 1.0,
-            n_elements: 200,
-            nu: 30.0,
-            f: 250.0,
-            modes: vec![1.0, 3.0],
-            amplitudes: vec![-0.2, 0.2],
-            offset: -0.5,
-        })
+    /// The first `r` columns of `m`, column-major.
+    fn columns(m: &Mat<f64>, r: usize) -> Vec<f64> {
+        (0..r).flat_map(|j| m.col(j).iter().copied().collect::<Vec<_>>()).collect()
+    }
+
+    /// Primal POD of the training contact responses and CPG (tolerance 0) of the pressures.
+    fn full_bases(rope: &Rope) -> (Mat<f64>, Mat<f64>) {
+        let n = rope.n_nodes();
+        let (_, _, responses, duals) = training(rope);
+        let phi = pod(MatRef::from_column_major_slice(&responses, n, 10), PodParams::default()).expect("pod");
+        let theta = cpg(MatRef::from_column_major_slice(&duals, n, 10), CpgParams::default()).expect("cpg");
+        (phi.modes, theta.basis)
     }
 
     /// With the full bases (primal POD of the 10 contact responses at numerical rank, CPG at
@@ -90,20 +93,10 @@ mod tests {
     #[test]
     fn full_bases_reproduce_every_training_snapshot() {
         let rope = paper_rope();
-        let params = RopeSolveParams::default();
-        let gammas: Vec<f64> = (0..10).map(|k| -0.5 + k as f64 / 9.0).collect();
-        let snaps: Vec<_> = gammas.iter().map(|&g| solve(&rope, g, &params).expect("solves")).collect();
-        let n = rope.n_nodes();
-        let u0 = rope.lift(0.0);
-        let responses: Vec<f64> = snaps.iter().flat_map(|s| s.u.iter().zip(&u0).map(|(a, b)| a - b)).collect();
-        let duals: Vec<f64> = snaps.iter().flat_map(|s| s.pressure.iter().copied()).collect();
-        let phi = pod(MatRef::from_column_major_slice(&responses, n, 10), PodParams::default()).expect("pod");
-        let theta = cpg(MatRef::from_column_major_slice(&duals, n, 10), CpgParams::default()).expect("cpg");
-        let phi_data: Vec<f64> =
-            (0..phi.modes.ncols()).flat_map(|j| phi.modes.col(j).iter().copied().collect::<Vec<_>>()).collect();
-        let th_data: Vec<f64> =
-            (0..theta.basis.ncols()).flat_map(|j| theta.basis.col(j).iter().copied().collect::<Vec<_>>()).collect();
-        let rom = OnlineRom::new(&rope, &phi_data, phi.modes.ncols(), &th_data, theta.basis.ncols()).expect("K̂ SPD");
+        let (gammas, snaps, _, _) = training(&rope);
+        let (phi, theta) = full_bases(&rope);
+        let (ru, rl) = (phi.ncols(), theta.ncols());
+        let rom = OnlineRom::new(&rope, &columns(&phi, ru), ru, &columns(&theta, rl), rl).expect("K̂ SPD");
         for (g, s) in gammas.iter().zip(&snaps) {
             let r = rom.solve(&rope, *g, &RomParams::default());
             assert_eq!(r.outcome, RomOutcome::Converged, "gamma {g}");
@@ -122,28 +115,11 @@ mod tests {
     #[test]
     fn leading_block_equals_a_fresh_model() {
         let rope = paper_rope();
-        let params = RopeSolveParams::default();
-        let gammas: Vec<f64> = (0..10).map(|k| -0.5 + k as f64 / 9.0).collect();
-        let snaps: Vec<_> = gammas.iter().map(|&g| solve(&rope, g, &params).expect("solves")).collect();
-        let n = rope.n_nodes();
-        let u0 = rope.lift(0.0);
-        let responses: Vec<f64> = snaps.iter().flat_map(|s| s.u.iter().zip(&u0).map(|(a, b)| a - b)).collect();
-        let duals: Vec<f64> = snaps.iter().flat_map(|s| s.pressure.iter().copied()).collect();
-        let phi = pod(MatRef::from_column_major_slice(&responses, n, 10), PodParams::default()).expect("pod");
-        let theta = cpg(MatRef::from_column_major_slice(&duals, n, 10), CpgParams::default()).expect("cpg");
-        let col = |m: &faer::Mat<f64>, r: usize| -> Vec<f64> {
-            (0..r).flat_map(|j| m.col(j).iter().copied().collect::<Vec<_>>()).collect()
-        };
-        let full = OnlineRom::new(
-            &rope,
-            &col(&phi.modes, phi.modes.ncols()),
-            phi.modes.ncols(),
-            &col(&theta.basis, theta.basis.ncols()),
-            theta.basis.ncols(),
-        )
-        .expect("SPD");
+        let (phi, theta) = full_bases(&rope);
+        let (ru, rl) = (phi.ncols(), theta.ncols());
+        let full = OnlineRom::new(&rope, &columns(&phi, ru), ru, &columns(&theta, rl), rl).expect("SPD");
         let (ru, rl) = (4, 6);
-        let fresh = OnlineRom::new(&rope, &col(&phi.modes, ru), ru, &col(&theta.basis, rl), rl).expect("SPD");
+        let fresh = OnlineRom::new(&rope, &columns(&phi, ru), ru, &columns(&theta, rl), rl).expect("SPD");
         let lead = full.leading(ru, rl);
         for g in [-0.45, 0.05, 0.4] {
             let (a, b) = (lead.solve(&rope, g, &RomParams::default()), fresh.solve(&rope, g, &RomParams::default()));

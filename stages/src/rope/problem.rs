@@ -72,21 +72,9 @@ impl Rope {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
     use crate::approx::Tol;
     use crate::assert_close;
-
-    pub(crate) fn paper_rope() -> Rope {
-        Rope::new(RopeParams {
-            length: 1.0,
-            n_elements: 200,
-            nu: 30.0,
-            f: 250.0,
-            modes: vec![1.0, 3.0],
-            amplitudes: vec![-0.2, 0.2],
-            offset: -0.5,
-        })
-    }
+    use crate::rope::fixtures::paper_rope;
 
     #[test]
     fn obstacle_matches_paper_eq_15() {
