@@ -252,3 +252,18 @@ fn full_contact_runs_to_the_report() {
     assert_eq!(*active.last().expect("rows"), 199, "all 199 interior nodes in contact at gamma = 0");
     assert!(artifact_dirs(&store, "report")[0].join("index.html").is_file());
 }
+
+/// Each metric is its own stage: changing the specificity sample count recomputes specificity
+/// and the report that shows it, and nothing else.
+#[test]
+fn changing_one_metric_setting_recomputes_only_that_stage() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let a = variant(tmp.path(), "rope-a", |t| t);
+    let b = variant(tmp.path(), "rope-b", |t| t.replace("specificity_samples = 1000", "specificity_samples = 300"));
+    assert!(crom(&store, &["run", a.to_str().expect("utf8")]).status.success());
+    let out = crom(&store, &["run", b.to_str().expect("utf8")]);
+    assert!(out.status.success(), "{}", text(&out));
+    let computed: Vec<String> = summary(&out).into_iter().filter(|r| r.1 > 0).map(|r| r.0).collect();
+    assert_eq!(computed, ["specificity", "report"], "{}", text(&out));
+}

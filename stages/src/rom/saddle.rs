@@ -4,7 +4,14 @@
 //! `û = K̂^{-1} Ĉ_A^T λ̂_A`, `(Ĉ_A K̂^{-1} Ĉ_A^T) λ̂_A = -ĝ0_A`. The Schur matrix is only
 //! positive semi-definite when active constraints are dependent (several dual generators can be
 //! nearly parallel); a pivoted Cholesky that drops pivots below `1e-12` of the largest diagonal
-//! gives the minimum-norm-like solution with the dependent multipliers set to zero.
+//! gives a solution with the dependent multipliers set to zero (pivots below
+//! [`SCHUR_PIVOT_TOL`] of the largest diagonal).
+
+/// Relative pivot below which an active row of the Schur complement counts as dependent. The
+/// Schur matrix squares the conditioning of `Ĉ_A`: a pivot `1e-10` of the largest means rows
+/// dependent to ~1e-5, whose multipliers would otherwise be amplified ~1e10 (seen when the dual
+/// basis is richer than the primal one).
+pub const SCHUR_PIVOT_TOL: f64 = 1e-10;
 
 /// Dense column-major Cholesky `a = L L^T` in place (lower triangle); `false` if not SPD.
 pub fn cholesky(a: &mut [f64], n: usize) -> bool {
@@ -77,7 +84,7 @@ pub fn solve_saddle(
     }
     // Pivoted Cholesky with dropping of dependent rows.
     let max_diag = (0..a).map(|i| s[i + i * a]).fold(0.0f64, f64::max);
-    let tol = 1e-12 * max_diag.max(f64::MIN_POSITIVE);
+    let tol = SCHUR_PIVOT_TOL * max_diag.max(f64::MIN_POSITIVE);
     let mut keep = vec![true; a];
     for j in 0..a {
         let mut d = s[j + j * a];
