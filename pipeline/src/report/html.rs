@@ -36,6 +36,12 @@ pub(crate) fn write_index(
             ctr.to_string(),
         ),
     ];
+    let mut facts = facts.to_vec();
+    for basis in ["full", "truncated"] {
+        if let Some(line) = online_summary(d, basis) {
+            facts.push((format!("online solve, test points, {basis} dual basis"), line));
+        }
+    }
     let mut html = String::new();
     html.push_str(&format!(
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>crom report: {0}</title>\n<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:4px 10px;text-align:left}}figure{{margin:2em 0}}img{{max-width:100%;border:1px solid #eee}}figcaption{{color:#555}}</style></head><body>\n<h1>crom report: {0}</h1>\n<table>\n",
@@ -79,4 +85,39 @@ fn md_to_html(md: &str) -> String {
     }
     s.push_str("</table>\n");
     s
+}
+
+/// Median relative errors and speed-up of the online solve over the test points.
+fn online_summary(d: &ReportData, basis: &str) -> Option<String> {
+    let t = &d.rom_errors;
+    let (sets, bases) = (t.strs("set")?, t.strs("dual_basis")?);
+    let (pe, de, on, fom, outcome) = (
+        t.f64s("primal_error")?,
+        t.f64s("dual_error")?,
+        t.f64s("online_seconds")?,
+        t.f64s("fom_seconds")?,
+        t.strs("outcome")?,
+    );
+    let rows: Vec<usize> = (0..sets.len()).filter(|&i| sets[i] == "test" && bases[i] == basis).collect();
+    if rows.is_empty() {
+        return None;
+    }
+    let median = |v: Vec<f64>| -> f64 {
+        let mut v: Vec<f64> = v.into_iter().filter(|x| x.is_finite()).collect();
+        v.sort_by(f64::total_cmp);
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            v[v.len() / 2]
+        }
+    };
+    let converged = rows.iter().filter(|&&i| outcome[i] == "converged").count();
+    Some(format!(
+        "median primal error (H1) {:.2e}, median dual error {:.2e}, median speed-up {:.1}x, converged {}/{}",
+        median(rows.iter().map(|&i| pe[i]).collect()),
+        median(rows.iter().map(|&i| de[i]).collect()),
+        median(rows.iter().map(|&i| fom[i] / on[i]).collect()),
+        converged,
+        rows.len()
+    ))
 }

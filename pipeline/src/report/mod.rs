@@ -21,7 +21,7 @@ use crate::io::h5::H5In;
 use crate::io::table::{read_parquet, Table};
 
 /// Bump when the report's content changes.
-const ALGORITHM_VERSION: u32 = 1;
+const ALGORITHM_VERSION: u32 = 2;
 
 /// The artifacts a report shows.
 #[derive(Debug, Clone)]
