@@ -2,11 +2,9 @@
 //! artifact and a thread-safe `solve(parameter)` for the snapshot stage. Everything costly and
 //! parameter-independent (e.g. the factorisation of K) is done once, in [`Physics::build`].
 
-use crom_schemas::scene::{HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec};
+use crom_schemas::scene::{Model, RopeSpec};
 use crom_schemas::SceneConfig;
-use crom_stages::contact::{
-    build_hertz, build_ironing, ContactSolveParams, FactoredModel, HertzParams, IroningParams, Material,
-};
+use crom_stages::contact::{build_hertz, build_ironing, ContactSolveParams, FactoredModel, HertzParams, IroningParams};
 use crom_stages::rom::ContactOperator;
 use crom_stages::rope::{self, Rope, RopeParams, RopeSolveParams};
 use crom_stages::snapshot::Snapshot;
@@ -64,8 +62,8 @@ impl Physics {
                 Rope::new(rope_params(r)),
                 RopeSolveParams { rel_tol: scene.solver.rel_tol, max_iter: scene.solver.max_iter },
             )),
-            Model::Hertz(h) => contact(build_hertz(&hertz_params(h)), scene),
-            Model::Ironing(i) => contact(build_ironing(&ironing_params(i)), scene),
+            Model::Hertz(h) => contact(build_hertz(&HertzParams::from(h)), scene),
+            Model::Ironing(i) => contact(build_ironing(&IroningParams::from(i)), scene),
         }
     }
 
@@ -150,30 +148,4 @@ fn contact(
     let factored = built.and_then(|m| m.factor()).map_err(|e| e.to_string())?;
     let params = ContactSolveParams { rel_tol: scene.solver.rel_tol, max_iter: scene.solver.max_iter };
     Ok(Physics::Contact(Box::new(factored), params))
-}
-
-fn material(m: &MaterialSpec) -> Material {
-    Material { young: m.young, poisson: m.poisson }
-}
-
-fn hertz_params(h: &HertzSpec) -> HertzParams {
-    HertzParams { radius: h.radius, material: material(&h.material), n_arc: h.n_arc, n_side: None }
-}
-
-fn ironing_params(i: &IroningSpec) -> IroningParams {
-    IroningParams {
-        slab_length: i.slab.length,
-        slab_height: i.slab.height,
-        slab_nx: i.slab.nx,
-        slab_ny: i.slab.ny,
-        slab: material(&i.slab.material),
-        iron_width: i.iron.width,
-        iron_height: i.iron.height,
-        sole_radius: i.iron.sole_radius,
-        iron_nx: i.iron.nx,
-        iron_ny: i.iron.ny,
-        iron: material(&i.iron.material),
-        contact_x: i.iron.contact_x,
-        d_y: i.d_y,
-    }
 }

@@ -6,38 +6,24 @@
 //! mean per-snapshot time and active-set iterations over the scene's training sweep, one
 //! factor-solve (forward/backward substitution) time and the ratio snapshot / factor-solve, and
 //! the wall time of the full 128-point ironing-fine sweep (d_x = 3k/127) solved on 2 threads
-//! with `std::thread::scope`. Scene values are SCENES.md's (the pipeline reads them from
-//! `data/scenes/*.toml`; they are repeated here only to drive the benchmark).
+//! with `std::thread::scope`. Scenes are built from the shipped `data/scenes/*.toml`.
 
+use crom_schemas::scene::Model;
+use crom_stages::contact::scene::shipped_scene;
 use crom_stages::contact::{
-    build_hertz, build_ironing, ContactModel, ContactSolveParams, FactoredModel, HertzParams, IroningParams, Material,
+    build_hertz, build_ironing, ContactModel, ContactSolveParams, FactoredModel, HertzParams, IroningParams,
 };
 use crom_stages::snapshot::Snapshot;
 use std::time::{Duration, Instant};
 
-fn hertz(n_arc: usize) -> ContactModel {
-    build_hertz(&HertzParams { radius: 1.0, material: Material { young: 1.0, poisson: 0.3 }, n_arc, n_side: None })
-        .expect("hertz scene")
-}
-
-fn ironing(fine: bool) -> ContactModel {
-    let f = if fine { 2 } else { 1 };
-    build_ironing(&IroningParams {
-        slab_length: 5.0,
-        slab_height: 1.0,
-        slab_nx: 100 * f,
-        slab_ny: 20 * f,
-        slab: Material { young: 1.0, poisson: 0.3 },
-        iron_width: 1.0,
-        iron_height: 1.0,
-        sole_radius: 2.0,
-        iron_nx: 30 * f,
-        iron_ny: 30 * f,
-        iron: Material { young: 10.0, poisson: 0.3 },
-        contact_x: 1.0,
-        d_y: 0.04,
-    })
-    .expect("ironing scene")
+/// A scene's model, built from its shipped scene file.
+fn model(name: &str) -> ContactModel {
+    let scene = shipped_scene(name).unwrap_or_else(|e| panic!("{e}"));
+    match &scene.model {
+        Model::Hertz(h) => build_hertz(&HertzParams::from(h)).expect("hertz scene"),
+        Model::Ironing(i) => build_ironing(&IroningParams::from(i)).expect("ironing scene"),
+        Model::Rope(_) => panic!("{name} is not a 2-D scene"),
+    }
 }
 
 fn ms(d: Duration) -> f64 {
@@ -129,13 +115,13 @@ fn main() {
     let hertz_d: Vec<f64> = (1..=12).map(|k| 0.025 * k as f64).collect();
     let sweep: Vec<f64> = (0..128).map(|k| 3.0 * k as f64 / 127.0).collect();
     let mut rows = Vec::new();
-    let (r, _) = run("hertz", hertz(78), &hertz_d);
+    let (r, _) = run("hertz", model("hertz"), &hertz_d);
     rows.push(r);
-    let (r, _) = run("hertz-fine", hertz(312), &hertz_d);
+    let (r, _) = run("hertz-fine", model("hertz-fine"), &hertz_d);
     rows.push(r);
-    let (r, _) = run("ironing-coarse", ironing(false), &sweep);
+    let (r, _) = run("ironing-coarse", model("ironing-coarse"), &sweep);
     rows.push(r);
-    let (r, fine) = run("ironing-fine", ironing(true), &sweep);
+    let (r, fine) = run("ironing-fine", model("ironing-fine"), &sweep);
     rows.push(r);
 
     println!("| scene | n_dof | free dofs | contact dofs | factor + Delassus [ms] | snapshots | mean snapshot [ms] | mean / max iterations | points with vertex ties | slaves ever in contact | factor-solve [ms] | snapshot / factor-solve |");

@@ -140,23 +140,42 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(127, 127, 127),
 ];
 
-/// Render `chart` to `<stem>.png` and `<stem>.svg` in `dir`.
-pub fn render(chart: &Chart, dir: &Path, stem: &str) -> Result<(), CromError> {
+/// Something drawable on any plotters backend.
+trait Drawable {
+    fn draw_on<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String>;
+}
+
+impl Drawable for Chart {
+    fn draw_on<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        draw(root, self)
+    }
+}
+
+impl Drawable for Spy {
+    fn draw_on<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        draw_spy(root, self)
+    }
+}
+
+/// Render a figure to `<stem>.png` and `<stem>.svg` in `dir`.
+fn render_both(fig: &impl Drawable, dir: &Path, stem: &str) -> Result<(), CromError> {
     register_font();
     let png = dir.join(format!("{stem}.png"));
     let svg = dir.join(format!("{stem}.svg"));
     let fail = |p: &Path, e: String| CromError::artifact(p, format!("drawing figure: {e}"), "report this as a bug");
     {
         let root = BitMapBackend::new(&png, (900, 600)).into_drawing_area();
-        draw(&root, chart).map_err(|e| fail(&png, e))?;
+        fig.draw_on(&root).map_err(|e| fail(&png, e))?;
         root.present().map_err(|e| fail(&png, e.to_string()))?;
     }
-    {
-        let root = SVGBackend::new(&svg, (900, 600)).into_drawing_area();
-        draw(&root, chart).map_err(|e| fail(&svg, e))?;
-        root.present().map_err(|e| fail(&svg, e.to_string()))?;
-    }
-    Ok(())
+    let root = SVGBackend::new(&svg, (900, 600)).into_drawing_area();
+    fig.draw_on(&root).map_err(|e| fail(&svg, e))?;
+    root.present().map_err(|e| fail(&svg, e.to_string()))
+}
+
+/// Render `chart` to `<stem>.png` and `<stem>.svg` in `dir`.
+pub fn render(chart: &Chart, dir: &Path, stem: &str) -> Result<(), CromError> {
+    render_both(chart, dir, stem)
 }
 
 fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
@@ -264,21 +283,7 @@ pub struct Spy {
 
 /// Render a [`Spy`] to `<stem>.png` and `<stem>.svg`.
 pub fn render_spy(spy: &Spy, dir: &Path, stem: &str) -> Result<(), CromError> {
-    register_font();
-    let png = dir.join(format!("{stem}.png"));
-    let svg = dir.join(format!("{stem}.svg"));
-    let fail = |p: &Path, e: String| CromError::artifact(p, format!("drawing figure: {e}"), "report this as a bug");
-    {
-        let root = BitMapBackend::new(&png, (900, 600)).into_drawing_area();
-        draw_spy(&root, spy).map_err(|e| fail(&png, e))?;
-        root.present().map_err(|e| fail(&png, e.to_string()))?;
-    }
-    {
-        let root = SVGBackend::new(&svg, (900, 600)).into_drawing_area();
-        draw_spy(&root, spy).map_err(|e| fail(&svg, e))?;
-        root.present().map_err(|e| fail(&svg, e.to_string()))?;
-    }
-    Ok(())
+    render_both(spy, dir, stem)
 }
 
 fn draw_spy<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, spy: &Spy) -> Result<(), String> {

@@ -34,6 +34,7 @@ mod factor;
 mod model;
 mod operator;
 pub mod pairing;
+pub mod scene;
 mod solve;
 pub mod vertex;
 

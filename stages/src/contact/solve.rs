@@ -353,12 +353,7 @@ impl FactoredModel {
         out: &mut [Pair],
     ) -> Result<(), ContactError> {
         let ns = self.model.slaves.len();
-        for (i, xi) in x.iter_mut().enumerate() {
-            *xi = self.x_ref[i / 2][i % 2] + uc[i];
-        }
-        for (k, xk) in xm.iter_mut().enumerate() {
-            *xk = [x[2 * (ns + k)], x[2 * (ns + k) + 1]];
-        }
+        self.deformed_positions(uc, x, xm);
         for s in 0..ns {
             if self.slave_fixed[s] {
                 out[s] = Pair::NONE;
@@ -377,9 +372,9 @@ impl FactoredModel {
         Ok(())
     }
 
-    /// Pairing at the contact-dof displacement `uc` with the current ties, without recording
-    /// history (used for the Anderson-mixed configuration).
-    fn pair_frozen(&self, uc: &[f64], x: &mut [f64], xm: &mut [[f64; 2]], ties: &VertexTies, out: &mut [Pair]) {
+    /// Deformed positions of the contact nodes (`x`, interleaved) and of the master nodes (`xm`)
+    /// for the contact-dof displacement `uc`.
+    fn deformed_positions(&self, uc: &[f64], x: &mut [f64], xm: &mut [[f64; 2]]) {
         let ns = self.model.slaves.len();
         for (i, xi) in x.iter_mut().enumerate() {
             *xi = self.x_ref[i / 2][i % 2] + uc[i];
@@ -387,6 +382,13 @@ impl FactoredModel {
         for (k, xk) in xm.iter_mut().enumerate() {
             *xk = [x[2 * (ns + k)], x[2 * (ns + k) + 1]];
         }
+    }
+
+    /// Pairing at the contact-dof displacement `uc` with the current ties, without recording
+    /// history (used for the Anderson-mixed configuration).
+    fn pair_frozen(&self, uc: &[f64], x: &mut [f64], xm: &mut [[f64; 2]], ties: &VertexTies, out: &mut [Pair]) {
+        let ns = self.model.slaves.len();
+        self.deformed_positions(uc, x, xm);
         for s in 0..ns {
             if self.slave_fixed[s] {
                 out[s] = Pair::NONE;

@@ -1,7 +1,9 @@
 //! Reference and validation tests of the 2-D contact scenes (SCENES.md → hertz, hertz-fine,
-//! ironing-coarse, ironing-fine). Scene values below are SCENES.md's; they live only here and in
-//! the benchmark, the pipeline reads them from the scene files.
+//! ironing-coarse, ironing-fine), built from the shipped scene files `data/scenes/*.toml`.
 
+use crom_schemas::scene::Model;
+
+use super::scene::shipped_scene;
 use super::*;
 use crate::approx::{close, Tol};
 use crate::assert_close;
@@ -11,30 +13,23 @@ use std::sync::OnceLock;
 
 const TOL: ContactSolveParams = ContactSolveParams { rel_tol: 1e-10, max_iter: 500 };
 
+/// hertz.toml with another arc resolution.
 fn hertz_params(n_arc: usize) -> HertzParams {
-    HertzParams { radius: 1.0, material: Material { young: 1.0, poisson: 0.3 }, n_arc, n_side: None }
+    let Model::Hertz(h) = shipped_scene("hertz").expect("hertz.toml").model else {
+        panic!("hertz.toml is a hertz scene")
+    };
+    HertzParams { n_arc, ..HertzParams::from(&h) }
 }
 
+/// ironing-coarse.toml or ironing-fine.toml.
 fn ironing_params(fine: bool) -> IroningParams {
-    let f = if fine { 2 } else { 1 };
-    IroningParams {
-        slab_length: 5.0,
-        slab_height: 1.0,
-        slab_nx: 100 * f,
-        slab_ny: 20 * f,
-        slab: Material { young: 1.0, poisson: 0.3 },
-        iron_width: 1.0,
-        iron_height: 1.0,
-        sole_radius: 2.0,
-        iron_nx: 30 * f,
-        iron_ny: 30 * f,
-        iron: Material { young: 10.0, poisson: 0.3 },
-        contact_x: 1.0,
-        d_y: 0.04,
-    }
+    let name = if fine { "ironing-fine" } else { "ironing-coarse" };
+    let Model::Ironing(i) = shipped_scene(name).expect("ironing scene file").model else {
+        panic!("{name}.toml is an ironing scene")
+    };
+    IroningParams::from(&i)
 }
 
-/// Factored scenes, built once and shared by the tests of this module.
 fn hertz() -> &'static FactoredModel {
     static M: OnceLock<FactoredModel> = OnceLock::new();
     M.get_or_init(|| build_hertz(&hertz_params(78)).expect("hertz").factor().expect("factor"))
