@@ -1,7 +1,7 @@
 //! Between the pipeline's [`ColMatrix`] (what HDF5 reads and writes) and faer matrices (what the
 //! stages compute with). Both are column-major, so views are free.
 
-use faer::{Mat, MatRef};
+use faer::MatRef;
 
 use crate::io::h5::ColMatrix;
 
@@ -17,10 +17,4 @@ pub(crate) fn to_col(m: MatRef<'_, f64>) -> ColMatrix {
         data.extend(m.col(j).iter().copied());
     }
     ColMatrix { rows: m.nrows(), cols: m.ncols(), data }
-}
-
-/// An owned faer matrix from a [`ColMatrix`].
-#[allow(dead_code)]
-pub(crate) fn to_mat(m: &ColMatrix) -> Mat<f64> {
-    view(m).to_owned()
 }
