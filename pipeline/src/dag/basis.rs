@@ -34,12 +34,11 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
         "dual_cone_tol_truncated": st.dual_cone_tol_truncated,
     });
     let spec = KeySpec::new(ArtifactKind::Basis, ALGORITHM_VERSION, params).input("train", train);
-    let key = spec.key();
-    let progress = ctx.progress.stage("basis", 1);
-    let set = trainset::load_from(ctx.store, train)?;
+    let store = ctx.store;
     let scene = ctx.scene.scene.name.clone();
     let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
-    let (_, computed) = ctx.cached(ArtifactKind::Basis, &spec, |staging| {
+    ctx.single(ArtifactKind::Basis, "basis", &spec, |staging| {
+        let set = trainset::load_from(store, train)?;
         let primal =
             pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }).map_err(|e| numerical(e.to_string()))?;
         let dual =
@@ -64,10 +63,7 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
             ("dual_cone_rank".to_string(), json!(full.basis.ncols())),
             ("dual_cone_truncated_rank".to_string(), json!(trunc.basis.ncols())),
         ]))
-    })?;
-    progress.finish(if computed { "computed" } else { "cached" });
-    ctx.record("basis", usize::from(computed), usize::from(!computed), ctx.store.dir(ArtifactKind::Basis, &key));
-    Ok(key)
+    })
 }
 
 /// Load the untruncated-tolerance bases used by the metrics.

@@ -19,12 +19,11 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key
     let spec = KeySpec::new(ArtifactKind::Compactness, ALGORITHM_VERSION, json!({}))
         .input("train", train)
         .input("basis", basis_key);
-    let key = spec.key();
-    let progress = ctx.progress.stage("compactness", 1);
-    let set = trainset::load_from(ctx.store, train)?;
-    let b = basis::load_from(ctx.store, basis_key)?;
+    let store = ctx.store;
     let scene = ctx.scene.scene.name.clone();
-    let (_, computed) = ctx.cached(ArtifactKind::Compactness, &spec, |staging| {
+    ctx.single(ArtifactKind::Compactness, "compactness", &spec, |staging| {
+        let set = trainset::load_from(store, train)?;
+        let b = basis::load_from(store, basis_key)?;
         let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
         let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
         let cone = compactness_cone(view(&set.dual), view(&b.dual_cpg)).map_err(|e| CromError::Numerical {
@@ -38,15 +37,7 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key
         t.push(&scene, "dual", "cone", &cone);
         t.table().write_parquet(&staging.path(names::FILE))?;
         Ok(BTreeMap::from([("rows".to_string(), json!(primal.len() + dual.len() + cone.len()))]))
-    })?;
-    progress.finish(if computed { "computed" } else { "cached" });
-    ctx.record(
-        "compactness",
-        usize::from(computed),
-        usize::from(!computed),
-        ctx.store.dir(ArtifactKind::Compactness, &key),
-    );
-    Ok(key)
+    })
 }
 
 #[derive(Default)]

@@ -23,8 +23,7 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Ke
     let spec = spec(ctx);
     let key = spec.key();
     let scene = ctx.scene.scene.name.clone();
-    let progress = ctx.progress.stage("mesh", 1);
-    let (manifest, computed) = ctx.cached(ArtifactKind::Mesh, &spec, |staging| {
+    ctx.single(ArtifactKind::Mesh, "mesh", &spec, |staging| {
         let m = physics.get()?.mesh();
         let path = staging.path(names::FILE);
         let f = H5Out::create(&path)?;
@@ -54,10 +53,5 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Ke
             ("cells".to_string(), json!(m.cells.len())),
             ("contact_nodes".to_string(), json!(m.contact_nodes.len())),
         ]))
-    })?;
-    let _ = manifest;
-    progress.finish(if computed { "computed" } else { "cached" });
-    let dir = ctx.store.dir(ArtifactKind::Mesh, &key);
-    ctx.record("mesh", usize::from(computed), usize::from(!computed), dir);
-    Ok(key)
+    })
 }

@@ -31,11 +31,9 @@ fn numerical(scene: &str, stage: &'static str, e: impl std::fmt::Display) -> Cro
 pub(crate) fn generalization(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
     let spec =
         KeySpec::new(ArtifactKind::Generalization, ALGORITHM_VERSION, json!({ "max_m": "N-1" })).input("train", train);
-    let key = spec.key();
-    let progress = ctx.progress.stage("generalization", 1);
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
-    let (_, computed) = ctx.cached(ArtifactKind::Generalization, &spec, |staging| {
+    ctx.single(ArtifactKind::Generalization, "generalization", &spec, |staging| {
         let set = trainset::load_from(store, train)?;
         let mut rows = CurveRows::default();
         for (field, s) in [("primal", &set.primal), ("dual", &set.dual)] {
@@ -44,15 +42,7 @@ pub(crate) fn generalization(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, Crom
         rows.push(&scene, "dual", "cone", &loo_cone(&set.dual).map_err(|e| numerical(&scene, "generalization", e))?);
         rows.table().write_parquet(&staging.path(names::GENERALIZATION))?;
         Ok(BTreeMap::from([("folds".to_string(), json!(set.parameters.len()))]))
-    })?;
-    progress.finish(if computed { "computed" } else { "cached" });
-    ctx.record(
-        "generalization",
-        usize::from(computed),
-        usize::from(!computed),
-        ctx.store.dir(ArtifactKind::Generalization, &key),
-    );
-    Ok(key)
+    })
 }
 
 fn loo_orth(s: &ColMatrix) -> Result<MetricCurve, String> {
@@ -79,11 +69,9 @@ pub(crate) fn specificity(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Re
     )
     .input("train", train)
     .input("basis", basis_key);
-    let key = spec.key();
-    let progress = ctx.progress.stage("specificity", 1);
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
-    let (_, computed) = ctx.cached(ArtifactKind::Specificity, &spec, |staging| {
+    ctx.single(ArtifactKind::Specificity, "specificity", &spec, |staging| {
         let set = trainset::load_from(store, train)?;
         let b = basis::load_from(store, basis_key)?;
         let (p, d, c) = rayon::join(
@@ -103,15 +91,7 @@ pub(crate) fn specificity(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Re
         rows.push(&scene, "dual", "cone", &c);
         rows.table().write_parquet(&staging.path(names::SPECIFICITY))?;
         Ok(BTreeMap::from([("samples".to_string(), json!(params.samples)), ("seed".to_string(), json!(params.seed))]))
-    })?;
-    progress.finish(if computed { "computed" } else { "cached" });
-    ctx.record(
-        "specificity",
-        usize::from(computed),
-        usize::from(!computed),
-        ctx.store.dir(ArtifactKind::Specificity, &key),
-    );
-    Ok(key)
+    })
 }
 
 trait IntoFlat<A, B, C> {
@@ -130,11 +110,9 @@ pub(crate) fn nested(ctx: &mut Ctx<'_>, levels: &[Key]) -> Result<Key, CromError
     for (i, k) in levels.iter().enumerate() {
         spec = spec.input(&format!("level{}", i + 1), k);
     }
-    let key = spec.key();
-    let progress = ctx.progress.stage("nested", 1);
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
-    let (_, computed) = ctx.cached(ArtifactKind::Nested, &spec, |staging| {
+    ctx.single(ArtifactKind::Nested, "nested", &spec, |staging| {
         let sets: Vec<_> = levels.iter().map(|k| trainset::load_from(store, k)).collect::<Result<_, _>>()?;
         let mut t = NestedRows::default();
         let n_levels = sets.len();
@@ -168,10 +146,7 @@ pub(crate) fn nested(ctx: &mut Ctx<'_>, levels: &[Key]) -> Result<Key, CromError
         }
         t.table().write_parquet(&staging.path(names::NESTED))?;
         Ok(BTreeMap::from([("levels".to_string(), json!(n_levels))]))
-    })?;
-    progress.finish(if computed { "computed" } else { "cached" });
-    ctx.record("nested", usize::from(computed), usize::from(!computed), ctx.store.dir(ArtifactKind::Nested, &key));
-    Ok(key)
+    })
 }
 
 #[derive(Default)]

@@ -107,6 +107,23 @@ impl Ctx<'_> {
         Ok((m, true))
     }
 
+    /// A single-artifact stage: through the cache, with its progress line and its line in the
+    /// run summary. Inputs are loaded inside `compute`, so a cache hit reads nothing but the
+    /// manifest.
+    pub(crate) fn single(
+        &mut self,
+        kind: ArtifactKind,
+        label: &'static str,
+        spec: &KeySpec,
+        compute: impl FnOnce(&Staging) -> Result<BTreeMap<String, serde_json::Value>, CromError>,
+    ) -> Result<Key, CromError> {
+        let progress = self.progress.stage(label, 1);
+        let (manifest, computed) = self.cached(kind, spec, compute)?;
+        progress.finish(if computed { "computed" } else { "cached" });
+        self.record(label, usize::from(computed), usize::from(!computed), self.store.dir(kind, &manifest.key));
+        Ok(manifest.key)
+    }
+
     /// Verified manifest of a stored artifact, or `None` (after quarantining a corrupt one).
     pub(crate) fn lookup(&mut self, kind: ArtifactKind, key: &Key) -> Result<Option<Manifest>, CromError> {
         match self.store.lookup(kind, key)? {

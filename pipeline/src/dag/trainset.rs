@@ -32,12 +32,15 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, set: &str, points: &[f64], snapshots: &[Key
     for (i, k) in snapshots.iter().enumerate() {
         spec = spec.input(&format!("snapshot{i:05}"), k);
     }
-    let key = spec.key();
-    let progress = ctx.progress.stage(&format!("{set} set"), 1);
+    let label = match set {
+        "train" => "trainset",
+        "test" => "testset",
+        _ => "nested-set",
+    };
     let scene = ctx.scene.scene.name.clone();
     let pname = ctx.scene.parameter.name.clone();
     let store = ctx.store;
-    let (_, computed) = ctx.cached(ArtifactKind::TrainingSet, &spec, |staging| {
+    ctx.single(ArtifactKind::TrainingSet, label, &spec, |staging| {
         let mut u_cols = Vec::with_capacity(snapshots.len());
         let mut p_cols = Vec::with_capacity(snapshots.len());
         let mut stats = StatsColumns::default();
@@ -68,16 +71,7 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, set: &str, points: &[f64], snapshots: &[Key
             ("primal_shape".to_string(), json!([primal.rows, primal.cols])),
             ("dual_shape".to_string(), json!([dual.rows, dual.cols])),
         ]))
-    })?;
-    progress.finish(if computed { "assembled" } else { "cached" });
-    let dir = ctx.store.dir(ArtifactKind::TrainingSet, &key);
-    let label = match set {
-        "train" => "trainset",
-        "test" => "testset",
-        _ => "nested-set",
-    };
-    ctx.record(label, usize::from(computed), usize::from(!computed), dir);
-    Ok(key)
+    })
 }
 
 /// Load a training set artifact's matrices.

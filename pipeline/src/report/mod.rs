@@ -19,6 +19,7 @@ use crate::dag::{basis, trainset, Ctx};
 use crate::error::CromError;
 use crate::io::h5::H5In;
 use crate::io::table::{read_parquet, Table};
+use crate::store::Store;
 
 /// Bump when the report's content changes.
 const ALGORITHM_VERSION: u32 = 2;
@@ -67,20 +68,16 @@ pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
         Some(k) => spec.input("nested", k),
         None => spec,
     };
-    let key = spec.key();
-    let progress = ctx.progress.stage("report", 1);
     let scene = ctx.scene.clone();
-    let data = gather(ctx, inputs)?;
-    let (_, computed) = ctx.cached(ArtifactKind::Report, &spec, |staging| {
+    let store = ctx.store;
+    ctx.single(ArtifactKind::Report, "report", &spec, |staging| {
+        let data = gather(store, inputs)?;
         let dir = staging.path("");
         let figures = figures::all(&scene, &data, &dir)?;
         let tables = tables::write_all(&scene, &data, &dir)?;
         html::write_index(&scene, &data, &figures, &tables, &dir)?;
         Ok(BTreeMap::from([("figures".to_string(), json!(figures.len()))]))
-    })?;
-    progress.finish(if computed { "written" } else { "cached" });
-    ctx.record("report", usize::from(computed), usize::from(!computed), ctx.store.dir(ArtifactKind::Report, &key));
-    Ok(key)
+    })
 }
 
 /// Everything the figures need, read from the artifacts.
@@ -112,23 +109,23 @@ pub(crate) struct ReportData {
     pub nested: Option<Table>,
 }
 
-fn gather(ctx: &Ctx<'_>, inputs: &ReportInputs) -> Result<ReportData, CromError> {
-    let mesh = H5In::open(&ctx.store.dir(ArtifactKind::Mesh, &inputs.mesh).join(mnames::FILE))?;
+fn gather(store: &Store, inputs: &ReportInputs) -> Result<ReportData, CromError> {
+    let mesh = H5In::open(&store.dir(ArtifactKind::Mesh, &inputs.mesh).join(mnames::FILE))?;
     let nodes = mesh.matrix(mnames::NODES)?; // n x 2, column-major
     let contact = mesh.vec_u64(mnames::CONTACT_NODES)?;
     let cells = mesh.shape(mnames::CELLS)?;
     let contact_x = contact.iter().map(|&i| nodes.data[i as usize]).collect();
     let line_x = if cells.get(1) == Some(&2) { nodes.col(0).to_vec() } else { Vec::new() };
-    let train = trainset::load_from(ctx.store, &inputs.train)?;
-    let b = basis::load_full(ctx.store, &inputs.basis)?;
-    let table = read_parquet(&ctx.store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
+    let train = trainset::load_from(store, &inputs.train)?;
+    let b = basis::load_full(store, &inputs.basis)?;
+    let table = read_parquet(&store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
     let mut compactness: BTreeMap<(String, String), Vec<f64>> = BTreeMap::new();
     if let (Some(f), Some(bs), Some(v)) = (table.strs("field"), table.strs("basis"), table.f64s("value")) {
         for ((f, b), v) in f.iter().zip(bs).zip(v) {
             compactness.entry((f.clone(), b.clone())).or_default().push(*v);
         }
     }
-    let rom_dir = ctx.store.dir(ArtifactKind::Rom, &inputs.rom);
+    let rom_dir = store.dir(ArtifactKind::Rom, &inputs.rom);
     Ok(ReportData {
         contact_x,
         line_x,
@@ -140,13 +137,13 @@ fn gather(ctx: &Ctx<'_>, inputs: &ReportInputs) -> Result<ReportData, CromError>
         rom_errors: read_parquet(&rom_dir.join(rnames::ERRORS))?,
         tradeoff: read_parquet(&rom_dir.join(rnames::TRADEOFF))?,
         generalization: read_parquet(
-            &ctx.store.dir(ArtifactKind::Generalization, &inputs.generalization).join(metric_names::GENERALIZATION),
+            &store.dir(ArtifactKind::Generalization, &inputs.generalization).join(metric_names::GENERALIZATION),
         )?,
         specificity: read_parquet(
-            &ctx.store.dir(ArtifactKind::Specificity, &inputs.specificity).join(metric_names::SPECIFICITY),
+            &store.dir(ArtifactKind::Specificity, &inputs.specificity).join(metric_names::SPECIFICITY),
         )?,
         nested: match &inputs.nested {
-            Some(k) => Some(read_parquet(&ctx.store.dir(ArtifactKind::Nested, k).join(metric_names::NESTED))?),
+            Some(k) => Some(read_parquet(&store.dir(ArtifactKind::Nested, k).join(metric_names::NESTED))?),
             None => None,
         },
     })
