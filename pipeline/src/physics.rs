@@ -2,7 +2,7 @@
 //! artifact and a thread-safe `solve(parameter)` for the snapshot stage. Everything costly and
 //! parameter-independent (e.g. the factorisation of K) is done once, in [`Physics::build`].
 
-use crom_schemas::scene::{Model, RopeSpec};
+use crom_schemas::scene::Model;
 use crom_schemas::SceneConfig;
 use crom_stages::contact::{build_hertz, build_ironing, ContactSolveParams, FactoredModel, HertzParams, IroningParams};
 use crom_stages::rom::ContactOperator;
@@ -59,7 +59,7 @@ impl Physics {
     pub fn build(scene: &SceneConfig) -> Result<Self, String> {
         match &scene.model {
             Model::Rope(r) => Ok(Physics::Rope(
-                Rope::new(rope_params(r)),
+                Rope::new(RopeParams::from(r)),
                 RopeSolveParams { rel_tol: scene.solver.rel_tol, max_iter: scene.solver.max_iter },
             )),
             Model::Hertz(h) => contact(build_hertz(&HertzParams::from(h)), scene),
@@ -125,19 +125,6 @@ impl Physics {
             Physics::Rope(r, p) => rope::solve(r, parameter, p).map_err(|e| e.to_string()),
             Physics::Contact(f, p) => f.solve(parameter, p).map_err(|e| e.to_string()),
         }
-    }
-}
-
-/// The rope stage parameters of a rope scene.
-pub fn rope_params(r: &RopeSpec) -> RopeParams {
-    RopeParams {
-        length: r.length,
-        n_elements: r.n_elements,
-        nu: r.nu,
-        f: r.f,
-        modes: r.obstacle.modes.clone(),
-        amplitudes: r.obstacle.amplitudes.clone(),
-        offset: r.obstacle.offset,
     }
 }
 

@@ -9,10 +9,10 @@
 //! with `std::thread::scope`. Scenes are built from the shipped `data/scenes/*.toml`.
 
 use crom_schemas::scene::Model;
-use crom_stages::contact::scene::shipped_scene;
 use crom_stages::contact::{
     build_hertz, build_ironing, ContactModel, ContactSolveParams, FactoredModel, HertzParams, IroningParams,
 };
+use crom_stages::shipped::shipped_scene;
 use crom_stages::snapshot::Snapshot;
 use std::time::{Duration, Instant};
 

@@ -12,6 +12,7 @@ pub mod metrics;
 pub mod rng;
 pub mod rom;
 pub mod rope;
+pub mod shipped;
 pub mod snapshot;
 #[cfg(test)]
 mod testing;

@@ -4,13 +4,12 @@ use std::path::Path;
 
 use crom_schemas::scene::Model;
 use crom_schemas::SceneConfig;
-use crom_stages::rope::Rope;
+use crom_stages::rope::{Rope, RopeParams};
 
 use super::chart::{render, render_spy, Chart, Legend, Mark, Series, Spy};
 use super::{Figure, ReportData};
 use crate::error::CromError;
 use crate::io::table::Table;
-use crate::physics::rope_params;
 
 /// At most this many snapshot curves in one figure (every k-th otherwise).
 const MAX_CURVES: usize = 12;
@@ -19,7 +18,7 @@ const MAX_CURVES: usize = 12;
 pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec<Figure>, CromError> {
     let mut figs = Vec::new();
     if let Model::Rope(spec) = &scene.model {
-        figs.push(rope_primal(scene, &Rope::new(rope_params(spec)), d, dir)?);
+        figs.push(rope_primal(scene, &Rope::new(RopeParams::from(spec)), d, dir)?);
     }
     figs.push(dual_snapshots(scene, d, dir)?);
     figs.push(singular_values(scene, d, dir)?);

@@ -36,9 +36,3 @@ impl From<&IroningSpec> for IroningParams {
         }
     }
 }
-
-/// The shipped scene file `data/scenes/<name>.toml` (for tests and benchmarks of this crate).
-pub fn shipped_scene(name: &str) -> Result<crom_schemas::SceneConfig, crom_schemas::SceneError> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes").join(format!("{name}.toml"));
-    crom_schemas::SceneConfig::load(&path)
-}

@@ -3,10 +3,10 @@
 
 use crom_schemas::scene::Model;
 
-use super::scene::shipped_scene;
 use super::*;
 use crate::approx::{close, Tol};
 use crate::assert_close;
+use crate::shipped::shipped_scene;
 use crate::snapshot::Snapshot;
 use std::f64::consts::PI;
 use std::sync::OnceLock;

@@ -29,20 +29,18 @@ pub use solve::{solve, unconstrained, RopeError, RopeSolveParams};
 /// Test fixtures shared by the rope's test modules.
 #[cfg(test)]
 pub(crate) mod fixtures {
+    use crom_schemas::scene::Model;
+
     use super::{solve, unconstrained, Rope, RopeParams, RopeSolveParams};
+    use crate::shipped::shipped_scene;
     use crate::snapshot::Snapshot;
 
-    /// The paper's rope (SCENES.md → rope).
+    /// The paper's rope, from the shipped `data/scenes/rope.toml` (SCENES.md → rope).
     pub(crate) fn paper_rope() -> Rope {
-        Rope::new(RopeParams {
-            length: 1.0,
-            n_elements: 200,
-            nu: 30.0,
-            f: 250.0,
-            modes: vec![1.0, 3.0],
-            amplitudes: vec![-0.2, 0.2],
-            offset: -0.5,
-        })
+        let Model::Rope(r) = shipped_scene("rope").expect("rope.toml").model else {
+            panic!("rope.toml is a rope scene")
+        };
+        Rope::new(RopeParams::from(&r))
     }
 
     /// The 10 training points and snapshots, the contact responses `u - u0` and the pressures,

@@ -19,6 +19,20 @@ pub struct RopeParams {
     pub offset: f64,
 }
 
+impl From<&crom_schemas::scene::RopeSpec> for RopeParams {
+    fn from(r: &crom_schemas::scene::RopeSpec) -> Self {
+        RopeParams {
+            length: r.length,
+            n_elements: r.n_elements,
+            nu: r.nu,
+            f: r.f,
+            modes: r.obstacle.modes.clone(),
+            amplitudes: r.obstacle.amplitudes.clone(),
+            offset: r.obstacle.offset,
+        }
+    }
+}
+
 /// The discretised rope problem (parameter-independent part).
 #[derive(Debug, Clone)]
 pub struct Rope {
