@@ -44,4 +44,7 @@ pub enum Command {
     },
     /// List the available scenes.
     Scenes,
+    /// Re-hash every artifact and every snapshot block of the store; what fails is moved to the
+    /// quarantine (and recomputed by the next run). Exit 1 if anything failed.
+    Verify,
 }

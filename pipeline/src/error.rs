@@ -63,6 +63,19 @@ pub enum CromError {
         /// The failure table written for this run.
         table: PathBuf,
     },
+    /// A snapshot column did not match its checksum (exit 1 if it happens twice in one run; the
+    /// first time the block is quarantined and its points are solved again).
+    #[error("{path}: {message}\n  fix: {fix}")]
+    CorruptColumns {
+        /// The block file.
+        path: PathBuf,
+        /// The block, relative to the store root.
+        block: String,
+        /// What did not match.
+        message: String,
+        /// How to fix it.
+        fix: &'static str,
+    },
     /// A reduction stage failed numerically (exit 1).
     #[error("stage `{stage}` of scene `{scene}` failed: {message}")]
     Numerical {

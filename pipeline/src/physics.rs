@@ -119,6 +119,14 @@ impl Physics {
         }
     }
 
+    /// Rows of the primal and dual fields (n_dof, n_contact).
+    pub fn mesh_rows(&self) -> (usize, usize) {
+        match self {
+            Physics::Rope(r, _) => (r.n_nodes(), r.n_nodes()),
+            Physics::Contact(f, _) => (f.model().n_dof(), f.model().slave_nodes().len()),
+        }
+    }
+
     /// Solve at one parameter value.
     pub fn solve(&self, parameter: f64) -> Result<Snapshot, String> {
         match self {

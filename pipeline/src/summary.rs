@@ -53,4 +53,67 @@ pub(crate) fn print_ls(store: &Store, stage: Option<&str>) {
         n += 1;
     }
     let _ = writeln!(out, "{n} artifacts in {}", store.root().display());
+    if stage.is_none_or(|s| s == "columns" || s == "snapshot") {
+        for fam in store.families() {
+            let meta = fam.meta();
+            match fam.load_index() {
+                Ok(index) => {
+                    let blocks: std::collections::BTreeSet<&str> =
+                        index.rows.values().map(|r| r.block.as_str()).collect();
+                    let _ = writeln!(
+                        out,
+                        "columns {:<14} {:<16} {} snapshots ({} x {}) in {} blocks: {}",
+                        meta.family.short(),
+                        meta.scene,
+                        index.rows.len(),
+                        meta.n_dof,
+                        meta.n_contact,
+                        blocks.len(),
+                        fam.dir().join("index.parquet").display()
+                    );
+                }
+                Err(e) => {
+                    let _ = writeln!(out, "columns {:<14} unreadable index: {e}", meta.family.short());
+                }
+            }
+        }
+    }
+}
+
+/// `crom verify`: full re-hash of every artifact and every snapshot block.
+pub(crate) fn verify(store: &Store) -> Result<(), crate::error::CromError> {
+    let mut out = std::io::stdout().lock();
+    let mut problems = Vec::new();
+    let mut checked = 0;
+    for m in store.catalog() {
+        let Some(kind) = ArtifactKind::from_name(&m.stage) else { continue };
+        checked += 1;
+        if let crate::store::Lookup::Quarantined(to, why) = store.lookup(kind, &m.key)? {
+            problems.push(format!("{}/{}: {why}; moved to {}", m.stage, m.key.short(), to.display()));
+        }
+    }
+    let mut blocks = 0;
+    for fam in store.families() {
+        let (n, p) = fam.verify_all()?;
+        blocks += n;
+        problems.extend(p);
+    }
+    for p in &problems {
+        let _ = writeln!(out, "  FAILED {p}");
+    }
+    let _ = writeln!(
+        out,
+        "crom verify: {checked} artifacts and {blocks} snapshot blocks checked, {} problems in {}",
+        problems.len(),
+        store.root().display()
+    );
+    if problems.is_empty() {
+        Ok(())
+    } else {
+        Err(crate::error::CromError::artifact(
+            store.root(),
+            format!("{} problems found (listed above); the damaged files are in .quarantine", problems.len()),
+            "rerun the affected scenes: what was moved aside is recomputed",
+        ))
+    }
 }

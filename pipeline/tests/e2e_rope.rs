@@ -84,7 +84,12 @@ fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
             assert!(manifest["files"].as_array().is_some_and(|f| !f.is_empty()));
         }
     }
-    assert_eq!(artifact_dirs(&store, "snapshot").len(), 19);
+    // The 19 snapshots are columns of one family, not directories.
+    assert!(!store.join("snapshot").exists());
+    let families = artifact_dirs(&store, "columns");
+    assert_eq!(families.len(), 1);
+    let index = crom_pipeline::io::table::read_parquet(&families[0].join("index.parquet")).expect("index");
+    assert_eq!(index.rows(), 19);
     assert!(artifact_dirs(&store, "mesh")[0].join("mesh.xdmf").is_file());
     assert!(!store.join(".staging").exists() || artifact_dirs(&store, ".staging").is_empty());
 
@@ -95,18 +100,22 @@ fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
 }
 
 #[test]
-fn deleting_one_snapshot_recomputes_exactly_that_one() {
+fn deleting_a_block_recomputes_exactly_its_points() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     assert!(crom(&store, &["run", "rope"]).status.success());
-    let victim = artifact_dirs(&store, "snapshot")[3].clone();
-    std::fs::remove_dir_all(&victim).expect("delete one snapshot");
+    let family = artifact_dirs(&store, "columns")[0].clone();
+    let blocks = artifact_dirs(&family, "blocks");
+    assert_eq!(blocks.len(), 1, "19 small rope snapshots fit one block");
+    std::fs::remove_file(&blocks[0]).expect("delete the block");
     let out = crom(&store, &["run", "rope"]);
     assert!(out.status.success(), "{}", text(&out));
     let rows = summary(&out);
-    assert_eq!(rows[1], ("snapshot".to_string(), 1, 18), "{}", text(&out));
-    assert!(victim.is_dir(), "the deleted snapshot is back under the same key");
-    // Same key, same inputs: every downstream artifact is still a cache hit.
+    assert_eq!(rows[1], ("snapshot".to_string(), 19, 0), "{}", text(&out));
+    // A block's file is a function of its snapshots (key order): the same block is back under
+    // the same name, so the sets' column references still hold and every downstream artifact
+    // is a cache hit.
+    assert!(blocks[0].is_file(), "the block is back under the same name");
     assert!(rows.iter().filter(|r| r.0 != "snapshot").all(|r| r.1 == 0), "{}", text(&out));
 }
 
@@ -140,7 +149,7 @@ fn bad_scene_file_exits_2_naming_file_and_field() {
     assert_eq!(out.status.code(), Some(2), "{}", text(&out));
     let msg = text(&out);
     assert!(msg.contains("broken.toml") && msg.contains("model.rope.n_elements") && msg.contains("fix:"), "{msg}");
-    assert!(artifact_dirs(&store, "snapshot").is_empty(), "nothing written for a bad scene");
+    assert!(!store.join("columns").exists(), "nothing written for a bad scene");
 }
 
 #[test]
@@ -172,8 +181,10 @@ fn ls_lists_every_artifact() {
     assert!(crom(&store, &["run", "rope"]).status.success());
     let out = crom(&store, &["ls"]);
     assert!(out.status.success());
-    // mesh + 19 snapshots + train + test + basis + compactness + G + S + rom + report
-    assert!(String::from_utf8_lossy(&out.stdout).contains("28 artifacts"), "{}", text(&out));
+    // mesh + train + test + basis + compactness + G + S + rom + report, and one column family
+    let listing = String::from_utf8_lossy(&out.stdout);
+    assert!(listing.contains("9 artifacts"), "{}", text(&out));
+    assert!(listing.contains("19 snapshots (201 x 201) in 1 blocks"), "{}", text(&out));
 }
 
 #[test]

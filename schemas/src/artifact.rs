@@ -71,7 +71,7 @@ impl ArtifactKind {
         match self {
             ArtifactKind::Mesh => 1,
             ArtifactKind::Snapshot => 1,
-            ArtifactKind::TrainingSet => 1,
+            ArtifactKind::TrainingSet => 2,
             ArtifactKind::Basis => 1,
             ArtifactKind::Compactness => 1,
             ArtifactKind::Generalization => 1,

@@ -7,6 +7,12 @@ use serde::{Deserialize, Serialize};
 /// Training points: `n_train` equidistant points from `min` to `max` inclusive. Test points: the
 /// midpoints between consecutive training points. Nested level `n` (paper Sec. 5.2): `2^n + 1`
 /// equidistant points from `min` to `max`, so level `n` is a subset of level `n + 1`.
+///
+/// **Growing studies.** Snapshots are keyed by parameter value, so a grid reuses every point it
+/// shares bit-for-bit with another. `train_level = k` (instead of `n_train`) makes the training
+/// set nested level k and the test set the points that level k + 1 adds (the midpoints, computed
+/// by the nested levels' own formula so that they are bit-identical): a study grown from k to
+/// k + 1 solves only the `2^(k+1)` new test points.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParameterSpec {
@@ -18,8 +24,13 @@ pub struct ParameterSpec {
     pub min: f64,
     /// Upper end of the range (inclusive).
     pub max: f64,
-    /// Number of equidistant training points, both ends included (>= 2).
-    pub n_train: usize,
+    /// Number of equidistant training points, both ends included (>= 2). Exactly one of
+    /// `n_train` and `train_level` is given.
+    #[serde(default)]
+    pub n_train: Option<usize>,
+    /// Training points as nested level k: `2^k + 1` points (see the type's docs).
+    #[serde(default)]
+    pub train_level: Option<u32>,
     /// Nested training levels `1..=nested_levels` (0: none).
     #[serde(default)]
     pub nested_levels: u32,
@@ -35,15 +46,30 @@ pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
 }
 
 impl ParameterSpec {
-    /// The training points.
-    pub fn train(&self) -> Vec<f64> {
-        linspace(self.min, self.max, self.n_train)
+    /// Number of training points.
+    pub fn train_count(&self) -> usize {
+        match (self.n_train, self.train_level) {
+            (_, Some(k)) => (1usize << k) + 1,
+            (Some(n), None) => n,
+            (None, None) => 0,
+        }
     }
 
-    /// The test points: midpoints of consecutive training points.
+    /// The training points.
+    pub fn train(&self) -> Vec<f64> {
+        match self.train_level {
+            Some(k) => self.nested(k),
+            None => linspace(self.min, self.max, self.train_count()),
+        }
+    }
+
+    /// The test points: midpoints of consecutive training points (with `train_level = k`, the
+    /// odd points of level k + 1, the same values bit for bit).
     pub fn test(&self) -> Vec<f64> {
-        let t = self.train();
-        t.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect()
+        match self.train_level {
+            Some(k) => self.nested(k + 1).into_iter().skip(1).step_by(2).collect(),
+            None => self.train().windows(2).map(|w| 0.5 * (w[0] + w[1])).collect(),
+        }
     }
 
     /// The points of nested level `level` (`2^level + 1` points).
@@ -62,7 +88,8 @@ mod tests {
             description: String::new(),
             min: -0.5,
             max: 0.5,
-            n_train: n,
+            n_train: Some(n),
+            train_level: None,
             nested_levels: 3,
         }
     }
@@ -78,6 +105,27 @@ mod tests {
         assert_eq!(m.len(), 9);
         // Midpoint of the first interval: -0.5 + 1/18 (spacing 1/9), to rounding (1e-15).
         assert!((m[0] - (-0.5 + 1.0 / 18.0)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_level_study_grown_by_one_level_reuses_every_point() {
+        let at = |k| ParameterSpec { n_train: None, train_level: Some(k), ..spec(0) };
+        for k in 1..8 {
+            let (lo, hi) = (at(k), at(k + 1));
+            assert_eq!(lo.train().len(), (1 << k) + 1);
+            assert_eq!(lo.test().len(), 1 << k);
+            // Level k's train and test points together are level k + 1's training points,
+            // bit for bit (so their snapshot keys coincide).
+            let mut old: Vec<u64> = lo.train().iter().chain(&lo.test()).map(|x| x.to_bits()).collect();
+            let mut new: Vec<u64> = hi.train().iter().map(|x| x.to_bits()).collect();
+            old.sort_unstable();
+            new.sort_unstable();
+            assert_eq!(old, new, "level {k}");
+            // And the test points are the midpoints (to rounding of one addition: 1e-15).
+            for (m, w) in lo.test().iter().zip(lo.train().windows(2)) {
+                assert!((m - 0.5 * (w[0] + w[1])).abs() <= 1e-15, "{m} vs {w:?}");
+            }
+        }
     }
 
     #[test]

@@ -109,17 +109,45 @@ impl SceneConfig {
                 "make parameter.max greater than parameter.min",
             ));
         }
-        c.at_least("parameter.n_train", p.n_train, 2)?;
-        if p.nested_levels > 12 {
+        match (p.n_train, p.train_level) {
+            (Some(n), None) => c.at_least("parameter.n_train", n, 2)?,
+            (None, Some(k)) => {
+                if !(1..=MAX_LEVEL).contains(&k) {
+                    return Err(c.fail(
+                        "parameter.train_level",
+                        format!("is {k}, i.e. 2^{k} + 1 training points"),
+                        &format!("use a level from 1 to {MAX_LEVEL}"),
+                    ));
+                }
+            }
+            (Some(_), Some(_)) => {
+                return Err(c.fail(
+                    "parameter.train_level",
+                    "is given together with parameter.n_train".into(),
+                    "keep one: n_train = N for N equidistant points, or train_level = k for 2^k + 1 nested points",
+                ))
+            }
+            (None, None) => {
+                return Err(c.fail(
+                    "parameter.n_train",
+                    "is missing".into(),
+                    "give n_train = N (N equidistant training points) or train_level = k (2^k + 1 points)",
+                ))
+            }
+        }
+        if p.nested_levels > MAX_LEVEL {
             return Err(c.fail(
                 "parameter.nested_levels",
                 format!("is {}, i.e. 2^{} + 1 points per level", p.nested_levels, p.nested_levels),
-                "use at most 12 nested levels",
+                &format!("use at most {MAX_LEVEL} nested levels"),
             ));
         }
         Ok(())
     }
 }
+
+/// Largest nested or training level: 2^14 + 1 = 16 385 points.
+const MAX_LEVEL: u32 = 14;
 
 fn check_solver(c: &Checker<'_>, s: &SolverSpec) -> Result<(), SceneError> {
     c.positive("solver.rel_tol", s.rel_tol)?;

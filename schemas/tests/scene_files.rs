@@ -28,13 +28,13 @@ fn every_shipped_scene_loads_and_matches_scenes_md() {
         match (&cfg.model, cfg.scene.name.as_str()) {
             (Model::Rope(r), "rope") => {
                 assert_eq!(r.n_elements, 200);
-                assert_eq!(cfg.parameter.n_train, 10);
+                assert_eq!(cfg.parameter.n_train, Some(10));
             }
             (Model::Hertz(h), "hertz") => assert_eq!(h.n_arc, 78),
             (Model::Hertz(h), "hertz-fine") => assert_eq!(h.n_arc, 312),
             (Model::Ironing(i), "ironing-coarse") => {
                 assert_eq!((i.slab.nx, i.slab.ny, i.iron.nx, i.iron.ny), (100, 20, 30, 30));
-                assert_eq!(cfg.parameter.n_train, 128);
+                assert_eq!(cfg.parameter.n_train, Some(128));
                 assert_eq!(cfg.parameter.nested_levels, 7);
             }
             (Model::Ironing(i), "ironing-fine") => {

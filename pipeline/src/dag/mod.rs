@@ -43,6 +43,25 @@ pub struct StageRecord {
     pub dir: PathBuf,
 }
 
+/// Snapshot points of a run: solved now, reused from the store, failed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PointCounts {
+    /// Solved (or imported from the old layout) in this run.
+    pub solved: usize,
+    /// Found in the store.
+    pub reused: usize,
+    /// Failed to converge (missing; the next run tries them again).
+    pub failed: usize,
+}
+
+impl PointCounts {
+    pub(crate) fn add(&mut self, o: PointCounts) {
+        self.solved += o.solved;
+        self.reused += o.reused;
+        self.failed += o.failed;
+    }
+}
+
 /// Everything a stage needs from the run.
 #[derive(Debug)]
 pub struct Ctx<'a> {
@@ -58,6 +77,8 @@ pub struct Ctx<'a> {
     pub records: Vec<StageRecord>,
     /// Warnings to show in the summary (e.g. quarantined artifacts).
     pub warnings: Vec<String>,
+    /// Snapshot points solved, reused and failed.
+    pub points: PointCounts,
 }
 
 /// The keys of a finished run, for callers and tests.
@@ -174,10 +195,10 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     let train_points = scene.parameter.train();
     let test_points = scene.parameter.test();
     let all: Vec<f64> = train_points.iter().chain(&test_points).copied().collect();
-    let keys = snapshots::run(ctx, &mut physics, &mesh_key, &all)?;
-    let (train_keys, test_keys) = keys.split_at(train_points.len());
-    let train = trainset::run(ctx, "train", &train_points, train_keys)?;
-    let test = trainset::run(ctx, "test", &test_points, test_keys)?;
+    let cols = snapshots::run(ctx, &mut physics, &mesh_key, &all)?;
+    let (train_rows, test_rows) = cols.rows.split_at(train_points.len());
+    let train = trainset::run(ctx, "train", &train_points, train_rows, cols.shape)?;
+    let test = trainset::run(ctx, "test", &test_points, test_rows, cols.shape)?;
     let basis = basis::run(ctx, &train)?;
     let compactness = compactness::run(ctx, &train, &basis)?;
     let generalization = metrics::generalization(ctx, &train)?;
@@ -185,11 +206,12 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     let nested = if scene.parameter.nested_levels > 0 {
         let levels: Vec<Vec<f64>> = (1..=scene.parameter.nested_levels).map(|n| scene.parameter.nested(n)).collect();
         let flat: Vec<f64> = levels.iter().flatten().copied().collect();
-        let keys = snapshots::run(ctx, &mut physics, &mesh_key, &flat)?;
+        let nested_cols = snapshots::run(ctx, &mut physics, &mesh_key, &flat)?;
         let mut sets = Vec::new();
         let mut at = 0;
         for (n, pts) in levels.iter().enumerate() {
-            sets.push(trainset::run(ctx, &format!("nested-{}", n + 1), pts, &keys[at..at + pts.len()])?);
+            let rows = &nested_cols.rows[at..at + pts.len()];
+            sets.push(trainset::run(ctx, &format!("nested-{}", n + 1), pts, rows, nested_cols.shape)?);
             at += pts.len();
         }
         Some(metrics::nested(ctx, &sets)?)
@@ -210,7 +232,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     let report = crate::report::run(ctx, &inputs)?;
     Ok(RunOutput {
         mesh: mesh_key,
-        train_snapshots: train_keys.to_vec(),
+        train_snapshots: train_rows.iter().map(|r| r.key.clone()).collect(),
         train,
         test,
         basis,

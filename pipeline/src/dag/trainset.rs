@@ -1,19 +1,30 @@
-//! Training-set stage: gathers snapshot artifacts into snapshot matrices (one column per
-//! parameter point) and the per-snapshot solver-statistics table.
+//! Training-set stage: a named set of snapshot columns (train, test, a nested level) as one
+//! HDF5 file whose `primal` (n_dof x N) and `dual` (n_contact x N) are **virtual datasets**
+//! mapping each column to its block in the column store — nothing is copied — plus the real
+//! `parameters` and the per-snapshot table `solver_stats.parquet` (key, parameter, block,
+//! column, blake3 of the column, solver evidence).
+//!
+//! The set's key is its name, its parameter values and its snapshots' content keys, not where
+//! the columns live: a set rebuilt after a block was quarantined and re-solved keeps its key and
+//! its downstream artifacts. A stored set whose columns moved is rewritten (the cache hit is
+//! checked against the index). Loading reads the columns straight from the blocks, checking
+//! each against its blake3.
 
 use std::collections::BTreeMap;
+use std::path::Path;
 
-use crom_schemas::artifact::{snapshot as snap_names, trainset as names, ArtifactKind};
+use crom_schemas::artifact::{trainset as names, ArtifactKind};
 use serde_json::json;
 
 use super::Ctx;
 use crate::cache::{Key, KeySpec};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In, H5Out};
-use crate::io::table::{Column, Table};
+use crate::io::table::{read_parquet, Column, Table};
+use crate::store::columns::{read_columns, Evidence, IndexRow};
 
 /// Bump when the assembly of the set changes.
-const ALGORITHM_VERSION: u32 = 1;
+const ALGORITHM_VERSION: u32 = 2;
 
 /// A loaded training set.
 #[derive(Debug, Clone, PartialEq)]
@@ -26,126 +37,144 @@ pub(crate) struct TrainingSet {
     pub parameters: Vec<f64>,
 }
 
-pub(crate) fn run(ctx: &mut Ctx<'_>, set: &str, points: &[f64], snapshots: &[Key]) -> Result<Key, CromError> {
+/// The set's key spec: name, parameter values, snapshot keys.
+fn spec(set: &str, points: &[f64], rows: &[IndexRow]) -> KeySpec {
     let mut spec =
         KeySpec::new(ArtifactKind::TrainingSet, ALGORITHM_VERSION, json!({ "set": set, "parameters": points }));
-    for (i, k) in snapshots.iter().enumerate() {
-        spec = spec.input(&format!("snapshot{i:05}"), k);
+    for (i, r) in rows.iter().enumerate() {
+        spec = spec.input(&format!("snapshot{i:05}"), &r.key);
     }
+    spec
+}
+
+pub(crate) fn run(
+    ctx: &mut Ctx<'_>,
+    set: &str,
+    points: &[f64],
+    rows: &[IndexRow],
+    shape: (usize, usize),
+) -> Result<Key, CromError> {
+    let spec = spec(set, points, rows);
     let label = match set {
         "train" => "trainset",
         "test" => "testset",
         _ => "nested-set",
     };
+    // A stored set whose columns have moved since (a block re-solved after quarantine) is stale.
+    let dir = ctx.store.dir(ArtifactKind::TrainingSet, &spec.key());
+    if dir.exists() && !locations_match(&dir.join(names::STATS), rows) {
+        let _ = ctx.store.quarantine_dir(ArtifactKind::TrainingSet, &spec.key());
+        ctx.warnings.push(format!("{set} set {} referred to moved columns; rewritten", spec.key().short()));
+    }
     let scene = ctx.scene.scene.name.clone();
     let pname = ctx.scene.parameter.name.clone();
-    let store = ctx.store;
+    let root = ctx.store.root().to_path_buf();
     ctx.single(ArtifactKind::TrainingSet, label, &spec, |staging| {
-        let mut u_cols = Vec::with_capacity(snapshots.len());
-        let mut p_cols = Vec::with_capacity(snapshots.len());
-        let mut stats = StatsColumns::default();
-        for (i, k) in snapshots.iter().enumerate() {
-            let dir = store.dir(ArtifactKind::Snapshot, k);
-            let f = H5In::open(&dir.join(snap_names::FILE))?;
-            u_cols.push(f.vec_f64(snap_names::U)?);
-            p_cols.push(f.vec_f64(snap_names::PRESSURE)?);
-            let m = read_manifest(&dir)?;
-            stats.push(&scene, i, points[i], k, &m.summary);
-        }
-        let primal = matrix(&u_cols, staging.path(names::FILE))?;
-        let dual = matrix(&p_cols, staging.path(names::FILE))?;
-        let f = H5Out::create(&staging.path(names::FILE))?;
+        let path = staging.path(names::FILE);
+        let f = H5Out::create(&path)?;
         f.attr_str("scene", &scene)?;
         f.attr_str("kind", "trainset")?;
         f.attr_str("set", set)?;
         f.attr_str("parameter_name", &pname)?;
         f.attr_u64("schema_version", u64::from(ArtifactKind::TrainingSet.schema_version()))?;
         f.attr_str("cache_key", &staging.key().0)?;
-        f.matrix(names::PRIMAL, &primal, "primal field, one snapshot per column")?;
-        f.matrix(names::DUAL, &dual, "contact pressure, one snapshot per column")?;
+        let blocks = block_columns(&root, rows)?;
+        let src: Vec<(String, usize)> = rows.iter().map(|r| (format!("{BLOCK_PREFIX}{}", r.block), r.column)).collect();
+        let width = |s: &str| blocks.get(s.trim_start_matches(BLOCK_PREFIX)).copied().unwrap_or(0);
+        f.virtual_columns(names::PRIMAL, "primal", shape.0, &src, &width, "primal field, one snapshot per column")?;
+        f.virtual_columns(names::DUAL, "dual", shape.1, &src, &width, "contact pressure, one snapshot per column")?;
         f.vec_f64(names::PARAMETERS, points, &pname)?;
         drop(f);
-        stats.table().write_parquet(&staging.path(names::STATS))?;
+        stats_table(&scene, points, rows).write_parquet(&staging.path(names::STATS))?;
         Ok(BTreeMap::from([
             ("snapshots".to_string(), json!(points.len())),
-            ("primal_shape".to_string(), json!([primal.rows, primal.cols])),
-            ("dual_shape".to_string(), json!([dual.rows, dual.cols])),
+            ("primal_shape".to_string(), json!([shape.0, rows.len()])),
+            ("dual_shape".to_string(), json!([shape.1, rows.len()])),
         ]))
     })
 }
 
-/// Load a training set artifact's matrices.
+/// A set file sits two directories below the store root (`<stage>/<key>/`, and the staging
+/// directory `.staging/<name>/` alike), so `../../<block>` reaches a block from either; HDF5
+/// resolves a relative source file against the virtual dataset's own directory.
+const BLOCK_PREFIX: &str = "../../";
+
+/// Column count of every block the rows refer to (read from the block files).
+fn block_columns(root: &Path, rows: &[IndexRow]) -> Result<BTreeMap<String, usize>, CromError> {
+    let mut out = BTreeMap::new();
+    for r in rows {
+        if out.contains_key(&r.block) {
+            continue;
+        }
+        let path = root.join(&r.block);
+        let f = H5In::open(&path)?;
+        let shape = f.shape("dual")?;
+        out.insert(r.block.clone(), shape.get(1).copied().unwrap_or(0));
+    }
+    Ok(out)
+}
+
+fn locations_match(stats: &Path, rows: &[IndexRow]) -> bool {
+    let Ok(t) = read_parquet(stats) else { return false };
+    let (Some(block), Some(column)) = (t.strs("block"), t.u64s("column")) else { return false };
+    block.len() == rows.len()
+        && rows.iter().zip(block.iter().zip(column)).all(|(r, (b, c))| &r.block == b && r.column as u64 == *c)
+}
+
+/// Load a training set artifact's matrices, reading each column from its block and checking it.
 pub(crate) fn load_from(store: &crate::store::Store, key: &Key) -> Result<TrainingSet, CromError> {
-    let path = store.dir(ArtifactKind::TrainingSet, key).join(names::FILE);
-    let f = H5In::open(&path)?;
-    Ok(TrainingSet {
-        primal: f.matrix(names::PRIMAL)?,
-        dual: f.matrix(names::DUAL)?,
-        parameters: f.vec_f64(names::PARAMETERS)?,
-    })
+    let dir = store.dir(ArtifactKind::TrainingSet, key);
+    let f = H5In::open(&dir.join(names::FILE))?;
+    let n_dof = f.shape(names::PRIMAL)?.first().copied().unwrap_or(0);
+    let n_contact = f.shape(names::DUAL)?.first().copied().unwrap_or(0);
+    let parameters = f.vec_f64(names::PARAMETERS)?;
+    let rows = rows_of(&dir.join(names::STATS))?;
+    let refs: Vec<&IndexRow> = rows.iter().collect();
+    let (primal, dual) = read_columns(store.root(), n_dof, n_contact, &refs)?;
+    Ok(TrainingSet { primal, dual, parameters })
 }
 
-fn read_manifest(dir: &std::path::Path) -> Result<crate::store::Manifest, CromError> {
-    let p = dir.join(crom_schemas::artifact::MANIFEST);
-    let text = std::fs::read_to_string(&p).map_err(|e| CromError::io(&p, "reading a manifest", e))?;
-    serde_json::from_str(&text).map_err(|e| CromError::artifact(&p, e, "delete the artifact directory and rerun"))
+/// The index rows a stored set refers to (from its `solver_stats.parquet`).
+fn rows_of(path: &Path) -> Result<Vec<IndexRow>, CromError> {
+    let t = read_parquet(path)?;
+    let bad = |c: &str| CromError::artifact(path, format!("column `{c}` missing"), "delete the artifact and rerun");
+    let keys = t.strs("snapshot_key").ok_or_else(|| bad("snapshot_key"))?;
+    let block = t.strs("block").ok_or_else(|| bad("block"))?;
+    let column = t.u64s("column").ok_or_else(|| bad("column"))?;
+    let hash = t.strs("blake3").ok_or_else(|| bad("blake3"))?;
+    let param = t.f64s("parameter").ok_or_else(|| bad("parameter"))?;
+    Ok((0..t.rows())
+        .map(|i| IndexRow {
+            key: Key(keys[i].clone()),
+            parameters: vec![param[i]],
+            block: block[i].clone(),
+            column: column[i] as usize,
+            blake3: hash[i].clone(),
+            block_bytes: 0,
+            block_blake3: String::new(),
+            evidence: Evidence::default(),
+        })
+        .collect())
 }
 
-fn matrix(cols: &[Vec<f64>], path: std::path::PathBuf) -> Result<ColMatrix, CromError> {
-    let rows = cols.first().map_or(0, Vec::len);
-    if cols.iter().any(|c| c.len() != rows) {
-        return Err(CromError::artifact(
-            path,
-            "snapshots of one set have different lengths",
-            "delete the store's snapshot directory and rerun",
-        ));
-    }
-    let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
-    Ok(ColMatrix::from_columns(rows, &refs))
-}
-
-#[derive(Default)]
-struct StatsColumns {
-    scene: Vec<String>,
-    index: Vec<u64>,
-    parameter: Vec<f64>,
-    key: Vec<String>,
-    ints: [Vec<u64>; 3],
-    floats: [Vec<f64>; 5],
-}
-
-const INT_FIELDS: [&str; 3] = ["iterations", "active", "vertex_ties"];
-const FLOAT_FIELDS: [&str; 5] = ["max_penetration", "min_lambda", "complementarity", "kkt_residual", "seconds"];
-
-impl StatsColumns {
-    fn push(&mut self, scene: &str, i: usize, p: f64, k: &Key, s: &BTreeMap<String, serde_json::Value>) {
-        self.scene.push(scene.to_string());
-        self.index.push(i as u64);
-        self.parameter.push(p);
-        self.key.push(k.0.clone());
-        for (col, name) in self.ints.iter_mut().zip(INT_FIELDS) {
-            col.push(s.get(name).and_then(serde_json::Value::as_u64).unwrap_or(0));
-        }
-        for (col, name) in self.floats.iter_mut().zip(FLOAT_FIELDS) {
-            col.push(s.get(name).and_then(serde_json::Value::as_f64).unwrap_or(f64::NAN));
-        }
-    }
-
-    fn table(self) -> Table {
-        let [it, active, ties] = self.ints;
-        let [pen, minl, comp, kkt, secs] = self.floats;
-        Table::default()
-            .with("scene", Column::Str(self.scene))
-            .with("index", Column::U64(self.index))
-            .with("parameter", Column::F64(self.parameter))
-            .with("snapshot_key", Column::Str(self.key))
-            .with("iterations", Column::U64(it))
-            .with("active", Column::U64(active))
-            .with("max_penetration", Column::F64(pen))
-            .with("min_lambda", Column::F64(minl))
-            .with("complementarity", Column::F64(comp))
-            .with("kkt_residual", Column::F64(kkt))
-            .with("vertex_ties", Column::U64(ties))
-            .with("seconds", Column::F64(secs))
-    }
+fn stats_table(scene: &str, points: &[f64], rows: &[IndexRow]) -> Table {
+    let n = rows.len();
+    let u = |f: &dyn Fn(&Evidence) -> u64| Column::U64(rows.iter().map(|r| f(&r.evidence)).collect());
+    let x = |f: &dyn Fn(&Evidence) -> f64| Column::F64(rows.iter().map(|r| f(&r.evidence)).collect());
+    Table::default()
+        .with("scene", Column::Str(vec![scene.to_string(); n]))
+        .with("index", Column::U64((0..n as u64).collect()))
+        .with("parameter", Column::F64(points.to_vec()))
+        .with("snapshot_key", Column::Str(rows.iter().map(|r| r.key.0.clone()).collect()))
+        .with("block", Column::Str(rows.iter().map(|r| r.block.clone()).collect()))
+        .with("column", Column::U64(rows.iter().map(|r| r.column as u64).collect()))
+        .with("blake3", Column::Str(rows.iter().map(|r| r.blake3.clone()).collect()))
+        .with("iterations", u(&|e| e.iterations))
+        .with("active", u(&|e| e.active))
+        .with("max_penetration", x(&|e| e.max_penetration))
+        .with("min_lambda", x(&|e| e.min_lambda))
+        .with("complementarity", x(&|e| e.complementarity))
+        .with("kkt_residual", x(&|e| e.kkt_residual))
+        .with("vertex_ties", u(&|e| e.vertex_ties))
+        .with("seconds", x(&|e| e.seconds))
 }

@@ -140,6 +140,50 @@ impl H5Out {
         set_units(&ds, &self.path, name, units)
     }
 
+    /// A virtual `(rows, N)` dataset whose column k is column `src[k].1` of dataset `dataset` in
+    /// the HDF5 file `src[k].0` (a path relative to this file's directory); `width(file)` is
+    /// the column count of that source. Consecutive columns of one source become one mapping.
+    pub fn virtual_columns(
+        &self,
+        name: &str,
+        dataset: &str,
+        rows: usize,
+        src: &[(String, usize)],
+        width: &dyn Fn(&str) -> usize,
+        units: &str,
+    ) -> Result<(), CromError> {
+        let n = src.len();
+        let mut runs: Vec<(&str, usize, usize, usize)> = Vec::new(); // (file, src col, vds col, len)
+        for (k, (file, j)) in src.iter().enumerate() {
+            match runs.last_mut() {
+                Some(r) if r.0 == file.as_str() && r.1 + r.3 == *j && r.2 + r.3 == k => r.3 += 1,
+                _ => runs.push((file.as_str(), *j, k, 1)),
+            }
+        }
+        let builder = self.group.new_dataset::<f64>().shape((rows, n));
+        let ds = if rows == 0 || n == 0 {
+            builder.create(name)
+        } else {
+            builder
+                .with_dcpl(|p| {
+                    for &(file, j, k, len) in &runs {
+                        p.virtual_map(
+                            file,
+                            dataset,
+                            (rows, width(file)),
+                            (.., j..j + len),
+                            (rows, n),
+                            (.., k..k + len),
+                        );
+                    }
+                    p
+                })
+                .create(name)
+        };
+        let ds = ds.map_err(|e| werr(&self.path, name, e))?;
+        set_units(&ds, &self.path, name, units)
+    }
+
     /// A matrix, one column per snapshot / mode.
     pub fn matrix(&self, name: &str, m: &ColMatrix, units: &str) -> Result<(), CromError> {
         let mut row_major = vec![0.0; m.data.len()];

@@ -7,6 +7,7 @@
 //! artifact that fails verification is moved to `<root>/.quarantine/` (never deleted) and
 //! recomputed. One `crom run` at a time holds `<root>/.lock`.
 
+pub mod columns;
 mod lock;
 pub mod manifest;
 
@@ -76,14 +77,18 @@ impl Store {
         }
         match verify(&dir, kind, key) {
             Ok(m) => Ok(Lookup::Hit(Box::new(m))),
-            Err(problem) => {
-                let q = self.root.join(".quarantine").join(format!("{}-{}-{}", kind.name(), key.short(), unix_now()));
-                let parent = self.root.join(".quarantine");
-                std::fs::create_dir_all(&parent).map_err(|e| CromError::io(&parent, "creating the quarantine", e))?;
-                std::fs::rename(&dir, &q).map_err(|e| CromError::io(&dir, "moving a corrupt artifact aside", e))?;
-                Ok(Lookup::Quarantined(q, problem))
-            }
+            Err(problem) => Ok(Lookup::Quarantined(self.quarantine_dir(kind, key)?, problem)),
         }
+    }
+
+    /// Move an artifact directory to `<root>/.quarantine/` (never deleted); its new path.
+    pub fn quarantine_dir(&self, kind: ArtifactKind, key: &Key) -> Result<PathBuf, CromError> {
+        let dir = self.dir(kind, key);
+        let parent = self.root.join(".quarantine");
+        let q = parent.join(format!("{}-{}-{}-{}", kind.name(), key.short(), unix_now(), unique_suffix()));
+        std::fs::create_dir_all(&parent).map_err(|e| CromError::io(&parent, "creating the quarantine", e))?;
+        std::fs::rename(&dir, &q).map_err(|e| CromError::io(&dir, "moving an artifact aside", e))?;
+        Ok(q)
     }
 
     /// Start writing an artifact: a fresh staging directory.
@@ -99,6 +104,20 @@ impl Store {
         ));
         std::fs::create_dir_all(&tmp).map_err(|e| CromError::io(&tmp, "creating a staging directory", e))?;
         Ok(Staging { tmp, kind, key, spec: spec.clone() })
+    }
+
+    /// Every column family of snapshots in the store.
+    pub fn families(&self) -> Vec<columns::ColumnFamily> {
+        let mut out = Vec::new();
+        let Ok(entries) = std::fs::read_dir(self.root.join(columns::COLUMNS_DIR)) else { return out };
+        let mut names: Vec<String> = entries.flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+        names.sort();
+        for n in names {
+            if let Ok(Some(f)) = columns::ColumnFamily::find(&self.root, &Key(n)) {
+                out.push(f);
+            }
+        }
+        out
     }
 
     /// Every artifact manifest in the store (unverified; for listing).
@@ -217,7 +236,7 @@ fn verify(dir: &Path, kind: ArtifactKind, key: &Key) -> Result<Manifest, String>
     Ok(m)
 }
 
-fn unix_now() -> u64 {
+pub(crate) fn unix_now() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
 }
 
