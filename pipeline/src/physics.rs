@@ -127,11 +127,14 @@ impl Physics {
         }
     }
 
-    /// Solve at one parameter value.
-    pub fn solve(&self, parameter: f64) -> Result<Snapshot, String> {
+    /// Solve at one parameter point (one value per component of the scene's parameter).
+    pub fn solve(&self, mu: &[f64]) -> Result<Snapshot, String> {
         match self {
-            Physics::Rope(r, p) => rope::solve(r, parameter, p).map_err(|e| e.to_string()),
-            Physics::Contact(f, p) => f.solve(parameter, p).map_err(|e| e.to_string()),
+            Physics::Rope(r, p) => match mu {
+                [gamma] => rope::solve(r, *gamma, p).map_err(|e| e.to_string()),
+                _ => Err(format!("the rope has one parameter, got {}", mu.len())),
+            },
+            Physics::Contact(f, p) => f.solve(mu, p).map_err(|e| e.to_string()),
         }
     }
 }

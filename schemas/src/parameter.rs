@@ -1,4 +1,5 @@
-//! The scalar parameter of a scene and the point sets drawn from it.
+//! The parameter μ of a scene (a scalar, or a vector on a tensor grid) and the point sets drawn
+//! from it.
 
 use serde::{Deserialize, Serialize};
 
@@ -34,6 +35,94 @@ pub struct ParameterSpec {
     /// Nested training levels `1..=nested_levels` (0: none).
     #[serde(default)]
     pub nested_levels: u32,
+    /// Further axes of a vector parameter `μ = (this, axes[0], …)` (`[[parameter.axes]]` in the
+    /// scene file). Every point set is the tensor product of the axes' own grids (training,
+    /// test midpoints, nested levels), the first axis varying fastest.
+    #[serde(default)]
+    pub axes: Vec<AxisSpec>,
+}
+
+/// One further axis of a vector parameter: the same grid rules as the first axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisSpec {
+    /// Name of the parameter component (e.g. `d_y`).
+    pub name: String,
+    /// Physical meaning.
+    pub description: String,
+    /// Lower end (inclusive).
+    pub min: f64,
+    /// Upper end (inclusive).
+    pub max: f64,
+    /// Equidistant training points (exactly one of `n_train`, `train_level`).
+    #[serde(default)]
+    pub n_train: Option<usize>,
+    /// Training points as nested level k (`2^k + 1`).
+    #[serde(default)]
+    pub train_level: Option<u32>,
+}
+
+impl AxisSpec {
+    fn grid(&self) -> Grid {
+        Grid { min: self.min, max: self.max, n_train: self.n_train, train_level: self.train_level }
+    }
+}
+
+/// The 1-D grid rules of one axis.
+#[derive(Debug, Clone, Copy)]
+struct Grid {
+    min: f64,
+    max: f64,
+    n_train: Option<usize>,
+    train_level: Option<u32>,
+}
+
+impl Grid {
+    fn train_count(&self) -> usize {
+        match (self.n_train, self.train_level) {
+            (_, Some(k)) => (1usize << k) + 1,
+            (Some(n), None) => n,
+            (None, None) => 0,
+        }
+    }
+
+    fn nested(&self, level: u32) -> Vec<f64> {
+        linspace(self.min, self.max, (1usize << level) + 1)
+    }
+
+    fn train(&self) -> Vec<f64> {
+        match self.train_level {
+            Some(k) => self.nested(k),
+            None => linspace(self.min, self.max, self.train_count()),
+        }
+    }
+
+    fn test(&self) -> Vec<f64> {
+        match self.train_level {
+            Some(k) => self.nested(k + 1).into_iter().skip(1).step_by(2).collect(),
+            None => self.train().windows(2).map(|w| 0.5 * (w[0] + w[1])).collect(),
+        }
+    }
+}
+
+/// Tensor product of 1-D grids, the first varying fastest; each point has one value per grid.
+pub fn tensor(grids: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let n: Vec<usize> = grids.iter().map(Vec::len).collect();
+    let total: usize = n.iter().product();
+    (0..total)
+        .map(|idx| {
+            let mut rest = idx;
+            grids
+                .iter()
+                .zip(&n)
+                .map(|(g, len)| {
+                    let x = g[rest % len];
+                    rest /= len;
+                    x
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// `n` equidistant points from `a` to `b` inclusive (exact ends).
@@ -46,35 +135,58 @@ pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
 }
 
 impl ParameterSpec {
-    /// Number of training points.
+    fn grid(&self) -> Grid {
+        Grid { min: self.min, max: self.max, n_train: self.n_train, train_level: self.train_level }
+    }
+
+    fn grids(&self) -> Vec<Grid> {
+        std::iter::once(self.grid()).chain(self.axes.iter().map(AxisSpec::grid)).collect()
+    }
+
+    /// Number of parameter components (1 for a scalar parameter).
+    pub fn dim(&self) -> usize {
+        1 + self.axes.len()
+    }
+
+    /// Names of the components, in order.
+    pub fn names(&self) -> Vec<&str> {
+        std::iter::once(self.name.as_str()).chain(self.axes.iter().map(|a| a.name.as_str())).collect()
+    }
+
+    /// Number of training points along the first axis.
     pub fn train_count(&self) -> usize {
-        match (self.n_train, self.train_level) {
-            (_, Some(k)) => (1usize << k) + 1,
-            (Some(n), None) => n,
-            (None, None) => 0,
-        }
+        self.grid().train_count()
     }
 
-    /// The training points.
+    /// Training points of every axis (tensor grid).
+    pub fn train_points(&self) -> Vec<Vec<f64>> {
+        tensor(&self.grids().iter().map(Grid::train).collect::<Vec<_>>())
+    }
+
+    /// Test points: the tensor grid of every axis' midpoints.
+    pub fn test_points(&self) -> Vec<Vec<f64>> {
+        tensor(&self.grids().iter().map(Grid::test).collect::<Vec<_>>())
+    }
+
+    /// Nested level `level` of every axis (tensor grid of `2^level + 1` points per axis).
+    pub fn nested_points(&self, level: u32) -> Vec<Vec<f64>> {
+        tensor(&self.grids().iter().map(|g| g.nested(level)).collect::<Vec<_>>())
+    }
+
+    /// The training points of the first axis.
     pub fn train(&self) -> Vec<f64> {
-        match self.train_level {
-            Some(k) => self.nested(k),
-            None => linspace(self.min, self.max, self.train_count()),
-        }
+        self.grid().train()
     }
 
-    /// The test points: midpoints of consecutive training points (with `train_level = k`, the
-    /// odd points of level k + 1, the same values bit for bit).
+    /// The test points of the first axis: midpoints of consecutive training points (with
+    /// `train_level = k`, the odd points of level k + 1, the same values bit for bit).
     pub fn test(&self) -> Vec<f64> {
-        match self.train_level {
-            Some(k) => self.nested(k + 1).into_iter().skip(1).step_by(2).collect(),
-            None => self.train().windows(2).map(|w| 0.5 * (w[0] + w[1])).collect(),
-        }
+        self.grid().test()
     }
 
-    /// The points of nested level `level` (`2^level + 1` points).
+    /// The points of nested level `level` of the first axis (`2^level + 1` points).
     pub fn nested(&self, level: u32) -> Vec<f64> {
-        linspace(self.min, self.max, (1usize << level) + 1)
+        self.grid().nested(level)
     }
 }
 
@@ -91,7 +203,35 @@ mod tests {
             n_train: Some(n),
             train_level: None,
             nested_levels: 3,
+            axes: Vec::new(),
         }
+    }
+
+    #[test]
+    fn a_second_axis_makes_tensor_grids_with_the_first_axis_fastest() {
+        let mut s = spec(3);
+        s.axes.push(AxisSpec {
+            name: "h".into(),
+            description: String::new(),
+            min: 1.0,
+            max: 2.0,
+            n_train: None,
+            train_level: Some(1),
+        });
+        assert_eq!((s.dim(), s.names()), (2, vec!["g", "h"]));
+        let t = s.train_points();
+        assert_eq!(t.len(), 3 * 3);
+        // Exact grid values: -0.5, 0, 0.5 (first axis) and 1, 1.5, 2 (level 1 of [1, 2]).
+        let first: Vec<[f64; 2]> = t.iter().take(4).map(|p| [p[0], p[1]]).collect();
+        let want: [[f64; 2]; 4] = [[-0.5, 1.0], [0.0, 1.0], [0.5, 1.0], [-0.5, 1.5]];
+        for (a, b) in first.iter().zip(want) {
+            assert!(a[0].to_bits() == b[0].to_bits() && a[1].to_bits() == b[1].to_bits(), "{a:?} vs {b:?}");
+        }
+        // Test points: 2 midpoints on the first axis times the 2 level-2 odd points of the second.
+        let m = s.test_points();
+        assert_eq!(m.len(), 4);
+        assert!(m.iter().all(|p| p.len() == 2));
+        assert_eq!(s.nested_points(2).len(), 25);
     }
 
     #[test]

@@ -26,7 +26,7 @@ pub struct SceneConfig {
     pub scene: SceneMeta,
     /// The physical model.
     pub model: Model,
-    /// The scalar parameter.
+    /// The parameter μ (a scalar, or a vector on a tensor grid).
     pub parameter: ParameterSpec,
     /// High-fidelity solver settings.
     pub solver: SolverSpec,
@@ -126,8 +126,10 @@ pub struct IroningSpec {
     pub slab: SlabSpec,
     /// The iron.
     pub iron: IronSpec,
-    /// Imposed downward displacement of the iron's top edge.
-    pub d_y: f64,
+    /// Imposed downward displacement of the iron's top edge; absent when `d_y` is an axis of
+    /// the parameter (`[[parameter.axes]]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub d_y: Option<f64>,
 }
 
 /// The slab of the ironing scene.

@@ -97,43 +97,9 @@ impl SceneConfig {
 
     fn check_parameter(&self, c: &Checker<'_>) -> Result<(), SceneError> {
         let p = &self.parameter;
-        if p.name.trim().is_empty() {
-            return Err(c.fail("parameter.name", "is empty".into(), "name the parameter, e.g. \"gamma\""));
-        }
-        c.finite("parameter.min", p.min)?;
-        c.finite("parameter.max", p.max)?;
-        if p.max <= p.min {
-            return Err(c.fail(
-                "parameter.max",
-                format!("is {} but parameter.min is {}: the range is empty or reversed", p.max, p.min),
-                "make parameter.max greater than parameter.min",
-            ));
-        }
-        match (p.n_train, p.train_level) {
-            (Some(n), None) => c.at_least("parameter.n_train", n, 2)?,
-            (None, Some(k)) => {
-                if !(1..=MAX_LEVEL).contains(&k) {
-                    return Err(c.fail(
-                        "parameter.train_level",
-                        format!("is {k}, i.e. 2^{k} + 1 training points"),
-                        &format!("use a level from 1 to {MAX_LEVEL}"),
-                    ));
-                }
-            }
-            (Some(_), Some(_)) => {
-                return Err(c.fail(
-                    "parameter.train_level",
-                    "is given together with parameter.n_train".into(),
-                    "keep one: n_train = N for N equidistant points, or train_level = k for 2^k + 1 nested points",
-                ))
-            }
-            (None, None) => {
-                return Err(c.fail(
-                    "parameter.n_train",
-                    "is missing".into(),
-                    "give n_train = N (N equidistant training points) or train_level = k (2^k + 1 points)",
-                ))
-            }
+        check_axis(c, "parameter", &p.name, p.min, p.max, p.n_train, p.train_level)?;
+        for (i, a) in p.axes.iter().enumerate() {
+            check_axis(c, &format!("parameter.axes[{i}]"), &a.name, a.min, a.max, a.n_train, a.train_level)?;
         }
         if p.nested_levels > MAX_LEVEL {
             return Err(c.fail(
@@ -142,7 +108,106 @@ impl SceneConfig {
                 &format!("use at most {MAX_LEVEL} nested levels"),
             ));
         }
+        let names = p.names();
+        let allowed: &[&[&str]] = match &self.model {
+            Model::Rope(_) => &[&["gamma"]],
+            Model::Hertz(_) => &[&["d"]],
+            Model::Ironing(_) => &[&["d_x"], &["d_x", "d_y"]],
+        };
+        if !allowed.contains(&names.as_slice()) {
+            let field = if names.len() > 1 { "parameter.axes" } else { "parameter.name" };
+            let list: Vec<String> = allowed.iter().map(|a| format!("({})", a.join(", "))).collect();
+            return Err(c.fail(
+                field,
+                format!(
+                    "makes the parameter ({}), which the {} model does not have",
+                    names.join(", "),
+                    self.model.kind()
+                ),
+                &format!("use one of {}", list.join(" or ")),
+            ));
+        }
+        // Every point set is a tensor grid: bound its size (training and nested sets alike).
+        let train: f64 = std::iter::once((p.n_train, p.train_level))
+            .chain(p.axes.iter().map(|a| (a.n_train, a.train_level)))
+            .map(|(n, k)| k.map_or(n.unwrap_or(0) as f64, |k| (1u64 << k) as f64 + 1.0))
+            .product();
+        let nested = ((1u64 << p.nested_levels) as f64 + 1.0).powi(p.dim() as i32);
+        let limit = ((1u64 << MAX_LEVEL) + 1) as f64;
+        if train > limit || (p.nested_levels > 0 && nested > limit) {
+            return Err(c.fail(
+                "parameter",
+                format!(
+                    "makes {} training points and {} on the finest nested level",
+                    train,
+                    if p.nested_levels > 0 { nested } else { 0.0 }
+                ),
+                &format!("keep every point set at most {limit} points (fewer training points, levels or axes)"),
+            ));
+        }
+        if let Model::Ironing(i) = &self.model {
+            match (i.d_y, names.contains(&"d_y")) {
+                (Some(_), true) => {
+                    return Err(c.fail(
+                        "model.ironing.d_y",
+                        "is given, but d_y is also a parameter axis".into(),
+                        "remove model.ironing.d_y (the axis sets it) or the d_y axis",
+                    ))
+                }
+                (None, false) => {
+                    return Err(c.fail(
+                        "model.ironing.d_y",
+                        "is missing".into(),
+                        "give the iron's downward displacement, e.g. d_y = 0.04, or make d_y a parameter axis",
+                    ))
+                }
+                _ => {}
+            }
+        }
         Ok(())
+    }
+}
+
+/// One axis of the parameter: name, finite non-empty range, exactly one of n_train / train_level.
+fn check_axis(
+    c: &Checker<'_>,
+    at: &str,
+    name: &str,
+    min: f64,
+    max: f64,
+    n_train: Option<usize>,
+    train_level: Option<u32>,
+) -> Result<(), SceneError> {
+    if name.trim().is_empty() {
+        return Err(c.fail(&format!("{at}.name"), "is empty".into(), "name the parameter, e.g. \"gamma\""));
+    }
+    c.finite(&format!("{at}.min"), min)?;
+    c.finite(&format!("{at}.max"), max)?;
+    if max <= min {
+        return Err(c.fail(
+            &format!("{at}.max"),
+            format!("is {max} but {at}.min is {min}: the range is empty or reversed"),
+            &format!("make {at}.max greater than {at}.min"),
+        ));
+    }
+    match (n_train, train_level) {
+        (Some(n), None) => c.at_least(&format!("{at}.n_train"), n, 2),
+        (None, Some(k)) if (1..=MAX_LEVEL).contains(&k) => Ok(()),
+        (None, Some(k)) => Err(c.fail(
+            &format!("{at}.train_level"),
+            format!("is {k}, i.e. 2^{k} + 1 training points"),
+            &format!("use a level from 1 to {MAX_LEVEL}"),
+        )),
+        (Some(_), Some(_)) => Err(c.fail(
+            &format!("{at}.train_level"),
+            format!("is given together with {at}.n_train"),
+            "keep one: n_train = N for N equidistant points, or train_level = k for 2^k + 1 nested points",
+        )),
+        (None, None) => Err(c.fail(
+            &format!("{at}.n_train"),
+            "is missing".into(),
+            "give n_train = N (N equidistant training points) or train_level = k (2^k + 1 points)",
+        )),
     }
 }
 
@@ -213,5 +278,8 @@ fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
     c.at_least("model.ironing.iron.nx", i.iron.nx, 1)?;
     c.at_least("model.ironing.iron.ny", i.iron.ny, 1)?;
     c.material("model.ironing.iron.material", &i.iron.material)?;
-    c.finite("model.ironing.d_y", i.d_y)
+    match i.d_y {
+        Some(d) => c.finite("model.ironing.d_y", d),
+        None => Ok(()),
+    }
 }

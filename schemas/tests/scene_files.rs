@@ -40,11 +40,17 @@ fn every_shipped_scene_loads_and_matches_scenes_md() {
             (Model::Ironing(i), "ironing-fine") => {
                 assert_eq!((i.slab.nx, i.slab.ny, i.iron.nx, i.iron.ny), (200, 40, 60, 60));
             }
+            (Model::Ironing(i), "ironing-fine-2d") => {
+                // The fine mesh, with d_y a parameter axis: 65 x 17 training points (issue 8).
+                assert_eq!((i.slab.nx, i.slab.ny, i.iron.nx, i.iron.ny), (200, 40, 60, 60));
+                assert_eq!((i.d_y, cfg.parameter.names()), (None, vec!["d_x", "d_y"]));
+                assert_eq!(cfg.parameter.train_points().len(), 65 * 17);
+            }
             (m, n) => panic!("scene {n} has unexpected model {}", m.kind()),
         }
     }
     names.sort();
-    assert_eq!(names, ["hertz", "hertz-fine", "ironing-coarse", "ironing-fine", "rope"]);
+    assert_eq!(names, ["hertz", "hertz-fine", "ironing-coarse", "ironing-fine", "ironing-fine-2d", "rope"]);
 }
 
 fn assert_names(err: &SceneError, needles: &[&str]) {
@@ -112,4 +118,25 @@ fn two_models_or_unknown_model() {
 fn unreadable_file() {
     let err = SceneConfig::load(Path::new("/nonexistent/bad.toml")).expect_err("missing file");
     assert_names(&err, &["cannot read"]);
+}
+
+#[test]
+fn vector_parameters_are_checked_against_the_model() {
+    let base = std::fs::read_to_string(scenes_dir().join("ironing-fine-2d.toml")).expect("scene");
+    // d_y both a model value and an axis.
+    let both = base.replace("[model.ironing.slab]", "[model.ironing]\nd_y = 0.04\n\n[model.ironing.slab]");
+    let err = SceneConfig::from_toml_str(&both, Path::new("bad.toml")).expect_err("d_y twice");
+    assert_names(&err, &["model.ironing.d_y", "axis"]);
+    // An axis the ironing model does not have.
+    let other = base.replace("name = \"d_y\"", "name = \"angle\"");
+    let err = SceneConfig::from_toml_str(&other, Path::new("bad.toml")).expect_err("unknown axis");
+    assert_names(&err, &["parameter.axes", "(d_x, d_y)"]);
+    // An axis with both grid settings.
+    let grid = base.replace("train_level = 4", "train_level = 4\nn_train = 9");
+    let err = SceneConfig::from_toml_str(&grid, Path::new("bad.toml")).expect_err("two grids");
+    assert_names(&err, &["parameter.axes[0].train_level"]);
+    // Too many points on a tensor grid.
+    let big = base.replace("train_level = 6", "train_level = 12");
+    let err = SceneConfig::from_toml_str(&big, Path::new("bad.toml")).expect_err("too many points");
+    assert_names(&err, &["parameter", "training points"]);
 }

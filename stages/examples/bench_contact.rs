@@ -55,7 +55,7 @@ fn run(name: &'static str, model: ContactModel, params: &[f64]) -> (Row, Factore
     let mut ever = vec![false; fm.model().slave_nodes().len()];
     for &mu in params {
         let t = Instant::now();
-        let s = fm.solve(mu, &p).expect("solve");
+        let s = fm.solve(&[mu], &p).expect("solve");
         total += t.elapsed();
         for (e, &pr) in ever.iter_mut().zip(&s.pressure) {
             *e |= pr > 0.0;
@@ -102,7 +102,7 @@ fn sweep_parallel(fm: &FactoredModel, params: &[f64], threads: usize) -> (Durati
         for (c, slot) in chunks {
             sc.spawn(move || {
                 for (j, s) in slot.iter_mut().enumerate() {
-                    *s = Some(fm.solve(params[c * per + j], &p).expect("solve"));
+                    *s = Some(fm.solve(&[params[c * per + j]], &p).expect("solve"));
                 }
             });
         }

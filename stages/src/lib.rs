@@ -9,6 +9,7 @@ pub mod contact;
 pub mod fem;
 pub mod mesh;
 pub mod metrics;
+pub mod mu;
 pub mod rng;
 pub mod rom;
 pub mod rope;

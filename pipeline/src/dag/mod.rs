@@ -192,9 +192,9 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     let scene = ctx.scene;
     let mut physics = LazyPhysics { scene, built: None };
     let mesh_key = mesh::run(ctx, &mut physics)?;
-    let train_points = scene.parameter.train();
-    let test_points = scene.parameter.test();
-    let all: Vec<f64> = train_points.iter().chain(&test_points).copied().collect();
+    let train_points = scene.parameter.train_points();
+    let test_points = scene.parameter.test_points();
+    let all: Vec<Vec<f64>> = train_points.iter().chain(&test_points).cloned().collect();
     let cols = snapshots::run(ctx, &mut physics, &mesh_key, &all)?;
     let (train_rows, test_rows) = cols.rows.split_at(train_points.len());
     let train = trainset::run(ctx, "train", &train_points, train_rows, cols.shape)?;
@@ -204,8 +204,9 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     let generalization = metrics::generalization(ctx, &train)?;
     let specificity = metrics::specificity(ctx, &train, &basis)?;
     let nested = if scene.parameter.nested_levels > 0 {
-        let levels: Vec<Vec<f64>> = (1..=scene.parameter.nested_levels).map(|n| scene.parameter.nested(n)).collect();
-        let flat: Vec<f64> = levels.iter().flatten().copied().collect();
+        let levels: Vec<Vec<Vec<f64>>> =
+            (1..=scene.parameter.nested_levels).map(|n| scene.parameter.nested_points(n)).collect();
+        let flat: Vec<Vec<f64>> = levels.iter().flatten().cloned().collect();
         let nested_cols = snapshots::run(ctx, &mut physics, &mesh_key, &flat)?;
         let mut sets = Vec::new();
         let mut at = 0;

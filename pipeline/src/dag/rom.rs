@@ -73,7 +73,8 @@ pub(crate) fn run(
     let queries = sets.iter().map(|(_, s, _)| s.parameters.len()).sum::<usize>();
     let mut progress = ctx.progress.stage("online ROM", 2 * queries + sweep_len(phi.cols, theta_full.cols));
     let start = Instant::now();
-    let mut errors = ErrorRows::default();
+    let mut errors =
+        ErrorRows { names: ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect(), ..Default::default() };
     for (dual_basis, theta) in [("full", &theta_full), ("truncated", &theta_trunc)] {
         let rom = OnlineRom::new(op, &phi.data, phi.cols, &theta.data, theta.cols).map_err(|e| fail(e.to_string()))?;
         for (set, data, fom) in &sets {
@@ -84,7 +85,7 @@ pub(crate) fn run(
                     &scene,
                     set,
                     dual_basis,
-                    data.parameters[j],
+                    &data.parameters[j],
                     (phi.cols, theta.cols),
                     (pe, de),
                     &sol,
@@ -115,10 +116,10 @@ pub(crate) fn run(
 /// parallel load as the online solves — rather than read from the snapshot artifacts, which may
 /// have been computed by another build. Timed like the online queries (minimum of up to
 /// [`TIMING_REPEATS`] when faster than [`REPEAT_BELOW`]); a failed solve is timed all the same.
-fn fom_seconds(phys: &Physics, parameters: &[f64]) -> Vec<f64> {
+fn fom_seconds(phys: &Physics, parameters: &[Vec<f64>]) -> Vec<f64> {
     parameters
         .par_iter()
-        .map(|&mu| {
+        .map(|mu| {
             let mut best = f64::INFINITY;
             for _ in 0..TIMING_REPEATS {
                 let t = Instant::now();
@@ -137,7 +138,7 @@ fn fom_seconds(phys: &Physics, parameters: &[f64]) -> Vec<f64> {
 fn response_basis(op: &dyn ContactOperator, train: &trainset::TrainingSet) -> Result<ColMatrix, String> {
     let n = train.primal.rows;
     let mut data = Vec::with_capacity(n * train.primal.cols);
-    for (j, &mu) in train.parameters.iter().enumerate() {
+    for (j, mu) in train.parameters.iter().enumerate() {
         let u0 = op.lift(mu);
         data.extend(train.primal.col(j).iter().zip(&u0).map(|(u, l)| u - l));
     }
@@ -153,7 +154,7 @@ fn solve_set(
 ) -> Vec<(RomSolution, f64)> {
     set.parameters
         .par_iter()
-        .map(|&mu| {
+        .map(|mu| {
             let mut best = f64::INFINITY;
             let mut sol = None;
             for _ in 0..TIMING_REPEATS {
@@ -256,7 +257,9 @@ fn tradeoff(
 #[derive(Default)]
 struct ErrorRows {
     s: [Vec<String>; 3],
-    param: Vec<f64>,
+    /// Parameter component names.
+    names: Vec<String>,
+    param: Vec<Vec<f64>>,
     ranks: [Vec<u64>; 2],
     errs: [Vec<f64>; 2],
     ints: [Vec<u64>; 2],
@@ -271,7 +274,7 @@ impl ErrorRows {
         scene: &str,
         set: &str,
         basis: &str,
-        mu: f64,
+        mu: &[f64],
         ranks: (usize, usize),
         errs: (f64, f64),
         sol: &RomSolution,
@@ -281,7 +284,7 @@ impl ErrorRows {
         self.s[0].push(scene.to_string());
         self.s[1].push(set.to_string());
         self.s[2].push(basis.to_string());
-        self.param.push(mu);
+        self.param.push(mu.to_vec());
         self.ranks[0].push(ranks.0 as u64);
         self.ranks[1].push(ranks.1 as u64);
         self.errs[0].push(errs.0);
@@ -299,12 +302,18 @@ impl ErrorRows {
         let [pe, de] = self.errs;
         let [it, nz] = self.ints;
         let [on, fom] = self.times;
-        Table::default()
+        // `parameter` is the first component; a vector parameter adds a column per component.
+        let mut t = Table::default()
             .with("scene", Column::Str(scene))
             .with("set", Column::Str(set))
             .with("dual_basis", Column::Str(basis))
-            .with("parameter", Column::F64(self.param))
-            .with("r_primal", Column::U64(rp))
+            .with("parameter", Column::F64(self.param.iter().map(|p| p[0]).collect()));
+        if self.names.len() > 1 {
+            for (c, name) in self.names.iter().enumerate() {
+                t = t.with(name, Column::F64(self.param.iter().map(|p| p[c]).collect()));
+            }
+        }
+        t.with("r_primal", Column::U64(rp))
             .with("r_dual", Column::U64(rd))
             .with("primal_error", Column::F64(pe))
             .with("dual_error", Column::F64(de))

@@ -37,9 +37,17 @@ const BLOCK_BYTES: usize = 32 << 20;
 /// ...or when its oldest column has waited this long.
 const BLOCK_AGE: Duration = Duration::from_secs(5);
 
+/// A scalar parameter keeps the key layout it always had (`parameter: f64`), so stores of 1-D
+/// studies stay valid; a vector parameter is keyed by all its components.
 #[derive(Serialize)]
 struct SnapshotParams<'a> {
     parameter: f64,
+    solver: &'a SolverSpec,
+}
+
+#[derive(Serialize)]
+struct VectorSnapshotParams<'a> {
+    parameters: &'a [f64],
     solver: &'a SolverSpec,
 }
 
@@ -50,10 +58,13 @@ struct FamilyParams<'a> {
     parameters: Vec<&'a str>,
 }
 
-/// The key spec of the snapshot at `parameter` on the mesh `mesh`.
-pub(crate) fn spec(mesh: &Key, solver: &SolverSpec, parameter: f64) -> KeySpec {
-    KeySpec::new(ArtifactKind::Snapshot, ALGORITHM_VERSION, params(&SnapshotParams { parameter, solver }))
-        .input("mesh", mesh)
+/// The key spec of the snapshot at the parameter point `mu` on the mesh `mesh`.
+pub(crate) fn spec(mesh: &Key, solver: &SolverSpec, mu: &[f64]) -> KeySpec {
+    let p = match mu {
+        [parameter] => params(&SnapshotParams { parameter: *parameter, solver }),
+        _ => params(&VectorSnapshotParams { parameters: mu, solver }),
+    };
+    KeySpec::new(ArtifactKind::Snapshot, ALGORITHM_VERSION, p).input("mesh", mesh)
 }
 
 /// The key of the column family holding every snapshot of this mesh and solver.
@@ -75,7 +86,12 @@ fn block_columns(rows: (usize, usize)) -> usize {
         .clamp(1, 4096)
 }
 
-type Solved = (usize, f64, Result<Snapshot, String>, f64);
+type Solved = (usize, Result<Snapshot, String>, f64);
+
+/// `name = value` of every component, for progress lines and error messages.
+pub(crate) fn point_label(names: &[String], mu: &[f64]) -> String {
+    names.iter().zip(mu).map(|(n, v)| format!("{n} = {v}")).collect::<Vec<_>>().join(", ")
+}
 
 /// What the snapshot stage hands on: the index rows of the requested points, in order.
 #[derive(Debug, Clone)]
@@ -91,11 +107,11 @@ pub(crate) fn run(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
     mesh: &Key,
-    points: &[f64],
+    points: &[Vec<f64>],
 ) -> Result<Columns, CromError> {
-    let pname = ctx.scene.parameter.name.clone();
-    let fkey = family_key(mesh, &ctx.scene.solver, &[pname.as_str()]);
-    let keys: Vec<Key> = points.iter().map(|&p| spec(mesh, &ctx.scene.solver, p).key()).collect();
+    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+    let fkey = family_key(mesh, &ctx.scene.solver, &names.iter().map(String::as_str).collect::<Vec<_>>());
+    let keys: Vec<Key> = points.iter().map(|p| spec(mesh, &ctx.scene.solver, p).key()).collect();
     let mut family = ColumnFamily::find(ctx.store.root(), &fkey)?;
     let mut index = match &family {
         Some(f) => {
@@ -120,12 +136,12 @@ pub(crate) fn run(
         if index.rows.contains_key(k) {
             cached += 1;
         } else {
-            missing.push((i, points[i]));
+            missing.push(i);
         }
     }
     let mut pending: Vec<PendingColumn> = Vec::new();
     let mut imported = 0;
-    missing.retain(|&(i, p)| match import_old_layout(ctx, &keys[i], p) {
+    missing.retain(|&i| match import_old_layout(ctx, &keys[i], &points[i]) {
         Some(col) => {
             pending.push(col);
             imported += 1;
@@ -134,7 +150,7 @@ pub(crate) fn run(
         None => true,
     });
     let mut progress = ctx.progress.stage("snapshot", missing.len());
-    let mut failures: Vec<(f64, String)> = Vec::new();
+    let mut failures: Vec<(usize, String)> = Vec::new();
     let mut write_error: Option<CromError> = None;
     let computed = missing.len();
     let mut committed = 0usize;
@@ -158,7 +174,7 @@ pub(crate) fn run(
                     scene: scene_name.clone(),
                     n_dof: first.primal.len(),
                     n_contact: first.dual.len(),
-                    parameter_names: vec![pname.clone()],
+                    parameter_names: names.clone(),
                     units: [units.primal.to_string(), units.dual.to_string()],
                 };
                 *family = Some(ColumnFamily::open(&root, meta)?);
@@ -181,19 +197,19 @@ pub(crate) fn run(
             let (tx, rx) = mpsc::channel::<Solved>();
             let work = std::mem::take(&mut missing);
             s.spawn(move || {
-                work.par_iter().for_each_with(tx, |tx, &(i, p)| {
+                work.par_iter().for_each_with(tx, |tx, &i| {
                     let t = Instant::now();
-                    let r = phys.solve(p);
-                    let _ = tx.send((i, p, r, t.elapsed().as_secs_f64()));
+                    let r = phys.solve(&points[i]);
+                    let _ = tx.send((i, r, t.elapsed().as_secs_f64()));
                 });
             });
-            for (i, p, r, secs) in rx {
-                progress.inc(&format!("{pname} = {p}"));
+            for (i, r, secs) in rx {
+                progress.inc(&point_label(&names, &points[i]));
                 match r {
                     Ok(snap) if write_error.is_none() => {
                         pending.push(PendingColumn {
                             key: keys[i].clone(),
-                            parameters: vec![p],
+                            parameters: points[i].clone(),
                             evidence: evidence(&snap.stats, secs),
                             primal: snap.u,
                             dual: snap.pressure,
@@ -207,7 +223,7 @@ pub(crate) fn run(
                         }
                     }
                     Ok(_) => {}
-                    Err(msg) => failures.push((p, msg)),
+                    Err(msg) => failures.push((i, msg)),
                 }
             }
         });
@@ -233,11 +249,11 @@ pub(crate) fn run(
     ctx.record("snapshot", solved + imported, cached, dir);
     ctx.points.add(PointCounts { solved: solved + imported, reused: cached, failed: failures.len() });
     if !failures.is_empty() {
-        failures.sort_by(|a, b| a.0.total_cmp(&b.0));
+        failures.sort_by_key(|f| f.0);
         let table_path = write_failures(ctx, &failures, points, &keys)?;
         let list = failures
             .iter()
-            .map(|(p, m)| format!("  {} = {p}: {m}", ctx.scene.parameter.name))
+            .map(|(i, m)| format!("  {}: {m}", point_label(&names, &points[*i])))
             .collect::<Vec<_>>()
             .join("\n");
         return Err(CromError::SolveFailures {
@@ -277,7 +293,7 @@ fn evidence(s: &SolveStats, seconds: f64) -> Evidence {
 
 /// A snapshot stored by the per-directory layout (`snapshot/<key>/snapshot.h5`), verified
 /// against its manifest, as a column to commit; `None` when absent or damaged.
-fn import_old_layout(ctx: &mut Ctx<'_>, key: &Key, p: f64) -> Option<PendingColumn> {
+fn import_old_layout(ctx: &mut Ctx<'_>, key: &Key, p: &[f64]) -> Option<PendingColumn> {
     let dir = ctx.store.dir(ArtifactKind::Snapshot, key);
     if !dir.exists() {
         return None;
@@ -292,7 +308,7 @@ fn import_old_layout(ctx: &mut Ctx<'_>, key: &Key, p: f64) -> Option<PendingColu
     let x = |n: &str| s.get(n).and_then(serde_json::Value::as_f64).unwrap_or(f64::NAN);
     Some(PendingColumn {
         key: key.clone(),
-        parameters: vec![p],
+        parameters: p.to_vec(),
         primal: f.vec_f64(names::U).ok()?,
         dual: f.vec_f64(names::PRESSURE).ok()?,
         evidence: Evidence {
@@ -313,19 +329,24 @@ fn import_old_layout(ctx: &mut Ctx<'_>, key: &Key, p: f64) -> Option<PendingColu
 /// cached: the next run tries those points again.
 fn write_failures(
     ctx: &Ctx<'_>,
-    failures: &[(f64, String)],
-    points: &[f64],
+    failures: &[(usize, String)],
+    points: &[Vec<f64>],
     keys: &[Key],
 ) -> Result<std::path::PathBuf, CromError> {
     let dir = ctx.store.root().join("runs").join(&ctx.scene.scene.name);
     std::fs::create_dir_all(&dir).map_err(|e| CromError::io(&dir, "creating the run directory", e))?;
-    let key_of =
-        |p: f64| points.iter().position(|q| q.to_bits() == p.to_bits()).map(|i| keys[i].0.clone()).unwrap_or_default();
     let n = failures.len();
-    let table = Table::default()
+    let mut table = Table::default()
         .with("scene", Column::Str(vec![ctx.scene.scene.name.clone(); n]))
-        .with("parameter", Column::F64(failures.iter().map(|f| f.0).collect()))
-        .with("snapshot_key", Column::Str(failures.iter().map(|f| key_of(f.0)).collect()))
+        .with("parameter", Column::F64(failures.iter().map(|f| points[f.0][0]).collect()));
+    let names = ctx.scene.parameter.names();
+    if names.len() > 1 {
+        for (c, name) in names.iter().enumerate() {
+            table = table.with(name, Column::F64(failures.iter().map(|f| points[f.0][c]).collect()));
+        }
+    }
+    let table = table
+        .with("snapshot_key", Column::Str(failures.iter().map(|f| keys[f.0].0.clone()).collect()))
         .with("error", Column::Str(failures.iter().map(|f| f.1.clone()).collect()));
     let tmp = dir.join(format!(".solver_failures.{}.tmp", std::process::id()));
     table.write_parquet(&tmp)?;

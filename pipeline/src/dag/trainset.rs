@@ -33,14 +33,20 @@ pub(crate) struct TrainingSet {
     pub primal: ColMatrix,
     /// Dual snapshots (pressure), `n_contact x n_snap`.
     pub dual: ColMatrix,
-    /// Parameter values.
-    pub parameters: Vec<f64>,
+    /// Parameter points, one value per component each.
+    pub parameters: Vec<Vec<f64>>,
 }
 
-/// The set's key spec: name, parameter values, snapshot keys.
-fn spec(set: &str, points: &[f64], rows: &[IndexRow]) -> KeySpec {
+/// The set's key spec: name, parameter values, snapshot keys. A scalar parameter keys its
+/// values as a flat list (as it always did).
+fn spec(set: &str, points: &[Vec<f64>], rows: &[IndexRow]) -> KeySpec {
+    let values = if points.iter().all(|p| p.len() == 1) {
+        json!(points.iter().map(|p| p[0]).collect::<Vec<f64>>())
+    } else {
+        json!(points)
+    };
     let mut spec =
-        KeySpec::new(ArtifactKind::TrainingSet, ALGORITHM_VERSION, json!({ "set": set, "parameters": points }));
+        KeySpec::new(ArtifactKind::TrainingSet, ALGORITHM_VERSION, json!({ "set": set, "parameters": values }));
     for (i, r) in rows.iter().enumerate() {
         spec = spec.input(&format!("snapshot{i:05}"), &r.key);
     }
@@ -50,7 +56,7 @@ fn spec(set: &str, points: &[f64], rows: &[IndexRow]) -> KeySpec {
 pub(crate) fn run(
     ctx: &mut Ctx<'_>,
     set: &str,
-    points: &[f64],
+    points: &[Vec<f64>],
     rows: &[IndexRow],
     shape: (usize, usize),
 ) -> Result<Key, CromError> {
@@ -68,6 +74,7 @@ pub(crate) fn run(
     }
     let scene = ctx.scene.scene.name.clone();
     let pname = ctx.scene.parameter.name.clone();
+    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
     let root = ctx.store.root().to_path_buf();
     ctx.single(ArtifactKind::TrainingSet, label, &spec, |staging| {
         let path = staging.path(names::FILE);
@@ -76,6 +83,7 @@ pub(crate) fn run(
         f.attr_str("kind", "trainset")?;
         f.attr_str("set", set)?;
         f.attr_str("parameter_name", &pname)?;
+        f.attr_str("parameter_names", &names.join(","))?;
         f.attr_u64("schema_version", u64::from(ArtifactKind::TrainingSet.schema_version()))?;
         f.attr_str("cache_key", &staging.key().0)?;
         let blocks = block_columns(&root, rows)?;
@@ -83,9 +91,14 @@ pub(crate) fn run(
         let width = |s: &str| blocks.get(s.trim_start_matches(BLOCK_PREFIX)).copied().unwrap_or(0);
         f.virtual_columns(names::PRIMAL, "primal", shape.0, &src, &width, "primal field, one snapshot per column")?;
         f.virtual_columns(names::DUAL, "dual", shape.1, &src, &width, "contact pressure, one snapshot per column")?;
-        f.vec_f64(names::PARAMETERS, points, &pname)?;
+        if names.len() == 1 {
+            f.vec_f64(names::PARAMETERS, &points.iter().map(|p| p[0]).collect::<Vec<_>>(), &pname)?;
+        } else {
+            let flat: Vec<f64> = points.iter().flatten().copied().collect();
+            f.table_f64(names::PARAMETERS, points.len(), names.len(), &flat, &names.join(","))?;
+        }
         drop(f);
-        stats_table(&scene, points, rows).write_parquet(&staging.path(names::STATS))?;
+        stats_table(&scene, &names, points, rows).write_parquet(&staging.path(names::STATS))?;
         Ok(BTreeMap::from([
             ("snapshots".to_string(), json!(points.len())),
             ("primal_shape".to_string(), json!([shape.0, rows.len()])),
@@ -127,8 +140,8 @@ pub(crate) fn load_from(store: &crate::store::Store, key: &Key) -> Result<Traini
     let f = H5In::open(&dir.join(names::FILE))?;
     let n_dof = f.shape(names::PRIMAL)?.first().copied().unwrap_or(0);
     let n_contact = f.shape(names::DUAL)?.first().copied().unwrap_or(0);
-    let parameters = f.vec_f64(names::PARAMETERS)?;
     let rows = rows_of(&dir.join(names::STATS))?;
+    let parameters: Vec<Vec<f64>> = rows.iter().map(|r| r.parameters.clone()).collect();
     let refs: Vec<&IndexRow> = rows.iter().collect();
     let (primal, dual) = read_columns(store.root(), n_dof, n_contact, &refs)?;
     Ok(TrainingSet { primal, dual, parameters })
@@ -142,11 +155,21 @@ fn rows_of(path: &Path) -> Result<Vec<IndexRow>, CromError> {
     let block = t.strs("block").ok_or_else(|| bad("block"))?;
     let column = t.u64s("column").ok_or_else(|| bad("column"))?;
     let hash = t.strs("blake3").ok_or_else(|| bad("blake3"))?;
-    let param = t.f64s("parameter").ok_or_else(|| bad("parameter"))?;
+    // A vector parameter has one column per component after `parameter` (its first component).
+    let cols: Vec<&[f64]> = {
+        let at = t.columns.iter().position(|(n, _)| n == "parameter").ok_or_else(|| bad("parameter"))?;
+        let until = t.columns.iter().position(|(n, _)| n == "snapshot_key").ok_or_else(|| bad("snapshot_key"))?;
+        let extra: Vec<&[f64]> = t.columns[at + 1..until].iter().filter_map(|(n, _)| t.f64s(n)).collect();
+        if extra.is_empty() {
+            vec![t.f64s("parameter").ok_or_else(|| bad("parameter"))?]
+        } else {
+            extra
+        }
+    };
     Ok((0..t.rows())
         .map(|i| IndexRow {
             key: Key(keys[i].clone()),
-            parameters: vec![param[i]],
+            parameters: cols.iter().map(|c| c[i]).collect(),
             block: block[i].clone(),
             column: column[i] as usize,
             blake3: hash[i].clone(),
@@ -157,15 +180,22 @@ fn rows_of(path: &Path) -> Result<Vec<IndexRow>, CromError> {
         .collect())
 }
 
-fn stats_table(scene: &str, points: &[f64], rows: &[IndexRow]) -> Table {
+/// Per-snapshot table: `parameter` is the first component; a vector parameter adds one column
+/// per component (by name) before `snapshot_key`.
+fn stats_table(scene: &str, names: &[String], points: &[Vec<f64>], rows: &[IndexRow]) -> Table {
     let n = rows.len();
     let u = |f: &dyn Fn(&Evidence) -> u64| Column::U64(rows.iter().map(|r| f(&r.evidence)).collect());
     let x = |f: &dyn Fn(&Evidence) -> f64| Column::F64(rows.iter().map(|r| f(&r.evidence)).collect());
-    Table::default()
+    let mut t = Table::default()
         .with("scene", Column::Str(vec![scene.to_string(); n]))
         .with("index", Column::U64((0..n as u64).collect()))
-        .with("parameter", Column::F64(points.to_vec()))
-        .with("snapshot_key", Column::Str(rows.iter().map(|r| r.key.0.clone()).collect()))
+        .with("parameter", Column::F64(points.iter().map(|p| p[0]).collect()));
+    if names.len() > 1 {
+        for (c, name) in names.iter().enumerate() {
+            t = t.with(name, Column::F64(points.iter().map(|p| p[c]).collect()));
+        }
+    }
+    t.with("snapshot_key", Column::Str(rows.iter().map(|r| r.key.0.clone()).collect()))
         .with("block", Column::Str(rows.iter().map(|r| r.block.clone()).collect()))
         .with("column", Column::U64(rows.iter().map(|r| r.column as u64).collect()))
         .with("blake3", Column::Str(rows.iter().map(|r| r.blake3.clone()).collect()))

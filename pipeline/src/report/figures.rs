@@ -54,21 +54,21 @@ fn every(n: usize) -> usize {
     n.div_ceil(MAX_CURVES).max(1)
 }
 
-fn label(scene: &SceneConfig, p: f64) -> String {
-    format!("{} = {:.3}", scene.parameter.name, p)
+fn label(scene: &SceneConfig, p: &[f64]) -> String {
+    scene.parameter.names().iter().zip(p).map(|(n, v)| format!("{n} = {v:.3}")).collect::<Vec<_>>().join(", ")
 }
 
 fn rope_primal(scene: &SceneConfig, rope: &Rope, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
     let mut series = Vec::new();
     let step = every(d.train.parameters.len());
-    for (j, &p) in d.train.parameters.iter().enumerate().step_by(step) {
+    for (j, p) in d.train.parameters.iter().enumerate().step_by(step) {
         series.push(
             Series::line(&format!("u, {}", label(scene, p)), d.line_x.clone(), d.train.primal.col(j).to_vec())
                 .mark(Mark::Line),
         );
     }
-    for &p in [d.train.parameters.first(), d.train.parameters.last()].into_iter().flatten() {
-        let g = d.line_x.iter().map(|&x| rope.obstacle(x, p)).collect();
+    for p in [d.train.parameters.first(), d.train.parameters.last()].into_iter().flatten() {
+        let g = d.line_x.iter().map(|&x| rope.obstacle(x, p[0])).collect();
         series.push(Series::line(&format!("obstacle g, {}", label(scene, p)), d.line_x.clone(), g).mark(Mark::Line));
     }
     let chart = Chart {
@@ -98,7 +98,7 @@ fn dual_snapshots(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Fig
         .iter()
         .enumerate()
         .step_by(step)
-        .map(|(j, &p)| {
+        .map(|(j, p)| {
             let col = d.train.dual.col(j);
             Series::line(&label(scene, p), xs.clone(), order.iter().map(|&i| col[i]).collect()).mark(Mark::Line)
         })

@@ -25,7 +25,14 @@ pub(crate) fn write_index(
     let facts = [
         ("scene".to_string(), esc(&scene.scene.name)),
         ("description".to_string(), esc(&scene.scene.description)),
-        ("parameter".to_string(), format!("{} ∈ [{}, {}] ({})", esc(&p.name), p.min, p.max, esc(&p.description))),
+        (
+            "parameter".to_string(),
+            std::iter::once((&p.name, p.min, p.max, &p.description))
+                .chain(p.axes.iter().map(|a| (&a.name, a.min, a.max, &a.description)))
+                .map(|(n, lo, hi, what)| format!("{} ∈ [{lo}, {hi}] ({})", esc(n), esc(what)))
+                .collect::<Vec<_>>()
+                .join(" × "),
+        ),
         ("training snapshots".to_string(), d.train.parameters.len().to_string()),
         ("primal dofs / contact nodes".to_string(), format!("{} / {}", d.train.primal.rows, d.train.dual.rows)),
         ("primal POD rank (δ = ".to_string() + &scene.study.primal_tol.to_string() + ")", pr.to_string()),

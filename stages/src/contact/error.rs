@@ -2,6 +2,7 @@
 
 use crate::fem::AssemblyError;
 use crate::mesh::MeshError;
+use crate::mu::Mu;
 
 /// A scene cannot be built or factored.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -33,7 +34,7 @@ pub enum ModelError {
 pub enum ContactError {
     /// The parameter is not finite.
     #[error("contact solve: parameter {0} is not finite")]
-    BadParameter(f64),
+    BadParameter(Mu),
     /// The active-set / re-pairing loop did not reach the tolerance within the iteration budget.
     #[error(
         "contact solve at parameter {param} did not converge: {iterations} active-set iterations \
@@ -42,7 +43,7 @@ pub enum ContactError {
     )]
     NoConvergence {
         /// Parameter value of the solve.
-        param: f64,
+        param: Mu,
         /// Active-set iterations spent.
         iterations: usize,
         /// Pairings computed.
@@ -55,7 +56,7 @@ pub enum ContactError {
     #[error("contact solve at parameter {param}: condensed contact operator not positive definite (pivot {pivot:e})")]
     Singular {
         /// Parameter value.
-        param: f64,
+        param: Mu,
         /// The failing Cholesky pivot.
         pivot: f64,
     },
@@ -63,7 +64,7 @@ pub enum ContactError {
     #[error("contact solve at parameter {param}: pairing failed for slave {slave} (non-finite position)")]
     Pairing {
         /// Parameter value.
-        param: f64,
+        param: Mu,
         /// Slave index (position in `slave_nodes`).
         slave: usize,
     },

@@ -1,8 +1,9 @@
 //! `ContactModel::factor`: everything parameter-independent that the solves share.
 //!
 //! - sparse Cholesky `K_FF = L L^T` (faer, fill-reducing ordering), done once per scene;
-//! - the two unconstrained responses `u^(k) = K_FF^{-1} (-K_FD u_Dk)`, `k = 0, 1`, so that
-//!   without contact `u_F(mu) = u^(0) + mu u^(1)` (the imposed displacement is affine in `mu`);
+//! - the unconstrained responses `u^(k) = K_FF^{-1} (-K_FD u_Dk)`, `k = 0..=p`, so that
+//!   without contact `u_F(mu) = u^(0) + sum_k mu_k u^(k)` (the imposed displacement is affine
+//!   in the p parameter components);
 //! - the Delassus operator `W` on the contact dofs ([`super::delassus`]).
 
 use super::delassus::compliance;
@@ -19,19 +20,19 @@ use faer::{MatMut, Side};
 pub struct FactoredModel {
     pub(crate) model: ContactModel,
     pub(crate) llt: Llt<usize, f64>,
-    /// Unconstrained free-dof responses to `u_D0` and `u_D1`.
-    pub(crate) resp: [Vec<f64>; 2],
+    /// Unconstrained free-dof responses to `u_D0`, `u_D1`, … (one per affine term).
+    pub(crate) resp: Vec<Vec<f64>>,
     /// Lifted loads `-K_FD u_Dk` (free dofs), for the residual scale.
-    pub(crate) lift: [Vec<f64>; 2],
+    pub(crate) lift: Vec<Vec<f64>>,
     /// Contact nodes: slaves, then masters (global ids).
     pub(crate) cnodes: Vec<usize>,
     /// Reference coordinates of the contact nodes.
     pub(crate) x_ref: Vec<[f64; 2]>,
     /// Free index of every contact dof (`2 local + component`), `None` if Dirichlet.
     pub(crate) cfree: Vec<Option<usize>>,
-    /// Contact-dof displacement without contact: `a_c(mu) = a[0] + mu a[1]` (Dirichlet values
-    /// included).
-    pub(crate) a: [Vec<f64>; 2],
+    /// Contact-dof displacement without contact: `a_c(mu) = a[0] + sum_k mu_k a[k + 1]`
+    /// (Dirichlet values included).
+    pub(crate) a: Vec<Vec<f64>>,
     /// Delassus operator, row-major `n_cd x n_cd`.
     pub(crate) w: Vec<f64>,
     /// Slaves whose two dofs are both Dirichlet (never paired).
@@ -47,12 +48,11 @@ impl ContactModel {
         let kff = SparseColMat::<usize, f64>::try_new_from_triplets(nf, nf, &split.free_block_lower_triplets(&self.k))
             .map_err(|e| ModelError::Sparse(format!("{e:?}")))?;
         let llt = kff.sp_cholesky(Side::Lower).map_err(|e| ModelError::Singular(format!("{e:?}")))?;
-        let lift = [split.lift(&self.k, &self.u_d0), split.lift(&self.k, &self.u_d1)];
-        let mut r2 = Vec::with_capacity(2 * nf);
-        r2.extend_from_slice(&lift[0]);
-        r2.extend_from_slice(&lift[1]);
-        llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut r2, nf, 2));
-        let resp = [r2[..nf].to_vec(), r2[nf..].to_vec()];
+        let lift: Vec<Vec<f64>> = self.u_d.iter().map(|ud| split.lift(&self.k, ud)).collect();
+        let terms = lift.len();
+        let mut r2: Vec<f64> = lift.iter().flatten().copied().collect();
+        llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut r2, nf, terms));
+        let resp: Vec<Vec<f64>> = r2.chunks(nf.max(1)).take(terms).map(<[f64]>::to_vec).collect();
         if resp.iter().flatten().any(|v| !v.is_finite()) {
             return Err(ModelError::Singular("non-finite unconstrained response".into()));
         }
@@ -60,14 +60,16 @@ impl ContactModel {
         let x_ref: Vec<[f64; 2]> = cnodes.iter().map(|&n| self.mesh.nodes[n]).collect();
         let cfree: Vec<Option<usize>> =
             cnodes.iter().flat_map(|&n| [split.free_index(2 * n), split.free_index(2 * n + 1)]).collect();
-        let a = [0, 1].map(|k| {
-            let (ud, r) = if k == 0 { (&self.u_d0, &resp[0]) } else { (&self.u_d1, &resp[1]) };
-            cnodes
-                .iter()
-                .flat_map(|&n| [2 * n, 2 * n + 1])
-                .map(|d| split.free_index(d).map_or(ud[d], |fi| r[fi]))
-                .collect::<Vec<f64>>()
-        });
+        let a: Vec<Vec<f64>> = (0..terms)
+            .map(|k| {
+                let (ud, r) = (&self.u_d[k], &resp[k]);
+                cnodes
+                    .iter()
+                    .flat_map(|&n| [2 * n, 2 * n + 1])
+                    .map(|d| split.free_index(d).map_or(ud[d], |fi| r[fi]))
+                    .collect::<Vec<f64>>()
+            })
+            .collect();
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(4);
         let w = compliance(&llt, nf, &cfree, threads);
         let slave_fixed =

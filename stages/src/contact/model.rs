@@ -2,7 +2,7 @@
 //!
 //! A [`ContactModel`] holds everything that does not depend on the scene parameter `mu`: the
 //! mesh of both bodies, the global stiffness `K`, the Dirichlet partition, the imposed
-//! displacement `u_D(mu) = u_D0 + mu u_D1` (linear in the parameter), the slave nodes (one
+//! displacement `u_D(mu) = u_D0 + sum_k mu_k u_Dk` (affine in the parameter), the slave nodes (one
 //! Lagrange multiplier each, with its tributary length) and the master polyline.
 
 use super::error::ModelError;
@@ -71,8 +71,9 @@ pub struct IroningParams {
     pub iron: Material,
     /// x where the sole's lowest point touches the slab top in the reference state (1.0).
     pub contact_x: f64,
-    /// Imposed downward displacement of the iron's top (0.04).
-    pub d_y: f64,
+    /// Imposed downward displacement of the iron's top (0.04); `None` makes it the second
+    /// parameter component, `mu = (d_x, d_y)`.
+    pub d_y: Option<f64>,
 }
 
 /// Which scene a model was built from.
@@ -80,7 +81,7 @@ pub struct IroningParams {
 pub enum SceneKind {
     /// [`build_hertz`]: parameter `d`, top face `u = (0, -d)`.
     Hertz,
-    /// [`build_ironing`]: parameter `d_x`, iron top `u = (d_x, -d_y)`.
+    /// [`build_ironing`]: parameter `d_x` (or `(d_x, d_y)`), iron top `u = (d_x, -d_y)`.
     Ironing,
 }
 
@@ -91,9 +92,8 @@ pub struct ContactModel {
     pub(crate) mesh: Mesh2d,
     pub(crate) k: CsrMatrix,
     pub(crate) split: DofSplit,
-    /// `u_D = u_d0 + mu u_d1`, full length, zero at free dofs.
-    pub(crate) u_d0: Vec<f64>,
-    pub(crate) u_d1: Vec<f64>,
+    /// `u_D = u_d[0] + sum_k mu_k u_d[k + 1]`, full length, zero at free dofs.
+    pub(crate) u_d: Vec<Vec<f64>>,
     pub(crate) slaves: Vec<usize>,
     pub(crate) masters: Vec<usize>,
     pub(crate) tributary: Vec<f64>,
@@ -162,7 +162,7 @@ pub fn build_hertz(p: &HertzParams) -> Result<ContactModel, ModelError> {
     }
     let slaves: Vec<usize> = top.arc.iter().map(|&n| n + off[1]).collect();
     let masters: Vec<usize> = bottom.arc.iter().map(|&n| n + off[0]).collect();
-    finish(SceneKind::Hertz, mesh, k, support, driven, vec![0.0; u_d1.len()], u_d1, slaves, masters)
+    finish(SceneKind::Hertz, mesh, k, support, driven, vec![vec![0.0; u_d1.len()], u_d1], slaves, masters)
 }
 
 /// Build the ironing model; the solve parameter is the iron's travel `d_x`.
@@ -178,8 +178,8 @@ pub fn build_ironing(p: &IroningParams) -> Result<ContactModel, ModelError> {
     count("iron_ny", p.iron_ny, 1)?;
     material("slab", &p.slab)?;
     material("iron", &p.iron)?;
-    if !p.d_y.is_finite() {
-        return Err(ModelError::BadParameter { field: "d_y", msg: format!("must be finite, got {}", p.d_y) });
+    if let Some(d_y) = p.d_y.filter(|d| !d.is_finite()) {
+        return Err(ModelError::BadParameter { field: "d_y", msg: format!("must be finite, got {d_y}") });
     }
     if !(p.contact_x.is_finite() && p.contact_x > 0.0 && p.contact_x < p.slab_length) {
         return Err(ModelError::BadParameter {
@@ -201,14 +201,16 @@ pub fn build_ironing(p: &IroningParams) -> Result<ContactModel, ModelError> {
     let k = assemble_stiffness(&mesh, &[p.slab, p.iron])?;
     let support: Vec<usize> = slab.bottom().iter().map(|&n| n + off[0]).collect();
     let driven: Vec<usize> = ir.top().iter().map(|&n| n + off[1]).collect();
-    let (mut u_d0, mut u_d1) = (vec![0.0; mesh.n_dof()], vec![0.0; mesh.n_dof()]);
+    let (mut u_d0, mut u_dx, mut u_dy) = (vec![0.0; mesh.n_dof()], vec![0.0; mesh.n_dof()], vec![0.0; mesh.n_dof()]);
     for &n in &driven {
-        u_d0[2 * n + 1] = -p.d_y;
-        u_d1[2 * n] = 1.0;
+        u_d0[2 * n + 1] = -p.d_y.unwrap_or(0.0);
+        u_dx[2 * n] = 1.0;
+        u_dy[2 * n + 1] = -1.0;
     }
+    let u_d = if p.d_y.is_some() { vec![u_d0, u_dx] } else { vec![u_d0, u_dx, u_dy] };
     let slaves: Vec<usize> = slab.top().iter().map(|&n| n + off[0]).collect();
     let masters: Vec<usize> = ir.bottom().iter().map(|&n| n + off[1]).collect();
-    finish(SceneKind::Ironing, mesh, k, support, driven, u_d0, u_d1, slaves, masters)
+    finish(SceneKind::Ironing, mesh, k, support, driven, u_d, slaves, masters)
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -218,15 +220,14 @@ fn finish(
     k: CsrMatrix,
     support: Vec<usize>,
     driven: Vec<usize>,
-    u_d0: Vec<f64>,
-    u_d1: Vec<f64>,
+    u_d: Vec<Vec<f64>>,
     slaves: Vec<usize>,
     masters: Vec<usize>,
 ) -> Result<ContactModel, ModelError> {
     let fixed: Vec<usize> = support.iter().chain(&driven).flat_map(|&n| [2 * n, 2 * n + 1]).collect();
     let split = DofSplit::new(mesh.n_dof(), &fixed);
     let tributary = tributary_lengths(&mesh, &slaves);
-    Ok(ContactModel { kind, mesh, k, split, u_d0, u_d1, slaves, masters, tributary, driven, support })
+    Ok(ContactModel { kind, mesh, k, split, u_d, slaves, masters, tributary, driven, support })
 }
 
 impl ContactModel {
@@ -274,9 +275,14 @@ impl ContactModel {
     pub fn stiffness(&self) -> &CsrMatrix {
         &self.k
     }
-    /// Imposed displacement at parameter `mu`, full length (zero at free dofs).
-    pub fn imposed_displacement(&self, mu: f64) -> Vec<f64> {
-        self.u_d0.iter().zip(&self.u_d1).map(|(a, b)| a + mu * b).collect()
+    /// Number of parameter components the model is driven by.
+    pub fn n_params(&self) -> usize {
+        self.u_d.len() - 1
+    }
+    /// Imposed displacement at parameter `mu` (`n_params` components), full length (zero at
+    /// free dofs).
+    pub fn imposed_displacement(&self, mu: &[f64]) -> Vec<f64> {
+        (0..self.n_dof()).map(|i| crate::mu::affine(&self.u_d[0], &self.u_d[1..], mu, i)).collect()
     }
     /// Resultant `sum_n (K u)_n` over `nodes`: for Dirichlet nodes this is the reaction force
     /// the support exerts on the body.

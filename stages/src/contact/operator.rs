@@ -72,12 +72,12 @@ impl ContactOperator for FactoredModel {
         &self.model.tributary
     }
 
-    fn lift(&self, mu: f64) -> Vec<f64> {
+    fn lift(&self, mu: &[f64]) -> Vec<f64> {
         // the same expression as the solver's recovery (solve.rs, `finish`) without contact
         let m = &self.model;
         let mut u = m.imposed_displacement(mu);
         for (fi, &d) in m.split.free().iter().enumerate() {
-            u[d] = self.resp[0][fi] + mu * self.resp[1][fi];
+            u[d] = crate::mu::affine(&self.resp[0], &self.resp[1..], mu, fi);
         }
         u
     }
@@ -89,7 +89,7 @@ impl ContactOperator for FactoredModel {
         }
     }
 
-    fn linearize(&self, _mu: f64, u: &[f64], out: &mut Linearized) {
+    fn linearize(&self, _mu: &[f64], u: &[f64], out: &mut Linearized) {
         let m = &self.model;
         assert_eq!(u.len(), m.n_dof(), "displacement length");
         let nodes = &m.mesh.nodes;
@@ -192,7 +192,7 @@ mod tests {
                 iron_ny: 30,
                 iron: Material { young: 10.0, poisson: 0.3 },
                 contact_x: 1.0,
-                d_y: 0.04,
+                d_y: Some(0.04),
             };
             build_ironing(&p).expect("ironing").factor().expect("factor")
         })
@@ -203,7 +203,7 @@ mod tests {
     /// relative to `max_F |C^T W λ|`), with `C`, `gap0` linearised at the snapshot.
     fn operator_residuals(fm: &FactoredModel, mu: f64, s: &Snapshot) -> (f64, f64, f64) {
         let mut lin = Linearized::default();
-        fm.linearize(mu, &s.u, &mut lin);
+        fm.linearize(&[mu], &s.u, &mut lin);
         let w = fm.weights();
         let (mut min_gap, mut active_gap) = (f64::INFINITY, 0.0f64);
         let mut f = vec![0.0; fm.n_dof()];
@@ -221,7 +221,7 @@ mod tests {
                 f[lin.dofs[k]] += lin.coeffs[k] * wi * p;
             }
         }
-        let v: Vec<f64> = s.u.iter().zip(fm.lift(mu)).map(|(a, b)| a - b).collect();
+        let v: Vec<f64> = s.u.iter().zip(fm.lift(&[mu])).map(|(a, b)| a - b).collect();
         let mut kv = vec![0.0; fm.n_dof()];
         fm.stiffness_mul(&v, &mut kv);
         let free = fm.model.split.free();
@@ -237,11 +237,11 @@ mod tests {
     #[test]
     fn lift_is_the_solvers_contact_free_response() {
         let fm = hertz();
-        let s = fm.solve(-0.01, &TOL).expect("separated solve");
-        assert_all_close!(s.u, fm.lift(-0.01), Tol::abs(0.0));
+        let s = fm.solve(&[-0.01], &TOL).expect("separated solve");
+        assert_all_close!(s.u, fm.lift(&[-0.01]), Tol::abs(0.0));
         for (fm, mu) in [(hertz(), 0.2), (ironing_coarse(), 1.3)] {
-            let s = fm.solve(mu, &TOL).expect("solve");
-            let v: Vec<f64> = s.u.iter().zip(fm.lift(mu)).map(|(a, b)| a - b).collect();
+            let s = fm.solve(&[mu], &TOL).expect("solve");
+            let v: Vec<f64> = s.u.iter().zip(fm.lift(&[mu])).map(|(a, b)| a - b).collect();
             let mut kv = vec![1.0; fm.n_dof()];
             fm.stiffness_mul(&v, &mut kv);
             for &d in fm.model.split.fixed() {
@@ -261,9 +261,9 @@ mod tests {
         let m = &fm.model;
         let apex = m.slaves.iter().position(|&n| m.mesh.nodes[n][0].abs() < 1e-12).expect("apex slave");
         let v = m.masters.iter().position(|&n| m.mesh.nodes[n][0].abs() < 1e-12).expect("apex vertex");
-        let u = fm.lift(0.0);
+        let u = fm.lift(&[0.0]);
         let mut lin = Linearized::default();
-        fm.linearize(0.0, &u, &mut lin);
+        fm.linearize(&[0.0], &u, &mut lin);
         assert_eq!(lin.pairing[apex], u64::MAX - 1 - v as u64, "vertex pairing id");
         let r = lin.start[apex]..lin.start[apex + 1];
         let sn = m.slaves[apex];
@@ -295,7 +295,7 @@ mod tests {
             .chain([(hertz(), 0.025), (hertz(), 0.05)])
             .collect();
         for (fm, mu) in cases {
-            let s = fm.solve(mu, &TOL).expect("solve");
+            let s = fm.solve(&[mu], &TOL).expect("solve");
             assert!(s.stats.vertex_ties <= 1, "mu {mu}: {:?}", s.stats);
             let (min_gap, active_gap, eq) = operator_residuals(fm, mu, &s);
             assert!(min_gap >= -1e-10, "mu {mu}: gap {min_gap:e}");
@@ -320,7 +320,7 @@ mod tests {
         let fm = hertz();
         let m = &fm.model;
         for d in [0.1, 0.2, 0.3] {
-            let s = fm.solve(d, &TOL).expect("solve");
+            let s = fm.solve(&[d], &TOL).expect("solve");
             assert!(s.stats.vertex_ties >= 3, "{:?}", s.stats);
             let ku = m.k.matvec(&s.u);
             let xm: Vec<[f64; 2]> = m
@@ -329,7 +329,7 @@ mod tests {
                 .map(|&n| [m.mesh.nodes[n][0] + s.u[2 * n], m.mesh.nodes[n][1] + s.u[2 * n + 1]])
                 .collect();
             let mut lin = Linearized::default();
-            fm.linearize(d, &s.u, &mut lin);
+            fm.linearize(&[d], &s.u, &mut lin);
             let mut tied = 0;
             for (i, &sn) in m.slaves.iter().enumerate() {
                 if s.pressure[i] <= 0.0 {
@@ -353,7 +353,7 @@ mod tests {
                 }
             }
             assert!(tied >= 1, "d {d}: expected tied slaves");
-            assert!(fm.solve_impl(d, &TOL, false).is_err(), "d {d}: plain closest point converged in the solver");
+            assert!(fm.solve_impl(&[d], &TOL, false).is_err(), "d {d}: plain closest point converged in the solver");
         }
     }
 
@@ -364,12 +364,12 @@ mod tests {
     /// Full bases from the training snapshots at `mus`: primal POD of the responses
     /// `u_k - u0(mu_k)` at numerical rank, CPG of the pressures at tolerance 0.
     fn full_rom(fm: &FactoredModel, mus: &[f64]) -> (OnlineRom, Vec<Snapshot>) {
-        let snaps: Vec<Snapshot> = mus.iter().map(|&d| fm.solve(d, &TOL).expect("solve")).collect();
+        let snaps: Vec<Snapshot> = mus.iter().map(|&d| fm.solve(&[d], &TOL).expect("solve")).collect();
         let (n, nc) = (fm.n_dof(), fm.n_contact());
         let responses: Vec<f64> = mus
             .iter()
             .zip(&snaps)
-            .flat_map(|(&d, s)| s.u.iter().zip(fm.lift(d)).map(|(a, b)| a - b).collect::<Vec<_>>())
+            .flat_map(|(&d, s)| s.u.iter().zip(fm.lift(&[d])).map(|(a, b)| a - b).collect::<Vec<_>>())
             .collect();
         let duals: Vec<f64> = snaps.iter().flat_map(|s| s.pressure.iter().copied()).collect();
         let phi = pod_full(MatRef::from_column_major_slice(&responses, n, mus.len())).expect("pod");
@@ -407,13 +407,13 @@ mod tests {
         fn weights(&self) -> &[f64] {
             self.op.weights()
         }
-        fn lift(&self, mu: f64) -> Vec<f64> {
+        fn lift(&self, mu: &[f64]) -> Vec<f64> {
             self.op.lift(mu)
         }
         fn stiffness_mul(&self, x: &[f64], y: &mut [f64]) {
             self.op.stiffness_mul(x, y)
         }
-        fn linearize(&self, mu: f64, _u: &[f64], out: &mut Linearized) {
+        fn linearize(&self, mu: &[f64], _u: &[f64], out: &mut Linearized) {
             self.op.linearize(mu, &self.u_lin, out)
         }
         fn primal_norm_sq(&self, u: &[f64]) -> f64 {
@@ -446,16 +446,16 @@ mod tests {
         let mus: Vec<f64> = (0..8).map(|k| 3.0 * k as f64 / 7.0).collect();
         let (rom, snaps) = full_rom(fm, &mus);
         for (&mu, s) in mus.iter().zip(&snaps) {
-            let r = rom.solve(fm, mu, &RomParams::default());
+            let r = rom.solve(fm, &[mu], &RomParams::default());
             assert_eq!(r.outcome, RomOutcome::Converged, "d_x {mu}");
             assert_eq!(r.nonzero_dual, 1, "d_x {mu}: {:?}", r.lambda_hat);
             let (eu, ep) = errors(fm, &r.u, &r.pressure, s);
             assert!(eu <= 1e-10 && ep <= 1e-10, "d_x {mu}: Algorithm 1 errors {eu:e} {ep:e}");
             // fixed point of the linearisation point
-            let mut frozen = Frozen { op: fm, u_lin: fm.lift(mu) };
+            let mut frozen = Frozen { op: fm, u_lin: fm.lift(&[mu]) };
             let mut converged = false;
             for _ in 0..20 {
-                let r = rom.solve(&frozen, mu, &RomParams::default());
+                let r = rom.solve(&frozen, &[mu], &RomParams::default());
                 assert_eq!(r.outcome, RomOutcome::Converged, "d_x {mu}");
                 let (step, _) = errors(fm, &r.u, &r.pressure, &Snapshot { u: frozen.u_lin.clone(), ..s.clone() });
                 frozen.u_lin = r.u.clone();
@@ -486,7 +486,7 @@ mod tests {
         let mus: Vec<f64> = (1..=6).map(|k| 0.05 * k as f64).collect();
         let (rom, snaps) = full_rom(fm, &mus);
         for (k, (&mu, s)) in mus.iter().zip(&snaps).enumerate() {
-            let r = rom.solve(fm, mu, &RomParams::default());
+            let r = rom.solve(fm, &[mu], &RomParams::default());
             assert_eq!(r.outcome, RomOutcome::Converged, "d {mu}");
             let (eu, ep) = errors(fm, &r.u, &r.pressure, s);
             let tol = if k == 0 { 1e-8 } else { 5e-4 };

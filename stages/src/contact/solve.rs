@@ -34,6 +34,7 @@ use super::error::ContactError;
 use super::factor::FactoredModel;
 use super::pairing::{closest_point, vertex_pair, Pair, PairKind};
 use super::vertex::VertexTies;
+use crate::mu::{affine, Mu};
 use crate::snapshot::{Snapshot, SolveStats};
 
 /// Settings of the contact solve.
@@ -141,7 +142,7 @@ struct Work {
 
 impl FactoredModel {
     /// Solve the contact problem at parameter `mu` (Hertz: approach `d`; ironing: travel `d_x`).
-    pub fn solve(&self, mu: f64, p: &ContactSolveParams) -> Result<Snapshot, ContactError> {
+    pub fn solve(&self, mu: &[f64], p: &ContactSolveParams) -> Result<Snapshot, ContactError> {
         self.solve_impl(mu, p, true)
     }
 
@@ -149,12 +150,12 @@ impl FactoredModel {
     /// some ironing-fine points need them).
     pub(crate) fn solve_impl(
         &self,
-        mu: f64,
+        mu: &[f64],
         p: &ContactSolveParams,
         allow_ties: bool,
     ) -> Result<Snapshot, ContactError> {
-        if !mu.is_finite() {
-            return Err(ContactError::BadParameter(mu));
+        if mu.len() != self.model.n_params() || mu.iter().any(|m| !m.is_finite()) {
+            return Err(ContactError::BadParameter(Mu::of(mu)));
         }
         let m = &self.model;
         let ns = m.slaves.len();
@@ -162,7 +163,7 @@ impl FactoredModel {
         let ncd = 2 * (ns + nm);
         let tol = p.rel_tol;
         let mut ws = Work {
-            a: (0..ncd).map(|i| self.a[0][i] + mu * self.a[1][i]).collect(),
+            a: (0..ncd).map(|i| affine(&self.a[0], &self.a[1..], mu, i)).collect(),
             xa: vec![0.0; ncd],
             uc: vec![0.0; ncd],
             x: vec![0.0; ncd],
@@ -191,7 +192,7 @@ impl FactoredModel {
             *xa = self.x_ref[i / 2][i % 2] + ws.a[i];
         }
         let lift_inf =
-            self.lift[0].iter().zip(&self.lift[1]).fold(0.0f64, |acc, (l0, l1)| acc.max((l0 + mu * l1).abs()));
+            (0..self.lift[0].len()).fold(0.0f64, |acc, i| acc.max(affine(&self.lift[0], &self.lift[1..], mu, i).abs()));
         ws.uc.copy_from_slice(&ws.a);
         ws.x_pair.copy_from_slice(&ws.a);
         let mut ties = if allow_ties { VertexTies::new(ns) } else { VertexTies::disabled(ns) };
@@ -249,9 +250,9 @@ impl FactoredModel {
             let budget = p.max_iter.saturating_sub(iterations).max(1);
             let out = solve_lcp(&lcp, &mut ws.act[..np], &mut ws.lam[..np], &mut ws.g[..np], &mut ws.lcp, budget)
                 .map_err(|e| match e {
-                    LcpError::NotPositiveDefinite(pivot) => ContactError::Singular { param: mu, pivot },
+                    LcpError::NotPositiveDefinite(pivot) => ContactError::Singular { param: Mu::of(mu), pivot },
                     LcpError::Budget => ContactError::NoConvergence {
-                        param: mu,
+                        param: Mu::of(mu),
                         iterations: p.max_iter,
                         repairings,
                         residual: f64::INFINITY,
@@ -315,7 +316,12 @@ impl FactoredModel {
                 break;
             }
             if iterations >= p.max_iter {
-                return Err(ContactError::NoConvergence { param: mu, iterations, repairings, residual: eq.max(comp) });
+                return Err(ContactError::NoConvergence {
+                    param: Mu::of(mu),
+                    iterations,
+                    repairings,
+                    residual: eq.max(comp),
+                });
             }
             // --- next pairing: plain (at u_c) or Anderson-mixed once the discrete state settled ---
             let smooth = same_pairing && active_same && eq < last_eq;
@@ -344,7 +350,7 @@ impl FactoredModel {
     #[allow(clippy::too_many_arguments)]
     fn pair_all(
         &self,
-        mu: f64,
+        mu: &[f64],
         uc: &[f64],
         x: &mut [f64],
         xm: &mut [[f64; 2]],
@@ -361,7 +367,7 @@ impl FactoredModel {
             }
             let xs = [x[2 * s], x[2 * s + 1]];
             if !(xs[0].is_finite() && xs[1].is_finite()) {
-                return Err(ContactError::Pairing { param: mu, slave: s });
+                return Err(ContactError::Pairing { param: Mu::of(mu), slave: s });
             }
             let nat = closest_point(xs, xm);
             out[s] = match ties.resolve(s, nat.kind, repairing) {
@@ -406,7 +412,7 @@ impl FactoredModel {
     /// Recover the full displacement with one sparse solve and compute the statistics.
     fn finish(
         &self,
-        mu: f64,
+        mu: &[f64],
         ws: &Work,
         lift_inf: f64,
         c_scale: f64,
@@ -416,7 +422,7 @@ impl FactoredModel {
         let m = &self.model;
         let ns = m.slaves.len();
         let nf = m.split.n_free();
-        // u_F = u0 + mu u1 + K^{-1} E_c B^T lambda (B of the pairing u_c was computed with)
+        // u_F = u0 + sum_k mu_k u_k + K^{-1} E_c B^T lambda (B of the pairing u_c was computed with)
         let mut rhs = vec![0.0; nf];
         for (cd, free) in self.cfree.iter().enumerate() {
             if let Some(fi) = free {
@@ -426,7 +432,7 @@ impl FactoredModel {
         self.solve_free_in_place(&mut rhs);
         let mut u = m.imposed_displacement(mu);
         for (fi, &d) in m.split.free().iter().enumerate() {
-            u[d] = self.resp[0][fi] + mu * self.resp[1][fi] + rhs[fi];
+            u[d] = affine(&self.resp[0], &self.resp[1..], mu, fi) + rhs[fi];
         }
         // gaps of the final pairing from the recovered displacement
         let pos = |node: usize| {

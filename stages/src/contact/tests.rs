@@ -87,7 +87,7 @@ fn contact_force_on_slaves(fm: &FactoredModel, s: &Snapshot) -> f64 {
 /// FE solution (half-width and peak pressure) with the theory at that load, not the approach.
 /// `d = 0.025` gives `a/R ~ 0.09 << 1`. Returns (a_theory, a_fe_midpoint, h, p0_theory, p_max).
 fn hertz_check(fm: &FactoredModel, d: f64) -> (f64, f64, f64, f64, f64, Snapshot) {
-    let s = fm.solve(d, &TOL).expect("hertz solve");
+    let s = fm.solve(&[d], &TOL).expect("hertz solve");
     assert_kkt(&s, "hertz");
     let m = fm.model();
     let p_load = contact_force_on_slaves(fm, &s);
@@ -156,7 +156,7 @@ fn hertz_global_equilibrium() {
     let fm = hertz();
     let m = fm.model();
     for d in [0.05, 0.2, 0.3] {
-        let s = fm.solve(d, &TOL).expect("solve");
+        let s = fm.solve(&[d], &TOL).expect("solve");
         let r_top = m.resultant(&s.u, m.driven_nodes());
         let r_bot = m.resultant(&s.u, m.support_nodes());
         // the vertical contact load: nodal forces times |n_y| ~ 1 near the apex; the exact
@@ -201,14 +201,14 @@ fn hertz_kkt_over_training_set_and_no_contact_cases() {
     let fm = hertz();
     let mut last_load = 0.0;
     for k in 1..=12 {
-        let s = fm.solve(0.025 * k as f64, &TOL).expect("solve");
+        let s = fm.solve(&[0.025 * k as f64], &TOL).expect("solve");
         assert_kkt(&s, &format!("hertz d_{k}"));
         let load = contact_force_on_slaves(fm, &s);
         assert!(load > last_load, "load must grow with the approach");
         last_load = load;
     }
     for d in [0.0, -0.01] {
-        let s = fm.solve(d, &TOL).expect("solve");
+        let s = fm.solve(&[d], &TOL).expect("solve");
         assert_kkt(&s, "hertz no contact");
         assert_eq!(s.stats.active, 0);
         assert!(s.pressure.iter().all(|&p| crate::approx::is_zero(p, 0.0)));
@@ -225,7 +225,7 @@ fn ironing_coarse_kkt_and_centroid_moves_with_the_iron() {
     let mut last = f64::NEG_INFINITY;
     for k in 0..=6 {
         let dx = 0.5 * k as f64;
-        let s = fm.solve(dx, &TOL).expect("solve");
+        let s = fm.solve(&[dx], &TOL).expect("solve");
         assert_kkt(&s, &format!("ironing d_x = {dx}"));
         let w: f64 = s.pressure.iter().zip(m.tributary_lengths()).map(|(p, l)| p * l).sum();
         let c = s.pressure.iter().zip(m.tributary_lengths()).zip(&xs).map(|((p, l), x)| p * l * x).sum::<f64>() / w;
@@ -242,7 +242,7 @@ fn ironing_global_equilibrium() {
     let fm = ironing_coarse();
     let m = fm.model();
     for dx in [0.0, 1.3, 3.0] {
-        let s = fm.solve(dx, &TOL).expect("solve");
+        let s = fm.solve(&[dx], &TOL).expect("solve");
         let r_iron = m.resultant(&s.u, m.driven_nodes());
         let r_slab = m.resultant(&s.u, m.support_nodes());
         let load = contact_force_on_slaves(fm, &s);
@@ -273,7 +273,7 @@ fn numerical_rank(cols: &[Vec<f64>]) -> usize {
 #[test]
 fn ironing_coarse_dual_rank_bounded_by_nodes_ever_in_contact() {
     let fm = ironing_coarse();
-    let snaps: Vec<Snapshot> = (0..65).map(|k| fm.solve(3.0 * k as f64 / 64.0, &TOL).expect("solve")).collect();
+    let snaps: Vec<Snapshot> = (0..65).map(|k| fm.solve(&[3.0 * k as f64 / 64.0], &TOL).expect("solve")).collect();
     let ns = fm.model().slave_nodes().len();
     let ever = (0..ns).filter(|&i| snaps.iter().any(|s| s.pressure[i] > 0.0)).count();
     let cols: Vec<Vec<f64>> = snaps.iter().map(|s| s.pressure.clone()).collect();
@@ -291,12 +291,12 @@ fn ironing_fine_vertex_ties() {
     let fm = ironing_fine();
     for k in [0usize, 37, 64, 90, 127] {
         let dx = 3.0 * k as f64 / 127.0;
-        let s = fm.solve(dx, &TOL).expect("ironing-fine converges");
+        let s = fm.solve(&[dx], &TOL).expect("ironing-fine converges");
         assert_kkt(&s, &format!("ironing-fine k = {k}"));
         let needs_tie = k == 37 || k == 90;
         assert_eq!(s.stats.vertex_ties > 0, needs_tie, "k = {k}: {:?}", s.stats);
         if needs_tie {
-            let plain = fm.solve_impl(dx, &TOL, false);
+            let plain = fm.solve_impl(&[dx], &TOL, false);
             assert!(matches!(plain, Err(ContactError::NoConvergence { .. })), "k = {k} without ties: {plain:?}");
         }
     }
@@ -310,9 +310,9 @@ fn parallel_solves_match_serial() {
     let fm = ironing_coarse();
     assert_sync(fm);
     let params = [0.3, 1.7, 2.2, 2.9];
-    let serial: Vec<Snapshot> = params.iter().map(|&p| fm.solve(p, &TOL).expect("solve")).collect();
+    let serial: Vec<Snapshot> = params.iter().map(|&p| fm.solve(&[p], &TOL).expect("solve")).collect();
     let parallel: Vec<Snapshot> = std::thread::scope(|sc| {
-        let hs: Vec<_> = params.iter().map(|&p| sc.spawn(move || fm.solve(p, &TOL).expect("solve"))).collect();
+        let hs: Vec<_> = params.iter().map(|&p| sc.spawn(move || fm.solve(&[p], &TOL).expect("solve"))).collect();
         hs.into_iter().map(|h| h.join().expect("thread")).collect()
     });
     for (a, b) in serial.iter().zip(&parallel) {
@@ -334,9 +334,9 @@ fn bad_inputs_are_errors() {
     p.sole_radius = 0.3;
     assert!(matches!(build_ironing(&p), Err(ModelError::Mesh(_))));
     let fm = hertz();
-    assert!(matches!(fm.solve(f64::NAN, &TOL), Err(ContactError::BadParameter(_))));
+    assert!(matches!(fm.solve(&[f64::NAN], &TOL), Err(ContactError::BadParameter(_))));
     let tight = ContactSolveParams { rel_tol: 1e-10, max_iter: 2 };
-    assert!(matches!(fm.solve(0.2, &tight), Err(ContactError::NoConvergence { .. })));
+    assert!(matches!(fm.solve(&[0.2], &tight), Err(ContactError::NoConvergence { .. })));
 }
 
 /// Snapshot layout (SCENES.md): `u` holds all dofs of both bodies including the Dirichlet ones
@@ -349,7 +349,7 @@ fn snapshot_layout_and_mesh_sizes() {
     assert_eq!(m.mesh().n_nodes(), 2 * 520);
     assert_eq!(m.mesh().n_elements(), 2 * 448);
     assert_eq!(m.slave_nodes().len(), 79);
-    let s = fm.solve(0.1, &TOL).expect("solve");
+    let s = fm.solve(&[0.1], &TOL).expect("solve");
     assert_eq!(s.u.len(), m.n_dof());
     assert_eq!(s.pressure.len(), 79);
     for &n in m.driven_nodes() {
@@ -359,4 +359,36 @@ fn snapshot_layout_and_mesh_sizes() {
     let ir = ironing_coarse().model();
     assert_eq!(ir.slave_nodes().len(), 101);
     assert_eq!(ir.mesh().n_nodes(), 101 * 21 + 31 * 31);
+}
+
+/// The indentation as a second parameter component: `mu = (d_x, d_y)` on the model without a
+/// fixed `d_y` must give the snapshot of the model built with that `d_y` and `mu = d_x` — the
+/// same linear system, assembled from a different affine split of the Dirichlet data. Agreement
+/// to 1e-12 relative: the two lifts differ in the order of one addition per Dirichlet dof.
+#[test]
+fn ironing_d_y_as_a_parameter_matches_a_fixed_d_y() {
+    let two = {
+        let p = IroningParams { d_y: None, ..ironing_params(false) };
+        build_ironing(&p).expect("ironing").factor().expect("factor")
+    };
+    assert_eq!(two.model().n_params(), 2);
+    for (dx, dy) in [(0.4, 0.03), (1.7, 0.05)] {
+        let one = build_ironing(&IroningParams { d_y: Some(dy), ..ironing_params(false) })
+            .expect("ironing")
+            .factor()
+            .expect("factor");
+        let a = one.solve(&[dx], &TOL).expect("fixed d_y");
+        let b = two.solve(&[dx, dy], &TOL).expect("(d_x, d_y)");
+        assert_kkt(&b, "2-D parameter");
+        let scale = a.u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (x, y) in a.u.iter().zip(&b.u) {
+            assert_close!(*x, *y, Tol::abs(1e-12 * scale));
+        }
+        let pscale = a.pressure.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (x, y) in a.pressure.iter().zip(&b.pressure) {
+            assert_close!(*x, *y, Tol::abs(1e-10 * pscale)); // through the LCP: 1e-10 relative
+        }
+    }
+    // A point with the wrong number of components is refused, not guessed.
+    assert!(matches!(two.solve(&[0.5], &TOL), Err(ContactError::BadParameter(_))));
 }

@@ -210,7 +210,7 @@ impl OnlineRom {
     }
 
     /// Online: Algorithm 1 at parameter `mu`.
-    pub fn solve(&self, op: &dyn ContactOperator, mu: f64, p: &RomParams) -> RomSolution {
+    pub fn solve(&self, op: &dyn ContactOperator, mu: &[f64], p: &RomParams) -> RomSolution {
         let (ru, rl) = (self.r_u, self.r_l);
         let u0 = op.lift(mu);
         let mut u = u0.clone();

@@ -47,12 +47,12 @@ pub trait ContactOperator: Sync {
     /// Tributary length of each potential-contact node (pressure → nodal force).
     fn weights(&self) -> &[f64];
     /// The contact-free solution `u0(mu)` (all dofs).
-    fn lift(&self, mu: f64) -> Vec<f64>;
+    fn lift(&self, mu: &[f64]) -> Vec<f64>;
     /// `y = K x` for a displacement `x` that vanishes on the Dirichlet dofs (`y` on all dofs,
     /// zero on Dirichlet rows).
     fn stiffness_mul(&self, x: &[f64], y: &mut [f64]);
     /// Linearise the constraints at the full displacement `u` (Type-1 problems ignore `u`).
-    fn linearize(&self, mu: f64, u: &[f64], out: &mut Linearized);
+    fn linearize(&self, mu: &[f64], u: &[f64], out: &mut Linearized);
     /// Squared norm used for primal reconstruction errors (H1 for every scene of crom).
     fn primal_norm_sq(&self, u: &[f64]) -> f64;
     /// True when the pairing depends on the displacement (Type-2).

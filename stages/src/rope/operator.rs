@@ -17,7 +17,7 @@ impl ContactOperator for Rope {
         &self.weights
     }
 
-    fn lift(&self, _mu: f64) -> Vec<f64> {
+    fn lift(&self, _mu: &[f64]) -> Vec<f64> {
         // The load does not depend on γ: the lift is the same at every query.
         unconstrained(self)
     }
@@ -32,7 +32,7 @@ impl ContactOperator for Rope {
         }
     }
 
-    fn linearize(&self, mu: f64, _u: &[f64], out: &mut Linearized) {
+    fn linearize(&self, mu: &[f64], _u: &[f64], out: &mut Linearized) {
         let n = self.n_nodes();
         out.clear();
         out.start.push(0);
@@ -43,7 +43,7 @@ impl ContactOperator for Rope {
                 out.coeffs.push(1.0);
             }
             out.start.push(out.dofs.len());
-            out.gap0.push(-self.obstacle(self.x[i], mu));
+            out.gap0.push(-self.obstacle(self.x[i], mu[0]));
             out.paired.push(interior);
             out.pairing.push(0);
         }
@@ -98,7 +98,7 @@ mod tests {
         let (ru, rl) = (phi.ncols(), theta.ncols());
         let rom = OnlineRom::new(&rope, &columns(&phi, ru), ru, &columns(&theta, rl), rl).expect("K̂ SPD");
         for (g, s) in gammas.iter().zip(&snaps) {
-            let r = rom.solve(&rope, *g, &RomParams::default());
+            let r = rom.solve(&rope, &[*g], &RomParams::default());
             assert_eq!(r.outcome, RomOutcome::Converged, "gamma {g}");
             let diff: Vec<f64> = r.u.iter().zip(&s.u).map(|(a, b)| a - b).collect();
             let err = (rope.primal_norm_sq(&diff) / rope.primal_norm_sq(&s.u)).sqrt();
@@ -122,7 +122,8 @@ mod tests {
         let fresh = OnlineRom::new(&rope, &columns(&phi, ru), ru, &columns(&theta, rl), rl).expect("SPD");
         let lead = full.leading(ru, rl);
         for g in [-0.45, 0.05, 0.4] {
-            let (a, b) = (lead.solve(&rope, g, &RomParams::default()), fresh.solve(&rope, g, &RomParams::default()));
+            let (a, b) =
+                (lead.solve(&rope, &[g], &RomParams::default()), fresh.solve(&rope, &[g], &RomParams::default()));
             assert_eq!(a.outcome, b.outcome);
             for (x, y) in a.u.iter().zip(&b.u) {
                 assert!((x - y).abs() <= 1e-12 * (1.0 + y.abs()), "gamma {g}: {x} vs {y}");
@@ -139,8 +140,8 @@ mod tests {
         let phi = vec![0.0, 1.0].into_iter().chain(std::iter::repeat_n(0.0, far.n_nodes() - 2)).collect::<Vec<_>>();
         let theta = vec![1.0; far.n_nodes()];
         let rom = OnlineRom::new(&far, &phi, 1, &theta, 1).expect("K̂ SPD");
-        let r = rom.solve(&far, 0.0, &RomParams::default());
+        let r = rom.solve(&far, &[0.0], &RomParams::default());
         assert_eq!((r.outcome, r.iterations, r.active), (RomOutcome::Converged, 0, 0));
-        assert_eq!(r.u, far.lift(0.0));
+        assert_eq!(r.u, far.lift(&[0.0]));
     }
 }
