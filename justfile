@@ -36,8 +36,14 @@ clippy:
 # What CI runs: fmt check, clippy, tests.
 ci: fmt clippy test
 
-# Benchmarks (release build), printed as tables: contact solver, metrics/NNLS, whole pipeline.
+# Benchmarks (release build), printed as tables: contact solver, metrics/NNLS, whole pipeline,
+# and the scale targets (large and growing snapshot sets, 2-D parameter, store size and reads).
 bench:
     cargo run --release --quiet -p crom-stages --example bench_contact
     cargo run --release --quiet -p crom-stages --example bench_metrics
     {{python}} scripts/bench_pipeline.py ironing-fine ironing-coarse hertz rope
+    {{python}} scripts/bench_scale.py
+
+# Only the scale benchmarks (A-E, see scripts/bench_scale.py), e.g. `just bench-scale E`.
+bench-scale *WHICH:
+    {{python}} scripts/bench_scale.py {{WHICH}}

@@ -30,6 +30,12 @@ pub enum Command {
         /// Scene name (a file in the scenes directory) or path to a scene TOML file.
         scene: String,
     },
+    /// Solve every snapshot of a scene's study (training, test and nested points) into the
+    /// store and stop; `crom run` then finds them there.
+    Solve {
+        /// Scene name or path to a scene TOML file.
+        scene: String,
+    },
     /// Bring a scene's study up to date (cached stages are not recomputed) and print where its
     /// report is.
     Report {

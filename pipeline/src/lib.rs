@@ -46,6 +46,7 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
 pub fn run(cli: &Cli) -> Result<(), CromError> {
     match &cli.command {
         Command::Run { scene } => run_scene(cli, scene).map(|_| ()),
+        Command::Solve { scene } => solve_scene(cli, scene),
         Command::Report { scene } => {
             let out = run_scene(cli, scene)?;
             let index = store::Store::open_read_only(&cli.store)
@@ -66,6 +67,25 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
             Ok(())
         }
     }
+}
+
+fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
+    let start = Instant::now();
+    let path = scenes::resolve(scene_arg, &cli.scenes)?;
+    let scene = SceneConfig::load(&path)?;
+    let store = Store::open(&cli.store)?;
+    let mut ctx = dag::Ctx {
+        store: &store,
+        scene: &scene,
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+        progress: Progress::new(cli.quiet),
+        records: Vec::new(),
+        warnings: Vec::new(),
+        points: dag::PointCounts::default(),
+    };
+    let result = dag::solve_points(&mut ctx);
+    summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok(), None);
+    result
 }
 
 fn run_scene(cli: &Cli, scene_arg: &str) -> Result<dag::RunOutput, CromError> {
@@ -94,6 +114,6 @@ fn run_scene(cli: &Cli, scene_arg: &str) -> Result<dag::RunOutput, CromError> {
         result = dag::run_scene(&mut ctx);
     }
     let report = result.as_ref().ok().map(|o| store.dir(crom_schemas::artifact::ArtifactKind::Report, &o.report));
-    summary::print_run(&ctx, start.elapsed().as_secs_f64(), report.as_deref());
+    summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok(), report.as_deref());
     result
 }

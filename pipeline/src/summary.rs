@@ -9,14 +9,21 @@ use crate::store::Store;
 
 /// The closing summary of `crom run`: what ran, what came from cache, where the artifacts are.
 /// Output errors (a closed pipe) are ignored: the summary is informational.
-pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, report: Option<&std::path::Path>) {
-    let ok = report.is_some();
+pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool, report: Option<&std::path::Path>) {
     let mut out = std::io::stdout().lock();
     let name = &ctx.scene.scene.name;
     let _ = writeln!(out, "crom run {name}: {} in {seconds:.2} s", if ok { "done" } else { "stopped" });
     let _ = writeln!(out, "  {:<15} {:>9} {:>7}  artifact", "stage", "computed", "cached");
     for r in &ctx.records {
         let _ = writeln!(out, "  {:<15} {:>9} {:>7}  {}", r.stage, r.computed, r.cached, r.dir.display());
+    }
+    let p = ctx.points;
+    if p.solved + p.reused + p.failed > 0 {
+        let _ = writeln!(
+            out,
+            "  snapshots: {} solved, {} reused from the store, {} missing (failed; retried by the next run)",
+            p.solved, p.reused, p.failed
+        );
     }
     for w in &ctx.warnings {
         let _ = writeln!(out, "  warning: {w}");

@@ -187,6 +187,19 @@ impl Ctx<'_> {
     }
 }
 
+/// Solve (or find in the store) every snapshot of the scene's study — training, test and
+/// nested points — and stop: `crom solve`. The other stages are left for `crom run`.
+pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
+    let scene = ctx.scene;
+    let mut physics = LazyPhysics { scene, built: None };
+    let mesh_key = mesh::run(ctx, &mut physics)?;
+    let p = &scene.parameter;
+    let mut all: Vec<Vec<f64>> = p.train_points().into_iter().chain(p.test_points()).collect();
+    all.extend((1..=p.nested_levels).flat_map(|n| p.nested_points(n)));
+    snapshots::run(ctx, &mut physics, &mesh_key, &all)?;
+    Ok(())
+}
+
 /// Run every stage of the scene's study.
 pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     let scene = ctx.scene;

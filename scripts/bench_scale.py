@@ -1,0 +1,169 @@
+#!/usr/bin/env python3
+"""Scale benchmarks of issue 8 (release build, cold stores), printed as Markdown tables with
+each target beside the measured value. Part of `just bench`; not a test.
+
+  A  ironing-fine, the paper's study without the online stage        target <= 6 s cold
+  B  ironing-coarse with n_train = 512, whole run                   target <= 20 s cold
+  C  ironing-fine with nested levels to 11, then grown to 12         each whole offline study
+                                                                    <= 10 min, peak RSS <= 4 GiB;
+                                                                    level 12 solves only new points
+  D  ironing-fine-2d (65 x 17 points), whole offline study          <= 10 min, peak RSS <= 4 GiB
+  E  16 385 ironing-coarse snapshots stored (`crom solve`, level 14) disk <= 1.1 x raw float64,
+                                                                    index opens in pandas <= 2 s,
+                                                                    one column reads in <= 10 ms
+
+"Offline study" is the wall time of `crom run` minus the wall time its online-ROM and report
+stages record in their manifests (the online stage is the subject of issue 10).
+
+Usage: scripts/bench_scale.py [A B C D E]   (default: all)
+"""
+import json
+import pathlib
+import random
+import re
+import subprocess
+import sys
+import tempfile
+import time
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+BIN = REPO / "target" / "release" / "crom"
+GIB = 1 << 30
+
+
+def variant(tmp, base, name, edits):
+    text = (REPO / "data" / "scenes" / f"{base}.toml").read_text()
+    for a, b in edits:
+        assert a in text, f"{base}.toml has no `{a}`"
+        text = text.replace(a, b)
+    text = re.sub(r'name = "[^"]+"', f'name = "{name}"', text, count=1)
+    path = pathlib.Path(tmp) / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+def crom(store, *args):
+    """Run crom under GNU time; (wall seconds, peak RSS bytes, stdout)."""
+    cmd = ["/usr/bin/time", "-v", str(BIN), "--store", str(store), "--quiet", *map(str, args)]
+    t = time.perf_counter()
+    p = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    if p.returncode != 0:
+        sys.exit(f"crom {' '.join(map(str, args))} failed:\n{p.stdout}\n{p.stderr}")
+    rss = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr).group(1)) * 1024
+    return wall, rss, p.stdout
+
+
+def stage_seconds(store, stages):
+    total = 0.0
+    for m in pathlib.Path(store).glob("*/*/manifest.json"):
+        man = json.loads(m.read_text())
+        if man["stage"] in stages:
+            total += man["wall_seconds"]
+    return total
+
+
+def snapshot_counts(stdout):
+    m = re.search(r"snapshots: (\d+) solved, (\d+) reused", stdout)
+    return (int(m.group(1)), int(m.group(2))) if m else (0, 0)
+
+
+def row(what, target, measured, ok):
+    print(f"| {what} | {target} | {measured} | {'yes' if ok else '**no**'} |")
+
+
+def header(title):
+    print(f"\n### {title}\n\n| what | target | measured | met |\n|---|---|---|---|")
+
+
+def bench_a(tmp):
+    header("A. ironing-fine, the paper's study (cold)")
+    store = pathlib.Path(tmp) / "a"
+    wall, rss, _ = crom(store, "run", "ironing-fine")
+    online = stage_seconds(store, {"rom", "report"})
+    row("offline study (run minus online ROM and report)", "<= 6 s", f"{wall - online:.1f} s", wall - online <= 6)
+    row("whole run incl. online ROM", "(issue 10)", f"{wall:.1f} s (online {online:.1f} s)", True)
+    row("peak RSS", "-", f"{rss / GIB:.2f} GiB", True)
+
+
+def bench_b(tmp):
+    header("B. ironing-coarse, n_train = 512 (cold)")
+    scene = variant(tmp, "ironing-coarse", "ironing-coarse-512", [("n_train = 128", "n_train = 512")])
+    store = pathlib.Path(tmp) / "b"
+    wall, rss, out = crom(store, "run", scene)
+    online = stage_seconds(store, {"rom", "report"})
+    row("whole run", "<= 20 s", f"{wall:.1f} s", wall <= 20)
+    row("of which online ROM + report", "-", f"{online:.1f} s", True)
+    row("peak RSS", "-", f"{rss / GIB:.2f} GiB", True)
+
+
+def bench_c(tmp):
+    header("C. ironing-fine, nested levels to 11, then grown to 12 (4 097 points)")
+    store = pathlib.Path(tmp) / "c"
+    s11 = variant(tmp, "ironing-fine", "ironing-fine-l11", [("nested_levels = 7", "nested_levels = 11")])
+    s12 = variant(tmp, "ironing-fine", "ironing-fine-l12", [("nested_levels = 7", "nested_levels = 12")])
+    w11, r11, o11 = crom(store, "run", s11)
+    on11 = stage_seconds(store, {"rom", "report"})
+    w12, r12, o12 = crom(store, "run", s12)
+    on12 = stage_seconds(store, {"rom", "report"}) - on11
+    solved, reused = snapshot_counts(o12)
+    row("level 11: whole offline study", "<= 600 s", f"{w11 - on11:.1f} s", w11 - on11 <= 600)
+    row("level 11: peak RSS", "<= 4 GiB", f"{r11 / GIB:.2f} GiB", r11 <= 4 * GIB)
+    row("grow 11 -> 12: offline step", "<= 600 s", f"{w12 - on12:.1f} s", w12 - on12 <= 600)
+    row("grow 11 -> 12: peak RSS", "<= 4 GiB", f"{r12 / GIB:.2f} GiB", r12 <= 4 * GIB)
+    row("grow 11 -> 12: points solved / reused", "2048 new only", f"{solved} / {reused}", solved == 2048)
+
+
+def bench_d(tmp):
+    header("D. ironing-fine-2d, 65 x 17 training points (cold)")
+    store = pathlib.Path(tmp) / "d"
+    wall, rss, out = crom(store, "run", "ironing-fine-2d")
+    online = stage_seconds(store, {"rom", "report"})
+    row("whole offline study", "<= 600 s", f"{wall - online:.1f} s", wall - online <= 600)
+    row("whole run incl. online ROM", "(issue 10)", f"{wall:.1f} s", True)
+    row("peak RSS", "<= 4 GiB", f"{rss / GIB:.2f} GiB", rss <= 4 * GIB)
+
+
+def bench_e(tmp):
+    import h5py
+    import pandas as pd
+    header("E. 16 385 ironing-coarse snapshots stored (nested level 14, `crom solve`)")
+    scene = variant(tmp, "ironing-coarse", "ironing-coarse-l14", [("nested_levels = 7", "nested_levels = 14")])
+    store = pathlib.Path(tmp) / "e"
+    wall, rss, out = crom(store, "solve", scene)
+    fam = next((store / "columns").iterdir())
+    meta = json.loads((fam / "family.json").read_text())
+    t = time.perf_counter()
+    index = pd.read_parquet(fam / "index.parquet")
+    t_index = time.perf_counter() - t
+    raw = len(index) * (meta["n_dof"] + meta["n_contact"]) * 8
+    disk = sum(p.stat().st_size for p in fam.rglob("*") if p.is_file())
+    rng = random.Random(0)
+    times = []
+    for _ in range(50):
+        r = index.iloc[rng.randrange(len(index))]
+        t = time.perf_counter()
+        with h5py.File(store / r["block"], "r") as f:
+            f["primal"][:, int(r["column"])]
+        times.append(time.perf_counter() - t)
+    times.sort()
+    row("snapshots solved (distinct points)", "16 385 + train/test", f"{len(index)} in {wall:.1f} s", len(index) >= 16385)
+    row("disk / raw float64 size", "<= 1.1", f"{disk / raw:.3f} ({disk / GIB:.2f} GiB)", disk <= 1.1 * raw)
+    row("index opens in pandas", "<= 2 s", f"{t_index:.3f} s", t_index <= 2)
+    row("one column (open block + read) in h5py, median of 50", "<= 10 ms", f"{1e3 * times[25]:.2f} ms",
+        times[25] <= 0.010)
+    row("peak RSS of the sweep", "-", f"{rss / GIB:.2f} GiB", True)
+
+
+def main():
+    which = sys.argv[1:] or ["A", "B", "C", "D", "E"]
+    subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
+                   check=True)
+    benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "E": bench_e}
+    for w in which:
+        with tempfile.TemporaryDirectory() as tmp:
+            benches[w](tmp)
+
+
+if __name__ == "__main__":
+    main()
