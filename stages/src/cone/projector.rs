@@ -35,7 +35,7 @@ pub struct ConeProjection {
 }
 
 /// Projector onto `cone(Theta)`; holds `Theta` (n x k), its Gram matrix and workspaces.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct ConeProjector {
     theta: Mat<f64>,
     nnls: Nnls,
@@ -45,6 +45,30 @@ pub struct ConeProjector {
     cold: Vec<f64>,
     residual: Vec<f64>,
     trial_residual: Vec<f64>,
+    /// Inner products of a pushed generator with the others (workspace of `push_column`).
+    cross: Vec<f64>,
+    /// Reserved columns of `theta`.
+    col_capacity: usize,
+}
+
+impl Clone for ConeProjector {
+    /// A copy that keeps the reserved capacity (so pushes on the copy stay amortised).
+    fn clone(&self) -> Self {
+        let mut theta = self.theta.clone();
+        theta.reserve(self.nrows(), self.col_capacity);
+        Self {
+            theta,
+            nnls: self.nnls.clone(),
+            atb: self.atb.clone(),
+            correction: self.correction.clone(),
+            trial: self.trial.clone(),
+            cold: self.cold.clone(),
+            residual: self.residual.clone(),
+            trial_residual: self.trial_residual.clone(),
+            cross: self.cross.clone(),
+            col_capacity: self.col_capacity,
+        }
+    }
 }
 
 impl ConeProjector {
@@ -60,6 +84,8 @@ impl ConeProjector {
             cold: vec![0.0; k],
             residual: vec![0.0; n],
             trial_residual: vec![0.0; n],
+            cross: Vec::new(),
+            col_capacity: k,
         }
     }
 
@@ -83,18 +109,51 @@ impl ConeProjector {
         self.theta.as_ref()
     }
 
-    /// Append a generator (length n) to the cone. Reallocates; call outside hot loops.
+    /// Append a generator (length n) to the cone. `Theta` and the Gram matrix grow in place
+    /// (capacity doubling: amortised O(n + k) per push, no copy of `Theta`).
     pub fn push_column(&mut self, column: &[f64]) {
         let (n, k) = (self.nrows(), self.ncols());
         assert_eq!(column.len(), n, "ConeProjector::push_column: column length differs from n");
-        let mut cross = vec![0.0; k + 1];
+        let mut cross = std::mem::take(&mut self.cross);
+        cross.resize(k + 1, 0.0);
         at_b(self.theta.as_ref(), column, &mut cross[..k]);
         cross[k] = column.iter().map(|v| v * v).sum();
-        let old = std::mem::replace(&mut self.theta, Mat::zeros(0, 0));
-        self.theta = Mat::from_fn(n, k + 1, |i, j| if j < k { old[(i, j)] } else { column[i] });
+        if k + 1 > self.col_capacity {
+            self.col_capacity = (2 * self.col_capacity).max(k + 1).max(4);
+            self.theta.reserve(n, self.col_capacity);
+        }
+        self.theta.resize_with(n, k + 1, |i, _| column[i]);
         self.nnls.push_column(&cross);
+        self.cross = cross;
+        self.resize_workspaces();
+    }
+
+    /// The projector onto the cone of the first `m` generators (`m <= k`): the same `Theta`
+    /// columns and Gram entries, so it computes bit for bit what a projector grown to those m
+    /// generators computes.
+    pub fn prefix(&self, m: usize) -> Self {
+        assert!(m <= self.ncols(), "ConeProjector::prefix: {m} generators requested, {} held", self.ncols());
+        let n = self.nrows();
+        let mut out = Self {
+            theta: Mat::from_fn(n, m, |i, j| self.theta[(i, j)]),
+            nnls: self.nnls.prefix(m),
+            atb: Vec::new(),
+            correction: Vec::new(),
+            trial: Vec::new(),
+            cold: Vec::new(),
+            residual: vec![0.0; n],
+            trial_residual: vec![0.0; n],
+            cross: Vec::new(),
+            col_capacity: m,
+        };
+        out.resize_workspaces();
+        out
+    }
+
+    fn resize_workspaces(&mut self) {
+        let k = self.ncols();
         for buf in [&mut self.atb, &mut self.correction, &mut self.trial, &mut self.cold] {
-            buf.resize(k + 1, 0.0);
+            buf.resize(k, 0.0);
         }
     }
 
@@ -390,5 +449,36 @@ mod tests {
         let out = proj.project(&[3.0, 0.0, -4.0]).expect("trivial");
         assert!(out.coeffs.is_empty());
         assert_close!(out.residual_norm, 5.0, Tol::rel(1e-15)); // ||lambda|| = 5
+    }
+
+    #[test]
+    fn prefix_projects_like_a_projector_grown_to_that_size() {
+        let mut rng = Rng::new(36);
+        let theta = random_mat(&mut rng, 30, 12, 0.0, 1.0);
+        let mut grown = ConeProjector::empty(30, NnlsParams::default());
+        let mut small = ConeProjector::empty(30, NnlsParams::default());
+        for m in 0..12 {
+            let col: Vec<f64> = theta.col(m).iter().copied().collect();
+            grown.push_column(&col);
+            if m < 7 {
+                small.push_column(&col);
+            }
+        }
+        let mut prefix = grown.prefix(7);
+        for _ in 0..10 {
+            let lambda = random_vec(&mut rng, 30);
+            let a = prefix.project(&lambda).expect("converges");
+            let b = small.project(&lambda).expect("converges");
+            // Same Theta columns, same Gram entries, same arithmetic: bit for bit.
+            assert_close!(a.residual_norm, b.residual_norm, Tol::abs(0.0));
+            assert_all_close!(a.coeffs, b.coeffs, Tol::abs(0.0));
+        }
+        // The prefix keeps growing like the original.
+        let col: Vec<f64> = theta.col(7).iter().copied().collect();
+        prefix.push_column(&col);
+        small.push_column(&col);
+        let lambda = random_vec(&mut rng, 30);
+        let (a, b) = (prefix.project(&lambda).expect("ok"), small.project(&lambda).expect("ok"));
+        assert_close!(a.residual_norm, b.residual_norm, Tol::abs(0.0)); // as above
     }
 }

@@ -41,6 +41,7 @@
 use faer::{Mat, MatRef};
 
 use super::stats::{MetricCurve, RunningStats};
+use crate::basis::CpgPath;
 use crate::cone::{copy_column, ConeError, GrowingCone, NnlsParams};
 use crate::rng::Rng;
 
@@ -87,7 +88,9 @@ pub fn specificity_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>, params: Spec
 }
 
 /// S(m) for m = 1..=k on the cone of the first m columns of `cone_basis` (n x k, CPG:
-/// "dual cone") of the training snapshots `s` (n x N); coefficients are clipped at 0.
+/// "dual cone") of the training snapshots `s` (n x N); coefficients are clipped at 0. Computes
+/// the sampling intervals with its own cone pass; [`specificity_cone_path`] reuses the CPG
+/// path's.
 pub fn specificity_cone(
     s: MatRef<'_, f64>,
     cone_basis: MatRef<'_, f64>,
@@ -95,8 +98,33 @@ pub fn specificity_cone(
     nnls: NnlsParams,
 ) -> Result<MetricCurve, ConeError> {
     assert_eq!(s.nrows(), cone_basis.nrows(), "specificity_cone: S and basis have different rows");
+    let ranges = cone_ranges_reference(s, cone_basis, nnls)?;
+    Ok(specificity_cone_with(s, cone_basis, &ranges, params, &|| {}))
+}
+
+/// S(m) for m = 1..=min(k, path.max_rank) on the CPG path of `s` (the path of these
+/// snapshots, [`cpg_path`](crate::basis::cpg_path) with `max_rank` set), with the intervals
+/// recorded by the path; `tick` is called once per m.
+pub fn specificity_cone_path(
+    s: MatRef<'_, f64>,
+    path: &CpgPath,
+    params: SpecificityParams,
+    tick: &(dyn Fn() + Sync),
+) -> MetricCurve {
+    let m = path.cone_ranges.len();
+    specificity_cone_with(s, path.basis.subcols(0, m), &path.cone_ranges, params, tick)
+}
+
+fn specificity_cone_with(
+    s: MatRef<'_, f64>,
+    cone_basis: MatRef<'_, f64>,
+    ranges: &[Vec<(f64, f64)>],
+    params: SpecificityParams,
+    tick: &(dyn Fn() + Sync),
+) -> MetricCurve {
+    assert_eq!(s.nrows(), cone_basis.nrows(), "specificity_cone: S and basis have different rows");
     let (n, k) = cone_basis.shape();
-    let ranges = cone_ranges(s, cone_basis, nnls)?;
+    assert_eq!(ranges.len(), k, "specificity_cone: one set of intervals per basis size");
     let (q, r) = if n.min(k) == 0 {
         (Mat::zeros(n, 0), Mat::zeros(0, k))
     } else {
@@ -108,15 +136,17 @@ pub fn specificity_cone(
     let stats: Vec<RunningStats> = (1..=k)
         .map(|m| {
             let p = m.min(qdim);
-            sample_stats(&frame, &ranges[m - 1], stream(params.seed, m), params.samples, p, |alpha, beta| {
+            let st = sample_stats(&frame, &ranges[m - 1], stream(params.seed, m), params.samples, p, |alpha, beta| {
                 // beta = R[:p, :m] alpha, R upper trapezoidal: row l starts at column l.
                 for (l, b) in beta.iter_mut().enumerate() {
                     *b = (l..alpha.len()).map(|c| r[(l, c)] * alpha[c]).sum();
                 }
-            })
+            });
+            tick();
+            st
         })
         .collect();
-    Ok(MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero()))
+    MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero())
 }
 
 /// The training snapshots in an orthonormal frame `Q` (n x q).
@@ -175,8 +205,9 @@ fn interval(stats: &RunningStats, clip: bool) -> (f64, f64) {
 }
 
 /// The sampling intervals of the cone coordinates for every m: `ranges[m - 1]` has m entries,
-/// from the NNLS coefficients of every training snapshot on the first m generators.
-pub(crate) fn cone_ranges(
+/// from the NNLS coefficients of every training snapshot on the first m generators. Kept as
+/// the reference: [`CpgPath::cone_ranges`] holds the same numbers from the basis' own pass.
+pub fn cone_ranges_reference(
     s: MatRef<'_, f64>,
     cone_basis: MatRef<'_, f64>,
     nnls: NnlsParams,
@@ -188,15 +219,21 @@ pub(crate) fn cone_ranges(
     for m in 1..=k {
         copy_column(cone_basis, m - 1, &mut column);
         cone.push(&column)?;
-        let mut stats = vec![RunningStats::new(); m];
-        for j in 0..s.ncols() {
-            for (st, a) in stats.iter_mut().zip(cone.coeffs(j)) {
-                st.push(*a);
-            }
-        }
-        all.push(stats.iter().map(|st| interval(st, true)).collect());
+        all.push(cone_intervals(&cone, m));
     }
     Ok(all)
+}
+
+/// The clipped intervals `[max(0, mu - sigma), mu + sigma]` of the coefficients of every
+/// snapshot of `cone` on its first m generators.
+pub(crate) fn cone_intervals(cone: &GrowingCone<'_>, m: usize) -> Vec<(f64, f64)> {
+    let mut stats = vec![RunningStats::new(); m];
+    for j in 0..cone.norms().len() {
+        for (st, a) in stats.iter_mut().zip(cone.coeffs(j)) {
+            st.push(*a);
+        }
+    }
+    stats.iter().map(|st| interval(st, true)).collect()
 }
 
 /// The random stream of basis size m: a SplitMix64 hash of m mixed into the seed.
@@ -246,7 +283,8 @@ mod tests {
     use crate::approx::Tol;
     use crate::basis::{cpg, pod_full, CpgParams};
     use crate::cone::nnls_reference;
-    use crate::testing::bumps;
+    use crate::basis::{cpg_path, CpgPathParams};
+    use crate::testing::{bumps, hertz_family};
     use crate::{assert_all_close, assert_close};
 
     fn params(seed: u64) -> SpecificityParams {
@@ -317,7 +355,7 @@ mod tests {
         let basis = full.subcols(0, 7);
         let p = params(6);
         let curve = specificity_cone(s.as_ref(), basis, p, NnlsParams::default()).expect("ok");
-        let ranges = cone_ranges(s.as_ref(), basis, NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges_reference(s.as_ref(), basis, NnlsParams::default()).expect("ok");
         for m in 1..=basis.ncols() {
             let (mean, std) = brute_force(s.as_ref(), basis, &ranges[m - 1], m, p);
             // QR frame vs explicit Theta alpha: round-off (cond(Theta) ~ 10 for bumps); 1e-12.
@@ -336,7 +374,7 @@ mod tests {
         assert!(basis.ncols() > 8, "only {} generators", basis.ncols());
         let p = params(8);
         let curve = specificity_cone(s.as_ref(), basis.as_ref(), p, NnlsParams::default()).expect("ok");
-        let ranges = cone_ranges(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges_reference(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
         for m in 1..=basis.ncols() {
             let (mean, std) = brute_force(s.as_ref(), basis.as_ref(), &ranges[m - 1], m, p);
             // As above; cond(Theta) of overlapping bumps on 8 nodes is larger, still 1e-12
@@ -353,7 +391,7 @@ mod tests {
         let mut rng = Rng::new(83);
         let s = bumps(&mut rng, 30, 10, (2.0, 6.0));
         let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
-        let ranges = cone_ranges(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges_reference(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
         for m in [1, 3, basis.ncols()] {
             let mut stats = vec![RunningStats::new(); m];
             for j in 0..s.ncols() {
@@ -418,7 +456,7 @@ mod tests {
             let second = if i >= 3 && j == 4 { 1.0 } else { 0.0 };
             first + second
         });
-        let ranges = cone_ranges(s.as_ref(), theta.as_ref(), NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges_reference(s.as_ref(), theta.as_ref(), NnlsParams::default()).expect("ok");
         assert_close!(ranges[1][1].0, 0.0, Tol::abs(0.0)); // clipped from 0.2 - 0.4 < 0
         let mut alpha = vec![0.0; 2];
         let mut rng = stream(9, 2);
@@ -464,5 +502,31 @@ mod tests {
         let none = specificity_orth(Mat::<f64>::zeros(4, 3).as_ref(), Mat::<f64>::identity(4, 1).as_ref(), params(7));
         assert_eq!((none.n_zero, none.count[0]), (3, 0));
         assert!(none.mean[0].is_nan());
+    }
+
+    #[test]
+    fn path_intervals_and_curve_equal_the_reference() {
+        let s = hertz_family(&mut Rng::new(89), 101, 64);
+        let path = cpg_path(s.as_ref(), CpgPathParams { max_rank: 64, ..CpgPathParams::default() }, &|| {})
+            .expect("converges");
+        let reference = cone_ranges_reference(s.as_ref(), path.basis.as_ref(), NnlsParams::default()).expect("ok");
+        assert_eq!(path.cone_ranges.len(), reference.len());
+        for (a, b) in path.cone_ranges.iter().zip(&reference) {
+            let flat = |r: &[(f64, f64)]| r.iter().flat_map(|(lo, hi)| [*lo, *hi]).collect::<Vec<_>>();
+            // The same pushes and warm-started projections: bit for bit.
+            assert_all_close!(flat(a), flat(b), Tol::abs(0.0));
+        }
+        let p = params(3);
+        let fast = specificity_cone_path(s.as_ref(), &path, p, &|| {});
+        let slow = specificity_cone(s.as_ref(), path.basis.as_ref(), p, NnlsParams::default()).expect("ok");
+        assert_all_close!(fast.mean, slow.mean, Tol::abs(0.0)); // same intervals, same frame
+        assert_all_close!(fast.std, slow.std, Tol::abs(0.0));
+        // A smaller max rank gives the prefix of the curve (a frame of fewer generators: the
+        // round-off of the tails only, 1e-12).
+        let short = cpg_path(s.as_ref(), CpgPathParams { max_rank: 9, ..CpgPathParams::default() }, &|| {})
+            .expect("converges");
+        let few = specificity_cone_path(s.as_ref(), &short, p, &|| {});
+        assert_eq!(few.len(), 9);
+        assert_all_close!(few.mean, fast.mean[..9], Tol::abs(1e-12));
     }
 }
