@@ -176,10 +176,14 @@ pub(crate) struct LazyGreedy<'a> {
     stamp: Vec<usize>,
     /// Last coefficients of each candidate (warm start of its next projection).
     coeffs: Vec<Vec<f64>>,
+    /// `Theta^T s_j` of each candidate, extended when it is next projected.
+    atb: Vec<Vec<f64>>,
     lambda: Vec<f64>,
     column: Vec<f64>,
     /// Every projection, per snapshot (recorded for the leave-one-out continuations).
     history: Option<Vec<Vec<Refresh>>>,
+    /// Projections computed so far (diagnostics).
+    pub(crate) refreshes: usize,
 }
 
 /// One greedy step: the pick and the freshly projected candidates it was chosen from.
@@ -217,9 +221,11 @@ impl<'a> LazyGreedy<'a> {
             heap: BinaryHeap::new(),
             stamp: vec![0; count],
             coeffs: vec![Vec::new(); count],
+            atb: vec![Vec::new(); count],
             lambda: vec![0.0; s.nrows()],
             column: vec![0.0; s.nrows()],
             history: None,
+            refreshes: 0,
         };
         for (j, err, m, coeffs) in candidates {
             out.stamp[j] = m;
@@ -239,9 +245,14 @@ impl<'a> LazyGreedy<'a> {
         let m = self.projector.ncols();
         self.coeffs[j].resize(m, 0.0);
         copy_column(self.s, j, &mut self.lambda);
-        let residual = self.projector.project_warm(&self.lambda, &mut self.coeffs[j])?;
+        let atb = &mut self.atb[j];
+        for g in atb.len()..m {
+            atb.push(self.projector.dot_column(g, &self.lambda));
+        }
+        let residual = self.projector.project_warm_atb(&self.lambda, atb, &mut self.coeffs[j])?;
         let err = residual / self.norms[j];
         self.stamp[j] = m;
+        self.refreshes += 1;
         if let Some(h) = &mut self.history {
             h[j].push(Refresh { m, err, coeffs: self.coeffs[j].clone() });
         }
@@ -262,6 +273,7 @@ impl<'a> LazyGreedy<'a> {
             let err = if self.stamp[top.j] == m { top.err } else { self.refresh(top.j)? };
             if err <= IN_CONE_REL_TOL {
                 self.coeffs[top.j] = Vec::new(); // in the cone: never a candidate again
+                self.atb[top.j] = Vec::new();
                 continue;
             }
             band.push((top.j, err));
@@ -275,6 +287,7 @@ impl<'a> LazyGreedy<'a> {
             self.heap.push(Bound { err, j });
         }
         self.coeffs[pick] = Vec::new();
+        self.atb[pick] = Vec::new();
         copy_column(self.s, pick, &mut self.column);
         let norm = self.norms[pick];
         self.column.iter_mut().for_each(|v| *v /= norm);
@@ -368,7 +381,7 @@ impl CpgPath {
 
 /// The tolerance-0 CPG path of `s` (n x N) with the metrics' data up to `params.max_rank`;
 /// `tick` is called once per generator of the compactness pass (at most N times).
-pub fn cpg_path(s: MatRef<'_, f64>, params: CpgPathParams, tick: &dyn Fn()) -> Result<CpgPath, ConeError> {
+pub fn cpg_path(s: MatRef<'_, f64>, params: CpgPathParams, tick: &(dyn Fn() + Sync)) -> Result<CpgPath, ConeError> {
     cpg_path_until(s, params, -1.0, tick)
 }
 
@@ -377,7 +390,7 @@ fn cpg_path_until(
     s: MatRef<'_, f64>,
     params: CpgPathParams,
     stop: f64,
-    tick: &dyn Fn(),
+    tick: &(dyn Fn() + Sync),
 ) -> Result<CpgPath, ConeError> {
     let count = s.ncols();
     let norms: Vec<f64> = (0..count).map(|j| s.col(j).norm_l2()).collect();

@@ -450,7 +450,7 @@ pub(crate) fn norm2(v: &[f64]) -> f64 {
 /// `A^T b` for `a` n x k.
 pub(crate) fn at_b(a: MatRef<'_, f64>, b: &[f64], out: &mut [f64]) {
     for (j, o) in out.iter_mut().enumerate() {
-        *o = (0..b.len()).map(|i| a[(i, j)] * b[i]).sum();
+        *o = a.col(j).iter().zip(b).map(|(x, y)| x * y).sum();
     }
 }
 

@@ -13,7 +13,7 @@
 
 use faer::{Mat, MatRef};
 
-use super::nnls::{at_b, norm2, residual_into, ConeError, Nnls, NnlsParams};
+use super::nnls::{at_b, norm2, ConeError, Nnls, NnlsParams};
 
 /// A vector whose relative cone-projection error is at most this is treated as lying in the
 /// cone: it is not re-projected when the cone grows (its error can only decrease) and CPG never
@@ -49,6 +49,8 @@ pub struct ConeProjector {
     cross: Vec<f64>,
     /// Reserved columns of `theta`.
     col_capacity: usize,
+    /// `Theta^T lambda` of [`project_warm`](Self::project_warm).
+    atb_lambda: Vec<f64>,
 }
 
 impl Clone for ConeProjector {
@@ -67,6 +69,7 @@ impl Clone for ConeProjector {
             trial_residual: self.trial_residual.clone(),
             cross: self.cross.clone(),
             col_capacity: self.col_capacity,
+            atb_lambda: Vec::new(),
         }
     }
 }
@@ -86,6 +89,7 @@ impl ConeProjector {
             trial_residual: vec![0.0; n],
             cross: Vec::new(),
             col_capacity: k,
+            atb_lambda: Vec::new(),
         }
     }
 
@@ -145,6 +149,7 @@ impl ConeProjector {
             trial_residual: vec![0.0; n],
             cross: Vec::new(),
             col_capacity: m,
+            atb_lambda: Vec::new(),
         };
         out.resize_workspaces();
         out
@@ -176,15 +181,29 @@ impl ConeProjector {
     /// which enters the most correlated generator first, and the smaller residual is kept.
     pub fn project_warm(&mut self, lambda: &[f64], coeffs: &mut [f64]) -> Result<f64, ConeError> {
         assert_eq!(lambda.len(), self.nrows(), "ConeProjector: vector length differs from n");
+        let mut atb = std::mem::take(&mut self.atb_lambda);
+        atb.resize(self.ncols(), 0.0);
+        at_b(self.theta.as_ref(), lambda, &mut atb);
+        let out = self.project_warm_atb(lambda, &atb, coeffs);
+        self.atb_lambda = atb;
+        out
+    }
+
+    /// [`project_warm`](Self::project_warm) with `Theta^T lambda` given (`atb`, length k), e.g.
+    /// kept per vector and extended by one inner product per new generator
+    /// ([`dot_column`](Self::dot_column)): the same numbers as computing it here.
+    pub fn project_warm_atb(&mut self, lambda: &[f64], atb: &[f64], coeffs: &mut [f64]) -> Result<f64, ConeError> {
+        assert_eq!(lambda.len(), self.nrows(), "ConeProjector: vector length differs from n");
+        assert_eq!(atb.len(), self.ncols(), "ConeProjector: Theta^T lambda has the wrong length");
         let warm = coeffs.iter().any(|c| *c > 0.0);
-        let (mut norm, kkt) = self.solve_refined(lambda, coeffs)?;
+        let (mut norm, kkt) = self.solve_refined(lambda, atb, coeffs)?;
         let tol = self.nnls.params().tol;
         let rel = norm / norm2(lambda).max(f64::MIN_POSITIVE);
         let ambiguous = rel > IN_CONE_REL_TOL && rel < AMBIGUOUS_FACTOR * tol.sqrt();
         if warm && (kkt > tol || ambiguous) {
             let mut cold = std::mem::take(&mut self.cold);
             cold.fill(0.0);
-            let (cold_norm, _) = self.solve_refined(lambda, &mut cold)?;
+            let (cold_norm, _) = self.solve_refined(lambda, atb, &mut cold)?;
             if cold_norm < norm {
                 norm = cold_norm;
                 coeffs.copy_from_slice(&cold);
@@ -194,22 +213,34 @@ impl ConeProjector {
         Ok(norm)
     }
 
+    /// `theta_g^T v`, summed in the order [`project_warm`](Self::project_warm) uses for
+    /// `Theta^T lambda`.
+    pub fn dot_column(&self, g: usize, v: &[f64]) -> f64 {
+        self.theta.col_as_slice(g).iter().zip(v).map(|(a, b)| a * b).sum()
+    }
+
     /// NNLS from `coeffs`, then one refinement step on the passive set
     /// (`alpha_P += G_PP^{-1} Theta_P^T r`, kept only if it stays feasible and lowers the
     /// explicit residual). Returns the residual norm and the NNLS KKT residual.
-    fn solve_refined(&mut self, lambda: &[f64], coeffs: &mut [f64]) -> Result<(f64, f64), ConeError> {
+    ///
+    /// Residuals skip the zero coefficients and the refinement right-hand side is formed on the
+    /// passive columns only (the passive solve reads nothing else): O(n p) instead of O(n k)
+    /// for p passive columns, with the same numbers (a skipped term is `0 * theta`, which can
+    /// only change the sign of a zero).
+    fn solve_refined(&mut self, lambda: &[f64], atb: &[f64], coeffs: &mut [f64]) -> Result<(f64, f64), ConeError> {
+        let stats = self.nnls.solve_normal(atb, coeffs)?;
         let theta = self.theta.as_ref();
-        at_b(theta, lambda, &mut self.atb);
-        let stats = self.nnls.solve_normal(&self.atb, coeffs)?;
-        residual_into(theta, coeffs, lambda, &mut self.residual);
+        residual_sparse_into(theta, coeffs, lambda, &mut self.residual);
         let mut norm = norm2(&self.residual);
-        at_b(theta, &self.residual, &mut self.atb);
+        for &j in self.nnls.passive_set() {
+            self.atb[j] = theta.col(j).iter().zip(&self.residual).map(|(a, b)| a * b).sum();
+        }
         self.nnls.solve_passive(&self.atb, &mut self.correction);
         for ((t, c), d) in self.trial.iter_mut().zip(coeffs.iter()).zip(&self.correction) {
             *t = c + d;
         }
         if self.trial.iter().all(|t| *t >= 0.0) {
-            residual_into(theta, &self.trial, lambda, &mut self.trial_residual);
+            residual_sparse_into(theta, &self.trial, lambda, &mut self.trial_residual);
             let trial_norm = norm2(&self.trial_residual);
             if trial_norm < norm {
                 norm = trial_norm;
@@ -240,6 +271,18 @@ impl ConeProjector {
     }
 }
 
+/// `r = b - A x` over the non-zero entries of x (same order as `residual_into`).
+fn residual_sparse_into(a: MatRef<'_, f64>, x: &[f64], b: &[f64], r: &mut [f64]) {
+    r.copy_from_slice(b);
+    for (j, &xj) in x.iter().enumerate() {
+        if xj != 0.0 {
+            for (ri, aij) in r.iter_mut().zip(a.col(j).iter()) {
+                *ri -= xj * aij;
+            }
+        }
+    }
+}
+
 /// Copy column j of `m` into `out`.
 pub(crate) fn copy_column(m: MatRef<'_, f64>, j: usize, out: &mut [f64]) {
     for (o, v) in out.iter_mut().zip(m.col(j).iter()) {
@@ -253,6 +296,8 @@ pub struct GrowingCone<'a> {
     snapshots: MatRef<'a, f64>,
     projector: ConeProjector,
     coeffs: Vec<Vec<f64>>,
+    /// `Theta^T s_j` of the snapshots not yet in the cone, one entry per generator.
+    atb: Vec<Vec<f64>>,
     residuals: Vec<f64>,
     norms: Vec<f64>,
     lambda: Vec<f64>,
@@ -267,6 +312,7 @@ impl<'a> GrowingCone<'a> {
             snapshots,
             projector: ConeProjector::empty(snapshots.nrows(), params),
             coeffs: vec![Vec::new(); count],
+            atb: vec![Vec::new(); count],
             residuals: norms.clone(),
             norms,
             lambda: vec![0.0; snapshots.nrows()],
@@ -274,14 +320,20 @@ impl<'a> GrowingCone<'a> {
     }
 
     /// Append a generator and re-project every snapshot that is not yet in the cone (relative
-    /// error above [`IN_CONE_REL_TOL`]), warm-started from its previous coefficients.
+    /// error above [`IN_CONE_REL_TOL`]), warm-started from its previous coefficients. Each
+    /// snapshot keeps `Theta^T s_j`, extended by one inner product per generator.
     pub fn push(&mut self, column: &[f64]) -> Result<(), ConeError> {
         self.projector.push_column(column);
+        let k = self.projector.ncols() - 1;
         for j in 0..self.snapshots.ncols() {
             self.coeffs[j].push(0.0);
             if self.residuals[j] > IN_CONE_REL_TOL * self.norms[j] {
                 copy_column(self.snapshots, j, &mut self.lambda);
-                self.residuals[j] = self.projector.project_warm(&self.lambda, &mut self.coeffs[j])?;
+                let atb = &mut self.atb[j];
+                atb.push(self.projector.dot_column(k, &self.lambda));
+                self.residuals[j] = self.projector.project_warm_atb(&self.lambda, atb, &mut self.coeffs[j])?;
+            } else if !self.atb[j].is_empty() {
+                self.atb[j] = Vec::new(); // in the cone: never projected again
             }
         }
         Ok(())
@@ -330,6 +382,7 @@ impl<'a> GrowingCone<'a> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::nnls::residual_into;
     use super::*;
     use crate::approx::Tol;
     use crate::rng::Rng;

@@ -325,15 +325,20 @@ fn continue_fold(s: MatRef<'_, f64>, path: &CpgPath, i: usize, max_m: usize, c: 
     let (mut coeffs, mut residual) = d.start[i].clone().expect("cpg_path records the start of folds up to max_rank");
     let mut lambda = vec![0.0; s.nrows()];
     copy_column(s, i, &mut lambda);
+    let mut atb: Vec<f64> = (0..t - 1).map(|g| lazy.projector.dot_column(g, &lambda)).collect();
     while lazy.len() < max_m {
         if lazy.step()?.is_none() {
             break;
         }
         coeffs.push(0.0);
         if residual > IN_CONE_REL_TOL * d.norms[i] {
-            residual = lazy.projector.project_warm(&lambda, &mut coeffs)?;
+            atb.push(lazy.projector.dot_column(lazy.len() - 1, &lambda));
+            residual = lazy.projector.project_warm_atb(&lambda, &atb, &mut coeffs)?;
         }
         c.push(norm2(&[residual]) / d.single_norms[i]);
+    }
+    if std::env::var_os("CROM_DEBUG_LOO").is_some() {
+        eprintln!("fold {i}: from {} to {} generators, {} projections", t - 1, lazy.len(), lazy.refreshes);
     }
     Ok(lazy.len())
 }

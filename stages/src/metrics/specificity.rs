@@ -102,17 +102,20 @@ pub fn specificity_cone(
     Ok(specificity_cone_with(s, cone_basis, &ranges, params, &|| {}))
 }
 
-/// S(m) for m = 1..=min(k, path.max_rank) on the CPG path of `s` (the path of these
-/// snapshots, [`cpg_path`](crate::basis::cpg_path) with `max_rank` set), with the intervals
-/// recorded by the path; `tick` is called once per m.
+/// S(m) for m = 1..=min(max_m, k, path.max_rank) on the cone of the first m generators of the
+/// CPG path of `s` (the path of these snapshots, [`cpg_path`](crate::basis::cpg_path) with
+/// `max_rank` set), with the intervals recorded by the path; `tick` is called once per m.
+/// With `max_m` = the size of a CPG basis (a prefix of the path) this is
+/// [`specificity_cone`] of that basis, bit for bit.
 pub fn specificity_cone_path(
     s: MatRef<'_, f64>,
     path: &CpgPath,
+    max_m: usize,
     params: SpecificityParams,
     tick: &(dyn Fn() + Sync),
 ) -> MetricCurve {
-    let m = path.cone_ranges.len();
-    specificity_cone_with(s, path.basis.subcols(0, m), &path.cone_ranges, params, tick)
+    let m = path.cone_ranges.len().min(max_m);
+    specificity_cone_with(s, path.basis.subcols(0, m), &path.cone_ranges[..m], params, tick)
 }
 
 fn specificity_cone_with(
@@ -517,7 +520,7 @@ mod tests {
             assert_all_close!(flat(a), flat(b), Tol::abs(0.0));
         }
         let p = params(3);
-        let fast = specificity_cone_path(s.as_ref(), &path, p, &|| {});
+        let fast = specificity_cone_path(s.as_ref(), &path, usize::MAX, p, &|| {});
         let slow = specificity_cone(s.as_ref(), path.basis.as_ref(), p, NnlsParams::default()).expect("ok");
         assert_all_close!(fast.mean, slow.mean, Tol::abs(0.0)); // same intervals, same frame
         assert_all_close!(fast.std, slow.std, Tol::abs(0.0));
@@ -525,7 +528,7 @@ mod tests {
         // round-off of the tails only, 1e-12).
         let short = cpg_path(s.as_ref(), CpgPathParams { max_rank: 9, ..CpgPathParams::default() }, &|| {})
             .expect("converges");
-        let few = specificity_cone_path(s.as_ref(), &short, p, &|| {});
+        let few = specificity_cone_path(s.as_ref(), &short, usize::MAX, p, &|| {});
         assert_eq!(few.len(), 9);
         assert_all_close!(few.mean, fast.mean[..9], Tol::abs(1e-12));
     }
