@@ -255,18 +255,35 @@ fn scaling() {
                 let folds = (0..count).map(|i| loo_fold_cone(s.as_ref(), &path, i, max_m).expect("fold"));
                 combine_folds(folds.collect::<Vec<_>>(), max_m)
             });
-            let sample: Vec<usize> = if count <= 128 { (0..count).collect() } else { (0..count).step_by(count / 4).collect() };
+            let sample: Vec<usize> =
+                if count <= 128 { (0..count).collect() } else { (0..count).step_by(count / 4).collect() };
             let (ref_folds, t_ref) = time(|| {
-                sample.iter().map(|&i| loo_fold_cone_reference(s.as_ref(), i, max_m, nnls).expect("fold")).collect::<Vec<_>>()
+                sample
+                    .iter()
+                    .map(|&i| loo_fold_cone_reference(s.as_ref(), i, max_m, nnls).expect("fold"))
+                    .collect::<Vec<_>>()
             });
             let t_ref_all = t_ref.mul_f64(count as f64 / sample.len() as f64);
-            row(rows, count, &format!("cone LOO, {count} folds, m <= {max_m}"), t_loo, t_ref_all, sample.len() < count, target_cone);
+            row(
+                rows,
+                count,
+                &format!("cone LOO, {count} folds, m <= {max_m}"),
+                t_loo,
+                t_ref_all,
+                sample.len() < count,
+                target_cone,
+            );
             if count == 128 {
                 let slow_curve = combine_folds(&ref_folds, max_m);
                 let (rel, abs) = rel_diff(&curve.mean, &slow_curve.mean, 1e-8);
-                agreement.borrow_mut().push(format!("| {rows} | G(m) dual cone mean, m = 1..{max_m} | {rel:.1e} | {abs:.1e} |"));
+                agreement
+                    .borrow_mut()
+                    .push(format!("| {rows} | G(m) dual cone mean, m = 1..{max_m} | {rel:.1e} | {abs:.1e} |"));
                 let (rel, abs) = rel_diff(&fast.compactness, &slow.compactness, 1e-8);
-                agreement.borrow_mut().push(format!("| {rows} | C(m) dual cone, m = 0..{} | {rel:.1e} | {abs:.1e} |", fast.selected.len()));
+                agreement.borrow_mut().push(format!(
+                    "| {rows} | C(m) dual cone, m = 0..{} | {rel:.1e} | {abs:.1e} |",
+                    fast.selected.len()
+                ));
             }
             // Orthogonal LOO in QR coordinates: left vectors only in a reused buffer vs copy + thin SVD.
             let loo = LooOrth::new(s.as_ref()).expect("qr");
@@ -274,7 +291,8 @@ fn scaling() {
                 let mut ws = loo.workspace();
                 (0..count).map(|i| loo.fold_with(i, max_m, &mut ws).expect("fold")).collect::<Vec<_>>()
             });
-            let sample: Vec<usize> = if count <= 128 { (0..count).collect() } else { (0..count).step_by(count / 16).collect() };
+            let sample: Vec<usize> =
+                if count <= 128 { (0..count).collect() } else { (0..count).step_by(count / 16).collect() };
             let (ref_orth, t_ref) =
                 time(|| sample.iter().map(|&i| loo.fold_reference(i, max_m).expect("fold")).collect::<Vec<_>>());
             let t_ref_all = t_ref.mul_f64(count as f64 / sample.len() as f64);
@@ -282,18 +300,24 @@ fn scaling() {
             if count == 128 {
                 let (a, b) = (combine_folds(&fast_orth, max_m), combine_folds(&ref_orth, max_m));
                 let (rel, abs) = rel_diff(&a.mean, &b.mean, 1e-8);
-                agreement.borrow_mut().push(format!("| {rows} | G(m) dual orth mean, m = 1..{max_m} | {rel:.1e} | {abs:.1e} |"));
+                agreement
+                    .borrow_mut()
+                    .push(format!("| {rows} | G(m) dual orth mean, m = 1..{max_m} | {rel:.1e} | {abs:.1e} |"));
                 // Specificity from the path's intervals vs its own cone pass.
                 let path = cpg_path(s.as_ref(), CpgPathParams { nnls, max_rank: count }, &|| {}).expect("path");
                 let sp = SpecificityParams { samples: 1000, seed: 2023 };
                 let a = specificity_cone_path(s.as_ref(), &path, usize::MAX, sp, &|| {});
                 let b = specificity_cone(s.as_ref(), path.basis.as_ref(), sp, nnls).expect("S cone");
                 let (rel, abs) = rel_diff(&a.mean, &b.mean, 1e-8);
-                agreement.borrow_mut().push(format!("| {rows} | S(m) dual cone mean, m = 1..{} | {rel:.1e} | {abs:.1e} |", a.len()));
+                agreement
+                    .borrow_mut()
+                    .push(format!("| {rows} | S(m) dual cone mean, m = 1..{} | {rel:.1e} | {abs:.1e} |", a.len()));
                 let ranges = cone_ranges_reference(s.as_ref(), path.basis.as_ref(), nnls).expect("ranges");
                 let flat = |r: &[Vec<(f64, f64)>]| r.iter().flatten().flat_map(|(l, h)| [*l, *h]).collect::<Vec<_>>();
                 let (rel, abs) = rel_diff(&flat(&path.cone_ranges), &flat(&ranges), 0.0);
-                agreement.borrow_mut().push(format!("| {rows} | specificity intervals (all m) | {rel:.1e} | {abs:.1e} |"));
+                agreement
+                    .borrow_mut()
+                    .push(format!("| {rows} | specificity intervals (all m) | {rel:.1e} | {abs:.1e} |"));
             }
         }
     }

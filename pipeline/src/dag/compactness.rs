@@ -28,8 +28,10 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key
         let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
         let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
         // C(m) of the stored cone basis: the prefix of the CPG path's curve (the same pass).
-        let path = basis::dual_path(progress, train, &set.dual, max_rank).map_err(|message| {
-            CromError::Numerical { stage: "compactness", scene: scene.clone(), message }
+        let path = basis::dual_path(progress, train, &set.dual, max_rank).map_err(|message| CromError::Numerical {
+            stage: "compactness",
+            scene: scene.clone(),
+            message,
         })?;
         let cone = path.compactness[..=b.dual_cpg.cols.min(path.len())].to_vec();
         let mut t = Rows::default();

@@ -126,8 +126,8 @@ pub(crate) fn specificity(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Re
     ctx.single(ArtifactKind::Specificity, "specificity", &spec, |staging| {
         let set = trainset::load_from(store, train)?;
         let b = basis::load_from(store, basis_key)?;
-        let path = basis::dual_path(progress, train, &set.dual, max_rank)
-            .map_err(|e| numerical(&scene, "specificity", e))?;
+        let path =
+            basis::dual_path(progress, train, &set.dual, max_rank).map_err(|e| numerical(&scene, "specificity", e))?;
         let pm = view(&b.primal_pod).subcols(0, b.primal_pod.cols.min(max_rank));
         let dm = view(&b.dual_pod).subcols(0, b.dual_pod.cols.min(max_rank));
         // The stored cone basis is a prefix of the path: the same m range as computing on it.

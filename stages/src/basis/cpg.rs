@@ -182,8 +182,6 @@ pub(crate) struct LazyGreedy<'a> {
     column: Vec<f64>,
     /// Every projection, per snapshot (recorded for the leave-one-out continuations).
     history: Option<Vec<Vec<Refresh>>>,
-    /// Projections computed so far (diagnostics).
-    pub(crate) refreshes: usize,
 }
 
 /// One greedy step: the pick and the freshly projected candidates it was chosen from.
@@ -196,9 +194,9 @@ pub(crate) struct Step {
 
 impl<'a> LazyGreedy<'a> {
     /// The empty cone: every non-zero snapshot is a candidate with its exact error
-    /// `||s_j|| / ||s_j|| = 1`.
+    /// `||s_j|| / ||s_j||`, exactly 1 in floating point (x / x = 1 for finite x != 0).
     fn new(s: MatRef<'a, f64>, norms: &'a [f64], nnls: NnlsParams, record: bool) -> Self {
-        let candidates = (0..s.ncols()).filter(|&j| norms[j] > 0.0).map(|j| (j, norms[j] / norms[j], 0, Vec::new()));
+        let candidates = (0..s.ncols()).filter(|&j| norms[j] > 0.0).map(|j| (j, 1.0, 0, Vec::new()));
         let projector = ConeProjector::empty(s.nrows(), nnls);
         let mut out = Self::resume(s, norms, projector, candidates);
         out.history = record.then(|| vec![Vec::new(); s.ncols()]);
@@ -225,7 +223,6 @@ impl<'a> LazyGreedy<'a> {
             lambda: vec![0.0; s.nrows()],
             column: vec![0.0; s.nrows()],
             history: None,
-            refreshes: 0,
         };
         for (j, err, m, coeffs) in candidates {
             out.stamp[j] = m;
@@ -252,7 +249,6 @@ impl<'a> LazyGreedy<'a> {
         let residual = self.projector.project_warm_atb(&self.lambda, atb, &mut self.coeffs[j])?;
         let err = residual / self.norms[j];
         self.stamp[j] = m;
-        self.refreshes += 1;
         if let Some(h) = &mut self.history {
             h[j].push(Refresh { m, err, coeffs: self.coeffs[j].clone() });
         }
@@ -296,20 +292,14 @@ impl<'a> LazyGreedy<'a> {
     }
 }
 
-/// Parameters of [`cpg_path`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Parameters of [`cpg_path`] (default: default NNLS parameters, `max_rank` 0).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct CpgPathParams {
     /// Parameters of the cone projections.
     pub nnls: NnlsParams,
     /// Record the metrics' data (specificity intervals, leave-one-out errors) for
     /// m = 1..=max_rank (capped at the basis size). 0 records nothing.
     pub max_rank: usize,
-}
-
-impl Default for CpgPathParams {
-    fn default() -> Self {
-        Self { nnls: NnlsParams::default(), max_rank: 0 }
-    }
 }
 
 /// The whole tolerance-0 CPG path of a snapshot set, shared by the basis (any tolerance is a
@@ -445,15 +435,7 @@ fn cpg_path_until(
     let basis = lazy.projector.basis().to_owned();
     let history = lazy.history.take().unwrap_or_default();
     let projector = record.then_some(lazy.projector);
-    let loo = LooData {
-        norms,
-        single_norms,
-        diverge,
-        errors,
-        start,
-        history,
-        projector,
-    };
+    let loo = LooData { norms, single_norms, diverge, errors, start, history, projector };
     Ok(CpgPath { basis, selected, compactness, max_rank: requested, cone_ranges, loo })
 }
 
@@ -620,7 +602,8 @@ mod tests {
                 let slow = cpg_reference(s.as_ref(), CpgParams { tol, ..CpgParams::default() }).expect("ok");
                 let fast = cpg(s.as_ref(), CpgParams { tol, ..CpgParams::default() }).expect("ok");
                 assert_eq!(fast.selected, slow.selected, "tol {tol}");
-                assert_all_close!(fast.compactness, slow.compactness, Tol::abs(0.0)); // as above
+                assert_all_close!(fast.compactness, slow.compactness, Tol::abs(0.0));
+                // as above
             }
         }
         let s = &cases[0];

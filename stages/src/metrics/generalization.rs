@@ -24,9 +24,35 @@
 //! * A duplicated snapshot left out is still in the span / cone of the other folds' bases:
 //!   its error is round-off at full rank.
 //!
-//! Folds are independent. [`LooOrth::fold`] and [`loo_fold_cone`] compute one fold each (the
-//! pipeline runs them in parallel), [`combine_folds`] reduces them to a [`MetricCurve`], and
-//! [`generalization_orth`] / [`generalization_cone`] do all folds sequentially.
+//! Folds are independent. [`LooOrth::fold_with`] and [`loo_fold_cone`] compute one fold each
+//! (the pipeline runs them in parallel), [`combine_folds`] reduces them to a [`MetricCurve`], and
+//! [`generalization_orth`] / [`generalization_cone`] do all folds sequentially. The direct
+//! definitions are kept as references: [`loo_fold_orth`], [`LooOrth::fold_reference`] and
+//! [`loo_fold_cone_reference`] / [`generalization_cone_reference`].
+//!
+//! # Cone folds share the greedy path
+//!
+//! The CPG of `S \ s_i` follows the full set's selection until the step `t_i` at which the
+//! full run picks `s_i`: before it, both runs see the same cone and the same errors of every
+//! other snapshot (each snapshot's warm-started projections depend only on the generators
+//! pushed and on the snapshot), so the same scan picks the same generator. Removing `s_i` can
+//! also change a scan it does not win when it is a running best that carries a tie to the
+//! winner (the tie rule is not transitive); [`cpg_path`] checks every running best of every
+//! step and moves `t_i` earlier where that happens. The tolerance-0 stop agrees as well:
+//! `C(m) = 0` means every snapshot is in the cone, and before `t_i` the full run's pick is still
+//! a candidate of the fold. So:
+//!
+//! * the errors of `s_i` on the first m < t_i generators are the ones the path's compactness
+//!   pass computed for `s_i` (the same warm-started chain as the direct fold's);
+//! * a snapshot never selected (`t_i = inf`: it is in the cone of the others) has the full
+//!   basis as its fold's basis;
+//! * a fold with `t_i <= max_m` continues on its own from the cone of the first `t_i - 1`
+//!   generators ([`ConeProjector::prefix`](crate::cone::ConeProjector::prefix)), with the full
+//!   run's last lazy bounds and coefficients of the other candidates at that cone size as its
+//!   start, until `max_m` generators; `s_i`'s chain continues from its recorded coefficients.
+//!
+//! A fold costs O(max_m - t_i) lazy greedy steps instead of a whole CPG (O(N^2) projections),
+//! and no C(m) of the fold is needed (only `s_i`'s own errors enter G).
 //!
 //! # Orthogonal folds in reduced coordinates
 //!
@@ -45,14 +71,16 @@
 
 use std::borrow::Borrow;
 
+use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
-use faer::diag::Diag;
 use faer::{Mat, MatRef, Par};
 
 use super::compactness::compactness_cone_with;
 use super::stats::{MetricCurve, RunningStats};
-use crate::basis::{cpg_path, cpg_reference, numerical_rank, pod_full, CpgParams, CpgPath, CpgPathParams, LazyGreedy, PodError};
+use crate::basis::{
+    cpg_path, cpg_reference, numerical_rank, pod_full, CpgParams, CpgPath, CpgPathParams, LazyGreedy, PodError,
+};
 use crate::cone::{copy_column, norm2, ConeError, NnlsParams, IN_CONE_REL_TOL};
 
 /// The relative projection errors of one left-out snapshot.
@@ -269,12 +297,7 @@ pub fn generalization_cone(s: MatRef<'_, f64>, max_m: usize, nnls: NnlsParams) -
 /// when `||s_i|| = 0`. Equals [`loo_fold_cone_reference`] (see the module docs); `basis_len`
 /// is exact below `max_m` and otherwise a lower bound `>= max_m` (the fold stops growing at
 /// `max_m`).
-pub fn loo_fold_cone(
-    s: MatRef<'_, f64>,
-    path: &CpgPath,
-    i: usize,
-    max_m: usize,
-) -> Result<Option<LooFold>, ConeError> {
+pub fn loo_fold_cone(s: MatRef<'_, f64>, path: &CpgPath, i: usize, max_m: usize) -> Result<Option<LooFold>, ConeError> {
     let d = &path.loo;
     assert_eq!(s.ncols(), d.norms.len(), "loo_fold_cone: the path is of another snapshot set");
     assert!(i < s.ncols(), "loo_fold_cone: fold {i} out of {} snapshots", s.ncols());
@@ -306,7 +329,13 @@ pub fn loo_fold_cone(
 /// and coefficients from the full run's lazy projections at cone size <= t - 1, then the lazy
 /// greedy on its own until max_m generators or none is left; the error of s_i continues its
 /// warm-started chain of the full path's pass. Returns the fold's basis size.
-fn continue_fold(s: MatRef<'_, f64>, path: &CpgPath, i: usize, max_m: usize, c: &mut Vec<f64>) -> Result<usize, ConeError> {
+fn continue_fold(
+    s: MatRef<'_, f64>,
+    path: &CpgPath,
+    i: usize,
+    max_m: usize,
+    c: &mut Vec<f64>,
+) -> Result<usize, ConeError> {
     let d = &path.loo;
     let t = d.diverge[i];
     let projector = d.projector.as_ref().expect("cpg_path records the cone for max_rank > 0").prefix(t - 1);
@@ -317,7 +346,7 @@ fn continue_fold(s: MatRef<'_, f64>, path: &CpgPath, i: usize, max_m: usize, c: 
         let last = h.partition_point(|r| r.m < t);
         let (err, m, coeffs) = match last.checked_sub(1).map(|q| &h[q]) {
             Some(r) => (r.err, r.m, r.coeffs.clone()),
-            None => (d.norms[j] / d.norms[j], 0, Vec::new()),
+            None => (1.0, 0, Vec::new()), // empty cone: ||s_j|| / ||s_j|| = 1 exactly
         };
         (err > IN_CONE_REL_TOL).then_some((j, err, m, coeffs))
     });
@@ -336,9 +365,6 @@ fn continue_fold(s: MatRef<'_, f64>, path: &CpgPath, i: usize, max_m: usize, c: 
             residual = lazy.projector.project_warm_atb(&lambda, &atb, &mut coeffs)?;
         }
         c.push(norm2(&[residual]) / d.single_norms[i]);
-    }
-    if std::env::var_os("CROM_DEBUG_LOO").is_some() {
-        eprintln!("fold {i}: from {} to {} generators, {} projections", t - 1, lazy.len(), lazy.refreshes);
     }
     Ok(lazy.len())
 }
@@ -371,8 +397,7 @@ pub fn generalization_cone_reference(
     max_m: usize,
     nnls: NnlsParams,
 ) -> Result<MetricCurve, ConeError> {
-    let folds =
-        (0..s.ncols()).map(|i| loo_fold_cone_reference(s, i, max_m, nnls)).collect::<Result<Vec<_>, _>>()?;
+    let folds = (0..s.ncols()).map(|i| loo_fold_cone_reference(s, i, max_m, nnls)).collect::<Result<Vec<_>, _>>()?;
     Ok(combine_folds(&folds, max_m))
 }
 
@@ -511,7 +536,8 @@ mod tests {
             let x = r as f64 / n as f64;
             (rng.uniform_in(0.0, 1.0) * (1.0 - (x - 0.5).powi(2) * 3.0)).max(0.0)
         });
-        let fold = loo_fold_cone_reference(s.as_ref(), i, count - 1, NnlsParams::default()).expect("ok").expect("nonzero");
+        let fold =
+            loo_fold_cone_reference(s.as_ref(), i, count - 1, NnlsParams::default()).expect("ok").expect("nonzero");
         let basis = cpg_reference(without_column(s.as_ref(), i).as_ref(), CpgParams::default()).expect("ok").basis;
         assert_eq!(fold.basis_len, basis.ncols());
         let b: Vec<f64> = s.col(i).iter().copied().collect();
@@ -594,8 +620,8 @@ mod tests {
 
     /// Every cone fold from the shared path against the direct fold (a whole CPG without s_i).
     fn check_cone_folds(s: MatRef<'_, f64>, max_m: usize) -> usize {
-        let path = cpg_path(s, CpgPathParams { max_rank: max_m, ..CpgPathParams::default() }, &|| {})
-            .expect("converges");
+        let path =
+            cpg_path(s, CpgPathParams { max_rank: max_m, ..CpgPathParams::default() }, &|| {}).expect("converges");
         let mut continued = 0;
         for i in 0..s.ncols() {
             continued += usize::from(path.loo.diverge[i] <= max_m);

@@ -285,8 +285,8 @@ mod tests {
     use super::*;
     use crate::approx::Tol;
     use crate::basis::{cpg, pod_full, CpgParams};
-    use crate::cone::nnls_reference;
     use crate::basis::{cpg_path, CpgPathParams};
+    use crate::cone::nnls_reference;
     use crate::testing::{bumps, hertz_family};
     use crate::{assert_all_close, assert_close};
 
@@ -526,8 +526,8 @@ mod tests {
         assert_all_close!(fast.std, slow.std, Tol::abs(0.0));
         // A smaller max rank gives the prefix of the curve (a frame of fewer generators: the
         // round-off of the tails only, 1e-12).
-        let short = cpg_path(s.as_ref(), CpgPathParams { max_rank: 9, ..CpgPathParams::default() }, &|| {})
-            .expect("converges");
+        let short =
+            cpg_path(s.as_ref(), CpgPathParams { max_rank: 9, ..CpgPathParams::default() }, &|| {}).expect("converges");
         let few = specificity_cone_path(s.as_ref(), &short, usize::MAX, p, &|| {});
         assert_eq!(few.len(), 9);
         assert_all_close!(few.mean, fast.mean[..9], Tol::abs(1e-12));
