@@ -3,6 +3,7 @@
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 use crom_schemas::artifact::{basis as names, ArtifactKind};
 use crom_stages::basis::{cpg_path, pod, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
@@ -45,13 +46,40 @@ pub(crate) fn dual_path(
             return Ok(Arc::clone(path));
         }
     }
-    let bar = Mutex::new(ctx_progress.stage("CPG path", dual.cols));
-    let tick = || bar.lock().unwrap_or_else(|e| e.into_inner()).inc("generator");
+    let bar = Ticker::new(ctx_progress, "CPG path", dual.cols);
     let params = CpgPathParams { nnls: NnlsParams::default(), max_rank };
-    let path = Arc::new(cpg_path(view(dual), params, &tick).map_err(|e| e.to_string())?);
-    bar.into_inner().unwrap_or_else(|e| e.into_inner()).finish(&format!("{} generators", path.len()));
+    let path = Arc::new(cpg_path(view(dual), params, &|| bar.tick("generators")).map_err(|e| e.to_string())?);
+    bar.finish(&format!("{} generators", path.len()));
     *memo = Some((train.0.clone(), max_rank, Arc::clone(&path)));
     Ok(path)
+}
+
+/// A stage progress bar that parallel work can tick, with an ETA in its message (from the mean
+/// time per item so far).
+pub(crate) struct Ticker {
+    bar: Mutex<(crate::progress::StageProgress, usize)>,
+    len: usize,
+    start: Instant,
+}
+
+impl Ticker {
+    pub(crate) fn new(progress: crate::progress::Progress, name: &str, len: usize) -> Self {
+        Self { bar: Mutex::new((progress.stage(name, len), 0)), len, start: Instant::now() }
+    }
+
+    /// One more item of kind `what` done.
+    pub(crate) fn tick(&self, what: &str) {
+        let mut guard = self.bar.lock().unwrap_or_else(|e| e.into_inner());
+        guard.1 += 1;
+        let done = guard.1;
+        let per_item = self.start.elapsed().as_secs_f64() / done as f64;
+        let eta = per_item * self.len.saturating_sub(done) as f64;
+        guard.0.inc(&format!("{what}, ETA {eta:.0} s"));
+    }
+
+    pub(crate) fn finish(self, outcome: &str) {
+        self.bar.into_inner().unwrap_or_else(|e| e.into_inner()).0.finish(outcome);
+    }
 }
 
 /// The resolved `study.max_rank` of the scene (every m up to 256 training snapshots).

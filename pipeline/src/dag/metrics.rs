@@ -3,7 +3,6 @@
 //! (eq. 18, seeded sampling) and the nested-training-set error H(n) (eq. 19).
 
 use std::collections::BTreeMap;
-use std::sync::Mutex;
 
 use crom_schemas::artifact::{metrics as names, ArtifactKind};
 use crom_stages::cone::NnlsParams;
@@ -14,6 +13,7 @@ use crom_stages::metrics::{
 use rayon::prelude::*;
 use serde_json::json;
 
+use super::basis::Ticker;
 use super::convert::view;
 use super::{basis, trainset, Ctx};
 use crate::cache::{Key, KeySpec};
@@ -26,23 +26,6 @@ const ALGORITHM_VERSION: u32 = 1;
 
 fn numerical(scene: &str, stage: &'static str, e: impl std::fmt::Display) -> CromError {
     CromError::Numerical { stage, scene: scene.to_string(), message: e.to_string() }
-}
-
-/// A progress bar of `len` items that parallel folds can tick.
-struct Ticker(Mutex<crate::progress::StageProgress>);
-
-impl Ticker {
-    fn new(progress: crate::progress::Progress, name: &str, len: usize) -> Self {
-        Self(Mutex::new(progress.stage(name, len)))
-    }
-
-    fn tick(&self, what: &str) {
-        self.0.lock().unwrap_or_else(|e| e.into_inner()).inc(what);
-    }
-
-    fn finish(self, outcome: &str) {
-        self.0.into_inner().unwrap_or_else(|e| e.into_inner()).finish(outcome);
-    }
 }
 
 /// G(m) for primal orth, dual orth and dual cone, m = 1..=min(N - 1, max_rank).
