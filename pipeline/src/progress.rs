@@ -22,9 +22,10 @@ impl Progress {
     pub fn stage(&self, name: &str, len: usize) -> StageProgress {
         let bar = if self.tty && !self.quiet {
             let bar = ProgressBar::new(len as u64);
-            let style = ProgressStyle::with_template("{prefix:>12.bold} [{bar:32}] {pos}/{len} {msg} ({elapsed})")
-                .unwrap_or_else(|_| ProgressStyle::default_bar())
-                .progress_chars("=> ");
+            let style =
+                ProgressStyle::with_template("{prefix:>12.bold} [{bar:32}] {pos}/{len} {msg} ({elapsed}, ETA {eta})")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar())
+                    .progress_chars("=> ");
             bar.set_style(style);
             bar.set_prefix(name.to_string());
             bar.enable_steady_tick(Duration::from_millis(200));
@@ -64,7 +65,10 @@ impl StageProgress {
             b.set_message(what.to_string());
             b.inc(1);
         } else if !self.quiet && (self.last_line.elapsed() >= Duration::from_secs(2) || self.done == self.len) {
-            eprintln!("{:>12} {}/{} {what}", self.name, self.done, self.len);
+            // ETA from the mean time per item so far.
+            let per_item = self.start.elapsed().as_secs_f64() / self.done as f64;
+            let eta = per_item * self.len.saturating_sub(self.done) as f64;
+            eprintln!("{:>12} {}/{} {what} (ETA {eta:.0} s)", self.name, self.done, self.len);
             self.last_line = Instant::now();
         }
     }

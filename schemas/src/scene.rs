@@ -194,6 +194,24 @@ pub struct StudySpec {
     pub specificity_samples: usize,
     /// Seed of the specificity sampler.
     pub seed: u64,
+    /// Largest basis size m of the generalization and specificity curves (>= 1, optional).
+    /// Default: every m while the training set has at most [`DEFAULT_MAX_RANK`] snapshots,
+    /// [`DEFAULT_MAX_RANK`] beyond (see [`StudySpec::max_rank_for`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_rank: Option<usize>,
+}
+
+/// The default cap of the metric curves' basis size for training sets larger than this.
+pub const DEFAULT_MAX_RANK: usize = 256;
+
+impl StudySpec {
+    /// The largest basis size m the metric curves cover for `n_snapshots` training snapshots:
+    /// `study.max_rank` if set, else `n_snapshots` (every m) up to [`DEFAULT_MAX_RANK`]
+    /// snapshots and [`DEFAULT_MAX_RANK`] beyond. Curves also stop at the basis size (and at
+    /// N - 1 for leave-one-out), so a cap above those changes nothing.
+    pub fn max_rank_for(&self, n_snapshots: usize) -> usize {
+        self.max_rank.unwrap_or(if n_snapshots <= DEFAULT_MAX_RANK { n_snapshots } else { DEFAULT_MAX_RANK })
+    }
 }
 
 impl SceneConfig {

@@ -227,7 +227,15 @@ fn check_study(c: &Checker<'_>, s: &StudySpec) -> Result<(), SceneError> {
     c.tolerance("study.dual_orth_tol", s.dual_orth_tol)?;
     c.tolerance("study.dual_cone_tol", s.dual_cone_tol)?;
     c.tolerance("study.dual_cone_tol_truncated", s.dual_cone_tol_truncated)?;
-    c.at_least("study.specificity_samples", s.specificity_samples, 1)
+    c.at_least("study.specificity_samples", s.specificity_samples, 1)?;
+    match s.max_rank {
+        Some(0) => Err(c.fail(
+            "study.max_rank",
+            "is 0: the metric curves would have no basis size at all".into(),
+            "give the largest basis size m to compute (>= 1), or remove the key to compute every m up to 256",
+        )),
+        _ => Ok(()),
+    }
 }
 
 fn check_rope(c: &Checker<'_>, r: &RopeSpec) -> Result<(), SceneError> {

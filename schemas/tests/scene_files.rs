@@ -140,3 +140,19 @@ fn vector_parameters_are_checked_against_the_model() {
     let err = SceneConfig::from_toml_str(&big, Path::new("bad.toml")).expect_err("too many points");
     assert_names(&err, &["parameter", "training points"]);
 }
+
+#[test]
+fn max_rank_is_optional_and_positive() {
+    let cfg = SceneConfig::from_toml_str(&rope_text(), Path::new("rope.toml")).expect("shipped scene");
+    assert_eq!(cfg.study.max_rank, None);
+    // Default: every m up to 256 snapshots, 256 beyond.
+    assert_eq!((cfg.study.max_rank_for(128), cfg.study.max_rank_for(256)), (128, 256));
+    assert_eq!(cfg.study.max_rank_for(512), 256);
+    let text = rope_text().replace("seed = ", "max_rank = 40\nseed = ");
+    let cfg = SceneConfig::from_toml_str(&text, Path::new("rope.toml")).expect("max_rank = 40 is valid");
+    assert_eq!((cfg.study.max_rank, cfg.study.max_rank_for(512)), (Some(40), 40));
+    let text = rope_text().replace("seed = ", "max_rank = 0\nseed = ");
+    assert_names(&load_err(&text), &["study.max_rank", "is 0"]);
+    let text = rope_text().replace("seed = ", "max_rank = -3\nseed = ");
+    assert_names(&load_err(&text), &["max_rank"]);
+}

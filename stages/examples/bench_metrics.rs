@@ -4,15 +4,21 @@
 //! from 0.75 + a to 4.25 - a. Also a primal-sized (n = 24 000) smooth field for the POD
 //! metrics, where the leave-one-out folds run in reduced QR coordinates.
 //!
-//! `cargo run --release -p crom-stages --example bench_metrics` prints a markdown table.
+//! A second table times the fast metric algorithms against the kept reference implementations
+//! at N = 128, 256, 512 (n = 101 and 201 rows, ironing-coarse / ironing-fine sized), single
+//! threaded, with the targets of issue 8, and the agreement of the numbers at N = 128.
+//!
+//! `cargo run --release -p crom-stages --example bench_metrics` prints markdown tables
+//! (`-- scaling` prints only the second).
 
 use std::time::{Duration, Instant};
 
-use crom_stages::basis::{cpg, pod_full, CpgParams};
+use crom_stages::basis::{cpg, cpg_path, cpg_reference, pod_full, CpgParams, CpgPathParams};
 use crom_stages::cone::{nnls, nnls_reference, ConeProjector, NnlsParams};
 use crom_stages::metrics::{
-    compactness_cone, generalization_cone, generalization_orth, loo_fold_orth, nested_error_cone, nested_error_orth,
-    specificity_cone, specificity_orth, LooOrth, MetricCurve, SpecificityParams,
+    combine_folds, compactness_cone, cone_ranges_reference, generalization_cone, generalization_orth, loo_fold_cone,
+    loo_fold_cone_reference, loo_fold_orth, nested_error_cone, nested_error_orth, specificity_cone,
+    specificity_cone_path, specificity_orth, LooOrth, MetricCurve, SpecificityParams,
 };
 use faer::{Mat, MatRef};
 
@@ -21,8 +27,13 @@ const HALF_WIDTH: f64 = 0.2;
 
 /// Pressure bumps centred at `centres` on x = linspace(0, 5, 201).
 fn bumps(centres: &[f64]) -> Mat<f64> {
-    Mat::from_fn(N_NODES, centres.len(), |i, k| {
-        let x = 5.0 * i as f64 / (N_NODES - 1) as f64;
+    bumps_on(N_NODES, centres)
+}
+
+/// Pressure bumps centred at `centres` on x = linspace(0, 5, rows).
+fn bumps_on(rows: usize, centres: &[f64]) -> Mat<f64> {
+    Mat::from_fn(rows, centres.len(), |i, k| {
+        let x = 5.0 * i as f64 / (rows - 1) as f64;
         let d = (x - centres[k]) / HALF_WIDTH;
         (1.0 - d * d).max(0.0).sqrt()
     })
@@ -53,6 +64,15 @@ fn summary(c: &MetricCurve, ms_: &[usize]) -> String {
 }
 
 fn main() {
+    if std::env::args().any(|a| a == "scaling") {
+        scaling();
+        return;
+    }
+    components();
+    scaling();
+}
+
+fn components() {
     let nnls_params = NnlsParams::default();
     let s = bumps(&centres(128));
     let (n, count) = s.shape();
@@ -126,7 +146,7 @@ fn main() {
     println!("| same, folds by definition (`loo_fold_orth`, n x 127 SVDs) | {} | reference path |", ms(t_gd));
     let (g_cone, t_gc) = time(|| generalization_cone(s.as_ref(), max_m, nnls_params).expect("G cone"));
     println!(
-        "| G(m) dual cone, 128 LOO folds (CPG tol 0 each), m = 1..127 | {} | {} |",
+        "| G(m) dual cone, 128 LOO folds (shared CPG path), m = 1..127 | {} | {} |",
         ms(t_gc),
         summary(&g_cone, &[1, 16, 64, 127])
     );
@@ -187,4 +207,130 @@ fn main() {
         ms(t_pso),
         summary(&p_orth, &[1, ppod.modes.ncols()])
     );
+}
+
+/// Largest relative difference `|a - b| / max(|a|, |b|)` over the entries with
+/// `max(|a|, |b|) > floor`, and the largest absolute difference over all.
+fn rel_diff(a: &[f64], b: &[f64], floor: f64) -> (f64, f64) {
+    assert_eq!(a.len(), b.len(), "rel_diff: lengths differ");
+    let mut rel = 0.0f64;
+    let mut abs = 0.0f64;
+    for (x, y) in a.iter().zip(b) {
+        let d = (x - y).abs();
+        abs = abs.max(d);
+        let scale = x.abs().max(y.abs());
+        if scale > floor {
+            rel = rel.max(d / scale);
+        }
+    }
+    (rel, abs)
+}
+
+fn secs(d: Duration) -> String {
+    format!("{:.3} s", d.as_secs_f64())
+}
+
+/// Fast vs reference at N = 128, 256, 512 on ironing-like pressures (single thread).
+fn scaling() {
+    let nnls = NnlsParams::default();
+    let agreement = std::cell::RefCell::new(Vec::<String>::new());
+    println!("\n## Metric algorithms: fast vs reference (one thread; the pipeline runs folds on all cores)\n");
+    println!("Ironing-like pressures: Hertz bumps (half-width 0.2) moving over x in [0, 5]; `est.` = reference");
+    println!("timed on a sample of folds and scaled to all N. Max rank = N - 1 for N <= 256, 256 beyond.\n");
+    println!("| rows n | N | step | fast | reference | speed-up | target |");
+    println!("|---|---|---|---|---|---|---|");
+    for rows in [101, 201] {
+        for count in [128, 256, 512] {
+            let s = bumps_on(rows, &centres(count));
+            let max_m = if count <= 256 { count - 1 } else { 256 };
+            let target_cone = if count == 512 { "a few s (whole run <= 20 s)" } else { "-" };
+            // CPG: the lazy selection + one compactness pass vs the direct greedy.
+            let (fast, t_fast) = time(|| cpg(s.as_ref(), CpgParams::default()).expect("cpg"));
+            let (slow, t_slow) = time(|| cpg_reference(s.as_ref(), CpgParams::default()).expect("cpg"));
+            assert_eq!(fast.selected, slow.selected, "CPG selections differ at N = {count}");
+            row(rows, count, &format!("CPG tol 0 ({} generators)", fast.selected.len()), t_fast, t_slow, false, "-");
+            // Cone LOO: the shared path (with the metrics' data) and every fold.
+            let (curve, t_loo) = time(|| {
+                let path = cpg_path(s.as_ref(), CpgPathParams { nnls, max_rank: max_m }, &|| {}).expect("path");
+                let folds = (0..count).map(|i| loo_fold_cone(s.as_ref(), &path, i, max_m).expect("fold"));
+                combine_folds(folds.collect::<Vec<_>>(), max_m)
+            });
+            let sample: Vec<usize> =
+                if count <= 128 { (0..count).collect() } else { (0..count).step_by(count / 4).collect() };
+            let (ref_folds, t_ref) = time(|| {
+                sample
+                    .iter()
+                    .map(|&i| loo_fold_cone_reference(s.as_ref(), i, max_m, nnls).expect("fold"))
+                    .collect::<Vec<_>>()
+            });
+            let t_ref_all = t_ref.mul_f64(count as f64 / sample.len() as f64);
+            row(
+                rows,
+                count,
+                &format!("cone LOO, {count} folds, m <= {max_m}"),
+                t_loo,
+                t_ref_all,
+                sample.len() < count,
+                target_cone,
+            );
+            if count == 128 {
+                let slow_curve = combine_folds(&ref_folds, max_m);
+                let (rel, abs) = rel_diff(&curve.mean, &slow_curve.mean, 1e-8);
+                agreement
+                    .borrow_mut()
+                    .push(format!("| {rows} | G(m) dual cone mean, m = 1..{max_m} | {rel:.1e} | {abs:.1e} |"));
+                let (rel, abs) = rel_diff(&fast.compactness, &slow.compactness, 1e-8);
+                agreement.borrow_mut().push(format!(
+                    "| {rows} | C(m) dual cone, m = 0..{} | {rel:.1e} | {abs:.1e} |",
+                    fast.selected.len()
+                ));
+            }
+            // Orthogonal LOO in QR coordinates: left vectors only in a reused buffer vs copy + thin SVD.
+            let loo = LooOrth::new(s.as_ref()).expect("qr");
+            let (fast_orth, t_orth) = time(|| {
+                let mut ws = loo.workspace();
+                (0..count).map(|i| loo.fold_with(i, max_m, &mut ws).expect("fold")).collect::<Vec<_>>()
+            });
+            let sample: Vec<usize> =
+                if count <= 128 { (0..count).collect() } else { (0..count).step_by(count / 16).collect() };
+            let (ref_orth, t_ref) =
+                time(|| sample.iter().map(|&i| loo.fold_reference(i, max_m).expect("fold")).collect::<Vec<_>>());
+            let t_ref_all = t_ref.mul_f64(count as f64 / sample.len() as f64);
+            row(rows, count, &format!("orth LOO, {count} folds"), t_orth, t_ref_all, sample.len() < count, "-");
+            if count == 128 {
+                let (a, b) = (combine_folds(&fast_orth, max_m), combine_folds(&ref_orth, max_m));
+                let (rel, abs) = rel_diff(&a.mean, &b.mean, 1e-8);
+                agreement
+                    .borrow_mut()
+                    .push(format!("| {rows} | G(m) dual orth mean, m = 1..{max_m} | {rel:.1e} | {abs:.1e} |"));
+                // Specificity from the path's intervals vs its own cone pass.
+                let path = cpg_path(s.as_ref(), CpgPathParams { nnls, max_rank: count }, &|| {}).expect("path");
+                let sp = SpecificityParams { samples: 1000, seed: 2023 };
+                let a = specificity_cone_path(s.as_ref(), &path, usize::MAX, sp, &|| {});
+                let b = specificity_cone(s.as_ref(), path.basis.as_ref(), sp, nnls).expect("S cone");
+                let (rel, abs) = rel_diff(&a.mean, &b.mean, 1e-8);
+                agreement
+                    .borrow_mut()
+                    .push(format!("| {rows} | S(m) dual cone mean, m = 1..{} | {rel:.1e} | {abs:.1e} |", a.len()));
+                let ranges = cone_ranges_reference(s.as_ref(), path.basis.as_ref(), nnls).expect("ranges");
+                let flat = |r: &[Vec<(f64, f64)>]| r.iter().flatten().flat_map(|(l, h)| [*l, *h]).collect::<Vec<_>>();
+                let (rel, abs) = rel_diff(&flat(&path.cone_ranges), &flat(&ranges), 0.0);
+                agreement
+                    .borrow_mut()
+                    .push(format!("| {rows} | specificity intervals (all m) | {rel:.1e} | {abs:.1e} |"));
+            }
+        }
+    }
+    println!("\nAgreement with the reference implementations at N = 128 (relative over values > 1e-8):\n");
+    println!("| rows n | quantity | max relative diff | max absolute diff |");
+    println!("|---|---|---|---|");
+    for line in agreement.borrow().iter() {
+        println!("{line}");
+    }
+}
+
+fn row(rows: usize, count: usize, step: &str, fast: Duration, slow: Duration, estimated: bool, target: &str) {
+    let est = if estimated { " est." } else { "" };
+    let speedup = slow.as_secs_f64() / fast.as_secs_f64().max(1e-9);
+    println!("| {rows} | {count} | {step} | {} | {}{est} | {speedup:.0}x | {target} |", secs(fast), secs(slow));
 }

@@ -20,3 +20,29 @@ pub(crate) fn bumps(rng: &mut Rng, n: usize, count: usize, widths: (f64, f64)) -
     }
     s
 }
+
+/// Ironing-like contact pressures on `n` nodes of `[0, 1]`: Hertz bumps
+/// `p0 sqrt(1 - ((x - c)/a)^2)_+` whose centre `c` moves across the slab while the half-width
+/// `a` and the height `p0` drift with it (neighbouring snapshots nearly parallel, a badly
+/// conditioned cone), with the awkward cases of real training sets planted (`count >= 24`):
+/// column 5 is zero (no contact), column 9 an exact copy of column 8 (a tie in error and norm),
+/// column 13 column 12 with a 1e-9 relative wobble (a near-duplicate), column 17 twice column 16
+/// (a positive multiple, in the cone of 16), column 21 the sum of columns 19 and 20.
+pub(crate) fn hertz_family(rng: &mut Rng, n: usize, count: usize) -> Mat<f64> {
+    assert!(count >= 24, "hertz_family plants special columns up to index 21");
+    let mut s = Mat::from_fn(n, count, |i, k| {
+        let x = i as f64 / (n - 1) as f64;
+        let mu = k as f64 / (count - 1) as f64;
+        let a = 0.06 + 0.03 * (3.0 * mu).sin().abs();
+        let d = (x - 0.15 - 0.7 * mu) / a;
+        (1.0 + 0.5 * mu) * (1.0 - d * d).max(0.0).sqrt()
+    });
+    s.col_mut(5).fill(0.0);
+    for i in 0..n {
+        s[(i, 9)] = s[(i, 8)];
+        s[(i, 13)] = s[(i, 12)] * (1.0 + 1e-9 * rng.uniform_in(-1.0, 1.0));
+        s[(i, 17)] = 2.0 * s[(i, 16)];
+        s[(i, 21)] = s[(i, 19)] + s[(i, 20)];
+    }
+    s
+}

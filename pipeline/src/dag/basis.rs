@@ -2,9 +2,10 @@
 //! bases ("dual cone", full and truncated) of a training set (paper eqs. 9, 10, 12).
 
 use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
 
 use crom_schemas::artifact::{basis as names, ArtifactKind};
-use crom_stages::basis::{cpg, pod, Cpg, CpgParams, Pod, PodParams};
+use crom_stages::basis::{cpg_path, pod, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
 use crom_stages::cone::NnlsParams;
 use serde_json::json;
 
@@ -25,8 +26,63 @@ pub(crate) struct Bases {
     pub dual_cpg: ColMatrix,
 }
 
+/// The dual training snapshots' tolerance-0 CPG path of this run, shared by the basis,
+/// compactness, generalization and specificity stages (one greedy run instead of four): the
+/// training-set key and max rank it was computed for.
+static DUAL_PATH: Mutex<Option<(String, usize, Arc<CpgPath>)>> = Mutex::new(None);
+
+/// The CPG path of the dual snapshots `dual` of training set `train`, recording the metrics'
+/// data up to `max_rank`: computed once per run (with a progress bar), then shared.
+pub(crate) fn dual_path(
+    ctx_progress: crate::progress::Progress,
+    train: &Key,
+    dual: &ColMatrix,
+    max_rank: usize,
+) -> Result<Arc<CpgPath>, String> {
+    let mut memo = DUAL_PATH.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((key, rank, path)) = memo.as_ref() {
+        if key == &train.0 && *rank == max_rank {
+            return Ok(Arc::clone(path));
+        }
+    }
+    let bar = Ticker::new(ctx_progress, "CPG path", dual.cols);
+    let params = CpgPathParams { nnls: NnlsParams::default(), max_rank };
+    let path = Arc::new(cpg_path(view(dual), params, &|| bar.tick("generators")).map_err(|e| e.to_string())?);
+    bar.finish(&format!("{} generators", path.len()));
+    *memo = Some((train.0.clone(), max_rank, Arc::clone(&path)));
+    Ok(path)
+}
+
+/// A stage progress bar that parallel work can tick (the bar shows the ETA).
+pub(crate) struct Ticker {
+    bar: Mutex<crate::progress::StageProgress>,
+}
+
+impl Ticker {
+    pub(crate) fn new(progress: crate::progress::Progress, name: &str, len: usize) -> Self {
+        Self { bar: Mutex::new(progress.stage(name, len)) }
+    }
+
+    /// One more item of kind `what` done.
+    pub(crate) fn tick(&self, what: &str) {
+        self.bar.lock().unwrap_or_else(|e| e.into_inner()).inc(what);
+    }
+
+    pub(crate) fn finish(self, outcome: &str) {
+        self.bar.into_inner().unwrap_or_else(|e| e.into_inner()).finish(outcome);
+    }
+}
+
+/// The resolved `study.max_rank` of the scene (every m up to 256 training snapshots; the
+/// training set of a vector parameter is the whole tensor grid).
+pub(crate) fn max_rank(ctx: &Ctx<'_>) -> usize {
+    ctx.scene.study.max_rank_for(ctx.scene.parameter.train_points().len())
+}
+
 pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
     let st = ctx.scene.study.clone();
+    let max_rank = max_rank(ctx);
+    let progress = ctx.progress;
     let params = json!({
         "primal_tol": st.primal_tol,
         "dual_orth_tol": st.dual_orth_tol,
@@ -43,10 +99,10 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
             pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }).map_err(|e| numerical(e.to_string()))?;
         let dual =
             pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol }).map_err(|e| numerical(e.to_string()))?;
-        let cone_params = |tol| CpgParams { tol, nnls: NnlsParams::default() };
-        let full = cpg(view(&set.dual), cone_params(st.dual_cone_tol)).map_err(|e| numerical(e.to_string()))?;
-        let trunc =
-            cpg(view(&set.dual), cone_params(st.dual_cone_tol_truncated)).map_err(|e| numerical(e.to_string()))?;
+        // One greedy path; both bases are its prefixes (the greedy is deterministic).
+        let path = dual_path(progress, train, &set.dual, max_rank).map_err(numerical)?;
+        let full = path.truncated(st.dual_cone_tol);
+        let trunc = path.truncated(st.dual_cone_tol_truncated);
         let f = H5Out::create(&staging.path(names::FILE))?;
         f.attr_str("scene", &scene)?;
         f.attr_str("kind", "basis")?;

@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{compactness as names, ArtifactKind};
-use crom_stages::metrics::{compactness_cone, compactness_orth};
+use crom_stages::metrics::compactness_orth;
 use serde_json::json;
 
 use super::convert::view;
@@ -21,16 +21,19 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key
         .input("basis", basis_key);
     let store = ctx.store;
     let scene = ctx.scene.scene.name.clone();
+    let (progress, max_rank) = (ctx.progress, basis::max_rank(ctx));
     ctx.single(ArtifactKind::Compactness, "compactness", &spec, |staging| {
         let set = trainset::load_from(store, train)?;
         let b = basis::load_from(store, basis_key)?;
         let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
         let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
-        let cone = compactness_cone(view(&set.dual), view(&b.dual_cpg)).map_err(|e| CromError::Numerical {
+        // C(m) of the stored cone basis: the prefix of the CPG path's curve (the same pass).
+        let path = basis::dual_path(progress, train, &set.dual, max_rank).map_err(|message| CromError::Numerical {
             stage: "compactness",
             scene: scene.clone(),
-            message: e.to_string(),
+            message,
         })?;
+        let cone = path.compactness[..=b.dual_cpg.cols.min(path.len())].to_vec();
         let mut t = Rows::default();
         t.push(&scene, "primal", "orth", &primal);
         t.push(&scene, "dual", "orth", &dual);

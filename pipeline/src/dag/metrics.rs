@@ -7,12 +7,13 @@ use std::collections::BTreeMap;
 use crom_schemas::artifact::{metrics as names, ArtifactKind};
 use crom_stages::cone::NnlsParams;
 use crom_stages::metrics::{
-    combine_folds, loo_fold_cone, nested_error_cone, nested_error_orth, specificity_cone, specificity_orth, LooOrth,
-    MetricCurve, SpecificityParams,
+    combine_folds, loo_fold_cone, nested_error_cone, nested_error_orth, specificity_cone_path, specificity_orth,
+    LooOrth, MetricCurve, SpecificityParams,
 };
 use rayon::prelude::*;
 use serde_json::json;
 
+use super::basis::Ticker;
 use super::convert::view;
 use super::{basis, trainset, Ctx};
 use crate::cache::{Key, KeySpec};
@@ -27,70 +28,115 @@ fn numerical(scene: &str, stage: &'static str, e: impl std::fmt::Display) -> Cro
     CromError::Numerical { stage, scene: scene.to_string(), message: e.to_string() }
 }
 
-/// G(m) for primal orth, dual orth and dual cone.
+/// G(m) for primal orth, dual orth and dual cone, m = 1..=min(N - 1, max_rank).
 pub(crate) fn generalization(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
-    let spec =
-        KeySpec::new(ArtifactKind::Generalization, ALGORITHM_VERSION, json!({ "max_m": "N-1" })).input("train", train);
+    let max_rank = basis::max_rank(ctx);
+    let spec = KeySpec::new(ArtifactKind::Generalization, ALGORITHM_VERSION, json!({ "max_rank": max_rank }))
+        .input("train", train);
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
+    let progress = ctx.progress;
     ctx.single(ArtifactKind::Generalization, "generalization", &spec, |staging| {
         let set = trainset::load_from(store, train)?;
+        let max_m = set.dual.cols.saturating_sub(1).min(max_rank);
+        let fail = |e: String| numerical(&scene, "generalization", e);
+        let path = basis::dual_path(progress, train, &set.dual, max_rank).map_err(fail)?;
+        let bar = Ticker::new(progress, "LOO folds", 3 * set.dual.cols);
         let mut rows = CurveRows::default();
         for (field, s) in [("primal", &set.primal), ("dual", &set.dual)] {
-            rows.push(&scene, field, "orth", &loo_orth(s).map_err(|e| numerical(&scene, "generalization", e))?);
+            let curve = loo_orth(s, max_m, &|| bar.tick(&format!("{field} orth"))).map_err(fail)?;
+            rows.push(&scene, field, "orth", &curve);
         }
-        rows.push(&scene, "dual", "cone", &loo_cone(&set.dual).map_err(|e| numerical(&scene, "generalization", e))?);
+        let curve = loo_cone(&set.dual, &path, max_m, &|| bar.tick("dual cone")).map_err(fail)?;
+        rows.push(&scene, "dual", "cone", &curve);
+        bar.finish(&format!("m <= {max_m}"));
         rows.table().write_parquet(&staging.path(names::GENERALIZATION))?;
-        Ok(BTreeMap::from([("folds".to_string(), json!(set.parameters.len()))]))
+        Ok(BTreeMap::from([
+            ("folds".to_string(), json!(set.parameters.len())),
+            ("max_rank".to_string(), json!(max_rank)),
+            ("max_m".to_string(), json!(max_m)),
+        ]))
     })
 }
 
-fn loo_orth(s: &ColMatrix) -> Result<MetricCurve, String> {
-    let max_m = s.cols.saturating_sub(1);
+fn loo_orth(s: &ColMatrix, max_m: usize, tick: &(dyn Fn() + Sync)) -> Result<MetricCurve, String> {
     let loo = LooOrth::new(view(s)).map_err(|e| e.to_string())?;
-    let folds: Result<Vec<_>, _> = (0..s.cols).into_par_iter().map(|i| loo.fold(i, max_m)).collect();
+    let folds: Result<Vec<_>, _> = (0..s.cols)
+        .into_par_iter()
+        .map_init(
+            || loo.workspace(),
+            |ws, i| {
+                let fold = loo.fold_with(i, max_m, ws);
+                tick();
+                fold
+            },
+        )
+        .collect();
     Ok(combine_folds(folds.map_err(|e| e.to_string())?, max_m))
 }
 
-fn loo_cone(s: &ColMatrix) -> Result<MetricCurve, String> {
-    let max_m = s.cols.saturating_sub(1);
-    let folds: Result<Vec<_>, _> =
-        (0..s.cols).into_par_iter().map(|i| loo_fold_cone(view(s), i, max_m, NnlsParams::default())).collect();
+fn loo_cone(
+    s: &ColMatrix,
+    path: &crom_stages::basis::CpgPath,
+    max_m: usize,
+    tick: &(dyn Fn() + Sync),
+) -> Result<MetricCurve, String> {
+    let folds: Result<Vec<_>, _> = (0..s.cols)
+        .into_par_iter()
+        .map(|i| {
+            let fold = loo_fold_cone(view(s), path, i, max_m);
+            tick();
+            fold
+        })
+        .collect();
     Ok(combine_folds(folds.map_err(|e| e.to_string())?, max_m))
 }
 
-/// S(m) for primal orth, dual orth and dual cone, on the stored bases.
+/// S(m) for primal orth, dual orth and dual cone, on the stored bases, m = 1..=min(k, max_rank).
 pub(crate) fn specificity(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
     let params = SpecificityParams { samples: ctx.scene.study.specificity_samples, seed: ctx.scene.study.seed };
+    let max_rank = basis::max_rank(ctx);
     let spec = KeySpec::new(
         ArtifactKind::Specificity,
         ALGORITHM_VERSION,
-        json!({ "samples": params.samples, "seed": params.seed }),
+        json!({ "samples": params.samples, "seed": params.seed, "max_rank": max_rank }),
     )
     .input("train", train)
     .input("basis", basis_key);
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
+    let progress = ctx.progress;
     ctx.single(ArtifactKind::Specificity, "specificity", &spec, |staging| {
         let set = trainset::load_from(store, train)?;
         let b = basis::load_from(store, basis_key)?;
+        let path =
+            basis::dual_path(progress, train, &set.dual, max_rank).map_err(|e| numerical(&scene, "specificity", e))?;
+        let pm = view(&b.primal_pod).subcols(0, b.primal_pod.cols.min(max_rank));
+        let dm = view(&b.dual_pod).subcols(0, b.dual_pod.cols.min(max_rank));
+        // The stored cone basis is a prefix of the path: the same m range as computing on it.
+        let cone_m = b.dual_cpg.cols.min(max_rank);
+        let bar = Ticker::new(progress, "specificity m", cone_m);
         let (p, d, c) = rayon::join(
-            || specificity_orth(view(&set.primal), view(&b.primal_pod), params),
+            || specificity_orth(view(&set.primal), pm, params),
             || {
                 rayon::join(
-                    || specificity_orth(view(&set.dual), view(&b.dual_pod), params),
-                    || specificity_cone(view(&set.dual), view(&b.dual_cpg), params, NnlsParams::default()),
+                    || specificity_orth(view(&set.dual), dm, params),
+                    || specificity_cone_path(view(&set.dual), &path, cone_m, params, &|| bar.tick("dual cone")),
                 )
             },
         )
         .into_flat();
-        let c = c.map_err(|e| numerical(&scene, "specificity", e))?;
+        bar.finish(&format!("m <= {max_rank}"));
         let mut rows = CurveRows::default();
         rows.push(&scene, "primal", "orth", &p);
         rows.push(&scene, "dual", "orth", &d);
         rows.push(&scene, "dual", "cone", &c);
         rows.table().write_parquet(&staging.path(names::SPECIFICITY))?;
-        Ok(BTreeMap::from([("samples".to_string(), json!(params.samples)), ("seed".to_string(), json!(params.seed))]))
+        Ok(BTreeMap::from([
+            ("samples".to_string(), json!(params.samples)),
+            ("seed".to_string(), json!(params.seed)),
+            ("max_rank".to_string(), json!(max_rank)),
+        ]))
     })
 }
 

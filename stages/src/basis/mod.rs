@@ -9,7 +9,11 @@
 //!   non-negative combination is a non-negative pressure field (eq. 10).
 
 mod cpg;
+mod cpg_reference;
 mod pod;
 
-pub use cpg::{cpg, Cpg, CpgParams};
+pub use cpg::{cpg, cpg_path, Cpg, CpgParams, CpgPath, CpgPathParams};
+pub use cpg_reference::cpg_reference;
+
+pub(crate) use cpg::LazyGreedy;
 pub use pod::{numerical_rank, pod, pod_full, tail_energies, truncation_rank, Pod, PodError, PodParams};

@@ -9,6 +9,12 @@
 //! Cholesky factor of `G[P, P]` in that order. Adding a column appends one row to `L`
 //! (forward substitution); removing one deletes its row and restores the triangle with Givens
 //! rotations. All workspaces live in [`Nnls`], so the iteration loop does not allocate.
+//!
+//! The Gram matrix can grow one column at a time ([`Nnls::push_column`]) and shrink back to a
+//! leading block ([`Nnls::prefix`], the cone of the first m generators). Storage grows by
+//! capacity doubling, so a cone grown to k generators costs O(k^2) amortised copies in total
+//! rather than O(k^3); the Gram entries of a prefix do not depend on later columns, so a
+//! prefix solver computes exactly (bit for bit) what a solver grown to that size computes.
 
 use faer::{Mat, MatRef};
 use thiserror::Error;
@@ -85,7 +91,7 @@ pub struct NnlsSolution {
 }
 
 /// Lawson–Hanson NNLS working on a fixed Gram matrix, with preallocated workspaces.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Nnls {
     /// `G = A^T A`, k x k.
     gram: Mat<f64>,
@@ -94,8 +100,10 @@ pub struct Nnls {
     gmax: f64,
     /// Every entry of `gram` is finite.
     gram_finite: bool,
-    /// Lower Cholesky factor of `G[P, P]`, row-major with leading dimension k.
+    /// Lower Cholesky factor of `G[P, P]`, row-major with leading dimension `ld`.
     chol: Vec<f64>,
+    /// Leading dimension of `chol` (the column capacity, `>= k`).
+    ld: usize,
     /// Passive columns in factor order.
     passive: Vec<usize>,
     in_passive: Vec<bool>,
@@ -105,6 +113,27 @@ pub struct Nnls {
     z: Vec<f64>,
     /// Dual vector `w = c - G x`, by column.
     w: Vec<f64>,
+}
+
+impl Clone for Nnls {
+    /// A copy that keeps the reserved capacity (so pushes on the copy stay amortised).
+    fn clone(&self) -> Self {
+        let mut gram = self.gram.clone();
+        gram.reserve(self.ld, self.ld);
+        Self {
+            gram,
+            params: self.params,
+            gmax: self.gmax,
+            gram_finite: self.gram_finite,
+            chol: self.chol.clone(),
+            ld: self.ld,
+            passive: self.passive.clone(),
+            in_passive: self.in_passive.clone(),
+            blocked: self.blocked.clone(),
+            z: self.z.clone(),
+            w: self.w.clone(),
+        }
+    }
 }
 
 impl Nnls {
@@ -120,6 +149,7 @@ impl Nnls {
             gmax,
             gram_finite,
             chol: vec![0.0; k * k],
+            ld: k,
             passive: Vec::with_capacity(k),
             in_passive: vec![false; k],
             blocked: vec![false; k],
@@ -154,17 +184,41 @@ impl Nnls {
     }
 
     /// Grow the Gram matrix by one column: `cross[i] = a_i^T a_new` for `i < k` and
-    /// `cross[k] = a_new^T a_new`. Reallocates the workspaces (call outside hot loops).
+    /// `cross[k] = a_new^T a_new`. Storage grows by doubling (amortised O(k) per push); the
+    /// passive set is reset.
     pub fn push_column(&mut self, cross: &[f64]) {
         let k = self.ncols();
         assert_eq!(cross.len(), k + 1, "Nnls::push_column: need k + 1 inner products");
-        let old = std::mem::replace(&mut self.gram, Mat::zeros(0, 0));
-        let gram = Mat::from_fn(k + 1, k + 1, |i, j| match (i == k, j == k) {
-            (false, false) => old[(i, j)],
-            (true, _) => cross[j],
-            (false, true) => cross[i],
-        });
-        *self = Self::new(gram, self.params);
+        if k + 1 > self.ld {
+            let cap = (2 * self.ld).max(k + 1).max(4);
+            self.gram.reserve(cap, cap);
+            self.chol = vec![0.0; cap * cap];
+            self.ld = cap;
+        }
+        self.gram.resize_with(k + 1, k + 1, |i, j| if i == k { cross[j] } else { cross[i] });
+        self.gmax = self.gmax.max(cross[k]);
+        self.gram_finite = self.gram_finite && cross.iter().all(|g| g.is_finite());
+        self.reset_workspaces();
+    }
+
+    /// The solver of the leading `m x m` block of the Gram matrix (the first `m` columns,
+    /// `m <= k`): the same Gram entries, so it computes bit for bit what a solver grown to `m`
+    /// columns computes.
+    pub fn prefix(&self, m: usize) -> Self {
+        assert!(m <= self.ncols(), "Nnls::prefix: {m} columns requested, {} held", self.ncols());
+        Self::new(Mat::from_fn(m, m, |i, j| self.gram[(i, j)]), self.params)
+    }
+
+    /// Size the per-column workspaces to k and clear the passive set.
+    fn reset_workspaces(&mut self) {
+        let k = self.ncols();
+        self.passive.clear();
+        for v in [&mut self.in_passive, &mut self.blocked] {
+            v.clear();
+            v.resize(k, false);
+        }
+        self.z.resize(k, 0.0);
+        self.w.resize(k, 0.0);
     }
 
     /// Solve the NNLS problem with `c = A^T b`, starting from `x` (length k; negative entries
@@ -310,7 +364,7 @@ impl Nnls {
 
     /// Append column t to the factor; false (factor unchanged) if its pivot is too small.
     fn try_add(&mut self, t: usize) -> bool {
-        let k = self.ncols();
+        let k = self.ld;
         let p = self.passive.len();
         let mut norm2 = 0.0;
         for i in 0..p {
@@ -336,7 +390,7 @@ impl Nnls {
     /// Remove the passive column at factor position q: delete its row of L and restore the
     /// lower triangle with Givens rotations on columns (j, j+1), j = q..p-2.
     fn remove_at(&mut self, q: usize) {
-        let k = self.ncols();
+        let k = self.ld;
         let p = self.passive.len();
         for i in q..p - 1 {
             self.chol.copy_within((i + 1) * k..(i + 1) * k + p, i * k);
@@ -361,7 +415,7 @@ impl Nnls {
 
     /// `z = G[P, P]^{-1} rhs[P]` by forward and backward substitution with L.
     fn solve_z(&mut self, rhs: &[f64]) {
-        let k = self.ncols();
+        let k = self.ld;
         let p = self.passive.len();
         let (l, z) = (&self.chol, &mut self.z);
         for (q, &j) in self.passive.iter().enumerate() {
@@ -396,7 +450,7 @@ pub(crate) fn norm2(v: &[f64]) -> f64 {
 /// `A^T b` for `a` n x k.
 pub(crate) fn at_b(a: MatRef<'_, f64>, b: &[f64], out: &mut [f64]) {
     for (j, o) in out.iter_mut().enumerate() {
-        *o = (0..b.len()).map(|i| a[(i, j)] * b[i]).sum();
+        *o = a.col(j).iter().zip(b).map(|(x, y)| x * y).sum();
     }
 }
 
@@ -609,7 +663,7 @@ mod tests {
         solver.remove_at(3); // column 7 (now at position 3)
         let p = solver.passive.clone();
         assert_eq!(p, vec![4, 6, 2, 1]);
-        let k = solver.ncols();
+        let k = solver.ld;
         for i in 0..p.len() {
             for j in 0..=i {
                 let llt: f64 = (0..=j).map(|q| solver.chol[i * k + q] * solver.chol[j * k + q]).sum();
@@ -635,6 +689,32 @@ mod tests {
             for i in 0..5 {
                 // Same dot products, possibly summed in a different order: 1e-14 of O(5).
                 assert_close!(grown.gram()[(i, j)], full.gram()[(i, j)], Tol::abs(1e-13));
+            }
+        }
+    }
+
+    #[test]
+    fn push_column_grows_storage_geometrically() {
+        // 200 pushes: with capacity doubling the factor buffer is reallocated ~log2(200) times,
+        // not 200 times.
+        let mut rng = Rng::new(22);
+        let a = random_mat(&mut rng, 10, 200, -1.0, 1.0);
+        let mut solver = Nnls::new(Mat::zeros(0, 0), NnlsParams::default());
+        let mut reallocations = 0;
+        for k in 0..200 {
+            let column: Vec<f64> = a.col(k).iter().copied().collect();
+            let mut cross = vec![0.0; k + 1];
+            at_b(a.subcols(0, k + 1), &column, &mut cross);
+            let ld = solver.ld;
+            solver.push_column(&cross);
+            reallocations += usize::from(solver.ld != ld);
+        }
+        assert!(reallocations <= 8, "{reallocations} reallocations for 200 pushes");
+        let full = Nnls::from_columns(a.as_ref(), NnlsParams::default());
+        for j in 0..200 {
+            for i in 0..200 {
+                // Plain sums vs faer's product kernel: round-off of 10-term sums of O(1) terms.
+                assert_close!(solver.gram()[(i, j)], full.gram()[(i, j)], Tol::abs(1e-13));
             }
         }
     }

@@ -13,7 +13,7 @@
 
 use faer::{Mat, MatRef};
 
-use super::nnls::{at_b, norm2, residual_into, ConeError, Nnls, NnlsParams};
+use super::nnls::{at_b, norm2, ConeError, Nnls, NnlsParams};
 
 /// A vector whose relative cone-projection error is at most this is treated as lying in the
 /// cone: it is not re-projected when the cone grows (its error can only decrease) and CPG never
@@ -35,7 +35,7 @@ pub struct ConeProjection {
 }
 
 /// Projector onto `cone(Theta)`; holds `Theta` (n x k), its Gram matrix and workspaces.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct ConeProjector {
     theta: Mat<f64>,
     nnls: Nnls,
@@ -45,6 +45,33 @@ pub struct ConeProjector {
     cold: Vec<f64>,
     residual: Vec<f64>,
     trial_residual: Vec<f64>,
+    /// Inner products of a pushed generator with the others (workspace of `push_column`).
+    cross: Vec<f64>,
+    /// Reserved columns of `theta`.
+    col_capacity: usize,
+    /// `Theta^T lambda` of [`project_warm`](Self::project_warm).
+    atb_lambda: Vec<f64>,
+}
+
+impl Clone for ConeProjector {
+    /// A copy that keeps the reserved capacity (so pushes on the copy stay amortised).
+    fn clone(&self) -> Self {
+        let mut theta = self.theta.clone();
+        theta.reserve(self.nrows(), self.col_capacity);
+        Self {
+            theta,
+            nnls: self.nnls.clone(),
+            atb: self.atb.clone(),
+            correction: self.correction.clone(),
+            trial: self.trial.clone(),
+            cold: self.cold.clone(),
+            residual: self.residual.clone(),
+            trial_residual: self.trial_residual.clone(),
+            cross: self.cross.clone(),
+            col_capacity: self.col_capacity,
+            atb_lambda: Vec::new(),
+        }
+    }
 }
 
 impl ConeProjector {
@@ -60,6 +87,9 @@ impl ConeProjector {
             cold: vec![0.0; k],
             residual: vec![0.0; n],
             trial_residual: vec![0.0; n],
+            cross: Vec::new(),
+            col_capacity: k,
+            atb_lambda: Vec::new(),
         }
     }
 
@@ -83,18 +113,52 @@ impl ConeProjector {
         self.theta.as_ref()
     }
 
-    /// Append a generator (length n) to the cone. Reallocates; call outside hot loops.
+    /// Append a generator (length n) to the cone. `Theta` and the Gram matrix grow in place
+    /// (capacity doubling: amortised O(n + k) per push, no copy of `Theta`).
     pub fn push_column(&mut self, column: &[f64]) {
         let (n, k) = (self.nrows(), self.ncols());
         assert_eq!(column.len(), n, "ConeProjector::push_column: column length differs from n");
-        let mut cross = vec![0.0; k + 1];
+        let mut cross = std::mem::take(&mut self.cross);
+        cross.resize(k + 1, 0.0);
         at_b(self.theta.as_ref(), column, &mut cross[..k]);
         cross[k] = column.iter().map(|v| v * v).sum();
-        let old = std::mem::replace(&mut self.theta, Mat::zeros(0, 0));
-        self.theta = Mat::from_fn(n, k + 1, |i, j| if j < k { old[(i, j)] } else { column[i] });
+        if k + 1 > self.col_capacity {
+            self.col_capacity = (2 * self.col_capacity).max(k + 1).max(4);
+            self.theta.reserve(n, self.col_capacity);
+        }
+        self.theta.resize_with(n, k + 1, |i, _| column[i]);
         self.nnls.push_column(&cross);
+        self.cross = cross;
+        self.resize_workspaces();
+    }
+
+    /// The projector onto the cone of the first `m` generators (`m <= k`): the same `Theta`
+    /// columns and Gram entries, so it computes bit for bit what a projector grown to those m
+    /// generators computes.
+    pub fn prefix(&self, m: usize) -> Self {
+        assert!(m <= self.ncols(), "ConeProjector::prefix: {m} generators requested, {} held", self.ncols());
+        let n = self.nrows();
+        let mut out = Self {
+            theta: Mat::from_fn(n, m, |i, j| self.theta[(i, j)]),
+            nnls: self.nnls.prefix(m),
+            atb: Vec::new(),
+            correction: Vec::new(),
+            trial: Vec::new(),
+            cold: Vec::new(),
+            residual: vec![0.0; n],
+            trial_residual: vec![0.0; n],
+            cross: Vec::new(),
+            col_capacity: m,
+            atb_lambda: Vec::new(),
+        };
+        out.resize_workspaces();
+        out
+    }
+
+    fn resize_workspaces(&mut self) {
+        let k = self.ncols();
         for buf in [&mut self.atb, &mut self.correction, &mut self.trial, &mut self.cold] {
-            buf.resize(k + 1, 0.0);
+            buf.resize(k, 0.0);
         }
     }
 
@@ -117,15 +181,29 @@ impl ConeProjector {
     /// which enters the most correlated generator first, and the smaller residual is kept.
     pub fn project_warm(&mut self, lambda: &[f64], coeffs: &mut [f64]) -> Result<f64, ConeError> {
         assert_eq!(lambda.len(), self.nrows(), "ConeProjector: vector length differs from n");
+        let mut atb = std::mem::take(&mut self.atb_lambda);
+        atb.resize(self.ncols(), 0.0);
+        at_b(self.theta.as_ref(), lambda, &mut atb);
+        let out = self.project_warm_atb(lambda, &atb, coeffs);
+        self.atb_lambda = atb;
+        out
+    }
+
+    /// [`project_warm`](Self::project_warm) with `Theta^T lambda` given (`atb`, length k), e.g.
+    /// kept per vector and extended by one inner product per new generator
+    /// ([`dot_column`](Self::dot_column)): the same numbers as computing it here.
+    pub fn project_warm_atb(&mut self, lambda: &[f64], atb: &[f64], coeffs: &mut [f64]) -> Result<f64, ConeError> {
+        assert_eq!(lambda.len(), self.nrows(), "ConeProjector: vector length differs from n");
+        assert_eq!(atb.len(), self.ncols(), "ConeProjector: Theta^T lambda has the wrong length");
         let warm = coeffs.iter().any(|c| *c > 0.0);
-        let (mut norm, kkt) = self.solve_refined(lambda, coeffs)?;
+        let (mut norm, kkt) = self.solve_refined(lambda, atb, coeffs)?;
         let tol = self.nnls.params().tol;
         let rel = norm / norm2(lambda).max(f64::MIN_POSITIVE);
         let ambiguous = rel > IN_CONE_REL_TOL && rel < AMBIGUOUS_FACTOR * tol.sqrt();
         if warm && (kkt > tol || ambiguous) {
             let mut cold = std::mem::take(&mut self.cold);
             cold.fill(0.0);
-            let (cold_norm, _) = self.solve_refined(lambda, &mut cold)?;
+            let (cold_norm, _) = self.solve_refined(lambda, atb, &mut cold)?;
             if cold_norm < norm {
                 norm = cold_norm;
                 coeffs.copy_from_slice(&cold);
@@ -135,22 +213,34 @@ impl ConeProjector {
         Ok(norm)
     }
 
+    /// `theta_g^T v`, summed in the order [`project_warm`](Self::project_warm) uses for
+    /// `Theta^T lambda`.
+    pub fn dot_column(&self, g: usize, v: &[f64]) -> f64 {
+        self.theta.col_as_slice(g).iter().zip(v).map(|(a, b)| a * b).sum()
+    }
+
     /// NNLS from `coeffs`, then one refinement step on the passive set
     /// (`alpha_P += G_PP^{-1} Theta_P^T r`, kept only if it stays feasible and lowers the
     /// explicit residual). Returns the residual norm and the NNLS KKT residual.
-    fn solve_refined(&mut self, lambda: &[f64], coeffs: &mut [f64]) -> Result<(f64, f64), ConeError> {
+    ///
+    /// Residuals skip the zero coefficients and the refinement right-hand side is formed on the
+    /// passive columns only (the passive solve reads nothing else): O(n p) instead of O(n k)
+    /// for p passive columns, with the same numbers (a skipped term is `0 * theta`, which can
+    /// only change the sign of a zero).
+    fn solve_refined(&mut self, lambda: &[f64], atb: &[f64], coeffs: &mut [f64]) -> Result<(f64, f64), ConeError> {
+        let stats = self.nnls.solve_normal(atb, coeffs)?;
         let theta = self.theta.as_ref();
-        at_b(theta, lambda, &mut self.atb);
-        let stats = self.nnls.solve_normal(&self.atb, coeffs)?;
-        residual_into(theta, coeffs, lambda, &mut self.residual);
+        residual_sparse_into(theta, coeffs, lambda, &mut self.residual);
         let mut norm = norm2(&self.residual);
-        at_b(theta, &self.residual, &mut self.atb);
+        for &j in self.nnls.passive_set() {
+            self.atb[j] = theta.col(j).iter().zip(&self.residual).map(|(a, b)| a * b).sum();
+        }
         self.nnls.solve_passive(&self.atb, &mut self.correction);
         for ((t, c), d) in self.trial.iter_mut().zip(coeffs.iter()).zip(&self.correction) {
             *t = c + d;
         }
         if self.trial.iter().all(|t| *t >= 0.0) {
-            residual_into(theta, &self.trial, lambda, &mut self.trial_residual);
+            residual_sparse_into(theta, &self.trial, lambda, &mut self.trial_residual);
             let trial_norm = norm2(&self.trial_residual);
             if trial_norm < norm {
                 norm = trial_norm;
@@ -181,6 +271,18 @@ impl ConeProjector {
     }
 }
 
+/// `r = b - A x` over the non-zero entries of x (same order as `residual_into`).
+fn residual_sparse_into(a: MatRef<'_, f64>, x: &[f64], b: &[f64], r: &mut [f64]) {
+    r.copy_from_slice(b);
+    for (j, &xj) in x.iter().enumerate() {
+        if xj != 0.0 {
+            for (ri, aij) in r.iter_mut().zip(a.col(j).iter()) {
+                *ri -= xj * aij;
+            }
+        }
+    }
+}
+
 /// Copy column j of `m` into `out`.
 pub(crate) fn copy_column(m: MatRef<'_, f64>, j: usize, out: &mut [f64]) {
     for (o, v) in out.iter_mut().zip(m.col(j).iter()) {
@@ -194,6 +296,8 @@ pub struct GrowingCone<'a> {
     snapshots: MatRef<'a, f64>,
     projector: ConeProjector,
     coeffs: Vec<Vec<f64>>,
+    /// `Theta^T s_j` of the snapshots not yet in the cone, one entry per generator.
+    atb: Vec<Vec<f64>>,
     residuals: Vec<f64>,
     norms: Vec<f64>,
     lambda: Vec<f64>,
@@ -208,6 +312,7 @@ impl<'a> GrowingCone<'a> {
             snapshots,
             projector: ConeProjector::empty(snapshots.nrows(), params),
             coeffs: vec![Vec::new(); count],
+            atb: vec![Vec::new(); count],
             residuals: norms.clone(),
             norms,
             lambda: vec![0.0; snapshots.nrows()],
@@ -215,14 +320,20 @@ impl<'a> GrowingCone<'a> {
     }
 
     /// Append a generator and re-project every snapshot that is not yet in the cone (relative
-    /// error above [`IN_CONE_REL_TOL`]), warm-started from its previous coefficients.
+    /// error above [`IN_CONE_REL_TOL`]), warm-started from its previous coefficients. Each
+    /// snapshot keeps `Theta^T s_j`, extended by one inner product per generator.
     pub fn push(&mut self, column: &[f64]) -> Result<(), ConeError> {
         self.projector.push_column(column);
+        let k = self.projector.ncols() - 1;
         for j in 0..self.snapshots.ncols() {
             self.coeffs[j].push(0.0);
             if self.residuals[j] > IN_CONE_REL_TOL * self.norms[j] {
                 copy_column(self.snapshots, j, &mut self.lambda);
-                self.residuals[j] = self.projector.project_warm(&self.lambda, &mut self.coeffs[j])?;
+                let atb = &mut self.atb[j];
+                atb.push(self.projector.dot_column(k, &self.lambda));
+                self.residuals[j] = self.projector.project_warm_atb(&self.lambda, atb, &mut self.coeffs[j])?;
+            } else if !self.atb[j].is_empty() {
+                self.atb[j] = Vec::new(); // in the cone: never projected again
             }
         }
         Ok(())
@@ -271,6 +382,7 @@ impl<'a> GrowingCone<'a> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::nnls::residual_into;
     use super::*;
     use crate::approx::Tol;
     use crate::rng::Rng;
@@ -390,5 +502,36 @@ mod tests {
         let out = proj.project(&[3.0, 0.0, -4.0]).expect("trivial");
         assert!(out.coeffs.is_empty());
         assert_close!(out.residual_norm, 5.0, Tol::rel(1e-15)); // ||lambda|| = 5
+    }
+
+    #[test]
+    fn prefix_projects_like_a_projector_grown_to_that_size() {
+        let mut rng = Rng::new(36);
+        let theta = random_mat(&mut rng, 30, 12, 0.0, 1.0);
+        let mut grown = ConeProjector::empty(30, NnlsParams::default());
+        let mut small = ConeProjector::empty(30, NnlsParams::default());
+        for m in 0..12 {
+            let col: Vec<f64> = theta.col(m).iter().copied().collect();
+            grown.push_column(&col);
+            if m < 7 {
+                small.push_column(&col);
+            }
+        }
+        let mut prefix = grown.prefix(7);
+        for _ in 0..10 {
+            let lambda = random_vec(&mut rng, 30);
+            let a = prefix.project(&lambda).expect("converges");
+            let b = small.project(&lambda).expect("converges");
+            // Same Theta columns, same Gram entries, same arithmetic: bit for bit.
+            assert_close!(a.residual_norm, b.residual_norm, Tol::abs(0.0));
+            assert_all_close!(a.coeffs, b.coeffs, Tol::abs(0.0));
+        }
+        // The prefix keeps growing like the original.
+        let col: Vec<f64> = theta.col(7).iter().copied().collect();
+        prefix.push_column(&col);
+        small.push_column(&col);
+        let lambda = random_vec(&mut rng, 30);
+        let (a, b) = (prefix.project(&lambda).expect("ok"), small.project(&lambda).expect("ok"));
+        assert_close!(a.residual_norm, b.residual_norm, Tol::abs(0.0)); // as above
     }
 }

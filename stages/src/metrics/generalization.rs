@@ -24,9 +24,35 @@
 //! * A duplicated snapshot left out is still in the span / cone of the other folds' bases:
 //!   its error is round-off at full rank.
 //!
-//! Folds are independent. [`LooOrth::fold`] and [`loo_fold_cone`] compute one fold each (the
-//! pipeline runs them in parallel), [`combine_folds`] reduces them to a [`MetricCurve`], and
-//! [`generalization_orth`] / [`generalization_cone`] do all folds sequentially.
+//! Folds are independent. [`LooOrth::fold_with`] and [`loo_fold_cone`] compute one fold each
+//! (the pipeline runs them in parallel), [`combine_folds`] reduces them to a [`MetricCurve`], and
+//! [`generalization_orth`] / [`generalization_cone`] do all folds sequentially. The direct
+//! definitions are kept as references: [`loo_fold_orth`], [`LooOrth::fold_reference`] and
+//! [`loo_fold_cone_reference`] / [`generalization_cone_reference`].
+//!
+//! # Cone folds share the greedy path
+//!
+//! The CPG of `S \ s_i` follows the full set's selection until the step `t_i` at which the
+//! full run picks `s_i`: before it, both runs see the same cone and the same errors of every
+//! other snapshot (each snapshot's warm-started projections depend only on the generators
+//! pushed and on the snapshot), so the same scan picks the same generator. Removing `s_i` can
+//! also change a scan it does not win when it is a running best that carries a tie to the
+//! winner (the tie rule is not transitive); [`cpg_path`] checks every running best of every
+//! step and moves `t_i` earlier where that happens. The tolerance-0 stop agrees as well:
+//! `C(m) = 0` means every snapshot is in the cone, and before `t_i` the full run's pick is still
+//! a candidate of the fold. So:
+//!
+//! * the errors of `s_i` on the first m < t_i generators are the ones the path's compactness
+//!   pass computed for `s_i` (the same warm-started chain as the direct fold's);
+//! * a snapshot never selected (`t_i = inf`: it is in the cone of the others) has the full
+//!   basis as its fold's basis;
+//! * a fold with `t_i <= max_m` continues on its own from the cone of the first `t_i - 1`
+//!   generators ([`ConeProjector::prefix`](crate::cone::ConeProjector::prefix)), with the full
+//!   run's last lazy bounds and coefficients of the other candidates at that cone size as its
+//!   start, until `max_m` generators; `s_i`'s chain continues from its recorded coefficients.
+//!
+//! A fold costs O(max_m - t_i) lazy greedy steps instead of a whole CPG (O(N^2) projections),
+//! and no C(m) of the fold is needed (only `s_i`'s own errors enter G).
 //!
 //! # Orthogonal folds in reduced coordinates
 //!
@@ -45,12 +71,17 @@
 
 use std::borrow::Borrow;
 
-use faer::{Mat, MatRef};
+use faer::diag::Diag;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
+use faer::{Mat, MatRef, Par};
 
 use super::compactness::compactness_cone_with;
 use super::stats::{MetricCurve, RunningStats};
-use crate::basis::{cpg, numerical_rank, pod_full, CpgParams, PodError};
-use crate::cone::{ConeError, NnlsParams};
+use crate::basis::{
+    cpg_path, cpg_reference, numerical_rank, pod_full, CpgParams, CpgPath, CpgPathParams, LazyGreedy, PodError,
+};
+use crate::cone::{copy_column, norm2, ConeError, NnlsParams, IN_CONE_REL_TOL};
 
 /// The relative projection errors of one left-out snapshot.
 #[derive(Debug, Clone, PartialEq)]
@@ -160,8 +191,56 @@ impl LooOrth {
     }
 
     /// Fold i: the errors of `s_i` on the POD modes of `S \ s_i`, m = 1..=max_m; `None` when
-    /// `||s_i|| = 0`.
+    /// `||s_i|| = 0`. Allocates its buffers; [`LooOrth::fold_with`] reuses them.
     pub fn fold(&self, i: usize, max_m: usize) -> Result<Option<LooFold>, PodError> {
+        self.fold_with(i, max_m, &mut self.workspace())
+    }
+
+    /// Buffers for [`LooOrth::fold_with`] (one per thread).
+    pub fn workspace(&self) -> LooOrthWorkspace {
+        let (q, count) = self.coords.shape();
+        let cols = count.saturating_sub(1);
+        let size = q.min(cols);
+        let thin = ComputeSvdVectors::Thin;
+        let req = svd_scratch::<f64>(q, cols, thin, ComputeSvdVectors::No, Par::Seq, Default::default());
+        LooOrthWorkspace {
+            rest: Mat::zeros(q, cols),
+            u: Mat::zeros(q, size),
+            sv: Diag::zeros(size),
+            buf: MemBuffer::new(req),
+        }
+    }
+
+    /// [`LooOrth::fold`] with caller-owned buffers: `R \ r_i` is written into the reused
+    /// q x (N - 1) buffer (no allocation) and the SVD computes the left singular vectors only
+    /// (the right ones, (N - 1) x q, are never used).
+    pub fn fold_with(&self, i: usize, max_m: usize, ws: &mut LooOrthWorkspace) -> Result<Option<LooFold>, PodError> {
+        let count = self.ncols();
+        assert!(i < count, "LooOrth::fold: fold {i} out of {count} snapshots");
+        let norm = self.norms[i];
+        if norm <= 0.0 {
+            return Ok(None);
+        }
+        let q = self.coords.nrows();
+        for c in 0..count - 1 {
+            let from = if c < i { c } else { c + 1 };
+            ws.rest.col_mut(c).copy_from(self.coords.col(from));
+        }
+        let rank = if count - 1 == 0 || q == 0 || ws.rest.norm_l2() <= 0.0 {
+            0
+        } else {
+            let stack = MemStack::new(&mut ws.buf);
+            svd(ws.rest.as_ref(), ws.sv.as_mut(), Some(ws.u.as_mut()), None, Par::Seq, stack, Default::default())
+                .map_err(|_| PodError::SvdNoConvergence)?;
+            let values: Vec<f64> = ws.sv.column_vector().iter().copied().collect();
+            numerical_rank(&values, self.nrows, count - 1)
+        };
+        Ok(Some(orth_fold_errors(ws.u.subcols(0, rank), self.coords.subcols(i, 1), norm, max_m)))
+    }
+
+    /// Fold i as the previous implementation computed it (kept as the reference): a copy of
+    /// `R \ r_i` and a thin SVD with both singular vector sets.
+    pub fn fold_reference(&self, i: usize, max_m: usize) -> Result<Option<LooFold>, PodError> {
         let count = self.ncols();
         assert!(i < count, "LooOrth::fold: fold {i} out of {count} snapshots");
         let norm = self.norms[i];
@@ -182,17 +261,118 @@ impl LooOrth {
     }
 }
 
+/// Reusable buffers of [`LooOrth::fold_with`].
+pub struct LooOrthWorkspace {
+    rest: Mat<f64>,
+    u: Mat<f64>,
+    sv: Diag<f64>,
+    buf: MemBuffer,
+}
+
+impl std::fmt::Debug for LooOrthWorkspace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LooOrthWorkspace").field("rest", &self.rest.shape()).finish_non_exhaustive()
+    }
+}
+
 /// G(m) for m = 1..=max_m with POD bases ("primal orth", "dual orth"), every fold in turn.
 pub fn generalization_orth(s: MatRef<'_, f64>, max_m: usize) -> Result<MetricCurve, PodError> {
     let loo = LooOrth::new(s)?;
-    let folds = (0..s.ncols()).map(|i| loo.fold(i, max_m)).collect::<Result<Vec<_>, _>>()?;
+    let mut ws = loo.workspace();
+    let folds = (0..s.ncols()).map(|i| loo.fold_with(i, max_m, &mut ws)).collect::<Result<Vec<_>, _>>()?;
     Ok(combine_folds(&folds, max_m))
 }
 
-/// One cone leave-one-out fold: CPG (tolerance 0) of `S \ s_i`, then the relative cone
-/// projection error of `s_i` on its first m generators in selection order, m = 1..=max_m;
-/// `None` when `||s_i|| = 0`.
-pub fn loo_fold_cone(
+/// G(m) for m = 1..=max_m with CPG bases ("dual cone"): the shared path, then every fold in
+/// turn ([`loo_fold_cone`]).
+pub fn generalization_cone(s: MatRef<'_, f64>, max_m: usize, nnls: NnlsParams) -> Result<MetricCurve, ConeError> {
+    let path = cpg_path(s, CpgPathParams { nnls, max_rank: max_m }, &|| {})?;
+    let folds = (0..s.ncols()).map(|i| loo_fold_cone(s, &path, i, max_m)).collect::<Result<Vec<_>, _>>()?;
+    Ok(combine_folds(&folds, max_m))
+}
+
+/// One cone leave-one-out fold from the tolerance-0 CPG path of `s` (`path` =
+/// [`cpg_path`] of the same `s` with `max_rank >= max_m`): the relative cone projection errors
+/// of `s_i` on the first m generators of the CPG basis of `S \ s_i`, m = 1..=max_m; `None`
+/// when `||s_i|| = 0`. Equals [`loo_fold_cone_reference`] (see the module docs); `basis_len`
+/// is exact below `max_m` and otherwise a lower bound `>= max_m` (the fold stops growing at
+/// `max_m`).
+pub fn loo_fold_cone(s: MatRef<'_, f64>, path: &CpgPath, i: usize, max_m: usize) -> Result<Option<LooFold>, ConeError> {
+    let d = &path.loo;
+    assert_eq!(s.ncols(), d.norms.len(), "loo_fold_cone: the path is of another snapshot set");
+    assert!(i < s.ncols(), "loo_fold_cone: fold {i} out of {} snapshots", s.ncols());
+    assert!(max_m <= path.max_rank, "loo_fold_cone: max_m {max_m} above the path's max_rank {}", path.max_rank);
+    if d.norms[i] <= 0.0 {
+        return Ok(None);
+    }
+    let k = path.len();
+    let t = d.diverge[i];
+    // c[m]: error on the first m generators of the fold's basis; c[0] = 1 (empty cone).
+    let shared = if t == usize::MAX { k } else { t - 1 }.min(max_m);
+    let mut c = Vec::with_capacity(max_m + 1);
+    c.push(1.0);
+    c.extend_from_slice(&d.errors[i][..shared]);
+    let basis_len = if t == usize::MAX {
+        k
+    } else if t > max_m {
+        t - 1
+    } else {
+        continue_fold(s, path, i, max_m, &mut c)?
+    };
+    let used = c.len() - 1;
+    let errors = (1..=max_m).map(|m| c[m.min(used)]).collect();
+    Ok(Some(LooFold { errors, basis_len }))
+}
+
+/// The fold without snapshot i from step t = diverge[i]: the cone of the full path's first
+/// t - 1 generators, every other snapshot not yet selected as a candidate with its last bound
+/// and coefficients from the full run's lazy projections at cone size <= t - 1, then the lazy
+/// greedy on its own until max_m generators or none is left; the error of s_i continues its
+/// warm-started chain of the full path's pass. Returns the fold's basis size.
+fn continue_fold(
+    s: MatRef<'_, f64>,
+    path: &CpgPath,
+    i: usize,
+    max_m: usize,
+    c: &mut Vec<f64>,
+) -> Result<usize, ConeError> {
+    let d = &path.loo;
+    let t = d.diverge[i];
+    let projector = d.projector.as_ref().expect("cpg_path records the cone for max_rank > 0").prefix(t - 1);
+    let mut early = vec![false; s.ncols()];
+    path.selected[..t - 1].iter().for_each(|&g| early[g] = true);
+    let candidates = (0..s.ncols()).filter(|&j| j != i && d.norms[j] > 0.0 && !early[j]).filter_map(|j| {
+        let h = &d.history[j];
+        let last = h.partition_point(|r| r.m < t);
+        let (err, m, coeffs) = match last.checked_sub(1).map(|q| &h[q]) {
+            Some(r) => (r.err, r.m, r.coeffs.clone()),
+            None => (1.0, 0, Vec::new()), // empty cone: ||s_j|| / ||s_j|| = 1 exactly
+        };
+        (err > IN_CONE_REL_TOL).then_some((j, err, m, coeffs))
+    });
+    let mut lazy = LazyGreedy::resume(s, &d.norms, projector, candidates);
+    let (mut coeffs, mut residual) = d.start[i].clone().expect("cpg_path records the start of folds up to max_rank");
+    let mut lambda = vec![0.0; s.nrows()];
+    copy_column(s, i, &mut lambda);
+    let mut atb: Vec<f64> = (0..t - 1).map(|g| lazy.projector.dot_column(g, &lambda)).collect();
+    while lazy.len() < max_m {
+        if lazy.step()?.is_none() {
+            break;
+        }
+        coeffs.push(0.0);
+        if residual > IN_CONE_REL_TOL * d.norms[i] {
+            atb.push(lazy.projector.dot_column(lazy.len() - 1, &lambda));
+            residual = lazy.projector.project_warm_atb(&lambda, &atb, &mut coeffs)?;
+        }
+        c.push(norm2(&[residual]) / d.single_norms[i]);
+    }
+    Ok(lazy.len())
+}
+
+/// One cone leave-one-out fold by definition (kept as the slow reference): CPG (tolerance 0,
+/// [`cpg_reference`]) of `S \ s_i`, then the relative cone projection error of `s_i` on its
+/// first m generators in selection order, m = 1..=max_m; `None` when `||s_i|| = 0`.
+pub fn loo_fold_cone_reference(
     s: MatRef<'_, f64>,
     i: usize,
     max_m: usize,
@@ -202,7 +382,7 @@ pub fn loo_fold_cone(
     if s.col(i).norm_l2() <= 0.0 {
         return Ok(None);
     }
-    let basis = cpg(without_column(s, i).as_ref(), CpgParams { tol: 0.0, nnls })?.basis;
+    let basis = cpg_reference(without_column(s, i).as_ref(), CpgParams { tol: 0.0, nnls })?.basis;
     let k = basis.ncols();
     let used = k.min(max_m);
     // C(m) of the single column s_i is its relative error (eq. 16 with N = 1), m = 0..=used.
@@ -211,9 +391,13 @@ pub fn loo_fold_cone(
     Ok(Some(LooFold { errors, basis_len: k }))
 }
 
-/// G(m) for m = 1..=max_m with CPG bases ("dual cone"), every fold in turn.
-pub fn generalization_cone(s: MatRef<'_, f64>, max_m: usize, nnls: NnlsParams) -> Result<MetricCurve, ConeError> {
-    let folds = (0..s.ncols()).map(|i| loo_fold_cone(s, i, max_m, nnls)).collect::<Result<Vec<_>, _>>()?;
+/// [`generalization_cone`] by definition: every fold through [`loo_fold_cone_reference`].
+pub fn generalization_cone_reference(
+    s: MatRef<'_, f64>,
+    max_m: usize,
+    nnls: NnlsParams,
+) -> Result<MetricCurve, ConeError> {
+    let folds = (0..s.ncols()).map(|i| loo_fold_cone_reference(s, i, max_m, nnls)).collect::<Result<Vec<_>, _>>()?;
     Ok(combine_folds(&folds, max_m))
 }
 
@@ -223,6 +407,7 @@ mod tests {
     use crate::approx::Tol;
     use crate::cone::nnls_reference;
     use crate::rng::Rng;
+    use crate::testing::{bumps, hertz_family};
     use crate::{assert_all_close, assert_close};
     use faer::prelude::SolveLstsq;
     use faer::Side;
@@ -351,8 +536,9 @@ mod tests {
             let x = r as f64 / n as f64;
             (rng.uniform_in(0.0, 1.0) * (1.0 - (x - 0.5).powi(2) * 3.0)).max(0.0)
         });
-        let fold = loo_fold_cone(s.as_ref(), i, count - 1, NnlsParams::default()).expect("ok").expect("nonzero");
-        let basis = cpg(without_column(s.as_ref(), i).as_ref(), CpgParams::default()).expect("ok").basis;
+        let fold =
+            loo_fold_cone_reference(s.as_ref(), i, count - 1, NnlsParams::default()).expect("ok").expect("nonzero");
+        let basis = cpg_reference(without_column(s.as_ref(), i).as_ref(), CpgParams::default()).expect("ok").basis;
         assert_eq!(fold.basis_len, basis.ncols());
         let b: Vec<f64> = s.col(i).iter().copied().collect();
         let norm = s.col(i).norm_l2();
@@ -404,7 +590,7 @@ mod tests {
             assert!(curve.mean.iter().chain(&curve.std).all(|v| v.is_finite()), "{curve:?}");
         }
         assert!(LooOrth::new(s.as_ref()).expect("finite").fold(4, 5).expect("ok").is_none());
-        assert!(loo_fold_cone(s.as_ref(), 4, 5, NnlsParams::default()).expect("ok").is_none());
+        assert!(loo_fold_cone_reference(s.as_ref(), 4, 5, NnlsParams::default()).expect("ok").is_none());
         // The zero column sits in every other fold's set and changes nothing there: the folds
         // equal those of the matrix without it (5 random fields in R^10, rank 4 per fold).
         let kept = without_column(s.as_ref(), 4);
@@ -429,6 +615,80 @@ mod tests {
         for curve in [&orth, &cone] {
             assert_all_close!(curve.mean, [1.0, 1.0], Tol::abs(1e-15)); // sqrt(x^2)/|x|
             assert_eq!(curve.padded, vec![1, 1]);
+        }
+    }
+
+    /// Every cone fold from the shared path against the direct fold (a whole CPG without s_i).
+    fn check_cone_folds(s: MatRef<'_, f64>, max_m: usize) -> usize {
+        let path =
+            cpg_path(s, CpgPathParams { max_rank: max_m, ..CpgPathParams::default() }, &|| {}).expect("converges");
+        let mut continued = 0;
+        for i in 0..s.ncols() {
+            continued += usize::from(path.loo.diverge[i] <= max_m);
+            let fast = loo_fold_cone(s, &path, i, max_m).expect("converges");
+            let slow = loo_fold_cone_reference(s, i, max_m, NnlsParams::default()).expect("converges");
+            match (&fast, &slow) {
+                (Some(f), Some(r)) => {
+                    assert_eq!(f.basis_len.min(max_m), r.basis_len.min(max_m), "fold {i}: basis sizes differ");
+                    // Same generators and the same warm-started chain of s_i: equal up to the
+                    // last bits of the generators (the direct fold normalises a copied matrix);
+                    // 1e-12 relative, plus 1e-14 absolute for errors at round-off level.
+                    assert_all_close!(f.errors, r.errors, Tol { abs: 1e-14, rel: 1e-12 });
+                }
+                (None, None) => {}
+                _ => panic!("fold {i}: zero-norm detection differs"),
+            }
+        }
+        continued
+    }
+
+    #[test]
+    fn cone_loo_from_the_path_equals_the_reference() {
+        let s = hertz_family(&mut Rng::new(78), 101, 64);
+        let continued = check_cone_folds(s.as_ref(), 63);
+        // Most snapshots are extreme rays of this family: their folds need a continuation.
+        assert!(continued > 30, "only {continued} folds continued");
+        // A smaller max rank: the folds stop growing at 12 generators.
+        check_cone_folds(s.as_ref(), 12);
+        // More snapshots than nodes (a cone needs more generators than n) and random bumps.
+        check_cone_folds(hertz_family(&mut Rng::new(79), 24, 40).as_ref(), 39);
+        check_cone_folds(bumps(&mut Rng::new(80), 30, 36, (1.0, 4.0)).as_ref(), 35);
+    }
+
+    #[test]
+    fn cone_generalization_equals_the_reference_curve() {
+        let s = hertz_family(&mut Rng::new(81), 60, 48);
+        let fast = generalization_cone(s.as_ref(), 47, NnlsParams::default()).expect("converges");
+        let slow = generalization_cone_reference(s.as_ref(), 47, NnlsParams::default()).expect("converges");
+        // Means of per-fold errors that agree to 1e-12 relative (see check_cone_folds).
+        assert_all_close!(fast.mean, slow.mean, Tol { abs: 1e-14, rel: 1e-12 });
+        assert_all_close!(fast.std, slow.std, Tol { abs: 1e-14, rel: 1e-10 }); // std of near-equal values
+        assert_eq!((fast.count, fast.padded, fast.n_zero), (slow.count, slow.padded, slow.n_zero));
+    }
+
+    #[test]
+    fn orth_folds_without_right_vectors_equal_the_reference() {
+        // Ironing-like pressures (near-duplicates, a zero column, a multiple, a sum: rank
+        // deficient, so the numerical-rank rule matters) and a wide case (n < N).
+        for s in [hertz_family(&mut Rng::new(74), 101, 64), hertz_family(&mut Rng::new(75), 30, 48)] {
+            let loo = LooOrth::new(s.as_ref()).expect("finite");
+            let mut ws = loo.workspace();
+            let max_m = s.ncols() - 1;
+            for i in 0..s.ncols() {
+                let fast = loo.fold_with(i, max_m, &mut ws).expect("svd");
+                let slow = loo.fold_reference(i, max_m).expect("svd");
+                match (&fast, &slow) {
+                    (Some(f), Some(r)) => {
+                        assert_eq!(f.basis_len, r.basis_len, "fold {i}: numerical ranks differ");
+                        // The same bidiagonal SVD with and without the right vectors: equal up
+                        // to round-off of the left ones; 1e-12 relative plus 1e-14 absolute
+                        // (errors at round-off level at full rank).
+                        assert_all_close!(f.errors, r.errors, Tol { abs: 1e-14, rel: 1e-12 });
+                    }
+                    (None, None) => {}
+                    _ => panic!("fold {i}: zero-norm detection differs"),
+                }
+            }
         }
     }
 }

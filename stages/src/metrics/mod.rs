@@ -27,8 +27,13 @@ mod stats;
 
 pub use compactness::{compactness_cone, compactness_cone_with, compactness_orth, relative_errors_orth};
 pub use generalization::{
-    combine_folds, generalization_cone, generalization_orth, loo_fold_cone, loo_fold_orth, LooFold, LooOrth,
+    combine_folds, generalization_cone, generalization_cone_reference, generalization_orth, loo_fold_cone,
+    loo_fold_cone_reference, loo_fold_orth, LooFold, LooOrth, LooOrthWorkspace,
 };
 pub use nested::{nested_error_cone, nested_error_orth};
-pub use specificity::{specificity_cone, specificity_orth, SpecificityParams};
+pub use specificity::{
+    cone_ranges_reference, specificity_cone, specificity_cone_path, specificity_orth, SpecificityParams,
+};
+
+pub(crate) use specificity::cone_intervals;
 pub use stats::{MetricCurve, RunningStats};

@@ -41,6 +41,7 @@
 use faer::{Mat, MatRef};
 
 use super::stats::{MetricCurve, RunningStats};
+use crate::basis::CpgPath;
 use crate::cone::{copy_column, ConeError, GrowingCone, NnlsParams};
 use crate::rng::Rng;
 
@@ -87,7 +88,9 @@ pub fn specificity_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>, params: Spec
 }
 
 /// S(m) for m = 1..=k on the cone of the first m columns of `cone_basis` (n x k, CPG:
-/// "dual cone") of the training snapshots `s` (n x N); coefficients are clipped at 0.
+/// "dual cone") of the training snapshots `s` (n x N); coefficients are clipped at 0. Computes
+/// the sampling intervals with its own cone pass; [`specificity_cone_path`] reuses the CPG
+/// path's.
 pub fn specificity_cone(
     s: MatRef<'_, f64>,
     cone_basis: MatRef<'_, f64>,
@@ -95,8 +98,36 @@ pub fn specificity_cone(
     nnls: NnlsParams,
 ) -> Result<MetricCurve, ConeError> {
     assert_eq!(s.nrows(), cone_basis.nrows(), "specificity_cone: S and basis have different rows");
+    let ranges = cone_ranges_reference(s, cone_basis, nnls)?;
+    Ok(specificity_cone_with(s, cone_basis, &ranges, params, &|| {}))
+}
+
+/// S(m) for m = 1..=min(max_m, k, path.max_rank) on the cone of the first m generators of the
+/// CPG path of `s` (the path of these snapshots, [`cpg_path`](crate::basis::cpg_path) with
+/// `max_rank` set), with the intervals recorded by the path; `tick` is called once per m.
+/// With `max_m` = the size of a CPG basis (a prefix of the path) this is
+/// [`specificity_cone`] of that basis, bit for bit.
+pub fn specificity_cone_path(
+    s: MatRef<'_, f64>,
+    path: &CpgPath,
+    max_m: usize,
+    params: SpecificityParams,
+    tick: &(dyn Fn() + Sync),
+) -> MetricCurve {
+    let m = path.cone_ranges.len().min(max_m);
+    specificity_cone_with(s, path.basis.subcols(0, m), &path.cone_ranges[..m], params, tick)
+}
+
+fn specificity_cone_with(
+    s: MatRef<'_, f64>,
+    cone_basis: MatRef<'_, f64>,
+    ranges: &[Vec<(f64, f64)>],
+    params: SpecificityParams,
+    tick: &(dyn Fn() + Sync),
+) -> MetricCurve {
+    assert_eq!(s.nrows(), cone_basis.nrows(), "specificity_cone: S and basis have different rows");
     let (n, k) = cone_basis.shape();
-    let ranges = cone_ranges(s, cone_basis, nnls)?;
+    assert_eq!(ranges.len(), k, "specificity_cone: one set of intervals per basis size");
     let (q, r) = if n.min(k) == 0 {
         (Mat::zeros(n, 0), Mat::zeros(0, k))
     } else {
@@ -108,15 +139,17 @@ pub fn specificity_cone(
     let stats: Vec<RunningStats> = (1..=k)
         .map(|m| {
             let p = m.min(qdim);
-            sample_stats(&frame, &ranges[m - 1], stream(params.seed, m), params.samples, p, |alpha, beta| {
+            let st = sample_stats(&frame, &ranges[m - 1], stream(params.seed, m), params.samples, p, |alpha, beta| {
                 // beta = R[:p, :m] alpha, R upper trapezoidal: row l starts at column l.
                 for (l, b) in beta.iter_mut().enumerate() {
                     *b = (l..alpha.len()).map(|c| r[(l, c)] * alpha[c]).sum();
                 }
-            })
+            });
+            tick();
+            st
         })
         .collect();
-    Ok(MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero()))
+    MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero())
 }
 
 /// The training snapshots in an orthonormal frame `Q` (n x q).
@@ -155,7 +188,48 @@ impl Frame {
     }
 
     /// `min_j ||s_j - Q[:, :p] beta|| / ||s_j||` over non-zero snapshots (p = beta.len()).
-    fn min_relative_distance(&self, beta: &[f64]) -> Option<f64> {
+    ///
+    /// Exact pruning: the squared distance is `tails + sum_l (c_jl - beta_l)^2`, a sum of
+    /// non-negative terms, and floating-point addition of non-negative terms never decreases
+    /// a partial sum, so a snapshot whose partial sum already exceeds the best value cannot be
+    /// the minimum and its remaining terms are skipped. The minimum itself is summed in full in
+    /// the same order, so the result is bit for bit that of the full scan. `hint` (an index
+    /// into the non-zero snapshots, updated to the winner) is tried first: consecutive samples
+    /// tend to share their nearest snapshot.
+    fn min_relative_distance(&self, beta: &[f64], hint: &mut usize) -> Option<f64> {
+        if self.nonzero.is_empty() {
+            return None;
+        }
+        let p = beta.len();
+        let first = (*hint).min(self.nonzero.len() - 1);
+        let mut best = f64::INFINITY;
+        for q in std::iter::once(first).chain((0..self.nonzero.len()).filter(|&q| q != first)) {
+            let (j, inv_norm2) = self.nonzero[q];
+            let c = &self.coords.col_as_slice(j)[..p];
+            let tail = self.tails[(p, j)];
+            let mut sum = 0.0;
+            let mut pruned = false;
+            for (l, (a, b)) in c.iter().zip(beta).enumerate() {
+                sum += (a - b) * (a - b);
+                if l % 8 == 7 && (tail + sum) * inv_norm2 > best {
+                    pruned = true;
+                    break;
+                }
+            }
+            if !pruned {
+                let value = (tail + sum) * inv_norm2;
+                if value < best {
+                    best = value;
+                    *hint = q;
+                }
+            }
+        }
+        Some(best.sqrt())
+    }
+
+    /// The full scan (kept as the reference of the pruned one).
+    #[cfg(test)]
+    fn min_relative_distance_reference(&self, beta: &[f64]) -> Option<f64> {
         let p = beta.len();
         let mut best = f64::INFINITY;
         for &(j, inv_norm2) in &self.nonzero {
@@ -175,8 +249,9 @@ fn interval(stats: &RunningStats, clip: bool) -> (f64, f64) {
 }
 
 /// The sampling intervals of the cone coordinates for every m: `ranges[m - 1]` has m entries,
-/// from the NNLS coefficients of every training snapshot on the first m generators.
-pub(crate) fn cone_ranges(
+/// from the NNLS coefficients of every training snapshot on the first m generators. Kept as
+/// the reference: [`CpgPath::cone_ranges`] holds the same numbers from the basis' own pass.
+pub fn cone_ranges_reference(
     s: MatRef<'_, f64>,
     cone_basis: MatRef<'_, f64>,
     nnls: NnlsParams,
@@ -188,15 +263,21 @@ pub(crate) fn cone_ranges(
     for m in 1..=k {
         copy_column(cone_basis, m - 1, &mut column);
         cone.push(&column)?;
-        let mut stats = vec![RunningStats::new(); m];
-        for j in 0..s.ncols() {
-            for (st, a) in stats.iter_mut().zip(cone.coeffs(j)) {
-                st.push(*a);
-            }
-        }
-        all.push(stats.iter().map(|st| interval(st, true)).collect());
+        all.push(cone_intervals(&cone, m));
     }
     Ok(all)
+}
+
+/// The clipped intervals `[max(0, mu - sigma), mu + sigma]` of the coefficients of every
+/// snapshot of `cone` on its first m generators.
+pub(crate) fn cone_intervals(cone: &GrowingCone<'_>, m: usize) -> Vec<(f64, f64)> {
+    let mut stats = vec![RunningStats::new(); m];
+    for j in 0..cone.norms().len() {
+        for (st, a) in stats.iter_mut().zip(cone.coeffs(j)) {
+            st.push(*a);
+        }
+    }
+    stats.iter().map(|st| interval(st, true)).collect()
 }
 
 /// The random stream of basis size m: a SplitMix64 hash of m mixed into the seed.
@@ -230,10 +311,11 @@ where
     let mut alpha = vec![0.0; ranges.len()];
     let mut beta = vec![0.0; p];
     let mut stats = RunningStats::new();
+    let mut hint = 0;
     for _ in 0..samples {
         draw(&mut rng, ranges, &mut alpha);
         to_frame(&alpha, &mut beta);
-        if let Some(value) = frame.min_relative_distance(&beta) {
+        if let Some(value) = frame.min_relative_distance(&beta, &mut hint) {
             stats.push(value);
         }
     }
@@ -245,8 +327,9 @@ mod tests {
     use super::*;
     use crate::approx::Tol;
     use crate::basis::{cpg, pod_full, CpgParams};
+    use crate::basis::{cpg_path, CpgPathParams};
     use crate::cone::nnls_reference;
-    use crate::testing::bumps;
+    use crate::testing::{bumps, hertz_family};
     use crate::{assert_all_close, assert_close};
 
     fn params(seed: u64) -> SpecificityParams {
@@ -317,7 +400,7 @@ mod tests {
         let basis = full.subcols(0, 7);
         let p = params(6);
         let curve = specificity_cone(s.as_ref(), basis, p, NnlsParams::default()).expect("ok");
-        let ranges = cone_ranges(s.as_ref(), basis, NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges_reference(s.as_ref(), basis, NnlsParams::default()).expect("ok");
         for m in 1..=basis.ncols() {
             let (mean, std) = brute_force(s.as_ref(), basis, &ranges[m - 1], m, p);
             // QR frame vs explicit Theta alpha: round-off (cond(Theta) ~ 10 for bumps); 1e-12.
@@ -336,7 +419,7 @@ mod tests {
         assert!(basis.ncols() > 8, "only {} generators", basis.ncols());
         let p = params(8);
         let curve = specificity_cone(s.as_ref(), basis.as_ref(), p, NnlsParams::default()).expect("ok");
-        let ranges = cone_ranges(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges_reference(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
         for m in 1..=basis.ncols() {
             let (mean, std) = brute_force(s.as_ref(), basis.as_ref(), &ranges[m - 1], m, p);
             // As above; cond(Theta) of overlapping bumps on 8 nodes is larger, still 1e-12
@@ -353,7 +436,7 @@ mod tests {
         let mut rng = Rng::new(83);
         let s = bumps(&mut rng, 30, 10, (2.0, 6.0));
         let basis = cpg(s.as_ref(), CpgParams::default()).expect("ok").basis;
-        let ranges = cone_ranges(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges_reference(s.as_ref(), basis.as_ref(), NnlsParams::default()).expect("ok");
         for m in [1, 3, basis.ncols()] {
             let mut stats = vec![RunningStats::new(); m];
             for j in 0..s.ncols() {
@@ -418,7 +501,7 @@ mod tests {
             let second = if i >= 3 && j == 4 { 1.0 } else { 0.0 };
             first + second
         });
-        let ranges = cone_ranges(s.as_ref(), theta.as_ref(), NnlsParams::default()).expect("ok");
+        let ranges = cone_ranges_reference(s.as_ref(), theta.as_ref(), NnlsParams::default()).expect("ok");
         assert_close!(ranges[1][1].0, 0.0, Tol::abs(0.0)); // clipped from 0.2 - 0.4 < 0
         let mut alpha = vec![0.0; 2];
         let mut rng = stream(9, 2);
@@ -464,5 +547,53 @@ mod tests {
         let none = specificity_orth(Mat::<f64>::zeros(4, 3).as_ref(), Mat::<f64>::identity(4, 1).as_ref(), params(7));
         assert_eq!((none.n_zero, none.count[0]), (3, 0));
         assert!(none.mean[0].is_nan());
+    }
+
+    #[test]
+    fn path_intervals_and_curve_equal_the_reference() {
+        let s = hertz_family(&mut Rng::new(89), 101, 64);
+        let path = cpg_path(s.as_ref(), CpgPathParams { max_rank: 64, ..CpgPathParams::default() }, &|| {})
+            .expect("converges");
+        let reference = cone_ranges_reference(s.as_ref(), path.basis.as_ref(), NnlsParams::default()).expect("ok");
+        assert_eq!(path.cone_ranges.len(), reference.len());
+        for (a, b) in path.cone_ranges.iter().zip(&reference) {
+            let flat = |r: &[(f64, f64)]| r.iter().flat_map(|(lo, hi)| [*lo, *hi]).collect::<Vec<_>>();
+            // The same pushes and warm-started projections: bit for bit.
+            assert_all_close!(flat(a), flat(b), Tol::abs(0.0));
+        }
+        let p = params(3);
+        let fast = specificity_cone_path(s.as_ref(), &path, usize::MAX, p, &|| {});
+        let slow = specificity_cone(s.as_ref(), path.basis.as_ref(), p, NnlsParams::default()).expect("ok");
+        assert_all_close!(fast.mean, slow.mean, Tol::abs(0.0)); // same intervals, same frame
+        assert_all_close!(fast.std, slow.std, Tol::abs(0.0));
+        // A smaller max rank gives the prefix of the curve (a frame of fewer generators: the
+        // round-off of the tails only, 1e-12).
+        let short =
+            cpg_path(s.as_ref(), CpgPathParams { max_rank: 9, ..CpgPathParams::default() }, &|| {}).expect("converges");
+        let few = specificity_cone_path(s.as_ref(), &short, usize::MAX, p, &|| {});
+        assert_eq!(few.len(), 9);
+        assert_all_close!(few.mean, fast.mean[..9], Tol::abs(1e-12));
+    }
+
+    #[test]
+    fn pruned_nearest_snapshot_equals_the_full_scan() {
+        // Ironing-like snapshots in their POD frame; samples around the snapshots (where the
+        // pruning bites) and far away, for p = 1..q.
+        let mut rng = Rng::new(90);
+        let s = hertz_family(&mut rng, 60, 40);
+        let modes = pod_full(s.as_ref()).expect("svd").modes;
+        let frame = Frame::new(s.as_ref(), modes.as_ref());
+        let q = modes.ncols();
+        let mut hint = 0;
+        for trial in 0..400 {
+            let p = 1 + trial % q;
+            let j = trial % s.ncols();
+            let scale = if trial % 3 == 0 { 1.0 } else { 1e-3 };
+            let beta: Vec<f64> = (0..p).map(|l| frame.coords[(l, j)] + scale * rng.uniform_in(-1.0, 1.0)).collect();
+            let fast = frame.min_relative_distance(&beta, &mut hint).expect("non-zero snapshots");
+            let slow = frame.min_relative_distance_reference(&beta).expect("non-zero snapshots");
+            // The same sum for the winner, pruned ones provably larger: bit for bit.
+            assert_close!(fast, slow, Tol::abs(0.0));
+        }
     }
 }
