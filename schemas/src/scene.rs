@@ -199,6 +199,11 @@ pub struct StudySpec {
     /// [`DEFAULT_MAX_RANK`] beyond (see [`StudySpec::max_rank_for`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_rank: Option<usize>,
+    /// Leave-one-out folds averaged into G(m) (>= 1, optional). Default: every fold while the
+    /// training set has at most [`DEFAULT_MAX_RANK`] snapshots, [`DEFAULT_MAX_RANK`] evenly
+    /// spaced folds beyond (see [`StudySpec::loo_folds_for`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loo_folds: Option<usize>,
 }
 
 /// The default cap of the metric curves' basis size for training sets larger than this.
@@ -211,6 +216,18 @@ impl StudySpec {
     /// N - 1 for leave-one-out), so a cap above those changes nothing.
     pub fn max_rank_for(&self, n_snapshots: usize) -> usize {
         self.max_rank.unwrap_or(if n_snapshots <= DEFAULT_MAX_RANK { n_snapshots } else { DEFAULT_MAX_RANK })
+    }
+
+    /// The leave-one-out folds of eq. 17 for `n_snapshots` training snapshots: every fold, or
+    /// `F = study.loo_folds` (default [`DEFAULT_MAX_RANK`] above that many snapshots) evenly
+    /// spaced ones, `i_k = floor(k N / F)`, k = 0..F. The training points are in parameter
+    /// order, so the sample is stratified over the parameter domain, and deterministic.
+    pub fn loo_folds_for(&self, n_snapshots: usize) -> Vec<usize> {
+        let f = self
+            .loo_folds
+            .unwrap_or(if n_snapshots <= DEFAULT_MAX_RANK { n_snapshots } else { DEFAULT_MAX_RANK })
+            .min(n_snapshots);
+        (0..f).map(|k| k * n_snapshots / f).collect()
     }
 }
 

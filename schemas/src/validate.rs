@@ -228,6 +228,13 @@ fn check_study(c: &Checker<'_>, s: &StudySpec) -> Result<(), SceneError> {
     c.tolerance("study.dual_cone_tol", s.dual_cone_tol)?;
     c.tolerance("study.dual_cone_tol_truncated", s.dual_cone_tol_truncated)?;
     c.at_least("study.specificity_samples", s.specificity_samples, 1)?;
+    if s.loo_folds == Some(0) {
+        return Err(c.fail(
+            "study.loo_folds",
+            "is 0: the generalization curve would average no fold".into(),
+            "give the number of leave-one-out folds (>= 1), or remove the key to use every fold up to 256 snapshots",
+        ));
+    }
     match s.max_rank {
         Some(0) => Err(c.fail(
             "study.max_rank",

@@ -156,3 +156,19 @@ fn max_rank_is_optional_and_positive() {
     let text = rope_text().replace("seed = ", "max_rank = -3\nseed = ");
     assert_names(&load_err(&text), &["max_rank"]);
 }
+
+#[test]
+fn loo_folds_are_all_up_to_256_snapshots_then_an_even_sample() {
+    let cfg = SceneConfig::from_toml_str(&rope_text(), Path::new("rope.toml")).expect("shipped scene");
+    assert_eq!(cfg.study.loo_folds_for(10), (0..10).collect::<Vec<_>>());
+    assert_eq!(cfg.study.loo_folds_for(256).len(), 256);
+    let big = cfg.study.loo_folds_for(1105);
+    // floor(k 1105 / 256), k = 0..256: first, spacing 4 or 5, last 1100.
+    assert_eq!((big.len(), big[0], big[1], big[255]), (256, 0, 4, 1100));
+    assert!(big.windows(2).all(|w| (4..=5).contains(&(w[1] - w[0]))), "evenly spaced: {big:?}");
+    let text = rope_text().replace("seed = ", "loo_folds = 4\nseed = ");
+    let cfg = SceneConfig::from_toml_str(&text, Path::new("rope.toml")).expect("loo_folds = 4 is valid");
+    assert_eq!(cfg.study.loo_folds_for(10), vec![0, 2, 5, 7]);
+    let text = rope_text().replace("seed = ", "loo_folds = 0\nseed = ");
+    assert_names(&load_err(&text), &["study.loo_folds", "is 0"]);
+}

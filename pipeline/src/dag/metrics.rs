@@ -31,8 +31,15 @@ fn numerical(scene: &str, stage: &'static str, e: impl std::fmt::Display) -> Cro
 /// G(m) for primal orth, dual orth and dual cone, m = 1..=min(N - 1, max_rank).
 pub(crate) fn generalization(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
     let max_rank = basis::max_rank(ctx);
-    let spec = KeySpec::new(ArtifactKind::Generalization, ALGORITHM_VERSION, json!({ "max_rank": max_rank }))
-        .input("train", train);
+    let n_train = ctx.scene.parameter.train_points().len();
+    let folds = ctx.scene.study.loo_folds_for(n_train);
+    // Every fold: the key is what it always was; a sample of folds is part of the key.
+    let params = if folds.len() == n_train {
+        json!({ "max_rank": max_rank })
+    } else {
+        json!({ "max_rank": max_rank, "folds": folds.len() })
+    };
+    let spec = KeySpec::new(ArtifactKind::Generalization, ALGORITHM_VERSION, params).input("train", train);
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
     let progress = ctx.progress;
@@ -41,28 +48,30 @@ pub(crate) fn generalization(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, Crom
         let max_m = set.dual.cols.saturating_sub(1).min(max_rank);
         let fail = |e: String| numerical(&scene, "generalization", e);
         let path = basis::dual_path(progress, train, &set.dual, max_rank).map_err(fail)?;
-        let bar = Ticker::new(progress, "LOO folds", 3 * set.dual.cols);
+        let bar = Ticker::new(progress, "LOO folds", 3 * folds.len());
         let mut rows = CurveRows::default();
         for (field, s) in [("primal", &set.primal), ("dual", &set.dual)] {
-            let curve = loo_orth(s, max_m, &|| bar.tick(&format!("{field} orth"))).map_err(fail)?;
+            let curve = loo_orth(s, &folds, max_m, &|| bar.tick(&format!("{field} orth"))).map_err(fail)?;
             rows.push(&scene, field, "orth", &curve);
         }
-        let curve = loo_cone(&set.dual, &path, max_m, &|| bar.tick("dual cone")).map_err(fail)?;
+        let curve = loo_cone(&set.dual, &path, &folds, max_m, &|| bar.tick("dual cone")).map_err(fail)?;
         rows.push(&scene, "dual", "cone", &curve);
         bar.finish(&format!("m <= {max_m}"));
         rows.table().write_parquet(&staging.path(names::GENERALIZATION))?;
         Ok(BTreeMap::from([
-            ("folds".to_string(), json!(set.parameters.len())),
+            ("folds".to_string(), json!(folds.len())),
+            ("snapshots".to_string(), json!(set.parameters.len())),
             ("max_rank".to_string(), json!(max_rank)),
             ("max_m".to_string(), json!(max_m)),
         ]))
     })
 }
 
-fn loo_orth(s: &ColMatrix, max_m: usize, tick: &(dyn Fn() + Sync)) -> Result<MetricCurve, String> {
+fn loo_orth(s: &ColMatrix, which: &[usize], max_m: usize, tick: &(dyn Fn() + Sync)) -> Result<MetricCurve, String> {
     let loo = LooOrth::new(view(s)).map_err(|e| e.to_string())?;
-    let folds: Result<Vec<_>, _> = (0..s.cols)
-        .into_par_iter()
+    let folds: Result<Vec<_>, _> = which
+        .par_iter()
+        .copied()
         .map_init(
             || loo.workspace(),
             |ws, i| {
@@ -78,12 +87,13 @@ fn loo_orth(s: &ColMatrix, max_m: usize, tick: &(dyn Fn() + Sync)) -> Result<Met
 fn loo_cone(
     s: &ColMatrix,
     path: &crom_stages::basis::CpgPath,
+    which: &[usize],
     max_m: usize,
     tick: &(dyn Fn() + Sync),
 ) -> Result<MetricCurve, String> {
-    let folds: Result<Vec<_>, _> = (0..s.cols)
-        .into_par_iter()
-        .map(|i| {
+    let folds: Result<Vec<_>, _> = which
+        .par_iter()
+        .map(|&i| {
             let fold = loo_fold_cone(view(s), path, i, max_m);
             tick();
             fold
@@ -158,38 +168,43 @@ pub(crate) fn nested(ctx: &mut Ctx<'_>, levels: &[Key]) -> Result<Key, CromError
     }
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
+    let progress = ctx.progress;
     ctx.single(ArtifactKind::Nested, "nested", &spec, |staging| {
-        let sets: Vec<_> = levels.iter().map(|k| trainset::load_from(store, k)).collect::<Result<_, _>>()?;
+        // Two levels in memory at a time (level n and n + 1), the finer one kept for the next
+        // pair: memory is bounded by the two finest levels, not by all of them.
         let mut t = NestedRows::default();
-        let n_levels = sets.len();
-        let h: Vec<[f64; 3]> = (1..n_levels)
-            .into_par_iter()
-            .map(|n| -> Result<[f64; 3], String> {
-                let (lo, hi) = (&sets[n - 1], &sets[n]);
-                Ok([
-                    nested_error_orth(view(&lo.primal), view(&hi.primal)).map_err(|e| e.to_string())?,
-                    nested_error_orth(view(&lo.dual), view(&hi.dual)).map_err(|e| e.to_string())?,
-                    nested_error_cone(view(&lo.dual), view(&hi.dual), NnlsParams::default())
-                        .map_err(|e| e.to_string())?,
-                ])
-            })
-            .collect::<Result<_, _>>()
-            .map_err(|e| numerical(&scene, "nested", e))?;
-        for (i, v) in h.iter().enumerate() {
-            let hi = &sets[i + 1];
+        let n_levels = levels.len();
+        let mut bar = progress.stage("nested pairs", n_levels.saturating_sub(1));
+        let mut lo = match levels.first() {
+            Some(k) => Some(trainset::load_from(store, k)?),
+            None => None,
+        };
+        for (i, key) in levels.iter().enumerate().skip(1) {
+            let hi = trainset::load_from(store, key)?;
+            let lo_set = lo.as_ref().expect("loaded above");
+            let ((po, dor), dc) = rayon::join(
+                || {
+                    rayon::join(
+                        || nested_error_orth(view(&lo_set.primal), view(&hi.primal)),
+                        || nested_error_orth(view(&lo_set.dual), view(&hi.dual)),
+                    )
+                },
+                || nested_error_cone(view(&lo_set.dual), view(&hi.dual), NnlsParams::default()),
+            );
+            let fail = |e: String| numerical(&scene, "nested", e);
+            let v = [
+                po.map_err(|e| fail(e.to_string()))?,
+                dor.map_err(|e| fail(e.to_string()))?,
+                dc.map_err(|e| fail(e.to_string()))?,
+            ];
             let zero = (0..hi.dual.cols).filter(|&j| hi.dual.col(j).iter().all(|x| x.abs() <= 0.0)).count();
             for ((field, basis), value) in [("primal", "orth"), ("dual", "orth"), ("dual", "cone")].iter().zip(v) {
-                t.push(
-                    &scene,
-                    field,
-                    basis,
-                    i + 1,
-                    *value,
-                    hi.parameters.len(),
-                    if *field == "dual" { zero } else { 0 },
-                );
+                t.push(&scene, field, basis, i, value, hi.parameters.len(), if *field == "dual" { zero } else { 0 });
             }
+            bar.inc(&format!("H({i})"));
+            lo = Some(hi);
         }
+        bar.finish("done");
         t.table().write_parquet(&staging.path(names::NESTED))?;
         Ok(BTreeMap::from([("levels".to_string(), json!(n_levels))]))
     })
