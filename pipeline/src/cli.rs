@@ -29,6 +29,9 @@ pub enum Command {
     Run {
         /// Scene name (a file in the scenes directory) or path to a scene TOML file.
         scene: String,
+        /// Stop before the online reduced solve and the report (the offline study only).
+        #[arg(long)]
+        offline: bool,
     },
     /// Solve every snapshot of a scene's study (training, test and nested points) into the
     /// store and stop; `crom run` then finds them there.

@@ -45,14 +45,16 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
 /// Execute a parsed command line.
 pub fn run(cli: &Cli) -> Result<(), CromError> {
     match &cli.command {
-        Command::Run { scene } => run_scene(cli, scene).map(|_| ()),
+        Command::Run { scene, offline } => run_scene(cli, scene, !offline).map(|_| ()),
         Command::Solve { scene } => solve_scene(cli, scene),
         Command::Report { scene } => {
-            let out = run_scene(cli, scene)?;
-            let index = store::Store::open_read_only(&cli.store)
-                .dir(crom_schemas::artifact::ArtifactKind::Report, &out.report)
-                .join("index.html");
-            println!("{}", index.display());
+            let out = run_scene(cli, scene, true)?;
+            if let Some(report) = &out.report {
+                let index = store::Store::open_read_only(&cli.store)
+                    .dir(crom_schemas::artifact::ArtifactKind::Report, report)
+                    .join("index.html");
+                println!("{}", index.display());
+            }
             Ok(())
         }
         Command::Ls { stage } => {
@@ -88,7 +90,7 @@ fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
     result
 }
 
-fn run_scene(cli: &Cli, scene_arg: &str) -> Result<dag::RunOutput, CromError> {
+fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput, CromError> {
     let start = Instant::now();
     let path = scenes::resolve(scene_arg, &cli.scenes)?;
     let scene = SceneConfig::load(&path)?;
@@ -103,7 +105,7 @@ fn run_scene(cli: &Cli, scene_arg: &str) -> Result<dag::RunOutput, CromError> {
         warnings: Vec::new(),
         points: dag::PointCounts::default(),
     };
-    let mut result = dag::run_scene(&mut ctx);
+    let mut result = dag::run_scene(&mut ctx, online);
     // A snapshot column that fails its checksum: move its block aside and run again, which
     // solves exactly that block's points and rewrites the sets that referred to it.
     if let Err(CromError::CorruptColumns { block, message, .. }) = &result {
@@ -111,9 +113,13 @@ fn run_scene(cli: &Cli, scene_arg: &str) -> Result<dag::RunOutput, CromError> {
         ctx.warnings.push(format!("{message}; block moved to {} and its points solved again", to.display()));
         ctx.records.clear();
         ctx.points = dag::PointCounts::default();
-        result = dag::run_scene(&mut ctx);
+        result = dag::run_scene(&mut ctx, online);
     }
-    let report = result.as_ref().ok().map(|o| store.dir(crom_schemas::artifact::ArtifactKind::Report, &o.report));
+    let report = result
+        .as_ref()
+        .ok()
+        .and_then(|o| o.report.as_ref())
+        .map(|r| store.dir(crom_schemas::artifact::ArtifactKind::Report, r));
     summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok(), report.as_deref());
     result
 }

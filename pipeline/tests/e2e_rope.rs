@@ -278,3 +278,18 @@ fn changing_one_metric_setting_recomputes_only_that_stage() {
     let computed: Vec<String> = summary(&out).into_iter().filter(|r| r.1 > 0).map(|r| r.0).collect();
     assert_eq!(computed, ["specificity", "report"], "{}", text(&out));
 }
+
+/// `crom run --offline` stops before the online ROM and the report; the next full run computes
+/// exactly those two and finds everything else in the store.
+#[test]
+fn offline_run_stops_before_the_online_stage() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let off = crom(&store, &["run", "--offline", "rope"]);
+    assert!(off.status.success(), "{}", text(&off));
+    assert!(artifact_dirs(&store, "rom").is_empty() && artifact_dirs(&store, "report").is_empty());
+    let full = crom(&store, &["run", "rope"]);
+    assert!(full.status.success(), "{}", text(&full));
+    let computed: Vec<String> = summary(&full).into_iter().filter(|r| r.1 > 0).map(|r| r.0).collect();
+    assert_eq!(computed, ["rom", "report"], "{}", text(&full));
+}

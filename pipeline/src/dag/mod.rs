@@ -103,9 +103,9 @@ pub struct RunOutput {
     /// Nested-error artifact (scenes with nested levels).
     pub nested: Option<Key>,
     /// Online ROM artifact.
-    pub rom: Key,
+    pub rom: Option<Key>,
     /// Report artifact.
-    pub report: Key,
+    pub report: Option<Key>,
 }
 
 impl Ctx<'_> {
@@ -200,8 +200,9 @@ pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
     Ok(())
 }
 
-/// Run every stage of the scene's study.
-pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
+/// Run every stage of the scene's study; with `online = false` stop before the online ROM
+/// and the report that shows it (`crom run --offline`).
+pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError> {
     let scene = ctx.scene;
     let mut physics = LazyPhysics { scene, built: None };
     let mesh_key = mesh::run(ctx, &mut physics)?;
@@ -232,6 +233,21 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
     } else {
         None
     };
+    if !online {
+        return Ok(RunOutput {
+            mesh: mesh_key,
+            train_snapshots: train_rows.iter().map(|r| r.key.clone()).collect(),
+            train,
+            test,
+            basis,
+            compactness,
+            generalization,
+            specificity,
+            nested,
+            rom: None,
+            report: None,
+        });
+    }
     let rom = rom::run(ctx, &mut physics, &train, &test, &basis)?;
     let inputs = crate::report::ReportInputs {
         mesh: mesh_key.clone(),
@@ -254,8 +270,8 @@ pub fn run_scene(ctx: &mut Ctx<'_>) -> Result<RunOutput, CromError> {
         generalization,
         specificity,
         nested,
-        rom,
-        report,
+        rom: Some(rom),
+        report: Some(report),
     })
 }
 
