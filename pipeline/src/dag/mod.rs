@@ -233,34 +233,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
     } else {
         None
     };
-    if !online {
-        return Ok(RunOutput {
-            mesh: mesh_key,
-            train_snapshots: train_rows.iter().map(|r| r.key.clone()).collect(),
-            train,
-            test,
-            basis,
-            compactness,
-            generalization,
-            specificity,
-            nested,
-            rom: None,
-            report: None,
-        });
-    }
-    let rom = rom::run(ctx, &mut physics, &train, &test, &basis)?;
-    let inputs = crate::report::ReportInputs {
-        mesh: mesh_key.clone(),
-        train: train.clone(),
-        basis: basis.clone(),
-        compactness: compactness.clone(),
-        rom: rom.clone(),
-        generalization: generalization.clone(),
-        specificity: specificity.clone(),
-        nested: nested.clone(),
-    };
-    let report = crate::report::run(ctx, &inputs)?;
-    Ok(RunOutput {
+    let mut out = RunOutput {
         mesh: mesh_key,
         train_snapshots: train_rows.iter().map(|r| r.key.clone()).collect(),
         train,
@@ -270,9 +243,26 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
         generalization,
         specificity,
         nested,
-        rom: Some(rom),
-        report: Some(report),
-    })
+        rom: None,
+        report: None,
+    };
+    if !online {
+        return Ok(out);
+    }
+    let rom = rom::run(ctx, &mut physics, &out.train, &out.test, &out.basis)?;
+    let inputs = crate::report::ReportInputs {
+        mesh: out.mesh.clone(),
+        train: out.train.clone(),
+        basis: out.basis.clone(),
+        compactness: out.compactness.clone(),
+        rom: rom.clone(),
+        generalization: out.generalization.clone(),
+        specificity: out.specificity.clone(),
+        nested: out.nested.clone(),
+    };
+    out.report = Some(crate::report::run(ctx, &inputs)?);
+    out.rom = Some(rom);
+    Ok(out)
 }
 
 /// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.
