@@ -95,12 +95,19 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
     let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
     ctx.single(ArtifactKind::Basis, "basis", &spec, |staging| {
         let set = trainset::load_from(store, train)?;
-        let primal =
-            pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }).map_err(|e| numerical(e.to_string()))?;
-        let dual =
-            pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol }).map_err(|e| numerical(e.to_string()))?;
+        // The primal POD (the large SVD) beside the dual POD and the greedy path: independent
+        // computations, each deterministic, on the two cores.
+        let (primal, (dual, path)) = rayon::join(
+            || pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }),
+            || {
+                let dual = pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol });
+                (dual, dual_path(progress, train, &set.dual, max_rank))
+            },
+        );
+        let primal = primal.map_err(|e| numerical(e.to_string()))?;
+        let dual = dual.map_err(|e| numerical(e.to_string()))?;
         // One greedy path; both bases are its prefixes (the greedy is deterministic).
-        let path = dual_path(progress, train, &set.dual, max_rank).map_err(numerical)?;
+        let path = path.map_err(numerical)?;
         let full = path.truncated(st.dual_cone_tol);
         let trunc = path.truncated(st.dual_cone_tol_truncated);
         let f = H5Out::create(&staging.path(names::FILE))?;
