@@ -71,20 +71,24 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
     }
 }
 
-fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
-    let start = Instant::now();
-    let path = scenes::resolve(scene_arg, &cli.scenes)?;
-    let scene = SceneConfig::load(&path)?;
-    let store = Store::open(&cli.store)?;
-    let mut ctx = dag::Ctx {
-        store: &store,
-        scene: &scene,
+/// A run's context on an open store.
+fn new_ctx<'a>(cli: &Cli, store: &'a Store, scene: &'a SceneConfig) -> dag::Ctx<'a> {
+    dag::Ctx {
+        store,
+        scene,
         command: std::env::args().collect::<Vec<_>>().join(" "),
         progress: Progress::new(cli.quiet),
         records: Vec::new(),
         warnings: Vec::new(),
         points: dag::PointCounts::default(),
-    };
+    }
+}
+
+fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
+    let start = Instant::now();
+    let scene = SceneConfig::load(&scenes::resolve(scene_arg, &cli.scenes)?)?;
+    let store = Store::open(&cli.store)?;
+    let mut ctx = new_ctx(cli, &store, &scene);
     let result = dag::solve_points(&mut ctx);
     summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok(), None);
     result
@@ -92,19 +96,9 @@ fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
 
 fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput, CromError> {
     let start = Instant::now();
-    let path = scenes::resolve(scene_arg, &cli.scenes)?;
-    let scene = SceneConfig::load(&path)?;
+    let scene = SceneConfig::load(&scenes::resolve(scene_arg, &cli.scenes)?)?;
     let store = Store::open(&cli.store)?;
-    let command = std::env::args().collect::<Vec<_>>().join(" ");
-    let mut ctx = dag::Ctx {
-        store: &store,
-        scene: &scene,
-        command,
-        progress: Progress::new(cli.quiet),
-        records: Vec::new(),
-        warnings: Vec::new(),
-        points: dag::PointCounts::default(),
-    };
+    let mut ctx = new_ctx(cli, &store, &scene);
     let mut result = dag::run_scene(&mut ctx, online);
     // A snapshot column that fails its checksum: move its block aside and run again, which
     // solves exactly that block's points and rewrites the sets that referred to it.

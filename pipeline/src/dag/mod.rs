@@ -26,6 +26,7 @@ use crom_schemas::SceneConfig;
 
 use crate::cache::{Key, KeySpec};
 use crate::error::CromError;
+use crate::io::table::{Column, Table};
 use crate::physics::Physics;
 use crate::progress::Progress;
 use crate::store::{Lookup, Manifest, Provenance, Staging, Store};
@@ -41,6 +42,19 @@ pub struct StageRecord {
     pub cached: usize,
     /// Directory of the (last) artifact of the stage.
     pub dir: PathBuf,
+}
+
+/// Append the parameter values of `points` to a table: `parameter` (the first component) and,
+/// for a vector parameter, one column per component named by `names` — the layout of every
+/// table that carries parameter values.
+pub(crate) fn with_parameters(mut t: Table, names: &[String], points: &[&[f64]]) -> Table {
+    t = t.with("parameter", Column::F64(points.iter().map(|p| p[0]).collect()));
+    if names.len() > 1 {
+        for (c, name) in names.iter().enumerate() {
+            t = t.with(name, Column::F64(points.iter().map(|p| p[c]).collect()));
+        }
+    }
+    t
 }
 
 /// Snapshot points of a run: solved now, reused from the store, failed.

@@ -303,17 +303,13 @@ impl ErrorRows {
         let [it, nz] = self.ints;
         let [on, fom] = self.times;
         // `parameter` is the first component; a vector parameter adds a column per component.
-        let mut t = Table::default()
+        let t = Table::default()
             .with("scene", Column::Str(scene))
             .with("set", Column::Str(set))
-            .with("dual_basis", Column::Str(basis))
-            .with("parameter", Column::F64(self.param.iter().map(|p| p[0]).collect()));
-        if self.names.len() > 1 {
-            for (c, name) in self.names.iter().enumerate() {
-                t = t.with(name, Column::F64(self.param.iter().map(|p| p[c]).collect()));
-            }
-        }
-        t.with("r_primal", Column::U64(rp))
+            .with("dual_basis", Column::Str(basis));
+        let points: Vec<&[f64]> = self.param.iter().map(Vec::as_slice).collect();
+        super::with_parameters(t, &self.names, &points)
+            .with("r_primal", Column::U64(rp))
             .with("r_dual", Column::U64(rd))
             .with("primal_error", Column::F64(pe))
             .with("dual_error", Column::F64(de))

@@ -336,16 +336,10 @@ fn write_failures(
     let dir = ctx.store.root().join("runs").join(&ctx.scene.scene.name);
     std::fs::create_dir_all(&dir).map_err(|e| CromError::io(&dir, "creating the run directory", e))?;
     let n = failures.len();
-    let mut table = Table::default()
-        .with("scene", Column::Str(vec![ctx.scene.scene.name.clone(); n]))
-        .with("parameter", Column::F64(failures.iter().map(|f| points[f.0][0]).collect()));
-    let names = ctx.scene.parameter.names();
-    if names.len() > 1 {
-        for (c, name) in names.iter().enumerate() {
-            table = table.with(name, Column::F64(failures.iter().map(|f| points[f.0][c]).collect()));
-        }
-    }
-    let table = table
+    let table = Table::default().with("scene", Column::Str(vec![ctx.scene.scene.name.clone(); n]));
+    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+    let failed: Vec<&[f64]> = failures.iter().map(|f| points[f.0].as_slice()).collect();
+    let table = super::with_parameters(table, &names, &failed)
         .with("snapshot_key", Column::Str(failures.iter().map(|f| keys[f.0].0.clone()).collect()))
         .with("error", Column::Str(failures.iter().map(|f| f.1.clone()).collect()));
     let tmp = dir.join(format!(".solver_failures.{}.tmp", std::process::id()));

@@ -186,16 +186,12 @@ fn stats_table(scene: &str, names: &[String], points: &[Vec<f64>], rows: &[Index
     let n = rows.len();
     let u = |f: &dyn Fn(&Evidence) -> u64| Column::U64(rows.iter().map(|r| f(&r.evidence)).collect());
     let x = |f: &dyn Fn(&Evidence) -> f64| Column::F64(rows.iter().map(|r| f(&r.evidence)).collect());
-    let mut t = Table::default()
+    let t = Table::default()
         .with("scene", Column::Str(vec![scene.to_string(); n]))
-        .with("index", Column::U64((0..n as u64).collect()))
-        .with("parameter", Column::F64(points.iter().map(|p| p[0]).collect()));
-    if names.len() > 1 {
-        for (c, name) in names.iter().enumerate() {
-            t = t.with(name, Column::F64(points.iter().map(|p| p[c]).collect()));
-        }
-    }
-    t.with("snapshot_key", Column::Str(rows.iter().map(|r| r.key.0.clone()).collect()))
+        .with("index", Column::U64((0..n as u64).collect()));
+    let points: Vec<&[f64]> = points.iter().map(Vec::as_slice).collect();
+    super::with_parameters(t, names, &points)
+        .with("snapshot_key", Column::Str(rows.iter().map(|r| r.key.0.clone()).collect()))
         .with("block", Column::Str(rows.iter().map(|r| r.block.clone()).collect()))
         .with("column", Column::U64(rows.iter().map(|r| r.column as u64).collect()))
         .with("blake3", Column::Str(rows.iter().map(|r| r.blake3.clone()).collect()))

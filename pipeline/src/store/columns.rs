@@ -153,14 +153,7 @@ impl ColumnFamily {
         }
         let path = dir.join("family.json");
         if path.exists() {
-            let text = std::fs::read_to_string(&path).map_err(|e| CromError::io(&path, "reading", e))?;
-            let found: FamilyMeta = serde_json::from_str(&text).map_err(|e| {
-                CromError::artifact(
-                    &path,
-                    format!("not a column-family description: {e}"),
-                    "delete the family directory and rerun",
-                )
-            })?;
+            let found = read_meta(&path)?;
             let same = found.schema_version == meta.schema_version
                 && found.n_dof == meta.n_dof
                 && found.n_contact == meta.n_contact
@@ -186,14 +179,7 @@ impl ColumnFamily {
         if !path.exists() {
             return Ok(None);
         }
-        let text = std::fs::read_to_string(&path).map_err(|e| CromError::io(&path, "reading", e))?;
-        let meta: FamilyMeta = serde_json::from_str(&text).map_err(|e| {
-            CromError::artifact(
-                &path,
-                format!("not a column-family description: {e}"),
-                "delete the family directory and rerun",
-            )
-        })?;
+        let meta = read_meta(&path)?;
         if meta.schema_version != COLUMNS_SCHEMA_VERSION || &meta.family != family {
             return Err(CromError::artifact(
                 &path,
@@ -204,7 +190,7 @@ impl ColumnFamily {
                 "delete the family directory (its snapshots are recomputed) or use the crom version that wrote it",
             ));
         }
-        Ok(Some(Self::open(root, meta)?))
+        Ok(Some(Self { root: root.to_path_buf(), dir, meta }))
     }
 
     /// The family's description.
@@ -378,9 +364,7 @@ impl ColumnFamily {
         let path = self.dir.join("index.parquet");
         let tmp = self.dir.join(format!(".tmp-index-{}.parquet", std::process::id()));
         self.table(&rows).write_parquet(&tmp)?;
-        fsync_file(&tmp)?;
-        std::fs::rename(&tmp, &path).map_err(|e| CromError::io(&path, "moving the index into place", e))?;
-        fsync_dir(&self.dir);
+        publish(&tmp, &path)?;
         for id in fragments {
             if covered.contains(self.block_rel(&id).as_str()) {
                 let _ = std::fs::remove_file(self.dir.join("index").join(format!("{id}.parquet")));
@@ -402,11 +386,13 @@ impl ColumnFamily {
         let id = format!("blk-{}", &blake3::hash(ids.join(",").as_bytes()).to_hex()[..24]);
         let rel = self.block_rel(&id);
         let path = self.root.join(&rel);
+        for sub in ["blocks", "index"] {
+            let p = self.dir.join(sub);
+            std::fs::create_dir_all(&p).map_err(|e| CromError::io(&p, "creating a column family", e))?;
+        }
         let tmp = self.dir.join("blocks").join(format!(".tmp-{id}-{}.h5", std::process::id()));
         write_block(&tmp, &self.meta, &sorted)?;
-        fsync_file(&tmp)?;
-        std::fs::rename(&tmp, &path).map_err(|e| CromError::io(&path, "moving a block into place", e))?;
-        fsync_dir(&self.dir.join("blocks"));
+        publish(&tmp, &path)?;
         let (bytes, bhash) =
             crate::store::manifest::hash_file(&path).map_err(|e| CromError::io(&path, "hashing a block", e))?;
         let rows: Vec<IndexRow> = sorted
@@ -426,9 +412,7 @@ impl ColumnFamily {
         let frag = self.dir.join("index").join(format!("{id}.parquet"));
         let ftmp = self.dir.join("index").join(format!(".tmp-{id}-{}.parquet", std::process::id()));
         self.table(&rows.iter().collect::<Vec<_>>()).write_parquet(&ftmp)?;
-        fsync_file(&ftmp)?;
-        std::fs::rename(&ftmp, &frag).map_err(|e| CromError::io(&frag, "committing an index fragment", e))?;
-        fsync_dir(&self.dir.join("index"));
+        publish(&ftmp, &frag)?;
         Ok(rows)
     }
 
@@ -563,24 +547,24 @@ pub fn read_columns(
         let file = hdf5::File::open(&path).map_err(|e| rerr("opening the block", &e))?;
         let pds = file.dataset("primal").map_err(|e| rerr("primal", &e))?;
         let dds = file.dataset("dual").map_err(|e| rerr("dual", &e))?;
+        // Column j of a dataset into `out` (its length is the expected row count).
+        let read = |ds: &hdf5::Dataset, what: &str, j: usize, out: &mut [f64]| -> Result<(), CromError> {
+            if out.is_empty() {
+                return Ok(());
+            }
+            let v = ds.read_slice_1d::<f64, _>((.., j)).map_err(|e| rerr(what, &e))?;
+            if v.len() != out.len() {
+                return Err(rerr(what, &format!("{} rows, expected {}", v.len(), out.len())));
+            }
+            out.iter_mut().zip(v.iter()).for_each(|(a, b)| *a = *b);
+            Ok(())
+        };
         for k in ks {
             let j = rows[k].column;
             let pcol = &mut primal.data[k * n_dof..(k + 1) * n_dof];
-            if n_dof > 0 {
-                let v = pds.read_slice_1d::<f64, _>((.., j)).map_err(|e| rerr("primal column", &e))?;
-                if v.len() != n_dof {
-                    return Err(rerr("primal column", &format!("{} rows, expected {n_dof}", v.len())));
-                }
-                pcol.iter_mut().zip(v.iter()).for_each(|(a, b)| *a = *b);
-            }
+            read(&pds, "primal column", j, pcol)?;
             let dcol = &mut dual.data[k * n_contact..(k + 1) * n_contact];
-            if n_contact > 0 {
-                let v = dds.read_slice_1d::<f64, _>((.., j)).map_err(|e| rerr("dual column", &e))?;
-                if v.len() != n_contact {
-                    return Err(rerr("dual column", &format!("{} rows, expected {n_contact}", v.len())));
-                }
-                dcol.iter_mut().zip(v.iter()).for_each(|(a, b)| *a = *b);
-            }
+            read(&dds, "dual column", j, dcol)?;
             if column_hash(pcol, dcol) != rows[k].blake3 {
                 return Err(CorruptBlock::error(
                     &path,
@@ -625,14 +609,31 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CromError> {
         path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
         std::process::id()
     ));
-    {
-        let mut f = std::fs::File::create(&tmp).map_err(|e| CromError::io(&tmp, "creating", e))?;
-        f.write_all(bytes).map_err(|e| CromError::io(&tmp, "writing", e))?;
-        f.sync_all().map_err(|e| CromError::io(&tmp, "fsync", e))?;
-    }
-    std::fs::rename(&tmp, path).map_err(|e| CromError::io(path, "moving into place", e))?;
-    fsync_dir(dir);
+    let mut f = std::fs::File::create(&tmp).map_err(|e| CromError::io(&tmp, "creating", e))?;
+    f.write_all(bytes).map_err(|e| CromError::io(&tmp, "writing", e))?;
+    drop(f);
+    publish(&tmp, path)
+}
+
+/// Make the complete file `tmp` durable and move it to `dest` atomically: fsync the file,
+/// rename, fsync the directory (the commit step of blocks, fragments and the index).
+fn publish(tmp: &Path, dest: &Path) -> Result<(), CromError> {
+    fsync_file(tmp)?;
+    std::fs::rename(tmp, dest).map_err(|e| CromError::io(dest, "moving into place", e))?;
+    fsync_dir(dest.parent().unwrap_or(Path::new(".")));
     Ok(())
+}
+
+/// A `family.json`.
+fn read_meta(path: &Path) -> Result<FamilyMeta, CromError> {
+    let text = std::fs::read_to_string(path).map_err(|e| CromError::io(path, "reading", e))?;
+    serde_json::from_str(&text).map_err(|e| {
+        CromError::artifact(
+            path,
+            format!("not a column-family description: {e}"),
+            "delete the family directory and rerun",
+        )
+    })
 }
 
 #[cfg(test)]
