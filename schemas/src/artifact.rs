@@ -202,36 +202,53 @@ pub mod rom {
     /// Errors of the online solve at training and test points.
     pub const ERRORS: &str = "rom_errors.parquet";
     /// Columns of [`ERRORS`].
-    pub const ERROR_COLUMNS: [&str; 13] = [
+    pub const ERROR_COLUMNS: [&str; 20] = [
         "scene",
         "set",
         "dual_basis",
+        "algorithm",
         "parameter",
         "r_primal",
         "r_dual",
         "primal_error",
         "dual_error",
         "iterations",
+        "linearizations",
         "nonzero_dual",
         "outcome",
+        "indicator",
+        "penetration",
+        "complementarity",
+        "unpaired_force",
         "online_seconds",
+        "indicator_seconds",
         "fom_seconds",
     ];
     /// Speed/accuracy trade over rank pairs.
     pub const TRADEOFF: &str = "tradeoff.parquet";
     /// Columns of [`TRADEOFF`].
-    pub const TRADEOFF_COLUMNS: [&str; 11] = [
+    pub const TRADEOFF_COLUMNS: [&str; 21] = [
         "scene",
+        "algorithm",
+        "dual_basis",
         "r_primal",
         "r_dual",
         "points",
         "converged",
+        "infeasible",
+        "failed",
+        "median_primal_error",
+        "p95_primal_error",
         "mean_primal_error",
         "max_primal_error",
-        "mean_dual_error",
-        "online_seconds",
-        "fom_seconds",
+        "median_dual_error",
+        "median_online_seconds",
+        "p95_online_seconds",
+        "median_fom_seconds",
         "speedup",
+        "indicator_spearman",
+        "indicator_effectivity",
+        "median_indicator_seconds",
     ];
 }
 

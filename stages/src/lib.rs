@@ -10,6 +10,7 @@ pub mod fem;
 pub mod mesh;
 pub mod metrics;
 pub mod mu;
+pub mod operator;
 pub mod rng;
 pub mod rom;
 pub mod rope;

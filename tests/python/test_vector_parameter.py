@@ -62,7 +62,8 @@ def test_two_component_parameter_runs_every_stage_and_matches_the_1d_scene(tmp_p
     assert {"parameter", "d_x", "d_y"} <= set(stats.columns)
     rom = pd.read_parquet(only_artifact(store, "rom", "rom_errors.parquet",
                                         where=lambda p: "d_y" in pd.read_parquet(p).columns))
-    assert len(rom) == 2 * (9 + 4)  # full and truncated dual basis, training and test points
+    # full and truncated dual basis, exact and paper algorithm, training and test points
+    assert len(rom) == 2 * 2 * (9 + 4)
     for stage in ["compactness", "generalization", "specificity"]:
         assert len(list((store / stage).glob("*/*.parquet"))) == 2, stage  # one per scene
 

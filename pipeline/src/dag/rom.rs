@@ -2,17 +2,32 @@
 //!
 //! The primal basis of the online solve is the POD (numerical rank) of the training snapshots'
 //! contact responses `u_k - u0(mu_k)` (see `crom_stages::rom` on lifting); the dual bases are
-//! the stored CPG bases, full and truncated. Every training and test point is solved with both;
-//! the errors are relative, primal in the H1 norm, dual in the tributary-weighted L2 norm
-//! (`NaN` where the full-order field is zero: reported, never divided by). The trade-off sweeps
-//! the primal rank with the full dual basis and the dual rank with the full primal basis.
+//! the stored CPG bases, full and truncated (a prefix of the same greedy path). One
+//! [`ReducedModel`] is built offline for the full ranks; every other rank pair is its leading
+//! block. Every training and test point is solved with both dual bases and both algorithms
+//! (`exact`: QP per linearisation; `paper`: Algorithm 1). Errors are relative, primal in the H1
+//! norm ([`PrimalErrors`], from precomputed projections — no field is reconstructed per
+//! query), dual in the tributary-weighted L2 norm (`NaN` where the full-order field is zero:
+//! reported, never divided by); each query also stores the a-posteriori error indicator.
+//!
+//! **Timing.** The online time of a query is [`ReducedModel::solve`] alone (reads only the
+//! reduced model: cost independent of `n_dof`); the indicator is timed separately; the
+//! full-order time is measured here, in the same process, for the same points. The trade-off
+//! sweeps the primal rank with the full and the truncated dual basis and the dual rank with the
+//! full primal basis, for both algorithms; per rank pair it counts converged, refused
+//! (infeasible) and failed queries and gives medians and 95th percentiles of time and error
+//! over the test points (errors over converged points only), and how well the indicator ranks
+//! the true errors (Spearman) and its median effectivity (indicator / error).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crom_schemas::artifact::{basis as bnames, rom as names, ArtifactKind};
 use crom_stages::basis::pod_full;
-use crom_stages::rom::{ContactOperator, OnlineRom, RomParams, RomSolution};
+use crom_stages::metrics::order::{quantile, spearman};
+use crom_stages::rom::{
+    Algorithm, ContactOperator, Indicator, PrimalErrors, ReducedModel, ReducedSolution, RomOutcome, RomParams, RomWork,
+};
 use faer::MatRef;
 use rayon::prelude::*;
 use serde_json::json;
@@ -25,13 +40,15 @@ use crate::io::table::{Column, Table};
 use crate::physics::Physics;
 
 /// Bump when the online stage changes its numbers.
-const ALGORITHM_VERSION: u32 = 3;
+const ALGORITHM_VERSION: u32 = 4;
 
 /// Timing repetitions of an online query whose first solve took less than [`REPEAT_BELOW`]
 /// seconds (the minimum is kept: sub-millisecond solves are otherwise dominated by noise).
 const TIMING_REPEATS: usize = 3;
 /// Queries slower than this are timed once.
 const REPEAT_BELOW: f64 = 2e-3;
+
+const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];
 
 pub(crate) fn run(
     ctx: &mut Ctx<'_>,
@@ -59,53 +76,88 @@ pub(crate) fn run(
     let fail = |m: String| CromError::Numerical { stage: "rom", scene: scene.clone(), message: m };
     let phys = physics.get()?;
     let (train_set, test_set) = (trainset::load_from(ctx.store, train)?, trainset::load_from(ctx.store, test)?);
-    let sets = [
-        ("train", fom_seconds(phys, &train_set.parameters), train_set),
-        ("test", fom_seconds(phys, &test_set.parameters), test_set),
-    ];
-    let sets = sets.map(|(name, fom, data)| (name, data, fom));
     let bfile = H5In::open(&ctx.store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
     let theta_full = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
     let theta_trunc = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG_TRUNCATED, bnames::MODES))?;
     drop(bfile);
     let op = phys.operator();
-    let phi = response_basis(op, &sets[0].1).map_err(fail)?;
-    let queries = sets.iter().map(|(_, s, _)| s.parameters.len()).sum::<usize>();
-    let mut progress = ctx.progress.stage("online ROM", 2 * queries + sweep_len(phi.cols, theta_full.cols));
+    let phi = response_basis(op, &train_set).map_err(fail)?;
+    let sweep = sweep_pairs(phi.cols, theta_full.cols, theta_trunc.cols);
+    let queries = train_set.parameters.len() + test_set.parameters.len();
+    let paper_pairs = sweep.iter().filter(|s| paper_pair(s, &sweep)).count();
+    let mut progress = ctx.progress.stage("online ROM", 2 + 2 * ALGORITHMS.len() * queries + sweep.len() + paper_pairs);
     let start = Instant::now();
-    let mut errors =
-        ErrorRows { names: ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect(), ..Default::default() };
-    for (dual_basis, theta) in [("full", &theta_full), ("truncated", &theta_trunc)] {
-        let rom = OnlineRom::new(op, &phi.data, phi.cols, &theta.data, theta.cols).map_err(|e| fail(e.to_string()))?;
-        for (set, data, fom) in &sets {
-            let rows = solve_set(op, &rom, data, &params);
-            for (j, (sol, secs)) in rows.into_iter().enumerate() {
-                let (pe, de) = rel_errors(op, &sol, data, j);
-                errors.push(
-                    &scene,
-                    set,
-                    dual_basis,
-                    &data.parameters[j],
-                    (phi.cols, theta.cols),
-                    (pe, de),
-                    &sol,
-                    secs,
-                    fom[j],
-                );
-                progress.inc(&format!("{set} {dual_basis}"));
+    // offline: the reduced model at full ranks, error references
+    let full = ReducedModel::new(op, &phi.data, phi.cols, &theta_full.data, theta_full.cols)
+        .map_err(|e| fail(e.to_string()))?;
+    let prefix = theta_trunc.data.len() <= theta_full.data.len()
+        && theta_trunc.data == theta_full.data[..theta_trunc.data.len()];
+    let trunc = if prefix {
+        full.leading(phi.cols, theta_trunc.cols)
+    } else {
+        ReducedModel::new(op, &phi.data, phi.cols, &theta_trunc.data, theta_trunc.cols)
+            .map_err(|e| fail(e.to_string()))?
+    };
+    let references = |set: &trainset::TrainingSet| {
+        let refs: Vec<(&[f64], &[f64])> =
+            set.parameters.iter().enumerate().map(|(j, mu)| (mu.as_slice(), set.primal.col(j))).collect();
+        PrimalErrors::new(op, &phi.data, phi.cols, &refs)
+    };
+    let (train_pe, test_pe) = rayon::join(|| references(&train_set), || references(&test_set));
+    // the full-order solve is timed at the test points (the speed-ups are test-set figures)
+    let sets = [
+        ("train", &train_set, train_pe, vec![f64::NAN; train_set.parameters.len()]),
+        ("test", &test_set, test_pe, fom_seconds(phys, &test_set.parameters)),
+    ];
+    progress.inc("offline");
+    let (_, test_data, test_pe, test_fom) = &sets[1];
+    let test_pe = test_pe.as_ref().ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
+    // the sweep; the test-set rows of the error table at full ranks are the sweep's own queries
+    let mut trade = TradeRows::default();
+    let mut at_full_ranks: BTreeMap<(&'static str, &'static str), Vec<Query>> = BTreeMap::new();
+    for alg in ALGORITHMS {
+        let p = RomParams { algorithm: alg, ..params };
+        for &(ru, rl, dual_basis) in sweep.iter().filter(|s| alg == Algorithm::Exact || paper_pair(s, &sweep)) {
+            let model = full.leading(ru, rl);
+            let rows = solve_set(&model, test_data, &p);
+            trade.push(&scene, alg, dual_basis, (ru, rl), &rows, test_pe, test_fom, |j, q| {
+                dual_error(op, &model, &q.sol, test_data, j)
+            });
+            progress.inc(&format!("{} ranks ({ru}, {rl})", alg.name()));
+            let full_ranks = ru == phi.cols
+                && ((dual_basis == "full" && rl == theta_full.cols)
+                    || (dual_basis == "truncated" && prefix && rl == theta_trunc.cols));
+            if full_ranks {
+                at_full_ranks.insert((alg.name(), dual_basis), rows);
             }
         }
     }
-    let trade =
-        tradeoff(op, &phi, &theta_full, &sets[1].1, &sets[1].2, &params, &scene, &mut progress).map_err(fail)?;
+    let mut errors =
+        ErrorRows { names: ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect(), ..Default::default() };
+    for (dual_basis, model) in [("full", &full), ("truncated", &trunc)] {
+        for alg in ALGORITHMS {
+            let p = RomParams { algorithm: alg, ..params };
+            for (set, data, pe, fom) in &sets {
+                let pe = pe.as_ref().ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
+                let cached = if *set == "test" { at_full_ranks.remove(&(alg.name(), dual_basis)) } else { None };
+                let rows = cached.unwrap_or_else(|| solve_set(model, data, &p));
+                for (j, q) in rows.into_iter().enumerate() {
+                    let errs = (pe.relative(j, &q.sol.u_hat), dual_error(op, model, &q.sol, data, j));
+                    errors.push(&scene, set, dual_basis, alg, &data.parameters[j], model.ranks(), errs, &q, fom[j]);
+                    progress.inc(&format!("{set} {dual_basis} {}", alg.name()));
+                }
+            }
+        }
+    }
     let staging = ctx.store.stage(&spec)?;
     errors.table().write_parquet(&staging.path(names::ERRORS))?;
-    trade.write_parquet(&staging.path(names::TRADEOFF))?;
+    trade.table().write_parquet(&staging.path(names::TRADEOFF))?;
     let summary = BTreeMap::from([
         ("r_primal".to_string(), json!(phi.cols)),
         ("r_dual_full".to_string(), json!(theta_full.cols)),
         ("r_dual_truncated".to_string(), json!(theta_trunc.cols)),
     ]);
+    progress.inc("written");
     ctx.commit(staging, start.elapsed().as_secs_f64(), summary)?;
     progress.finish("computed");
     ctx.record("rom", 1, 0, ctx.store.dir(ArtifactKind::Rom, &key));
@@ -146,43 +198,58 @@ fn response_basis(op: &dyn ContactOperator, train: &trainset::TrainingSet) -> Re
     Ok(super::convert::to_col(pod.modes.as_ref()))
 }
 
-fn solve_set(
-    op: &dyn ContactOperator,
-    rom: &OnlineRom,
-    set: &trainset::TrainingSet,
-    p: &RomParams,
-) -> Vec<(RomSolution, f64)> {
+/// One timed online query.
+struct Query {
+    sol: ReducedSolution,
+    seconds: f64,
+    indicator: Indicator,
+    indicator_seconds: f64,
+}
+
+/// Solve every point of the set (in parallel, one work buffer per thread), timing the solve
+/// and the indicator separately.
+fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -> Vec<Query> {
     set.parameters
         .par_iter()
-        .map(|mu| {
+        .map_init(RomWork::default, |w, mu| {
             let mut best = f64::INFINITY;
-            let mut sol = None;
+            let mut info = None;
             for _ in 0..TIMING_REPEATS {
                 let t = Instant::now();
-                let s = rom.solve(op, mu, p);
+                let i = model.solve_in(mu, p, w);
                 best = best.min(t.elapsed().as_secs_f64());
-                sol = Some(s);
+                info = Some(i);
                 if best >= REPEAT_BELOW {
                     break;
                 }
             }
-            (sol.expect("TIMING_REPEATS >= 1"), best)
+            let sol = w.solution(&info.expect("TIMING_REPEATS >= 1"));
+            let t = Instant::now();
+            let indicator = model.indicator(mu, w);
+            let indicator_seconds = t.elapsed().as_secs_f64();
+            Query { sol, seconds: best, indicator, indicator_seconds }
         })
         .collect()
 }
 
-/// Relative primal (H1) and dual (weighted L2) errors against column `j` of the set.
-fn rel_errors(op: &dyn ContactOperator, sol: &RomSolution, set: &trainset::TrainingSet, j: usize) -> (f64, f64) {
-    let u = set.primal.col(j);
-    let diff: Vec<f64> = sol.u.iter().zip(u).map(|(a, b)| a - b).collect();
-    let un = op.primal_norm_sq(u);
-    let pe = if un > 0.0 { (op.primal_norm_sq(&diff) / un).sqrt() } else { f64::NAN };
+/// Relative dual error (tributary-weighted L2) against column `j` of the set.
+fn dual_error(
+    op: &dyn ContactOperator,
+    model: &ReducedModel,
+    sol: &ReducedSolution,
+    set: &trainset::TrainingSet,
+    j: usize,
+) -> f64 {
     let w = op.weights();
     let lam = set.dual.col(j);
+    let p = model.pressure(&sol.lambda_hat);
     let ln: f64 = lam.iter().zip(w).map(|(l, w)| w * l * l).sum();
-    let dn: f64 = sol.pressure.iter().zip(lam).zip(w).map(|((a, b), w)| w * (a - b) * (a - b)).sum();
-    let de = if ln > 0.0 { (dn / ln).sqrt() } else { f64::NAN };
-    (pe, de)
+    let dn: f64 = p.iter().zip(lam).zip(w).map(|((a, b), w)| w * (a - b) * (a - b)).sum();
+    if ln > 0.0 {
+        (dn / ln).sqrt()
+    } else {
+        f64::NAN
+    }
 }
 
 /// Ranks 1, 2, 4, … up to and including `r`.
@@ -194,77 +261,126 @@ fn ladder(r: usize) -> Vec<usize> {
     v
 }
 
-fn sweep_len(ru: usize, rl: usize) -> usize {
-    ladder(ru).len() + ladder(rl).len()
+/// The paper's Algorithm 1 is swept over the primal ladder with the full dual basis (the
+/// other ladders only for `exact`, to keep the stage short).
+fn paper_pair(p: &(usize, usize, &'static str), sweep: &[(usize, usize, &'static str)]) -> bool {
+    let rl_max = sweep.iter().map(|s| s.1).max().unwrap_or(0);
+    p.1 == rl_max
 }
 
-#[allow(clippy::too_many_arguments)]
-fn tradeoff(
-    op: &dyn ContactOperator,
-    phi: &ColMatrix,
-    theta: &ColMatrix,
-    test: &trainset::TrainingSet,
-    fom: &[f64],
-    p: &RomParams,
-    scene: &str,
-    progress: &mut crate::progress::StageProgress,
-) -> Result<Table, String> {
-    let mut pairs: Vec<(usize, usize)> = ladder(phi.cols).into_iter().map(|r| (r, theta.cols)).collect();
-    pairs.extend(ladder(theta.cols).into_iter().map(|r| (phi.cols, r)));
+/// Rank pairs of the trade-off: the primal ladder with the full and with the truncated dual
+/// basis, the dual ladder with the full primal basis.
+fn sweep_pairs(ru: usize, rl: usize, rt: usize) -> Vec<(usize, usize, &'static str)> {
+    let mut pairs: Vec<(usize, usize, &'static str)> = ladder(ru).into_iter().map(|r| (r, rl, "full")).collect();
+    pairs.extend(
+        ladder(rl).into_iter().filter(|&r| r != rl).map(|r| (ru, r, if r == rt { "truncated" } else { "full" })),
+    );
+    if rt < rl {
+        pairs.extend(ladder(ru).into_iter().map(|r| (r, rt, "truncated")));
+    }
     pairs.sort_unstable();
-    pairs.dedup();
-    let fom_mean = fom.iter().sum::<f64>() / fom.len().max(1) as f64;
-    let mut cols: (Vec<u64>, Vec<u64>, Vec<u64>, Vec<u64>) = Default::default();
-    let mut vals: [Vec<f64>; 6] = Default::default();
-    for (ru, rl) in pairs {
-        let rom = OnlineRom::new(op, &phi.data[..ru * phi.rows], ru, &theta.data[..rl * theta.rows], rl)
-            .map_err(|e| e.to_string())?;
-        let rows = solve_set(op, &rom, test, p);
-        let errs: Vec<(f64, f64)> = rows.iter().enumerate().map(|(j, (s, _))| rel_errors(op, s, test, j)).collect();
-        let finite = |v: Vec<f64>| -> (f64, f64) {
-            let f: Vec<f64> = v.into_iter().filter(|x| x.is_finite()).collect();
-            let mean = f.iter().sum::<f64>() / f.len().max(1) as f64;
-            (mean, f.iter().fold(0.0f64, |m, x| m.max(*x)))
-        };
-        let (mp, xp) = finite(errs.iter().map(|e| e.0).collect());
-        let (md, _) = finite(errs.iter().map(|e| e.1).collect());
-        let online = rows.iter().map(|r| r.1).sum::<f64>() / rows.len().max(1) as f64;
-        cols.0.push(ru as u64);
-        cols.1.push(rl as u64);
-        cols.2.push(rows.len() as u64);
-        cols.3.push(rows.iter().filter(|r| r.0.outcome == crom_stages::rom::RomOutcome::Converged).count() as u64);
-        for (v, x) in vals.iter_mut().zip([mp, xp, md, online, fom_mean, fom_mean / online]) {
+    pairs.dedup_by(|a, b| (a.0, a.1) == (b.0, b.1));
+    pairs
+}
+
+#[derive(Default)]
+struct TradeRows {
+    s: [Vec<String>; 3],
+    ints: [Vec<u64>; 6],
+    vals: [Vec<f64>; 12],
+}
+
+impl TradeRows {
+    #[allow(clippy::too_many_arguments)]
+    fn push(
+        &mut self,
+        scene: &str,
+        alg: Algorithm,
+        dual_basis: &str,
+        (ru, rl): (usize, usize),
+        rows: &[Query],
+        pe: &PrimalErrors,
+        fom: &[f64],
+        dual: impl Fn(usize, &Query) -> f64,
+    ) {
+        let conv: Vec<usize> = (0..rows.len()).filter(|&j| rows[j].sol.outcome == RomOutcome::Converged).collect();
+        let infeasible = rows.iter().filter(|q| q.sol.outcome == RomOutcome::Infeasible).count();
+        let perr: Vec<f64> = conv.iter().map(|&j| pe.relative(j, &rows[j].sol.u_hat)).collect();
+        let derr: Vec<f64> = conv.iter().map(|&j| dual(j, &rows[j])).collect();
+        let ind: Vec<f64> = conv.iter().map(|&j| rows[j].indicator.residual).collect();
+        let eff: Vec<f64> = ind.iter().zip(&perr).filter(|(_, e)| **e > 0.0).map(|(i, e)| i / e).collect();
+        let online: Vec<f64> = rows.iter().map(|q| q.seconds).collect();
+        let finite: Vec<f64> = perr.iter().copied().filter(|x| x.is_finite()).collect();
+        let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
+        let max = finite.iter().fold(f64::NAN, |m, x| if m.is_nan() { *x } else { m.max(*x) });
+        let (on_med, fom_med) = (quantile(&online, 0.5), quantile(fom, 0.5));
+        for (v, x) in self.s.iter_mut().zip([scene, alg.name(), dual_basis]) {
+            v.push(x.to_string());
+        }
+        let ints = [ru, rl, rows.len(), conv.len(), infeasible, rows.len() - conv.len() - infeasible];
+        for (v, x) in self.ints.iter_mut().zip(ints) {
+            v.push(x as u64);
+        }
+        let vals = [
+            quantile(&perr, 0.5),
+            quantile(&perr, 0.95),
+            mean,
+            max,
+            quantile(&derr, 0.5),
+            on_med,
+            quantile(&online, 0.95),
+            fom_med,
+            fom_med / on_med,
+            spearman(&ind, &perr),
+            quantile(&eff, 0.5),
+            quantile(&rows.iter().map(|q| q.indicator_seconds).collect::<Vec<_>>(), 0.5),
+        ];
+        for (v, x) in self.vals.iter_mut().zip(vals) {
             v.push(x);
         }
-        progress.inc(&format!("ranks ({ru}, {rl})"));
     }
-    let n = cols.0.len();
-    let [mp, xp, md, on, fm, sp] = vals;
-    Ok(Table::default()
-        .with("scene", Column::Str(vec![scene.to_string(); n]))
-        .with("r_primal", Column::U64(cols.0))
-        .with("r_dual", Column::U64(cols.1))
-        .with("points", Column::U64(cols.2))
-        .with("converged", Column::U64(cols.3))
-        .with("mean_primal_error", Column::F64(mp))
-        .with("max_primal_error", Column::F64(xp))
-        .with("mean_dual_error", Column::F64(md))
-        .with("online_seconds", Column::F64(on))
-        .with("fom_seconds", Column::F64(fm))
-        .with("speedup", Column::F64(sp)))
+
+    fn table(self) -> Table {
+        let [scene, alg, basis] = self.s;
+        let [ru, rl, points, conv, inf, failed] = self.ints;
+        let [pm, p95, mean, max, dm, om, o95, fm, sp, rho, eff, ind_s] = self.vals;
+        Table::default()
+            .with("scene", Column::Str(scene))
+            .with("algorithm", Column::Str(alg))
+            .with("dual_basis", Column::Str(basis))
+            .with("r_primal", Column::U64(ru))
+            .with("r_dual", Column::U64(rl))
+            .with("points", Column::U64(points))
+            .with("converged", Column::U64(conv))
+            .with("infeasible", Column::U64(inf))
+            .with("failed", Column::U64(failed))
+            .with("median_primal_error", Column::F64(pm))
+            .with("p95_primal_error", Column::F64(p95))
+            .with("mean_primal_error", Column::F64(mean))
+            .with("max_primal_error", Column::F64(max))
+            .with("median_dual_error", Column::F64(dm))
+            .with("median_online_seconds", Column::F64(om))
+            .with("p95_online_seconds", Column::F64(o95))
+            .with("median_fom_seconds", Column::F64(fm))
+            .with("speedup", Column::F64(sp))
+            .with("indicator_spearman", Column::F64(rho))
+            .with("indicator_effectivity", Column::F64(eff))
+            .with("median_indicator_seconds", Column::F64(ind_s))
+    }
 }
 
 #[derive(Default)]
 struct ErrorRows {
-    s: [Vec<String>; 3],
+    s: [Vec<String>; 4],
     /// Parameter component names.
     names: Vec<String>,
     param: Vec<Vec<f64>>,
     ranks: [Vec<u64>; 2],
     errs: [Vec<f64>; 2],
-    ints: [Vec<u64>; 2],
+    ints: [Vec<u64>; 3],
     outcome: Vec<String>,
-    times: [Vec<f64>; 2],
+    ind: [Vec<f64>; 4],
+    times: [Vec<f64>; 3],
 }
 
 impl ErrorRows {
@@ -274,13 +390,14 @@ impl ErrorRows {
         scene: &str,
         set: &str,
         basis: &str,
+        alg: Algorithm,
         mu: &[f64],
         ranks: (usize, usize),
         errs: (f64, f64),
-        sol: &RomSolution,
-        secs: f64,
+        q: &Query,
         fom: f64,
     ) {
+        self.s[3].push(alg.name().to_string());
         self.s[0].push(scene.to_string());
         self.s[1].push(set.to_string());
         self.s[2].push(basis.to_string());
@@ -289,24 +406,32 @@ impl ErrorRows {
         self.ranks[1].push(ranks.1 as u64);
         self.errs[0].push(errs.0);
         self.errs[1].push(errs.1);
-        self.ints[0].push(sol.iterations as u64);
-        self.ints[1].push(sol.nonzero_dual as u64);
-        self.outcome.push(sol.outcome.name().to_string());
-        self.times[0].push(secs);
-        self.times[1].push(fom);
+        self.ints[0].push(q.sol.iterations as u64);
+        self.ints[1].push(q.sol.linearizations as u64);
+        self.ints[2].push(q.sol.nonzero_dual as u64);
+        self.outcome.push(q.sol.outcome.name().to_string());
+        let i = &q.indicator;
+        for (v, x) in self.ind.iter_mut().zip([i.residual, i.penetration, i.complementarity, i.unpaired_force]) {
+            v.push(x);
+        }
+        for (v, x) in self.times.iter_mut().zip([q.seconds, q.indicator_seconds, fom]) {
+            v.push(x);
+        }
     }
 
     fn table(self) -> Table {
-        let [scene, set, basis] = self.s;
+        let [scene, set, basis, alg] = self.s;
         let [rp, rd] = self.ranks;
         let [pe, de] = self.errs;
-        let [it, nz] = self.ints;
-        let [on, fom] = self.times;
+        let [it, lin, nz] = self.ints;
+        let [res, pen, comp, unp] = self.ind;
+        let [on, ind_s, fom] = self.times;
         // `parameter` is the first component; a vector parameter adds a column per component.
         let t = Table::default()
             .with("scene", Column::Str(scene))
             .with("set", Column::Str(set))
-            .with("dual_basis", Column::Str(basis));
+            .with("dual_basis", Column::Str(basis))
+            .with("algorithm", Column::Str(alg));
         let points: Vec<&[f64]> = self.param.iter().map(Vec::as_slice).collect();
         super::with_parameters(t, &self.names, &points)
             .with("r_primal", Column::U64(rp))
@@ -314,9 +439,15 @@ impl ErrorRows {
             .with("primal_error", Column::F64(pe))
             .with("dual_error", Column::F64(de))
             .with("iterations", Column::U64(it))
+            .with("linearizations", Column::U64(lin))
             .with("nonzero_dual", Column::U64(nz))
             .with("outcome", Column::Str(self.outcome))
+            .with("indicator", Column::F64(res))
+            .with("penetration", Column::F64(pen))
+            .with("complementarity", Column::F64(comp))
+            .with("unpaired_force", Column::F64(unp))
             .with("online_seconds", Column::F64(on))
+            .with("indicator_seconds", Column::F64(ind_s))
             .with("fom_seconds", Column::F64(fom))
     }
 }

@@ -195,9 +195,10 @@ fn rom_rows(d: &ReportData, set: &str, basis: &str) -> (Vec<f64>, Vec<f64>, Vec<
     else {
         return Default::default();
     };
+    let algs = t.strs("algorithm");
     let mut out: (Vec<f64>, Vec<f64>, Vec<f64>) = Default::default();
     for i in 0..mu.len() {
-        if sets[i] == set && bases[i] == basis {
+        if sets[i] == set && bases[i] == basis && algs.is_none_or(|a| a[i] == "exact") {
             out.0.push(mu[i]);
             out.1.push(pe[i]);
             out.2.push(de[i]);
@@ -246,33 +247,74 @@ fn rom_errors(scene: &SceneConfig, d: &ReportData, dir: &Path, basis: &str) -> R
 
 fn tradeoff(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
     let t = &d.tradeoff;
-    let (Some(ru), Some(rl), Some(err), Some(sp)) =
-        (t.u64s("r_primal"), t.u64s("r_dual"), t.f64s("mean_primal_error"), t.f64s("speedup"))
-    else {
+    let (Some(alg), Some(basis), Some(ru), Some(rl), Some(conv), Some(err), Some(sp)) = (
+        t.strs("algorithm"),
+        t.strs("dual_basis"),
+        t.u64s("r_primal"),
+        t.u64s("r_dual"),
+        t.u64s("converged"),
+        t.f64s("median_primal_error"),
+        t.f64s("speedup"),
+    ) else {
         return Err(CromError::artifact(dir, "tradeoff table lacks columns", "delete the rom artifact and rerun"));
     };
+    let (points, inf, failed) = (t.u64s("points"), t.u64s("infeasible"), t.u64s("failed"));
     let (ru_max, rl_max) = (ru.iter().max().copied().unwrap_or(0), rl.iter().max().copied().unwrap_or(0));
+    // a rank pair is drawn only from its converged points, and only if it has any
+    let drawn = |i: usize| conv[i] > 0 && err[i].is_finite() && err[i] > 0.0 && sp[i].is_finite();
     let pick = |f: &dyn Fn(usize) -> bool| -> (Vec<f64>, Vec<f64>) {
-        (0..ru.len()).filter(|&i| f(i)).map(|i| (sp[i], err[i])).unzip()
+        (0..ru.len()).filter(|&i| drawn(i) && f(i)).map(|i| (sp[i], err[i])).unzip()
     };
-    let (x1, y1) = pick(&|i| rl[i] == rl_max);
-    let (x2, y2) = pick(&|i| ru[i] == ru_max);
+    let (x1, y1) = pick(&|i| alg[i] == "exact" && basis[i] == "full" && rl[i] == rl_max);
+    let (x2, y2) = pick(&|i| alg[i] == "exact" && ru[i] == ru_max && rl[i] != rl_max);
+    let (x3, y3) = pick(&|i| alg[i] == "exact" && basis[i] == "truncated" && ru[i] != ru_max);
+    let (x4, y4) = pick(&|i| alg[i] == "paper");
+    // Pareto front of the exact solves: no other pair is both faster and more accurate
+    let exact: Vec<usize> = (0..ru.len()).filter(|&i| drawn(i) && alg[i] == "exact").collect();
+    let mut front: Vec<(f64, f64)> = exact
+        .iter()
+        .filter(|&&i| {
+            !exact.iter().any(|&j| j != i && sp[j] >= sp[i] && err[j] <= err[i] && (sp[j] > sp[i] || err[j] < err[i]))
+        })
+        .map(|&i| (sp[i], err[i]))
+        .collect();
+    front.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (xf, yf): (Vec<f64>, Vec<f64>) = front.into_iter().unzip();
     let chart = Chart {
-        title: format!("{}: speed/accuracy trade over the test points", scene.scene.name),
-        x_label: "speed-up over the full-order solve".into(),
-        y_label: "mean relative primal error (H1)".into(),
+        title: format!("{}: speed/accuracy trade over the test points (converged points only)", scene.scene.name),
+        x_label: "median speed-up over the full-order solve".into(),
+        y_label: "median relative primal error (H1)".into(),
         log_y: true,
         log_x: true,
         series: vec![
-            Series::line(&format!("primal rank 1…{ru_max}, full dual basis"), x1, y1),
-            Series::line(&format!("dual rank 1…{rl_max}, full primal basis"), x2, y2),
+            Series::line(&format!("exact: primal rank 1…{ru_max}, full dual basis"), x1, y1).mark(Mark::LinePoints),
+            Series::line(&format!("exact: dual rank 1…{rl_max}, full primal basis"), x2, y2).mark(Mark::LinePoints),
+            Series::line("exact: primal ranks, truncated dual basis", x3, y3).mark(Mark::LinePoints),
+            Series::line("paper Algorithm 1 (all rank pairs)", x4, y4).mark(Mark::Points),
+            Series::line("Pareto front (exact)", xf, yf),
         ],
         legend: Legend::UpperRight,
     };
     render(&chart, dir, "fig_tradeoff")?;
+    let mut notes: Vec<String> = Vec::new();
+    if let (Some(points), Some(inf), Some(failed)) = (points, inf, failed) {
+        for i in 0..ru.len() {
+            if inf[i] + failed[i] > 0 {
+                notes.push(format!(
+                    "{} ({}, {}): {} refused as infeasible, {} not converged of {}",
+                    alg[i], ru[i], rl[i], inf[i], failed[i], points[i]
+                ));
+            }
+        }
+    }
+    let failures = if notes.is_empty() {
+        "Every query of every rank pair converged.".to_string()
+    } else {
+        format!("Queries not drawn (ranks r_u, r_λ): {}.", notes.join("; "))
+    };
     Ok(Figure {
         stem: "fig_tradeoff".into(),
-        caption: "Pareto view of the speed/accuracy trade: each point is one (primal rank, dual rank) pair, error and speed-up averaged over the test points.".into(),
+        caption: format!("Pareto view of the speed/accuracy trade: each point is one (primal rank, dual rank) pair, median error over its converged test points against its median speed-up (full-order solve timed in the same process). {failures}"),
     })
 }
 

@@ -105,7 +105,10 @@ fn online_summary(d: &ReportData, basis: &str) -> Option<String> {
         t.f64s("fom_seconds")?,
         t.strs("outcome")?,
     );
-    let rows: Vec<usize> = (0..sets.len()).filter(|&i| sets[i] == "test" && bases[i] == basis).collect();
+    let algs = t.strs("algorithm");
+    let rows: Vec<usize> = (0..sets.len())
+        .filter(|&i| sets[i] == "test" && bases[i] == basis && algs.is_none_or(|a| a[i] == "exact"))
+        .collect();
     if rows.is_empty() {
         return None;
     }

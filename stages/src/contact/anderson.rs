@@ -46,6 +46,11 @@ impl Anderson {
         }
     }
 
+    /// Length of the vectors it mixes.
+    pub fn dim(&self) -> usize {
+        self.n
+    }
+
     /// Forget the history.
     pub fn reset(&mut self) {
         self.len = 0;

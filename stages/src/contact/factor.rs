@@ -37,6 +37,8 @@ pub struct FactoredModel {
     pub(crate) w: Vec<f64>,
     /// Slaves whose two dofs are both Dirichlet (never paired).
     pub(crate) slave_fixed: Vec<bool>,
+    /// The H1 Gram matrix, assembled on first use (error evaluation).
+    pub(crate) h1: std::sync::OnceLock<crate::fem::CsrMatrix>,
 }
 
 impl ContactModel {
@@ -74,7 +76,19 @@ impl ContactModel {
         let w = compliance(&llt, nf, &cfree, threads);
         let slave_fixed =
             (0..self.slaves.len()).map(|s| cfree[2 * s].is_none() && cfree[2 * s + 1].is_none()).collect();
-        Ok(FactoredModel { model: self.clone(), llt, resp, lift, cnodes, x_ref, cfree, a, w, slave_fixed })
+        Ok(FactoredModel {
+            model: self.clone(),
+            llt,
+            resp,
+            lift,
+            cnodes,
+            x_ref,
+            cfree,
+            a,
+            w,
+            slave_fixed,
+            h1: std::sync::OnceLock::new(),
+        })
     }
 }
 

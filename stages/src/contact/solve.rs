@@ -32,7 +32,7 @@ use super::active_set::{solve_lcp, Lcp, LcpError, LcpWork};
 use super::anderson::Anderson;
 use super::error::ContactError;
 use super::factor::FactoredModel;
-use super::pairing::{closest_point, vertex_pair, Pair, PairKind};
+use super::pairing::{GapRow as Row, MasterIndex, Pair};
 use super::vertex::VertexTies;
 use crate::mu::{affine, Mu};
 use crate::snapshot::{Snapshot, SolveStats};
@@ -65,51 +65,6 @@ fn residual_scale(contact_inf: f64, lift_inf: f64) -> f64 {
     }
 }
 
-/// One linearised gap constraint: `g = sum coef_j x_{dof_j}` over contact dofs.
-#[derive(Debug, Clone, Copy, Default)]
-struct Row {
-    dof: [usize; 6],
-    coef: [f64; 6],
-    len: usize,
-}
-
-impl Row {
-    fn new(s: usize, ns: usize, p: &Pair) -> Self {
-        let n = p.normal;
-        let mut r = Row { len: 2, ..Default::default() };
-        r.dof[0] = 2 * s;
-        r.dof[1] = 2 * s + 1;
-        r.coef[0] = n[0];
-        r.coef[1] = n[1];
-        let mut push = |node: usize, w: f64| {
-            if w != 0.0 {
-                r.dof[r.len] = 2 * (ns + node);
-                r.coef[r.len] = -w * n[0];
-                r.dof[r.len + 1] = 2 * (ns + node) + 1;
-                r.coef[r.len + 1] = -w * n[1];
-                r.len += 2;
-            }
-        };
-        match p.kind {
-            PairKind::Segment(k) => {
-                push(k, 1.0 - p.xi);
-                push(k + 1, p.xi);
-            }
-            PairKind::Vertex(v) | PairKind::Tied(v) => push(v, 1.0),
-            PairKind::None => unreachable!("rows are built for paired slaves only"),
-        }
-        r
-    }
-    fn apply(&self, x: &[f64]) -> f64 {
-        (0..self.len).map(|j| self.coef[j] * x[self.dof[j]]).sum()
-    }
-    fn scatter(&self, lambda: f64, f: &mut [f64]) {
-        for j in 0..self.len {
-            f[self.dof[j]] += self.coef[j] * lambda;
-        }
-    }
-}
-
 /// Per-solve buffers.
 struct Work {
     a: Vec<f64>,
@@ -117,6 +72,7 @@ struct Work {
     uc: Vec<f64>,
     x: Vec<f64>,
     xm: Vec<[f64; 2]>,
+    index: MasterIndex,
     pairs: Vec<Pair>,
     pairs_new: Vec<Pair>,
     rows: Vec<Row>,
@@ -168,6 +124,7 @@ impl FactoredModel {
             uc: vec![0.0; ncd],
             x: vec![0.0; ncd],
             xm: vec![[0.0; 2]; nm],
+            index: MasterIndex::default(),
             pairs: vec![Pair::NONE; ns],
             pairs_new: vec![Pair::NONE; ns],
             rows: vec![Row::default(); ns],
@@ -197,7 +154,7 @@ impl FactoredModel {
         ws.x_pair.copy_from_slice(&ws.a);
         let mut ties = if allow_ties { VertexTies::new(ns) } else { VertexTies::disabled(ns) };
         let mut repairings = 0;
-        self.pair_all(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ties, repairings, &mut ws.pairs)?;
+        self.pair_all(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ws.index, &mut ties, repairings, &mut ws.pairs)?;
         repairings += 1;
         let mut iterations = 0;
         let mut first = true;
@@ -282,7 +239,7 @@ impl FactoredModel {
                 }
             }
             // --- re-pair in the deformed configuration ---
-            self.pair_all(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ties, repairings, &mut ws.pairs_new)?;
+            self.pair_all(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ws.index, &mut ties, repairings, &mut ws.pairs_new)?;
             repairings += 1;
             // --- residuals for the new pairing ---
             ws.f_new.fill(0.0);
@@ -328,7 +285,7 @@ impl FactoredModel {
             last_eq = eq;
             let mut accelerated = false;
             if smooth && ws.anderson.step(&ws.x_pair, &ws.uc, &mut ws.x_next) {
-                self.pair_frozen(&ws.x_next, &mut ws.x, &mut ws.xm, &ties, &mut ws.pairs_acc);
+                self.pair_frozen(&ws.x_next, &mut ws.x, &mut ws.xm, &mut ws.index, &ties, &mut ws.pairs_acc);
                 if ws.pairs_acc.iter().zip(&ws.pairs_new).all(|(a, b)| a.kind == b.kind) {
                     std::mem::swap(&mut ws.pairs, &mut ws.pairs_acc);
                     std::mem::swap(&mut ws.x_pair, &mut ws.x_next);
@@ -354,12 +311,14 @@ impl FactoredModel {
         uc: &[f64],
         x: &mut [f64],
         xm: &mut [[f64; 2]],
+        index: &mut MasterIndex,
         ties: &mut VertexTies,
         repairing: usize,
         out: &mut [Pair],
     ) -> Result<(), ContactError> {
         let ns = self.model.slaves.len();
         self.deformed_positions(uc, x, xm);
+        index.build(xm);
         for s in 0..ns {
             if self.slave_fixed[s] {
                 out[s] = Pair::NONE;
@@ -369,11 +328,7 @@ impl FactoredModel {
             if !(xs[0].is_finite() && xs[1].is_finite()) {
                 return Err(ContactError::Pairing { param: Mu::of(mu), slave: s });
             }
-            let nat = closest_point(xs, xm);
-            out[s] = match ties.resolve(s, nat.kind, repairing) {
-                PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
-                _ => nat,
-            };
+            out[s] = ties.pair(s, xs, xm, index, repairing);
         }
         Ok(())
     }
@@ -392,20 +347,25 @@ impl FactoredModel {
 
     /// Pairing at the contact-dof displacement `uc` with the current ties, without recording
     /// history (used for the Anderson-mixed configuration).
-    fn pair_frozen(&self, uc: &[f64], x: &mut [f64], xm: &mut [[f64; 2]], ties: &VertexTies, out: &mut [Pair]) {
+    fn pair_frozen(
+        &self,
+        uc: &[f64],
+        x: &mut [f64],
+        xm: &mut [[f64; 2]],
+        index: &mut MasterIndex,
+        ties: &VertexTies,
+        out: &mut [Pair],
+    ) {
         let ns = self.model.slaves.len();
         self.deformed_positions(uc, x, xm);
+        index.build(xm);
         for s in 0..ns {
             if self.slave_fixed[s] {
                 out[s] = Pair::NONE;
                 continue;
             }
             let xs = [x[2 * s], x[2 * s + 1]];
-            let nat = closest_point(xs, xm);
-            out[s] = match ties.peek(s, nat.kind) {
-                PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
-                _ => nat,
-            };
+            out[s] = ties.pair_peek(s, xs, xm, index);
         }
     }
 
@@ -434,12 +394,10 @@ impl FactoredModel {
         for (fi, &d) in m.split.free().iter().enumerate() {
             u[d] = affine(&self.resp[0], &self.resp[1..], mu, fi) + rhs[fi];
         }
-        // gaps of the final pairing from the recovered displacement
-        let pos = |node: usize| {
-            let p = m.mesh.nodes[node];
-            [p[0] + u[2 * node], p[1] + u[2 * node + 1]]
-        };
-        let mut f_new = vec![0.0; m.n_dof()];
+        // gaps of the final pairing from the recovered displacement (contact-dof positions)
+        let xc: Vec<f64> =
+            (0..self.cnodes.len() * 2).map(|i| self.x_ref[i / 2][i % 2] + u[2 * self.cnodes[i / 2] + i % 2]).collect();
+        let mut fc = vec![0.0; xc.len()];
         let (mut max_pen, mut comp, mut neg_gap, mut lam_inf) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
         let mut active = 0;
         for s in 0..ns {
@@ -452,32 +410,16 @@ impl FactoredModel {
             if !pr.kind.is_paired() {
                 continue;
             }
-            let n = pr.normal;
-            let xs = pos(m.slaves[s]);
-            let (xbar, nodes_w): ([f64; 2], [(usize, f64); 2]) = match pr.kind {
-                PairKind::Segment(k) => {
-                    let (a, b) = (pos(m.masters[k]), pos(m.masters[k + 1]));
-                    (
-                        [(1.0 - pr.xi) * a[0] + pr.xi * b[0], (1.0 - pr.xi) * a[1] + pr.xi * b[1]],
-                        [(m.masters[k], 1.0 - pr.xi), (m.masters[k + 1], pr.xi)],
-                    )
-                }
-                PairKind::Vertex(v) | PairKind::Tied(v) => (pos(m.masters[v]), [(m.masters[v], 1.0), (0, 0.0)]),
-                PairKind::None => unreachable!("skipped above"),
-            };
-            let gap = (xs[0] - xbar[0]) * n[0] + (xs[1] - xbar[1]) * n[1];
+            let row = Row::new(s, ns, pr);
+            let gap = row.apply(&xc);
             max_pen = max_pen.max(-gap);
             comp = comp.max(l.min(c_scale * gap).abs());
             neg_gap = neg_gap.max(-c_scale * gap);
-            let sn = m.slaves[s];
-            f_new[2 * sn] += l * n[0];
-            f_new[2 * sn + 1] += l * n[1];
-            for (node, w) in nodes_w {
-                if w != 0.0 {
-                    f_new[2 * node] -= w * l * n[0];
-                    f_new[2 * node + 1] -= w * l * n[1];
-                }
-            }
+            row.scatter(l, &mut fc);
+        }
+        let mut f_new = vec![0.0; m.n_dof()];
+        for (i, f) in fc.iter().enumerate() {
+            f_new[2 * self.cnodes[i / 2] + i % 2] += f;
         }
         let ku = m.k.matvec(&u);
         let (mut res, mut f_inf) = (0.0f64, 0.0f64);

@@ -11,7 +11,7 @@
 //! released as soon as it moves elsewhere. The tied constraint is an ordinary node-to-node
 //! constraint, so the loop then converges to a KKT point of the tied problem.
 
-use super::pairing::PairKind;
+use super::pairing::{vertex_pair, MasterIndex, Pair, PairKind};
 
 /// Re-pairings after which any change between pairings sharing a vertex counts as a flip.
 pub const STALL_REPAIRINGS: usize = 12;
@@ -29,6 +29,16 @@ impl VertexTies {
     /// No history, no ties, for `n` slaves.
     pub fn new(n: usize) -> Self {
         Self { enabled: true, tie: vec![None; n], last: vec![PairKind::None; n], before_last: vec![PairKind::None; n] }
+    }
+
+    /// Forget every tie and all history, for `n` slaves (keeps the capacity and `enabled`).
+    pub fn reset(&mut self, n: usize) {
+        for v in [&mut self.last, &mut self.before_last] {
+            v.clear();
+            v.resize(n, PairKind::None);
+        }
+        self.tie.clear();
+        self.tie.resize(n, None);
     }
 
     /// A tracker that never ties (plain closest-point pairing).
@@ -71,9 +81,52 @@ impl VertexTies {
         }
     }
 
+    /// The pairing of slave `s` at `xs`: the closest point on the master polyline `xm` (through
+    /// its `index`), replaced by a tie to vertex `v` (averaged normal) when [`Self::resolve`]
+    /// says so; the natural pairing is recorded as re-pairing number `repairing`.
+    pub fn pair(&mut self, s: usize, xs: [f64; 2], xm: &[[f64; 2]], index: &MasterIndex, repairing: usize) -> Pair {
+        let nat = index.closest_point(xs, xm);
+        match self.resolve(s, nat.kind, repairing) {
+            PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
+            _ => nat,
+        }
+    }
+
+    /// [`Self::pair`] with the radius of [`MasterIndex::closest_point_with_radius`] for an
+    /// unpaired result (0 otherwise, and 0 for a tie).
+    pub fn pair_with_radius(
+        &mut self,
+        s: usize,
+        xs: [f64; 2],
+        xm: &[[f64; 2]],
+        index: &MasterIndex,
+        repairing: usize,
+    ) -> (Pair, f64) {
+        let (nat, r) = index.closest_point_with_radius(xs, xm);
+        match self.resolve(s, nat.kind, repairing) {
+            PairKind::Tied(v) => (vertex_pair(xs, xm, v, PairKind::Tied(v)), 0.0),
+            _ => (nat, r),
+        }
+    }
+
+    /// [`Self::pair`] without recording anything (existing ties only, [`Self::peek`]).
+    pub fn pair_peek(&self, s: usize, xs: [f64; 2], xm: &[[f64; 2]], index: &MasterIndex) -> Pair {
+        let nat = index.closest_point(xs, xm);
+        match self.peek(s, nat.kind) {
+            PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
+            _ => nat,
+        }
+    }
+
     /// Number of slaves currently tied.
     pub fn count(&self) -> usize {
         self.tie.iter().filter(|t| t.is_some()).count()
+    }
+}
+
+impl Default for VertexTies {
+    fn default() -> Self {
+        Self::new(0)
     }
 }
 

@@ -49,6 +49,22 @@ pub fn h1_norm_sq(mesh: &Mesh2d, u: &[f64]) -> f64 {
     total
 }
 
+/// The Gram matrix `H` of [`h1_norm_sq`] assembled (both components), for repeated products.
+pub fn h1_gram(mesh: &Mesh2d) -> super::CsrMatrix {
+    let mut t = Vec::with_capacity(mesh.quads.len() * 32);
+    for (e, q) in mesh.quads.iter().enumerate() {
+        let k = element_h1(&mesh.element_coords(e));
+        for c in 0..2 {
+            for a in 0..4 {
+                for b in 0..4 {
+                    t.push((2 * q[a] + c, 2 * q[b] + c, k[a][b]));
+                }
+            }
+        }
+    }
+    super::CsrMatrix::from_triplets(mesh.n_dof(), t)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -86,5 +102,17 @@ mod tests {
             let c: Vec<f64> = mesh.nodes.iter().flat_map(|_| [1.0, 0.0]).collect();
             assert_close!(h1_norm_sq(&mesh, &c), 1.0, Tol::rel(1e-14));
         }
+    }
+
+    /// The assembled Gram matrix gives the element-wise norm (1e-12 relative).
+    #[test]
+    fn assembled_gram_matches_the_norm() {
+        let g = rectangle(0.0, 0.0, 2.0, 1.0, 7, 4).expect("mesh");
+        let (mesh, _) = Mesh2d::from_grids(&[&g]);
+        let mut rng = Rng::new(10);
+        let u: Vec<f64> = (0..mesh.n_dof()).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
+        let hu = h1_gram(&mesh).matvec(&u);
+        let q: f64 = u.iter().zip(&hu).map(|(a, b)| a * b).sum();
+        assert_close!(q, h1_norm_sq(&mesh, &u), Tol::rel(1e-12));
     }
 }

@@ -22,6 +22,7 @@
 mod compactness;
 mod generalization;
 mod nested;
+pub mod order;
 mod specificity;
 mod stats;
 

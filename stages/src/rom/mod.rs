@@ -1,12 +1,13 @@
-//! The online reduced solve (paper Sec. 2.3.2, Algorithm 1, eqs. 11 and 13).
+//! The online reduced solve (paper Sec. 2.3.2, Algorithm 1, eqs. 11 and 13), made exact and
+//! independent of the mesh size.
 //!
 //! **Lifting.** The full displacement is written `u = u0(mu) + Phi û`, where `u0(mu)` is the
-//! contact-free solution at `mu` (Dirichlet data and loads included; for every scene of crom it
-//! is affine in `mu` and costs nothing online) and `Phi` (`n_dof x r_u`) is the POD of the
-//! *contact responses* `u_k - u0(mu_k)` of the training snapshots, which vanish on the Dirichlet
-//! dofs. Equilibrium then reads `K Phi û = Phi^T C^T W Theta λ̂` with no load term: the loads are
-//! balanced by `u0`. (The paper leaves the treatment of the parameter-dependent Dirichlet data
-//! open; lifting makes the reduced space exact on it.)
+//! contact-free solution at `mu` (Dirichlet data and loads included; affine in `mu` for every
+//! scene of crom) and `Phi` (`n_dof x r_u`) is the POD of the *contact responses*
+//! `u_k - u0(mu_k)` of the training snapshots, which vanish on the Dirichlet dofs. Equilibrium
+//! then reads `K Phi û = Phi^T C^T W Theta λ̂` with no load term. (The paper leaves the
+//! treatment of the parameter-dependent Dirichlet data open; lifting makes the reduced space
+//! exact on it.)
 //!
 //! **Reduced operators** (eq. 11, Alg. 1 step 6). With the full-order constraints linearised at
 //! the current iterate, `gap(v) = C v + gap0 >= 0` (one row per potential-contact node, `W` the
@@ -18,18 +19,47 @@
 //! K̂ û - Ĉ_A^T λ̂_A = 0,   Ĉ_A û + ĝ0_A = 0            (eq. 13 on the active set A)
 //! ```
 //!
-//! **Algorithm 1.** Start from a deterministic active set: the single reduced constraint that is
-//! most violated at `û = 0` (the paper draws one at random; a fixed choice makes runs
-//! reproducible). Solve eq. 13; drop constraints with `λ̂_i < 0`, add those with reduced gap
-//! `< 0`; for Type-2 problems re-linearise `C`, `gap0` (pairing, normals) at `u0 + Phi û` every
-//! iteration (step 5). Stop when the active set does not change (and, for Type-2, the pairing
-//! is unchanged) — converged; when an active set repeats — cycled; or at `max_iter` — not
-//! converged. Non-convergence is an outcome, never an error.
+//! **Offline / online.** Everything of length `n_dof` happens offline ([`ReducedModel::new`]):
+//! `K̂` and its Cholesky factor, the contact-dof rows `Phi_c` of `Phi`, the contact-dof rows of
+//! the lift's affine terms, and for Type-1 problems `Ĉ` and the affine terms of `ĝ0` outright.
+//! A Type-2 query positions only the contact nodes, `x_c = X_c + u0_c(mu) + Phi_c û`, pairs the
+//! slaves in the support of `Theta` with the full-order solver's own rule
+//! ([`crate::contact::vertex::VertexTies::pair`], closest point with vertex ties) and builds
+//! their gap rows with the solver's [`crate::contact::pairing::GapRow`]; `C Phi` is then
+//! `GapRow · Phi_c`. Its cost depends on the ranks and on the number of contact nodes, never on
+//! `n_dof`; the full field `u0 + Phi û` is reconstructed only for error evaluation, outside the
+//! timed query ([`ReducedModel::displacement`]).
+//!
+//! **Exact solve** ([`Algorithm::Exact`]). For a fixed linearisation the reduced problem is the
+//! strictly convex QP `min 1/2 ûᵀK̂û s.t. Ĉû + ĝ0 >= 0`, whose KKT conditions are eq. 13 plus
+//! sign conditions; [`qp`] solves it by a dual active-set method with finite termination that
+//! also proves infeasibility (a primal basis too small for the dual one is refused with that
+//! reason, not iterated). Type-2 wraps it in an outer loop: re-pair at `u0 + Phi û`, rebuild
+//! the rows, solve again, until the pairing repeats and `û` stops moving.
+//!
+//! **Paper** ([`Algorithm::Paper`], Algorithm 1). Start from the single reduced constraint most
+//! violated at `û = 0` (the paper draws one at random; a fixed choice makes runs reproducible).
+//! Solve eq. 13; drop constraints with `λ̂_i < 0`, add those with reduced gap `< 0`,
+//! re-linearise every iteration (Type-2). Stop when the active set and the pairing do not change
+//! and `û` stopped moving — converged; when an active set repeats — cycled; or at `max_iter`.
+//!
+//! **Error indicator** ([`ReducedModel::indicator`]). From the reduced solution alone, over
+//! every potential-contact node: largest penetration, force-weighted mean `|gap|` under the
+//! reduced pressure (complementarity), the share of force on unpaired nodes, and the relative
+//! energy-norm equilibrium residual `||Phi û - K^{-1} F(p̂)||_K / ||Phi û||_K` evaluated with the
+//! contact-dof compliance `W_c = E_c^T K^{-1} E_c`:
+//! `|L^T û - L^{-1} Phi_c^T F_c|^2 + (F_c^T W_c F_c - |L^{-1} Phi_c^T F_c|^2)` with `K̂ = L L^T`.
 
-mod online;
-mod operator;
+mod error;
+mod la;
+mod qp;
+mod reduced;
 mod saddle;
 
-pub use online::{OnlineRom, RomOutcome, RomParams, RomSolution};
-pub use operator::{ContactOperator, Linearized};
+pub use crate::operator::{Compliance, ContactOperator, Linearized, Surface};
+pub use error::PrimalErrors;
+pub use qp::{solve_qp, DenseConstraints, QpConstraints, QpOutcome, QpWork};
+pub use reduced::{
+    Algorithm, Indicator, ReducedModel, ReducedSolution, RomError, RomOutcome, RomParams, RomWork, SolveInfo,
+};
 pub use saddle::solve_saddle;

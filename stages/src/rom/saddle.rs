@@ -38,20 +38,8 @@ pub fn cholesky(a: &mut [f64], n: usize) -> bool {
 
 /// Solve `L L^T x = b` in place with a factor from [`cholesky`].
 pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[i + k * n] * b[k];
-        }
-        b[i] = s / l[i + i * n];
-    }
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= l[k + i * n] * b[k];
-        }
-        b[i] = s / l[i + i * n];
-    }
+    super::la::forward(l, n, b);
+    super::la::backward_t(l, n, b);
 }
 
 /// Solve eq. 13 on the active rows. `khat_l`: Cholesky factor of `K̂` (`r x r`); `c_a`: active
@@ -79,7 +67,7 @@ pub fn solve_saddle(
     // S = Ĉ_A Y (a x a, symmetric PSD), column-major.
     for j in 0..a {
         for i in 0..a {
-            s[i + j * a] = (0..r).map(|k| c_a[i * r + k] * y[j * r + k]).sum();
+            s[i + j * a] = super::la::dot(&c_a[i * r..(i + 1) * r], &y[j * r..(j + 1) * r]);
         }
     }
     // Pivoted Cholesky with dropping of dependent rows.

@@ -1,0 +1,1122 @@
+//! [`ReducedModel`]: the offline/online split, the exact and the paper's online solves, and the
+//! a-posteriori error indicator (see the module doc of [`crate::rom`]).
+
+use super::la::dot;
+use super::qp::{solve_qp, QpConstraints, QpOutcome, QpWork};
+use super::saddle::{cholesky, solve_saddle};
+use crate::contact::anderson::Anderson;
+use crate::contact::pairing::{GapRow, MasterIndex, Pair, PairKind};
+use crate::contact::vertex::VertexTies;
+use crate::operator::{ContactOperator, Surface};
+use faer::MatRef;
+
+/// Which online iteration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Algorithm {
+    /// Exact QP per linearisation (dual active set, finite termination) inside an outer
+    /// re-pairing loop.
+    Exact,
+    /// The paper's Algorithm 1: one saddle solve per iteration, drop `λ̂ < 0`, add violated
+    /// reduced gaps, re-linearise every iteration.
+    Paper,
+}
+
+impl Algorithm {
+    /// Name for tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Algorithm::Exact => "exact",
+            Algorithm::Paper => "paper",
+        }
+    }
+}
+
+/// Settings of the online solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RomParams {
+    /// The iteration.
+    pub algorithm: Algorithm,
+    /// Cap on linearisations (exact) or iterations (paper); default 100.
+    pub max_iter: usize,
+    /// A reduced constraint counts as violated when `ŝ < -gap_tol * scale`, `scale` the largest
+    /// `|ĝ0|` at the first linearisation (default 1e-12: rounding of the projections).
+    pub gap_tol: f64,
+    /// Type-2: converged once the pairing repeats and the distance of `û` to the fixed point of
+    /// the re-linearisation, estimated from the last two steps, is `<= u_tol |û|` (default
+    /// 1e-10, the full-order solver's tolerance; the paper algorithm uses the last step alone).
+    pub u_tol: f64,
+}
+
+impl Default for RomParams {
+    fn default() -> Self {
+        Self { algorithm: Algorithm::Exact, max_iter: 100, gap_tol: 1e-12, u_tol: 1e-10 }
+    }
+}
+
+/// How an online query ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RomOutcome {
+    /// A KKT point of the reduced problem (at its own linearisation).
+    Converged,
+    /// Refused: the reduced constraints cannot all be satisfied by `u0 + Phi û` (the primal
+    /// basis is too small for the dual one at this parameter), detected by the exact QP.
+    Infeasible,
+    /// An earlier discrete state came back: the active set (paper algorithm) or the pairing
+    /// (exact algorithm, after a change of pairing) cycles.
+    Cycled,
+    /// The iteration cap was reached.
+    NotConverged,
+}
+
+impl RomOutcome {
+    /// Name for tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            RomOutcome::Converged => "converged",
+            RomOutcome::Infeasible => "infeasible",
+            RomOutcome::Cycled => "cycled",
+            RomOutcome::NotConverged => "not_converged",
+        }
+    }
+}
+
+/// Result of one online query (reduced coordinates only).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReducedSolution {
+    /// Reduced displacement coordinates.
+    pub u_hat: Vec<f64>,
+    /// Reduced dual coordinates (`>= 0`).
+    pub lambda_hat: Vec<f64>,
+    /// QP steps (exact) or Algorithm 1 iterations (paper).
+    pub iterations: usize,
+    /// Linearisations (pairings) computed.
+    pub linearizations: usize,
+    /// Active reduced constraints at the end.
+    pub active: usize,
+    /// Reduced dual dofs with `λ̂_i > 1e-9 max λ̂` (the paper's "active dofs of λ̂").
+    pub nonzero_dual: usize,
+    /// How it ended.
+    pub outcome: RomOutcome,
+}
+
+/// What [`ReducedModel::solve_in`] returns (the coordinates stay in the work buffers).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SolveInfo {
+    /// QP steps (exact) or Algorithm 1 iterations (paper).
+    pub iterations: usize,
+    /// Linearisations (pairings) computed.
+    pub linearizations: usize,
+    /// Active reduced constraints at the end.
+    pub active: usize,
+    /// How it ended.
+    pub outcome: RomOutcome,
+}
+
+/// The a-posteriori error indicator of a reduced solution (no full-order solve): the
+/// full-space KKT residuals that cost only contact-surface work.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Indicator {
+    /// Largest penetration `max(0, -g_s)` over every potential-contact node (length).
+    pub penetration: f64,
+    /// Force-weighted mean `|g_s|` under the reduced pressure (length): zero iff pressure only
+    /// acts where the gap is closed.
+    pub complementarity: f64,
+    /// Fraction of the contact force on nodes with no master under them (lost force).
+    pub unpaired_force: f64,
+    /// Equilibrium residual in the energy norm, relative: `||Phi û - K^{-1} F(p̂)||_K /
+    /// ||Phi û||_K`, `F(p̂)` the full-order contact forces of the reduced pressure at the final
+    /// pairing (zero iff the reduced displacement is the full-order response to its own
+    /// contact forces).
+    pub residual: f64,
+}
+
+/// Why a [`ReducedModel`] could not be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RomError {
+    /// `Phi^T K Phi` is not positive definite.
+    #[error("the reduced stiffness Phi^T K Phi is not positive definite (rank-deficient or non-lifted primal basis)")]
+    SingularStiffness,
+}
+
+#[derive(Debug, Clone)]
+enum SurfaceData {
+    /// Type-1: everything precomputed.
+    Fixed {
+        /// `C Phi`, row-major `n_contact x r_u`.
+        cphi: Vec<f64>,
+        /// Affine terms of `C u0(mu) + gap0(mu)`, each length `n_contact`.
+        cu0: Vec<Vec<f64>>,
+        paired: Vec<bool>,
+        /// `Ĉ = Theta^T W C Phi`, row-major `r_l x r_u`.
+        chat: Vec<f64>,
+        /// Affine terms of `ĝ0(mu)`, each length `r_l`.
+        ghat: Vec<Vec<f64>>,
+        /// `P = L^{-1} Ĉ^T` (column `a` at `a r_u`): the constraints in the QP's range space,
+        /// so a Type-1 query needs no triangular solve.
+        range: Vec<f64>,
+        /// `C W C^T` (row-major `n_contact^2`), for the indicator.
+        cwc: Vec<f64>,
+    },
+    /// Type-2: contact-surface rows.
+    Nts {
+        ns: usize,
+        nm: usize,
+        x_ref: Vec<[f64; 2]>,
+        slave_fixed: Vec<bool>,
+        /// `Phi` on the contact dofs, row-major `n_cd x r_u`.
+        phi_c: Vec<f64>,
+        /// Affine terms of the lift on the contact dofs.
+        a_terms: Vec<Vec<f64>>,
+        /// Non-fixed slaves in the support of `Theta[:, :r_l]`.
+        supp: Vec<usize>,
+        /// Frobenius norm of the two rows of `Phi_c` of each contact node (bounds its motion
+        /// per unit change of `û`), and the largest over the masters.
+        node_norm: Vec<f64>,
+        master_norm: f64,
+        /// Compliance on the contact dofs (row-major `n_cd^2`), for the indicator.
+        w_c: Vec<f64>,
+    },
+}
+
+/// A reduced model: offline data whose size depends on the ranks and the contact surface only.
+/// [`ReducedModel::solve`] reads nothing else — no `n_dof`-length vector.
+#[derive(Debug, Clone)]
+pub struct ReducedModel {
+    r_u: usize,
+    r_l: usize,
+    n_contact: usize,
+    /// `K̂` and its Cholesky factor (column-major).
+    khat: Vec<f64>,
+    khat_l: Vec<f64>,
+    weights: Vec<f64>,
+    /// `Theta[:, :r_l]` by node (CSR): `(column, value)`.
+    by_node: Compressed,
+    /// `Theta[:, :r_l]` by column (CSC): `(node, value)`.
+    by_col: Compressed,
+    surf: SurfaceData,
+}
+
+/// A compressed sparse layout: starts, indices, values.
+type Compressed = (Vec<usize>, Vec<usize>, Vec<f64>);
+
+/// `Theta[:, :rl]` by node (CSR) and by column (CSC).
+fn csr(theta: &[f64], nc: usize, rl: usize) -> (Compressed, Compressed) {
+    let mut node = (vec![0], Vec::new(), Vec::new());
+    for i in 0..nc {
+        for a in 0..rl {
+            let t = theta[i + a * nc];
+            if t != 0.0 {
+                node.1.push(a);
+                node.2.push(t);
+            }
+        }
+        node.0.push(node.1.len());
+    }
+    let mut col = (vec![0], Vec::new(), Vec::new());
+    for a in 0..rl {
+        for i in 0..nc {
+            let t = theta[i + a * nc];
+            if t != 0.0 {
+                col.1.push(i);
+                col.2.push(t);
+            }
+        }
+        col.0.push(col.1.len());
+    }
+    (node, col)
+}
+
+/// `L^{-1} Ĉ^T`, column `a` (length `r`) at `a r`, from `Ĉ` row-major `rl x r`.
+fn range_rows(chat: &[f64], l: &[f64], r: usize, rl: usize) -> Vec<f64> {
+    let mut p = chat.to_vec();
+    for a in 0..rl {
+        super::la::forward(l, r, &mut p[a * r..(a + 1) * r]);
+    }
+    p
+}
+
+/// Per contact node the Frobenius norm of its two rows of `Phi_c` (row-major `n_cd x r`), and
+/// the largest over the masters (nodes `ns..`).
+fn node_norms(phi_c: &[f64], r: usize, ns: usize) -> (Vec<f64>, f64) {
+    let norms: Vec<f64> = phi_c.chunks(2 * r.max(1)).map(|rows| dot(rows, rows).sqrt()).collect();
+    let master = norms[ns.min(norms.len())..].iter().fold(0.0f64, |m, v| m.max(*v));
+    (norms, master)
+}
+
+fn affine_into(terms: &[Vec<f64>], mu: &[f64], out: &mut [f64]) {
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = crate::mu::affine(&terms[0], &terms[1..], mu, i);
+    }
+}
+
+impl ReducedModel {
+    /// Offline: `phi` (`n_dof x r_u`, column-major, zero on Dirichlet dofs) and `theta`
+    /// (`n_contact x r_l`, column-major, non-negative).
+    pub fn new(op: &dyn ContactOperator, phi: &[f64], r_u: usize, theta: &[f64], r_l: usize) -> Result<Self, RomError> {
+        let (n_dof, nc) = (op.n_dof(), op.n_contact());
+        assert_eq!(phi.len(), n_dof * r_u, "phi shape");
+        assert_eq!(theta.len(), nc * r_l, "theta shape");
+        let mut kphi = vec![0.0; n_dof * r_u];
+        for j in 0..r_u {
+            op.stiffness_mul(&phi[j * n_dof..(j + 1) * n_dof], &mut kphi[j * n_dof..(j + 1) * n_dof]);
+        }
+        let kg = MatRef::from_column_major_slice(phi, n_dof, r_u).transpose()
+            * MatRef::from_column_major_slice(&kphi, n_dof, r_u);
+        // symmetrise the rounding of the two-sided product before factoring
+        let mut khat = vec![0.0; r_u * r_u];
+        for j in 0..r_u {
+            for i in 0..r_u {
+                khat[i + j * r_u] = 0.5 * (kg[(i, j)] + kg[(j, i)]);
+            }
+        }
+        let mut khat_l = khat.clone();
+        if !cholesky(&mut khat_l, r_u) {
+            return Err(RomError::SingularStiffness);
+        }
+        let (by_node, by_col) = csr(theta, nc, r_l);
+        let weights = op.weights().to_vec();
+        let lift = op.lift_terms();
+        let comp = op.contact_compliance();
+        let surf = match op.surface() {
+            Surface::Fixed { rows, gap0_terms } => {
+                let mut cphi = vec![0.0; nc * r_u];
+                for i in 0..nc {
+                    for k in rows.start[i]..rows.start[i + 1] {
+                        let (d, c) = (rows.dofs[k], rows.coeffs[k]);
+                        for j in 0..r_u {
+                            cphi[i * r_u + j] += c * phi[d + j * n_dof];
+                        }
+                    }
+                }
+                let cu0: Vec<Vec<f64>> = lift
+                    .iter()
+                    .zip(&gap0_terms)
+                    .map(|(t, g)| {
+                        (0..nc)
+                            .map(|i| if rows.paired[i] { rows.gap(i, t) - rows.gap0[i] + g[i] } else { 0.0 })
+                            .collect()
+                    })
+                    .collect();
+                let mut chat = vec![0.0; r_l * r_u];
+                let mut ghat = vec![vec![0.0; r_l]; cu0.len()];
+                for i in 0..nc {
+                    for e in by_node.0[i]..by_node.0[i + 1] {
+                        let (a, tw) = (by_node.1[e], by_node.2[e] * weights[i]);
+                        for j in 0..r_u {
+                            chat[a * r_u + j] += tw * cphi[i * r_u + j];
+                        }
+                        for (g, c) in ghat.iter_mut().zip(&cu0) {
+                            g[a] += tw * c[i];
+                        }
+                    }
+                }
+                let pos: std::collections::HashMap<usize, usize> =
+                    comp.dofs.iter().enumerate().map(|(k, &d)| (d, k)).collect();
+                let nw = comp.dofs.len();
+                let mut cwc = vec![0.0; nc * nc];
+                for i in 0..nc {
+                    for j in 0..nc {
+                        let mut v = 0.0;
+                        for ki in rows.start[i]..rows.start[i + 1] {
+                            for kj in rows.start[j]..rows.start[j + 1] {
+                                let (pi, pj) = (pos[&rows.dofs[ki]], pos[&rows.dofs[kj]]);
+                                v += rows.coeffs[ki] * rows.coeffs[kj] * comp.w[pi * nw + pj];
+                            }
+                        }
+                        cwc[i * nc + j] = v;
+                    }
+                }
+                let range = range_rows(&chat, &khat_l, r_u, r_l);
+                SurfaceData::Fixed { cphi, cu0, paired: rows.paired, chat, ghat, range, cwc }
+            }
+            Surface::NodeToSegment { n_slaves, x_ref, dofs, slave_fixed } => {
+                assert_eq!(comp.dofs, dofs, "compliance on the contact dofs");
+                let phi_c: Vec<f64> = dofs.iter().flat_map(|&d| (0..r_u).map(move |j| phi[d + j * n_dof])).collect();
+                let a_terms = lift.iter().map(|t| dofs.iter().map(|&d| t[d]).collect()).collect();
+                let supp = (0..n_slaves).filter(|&s| !slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]).collect();
+                let (node_norm, master_norm) = node_norms(&phi_c, r_u, n_slaves);
+                SurfaceData::Nts {
+                    ns: n_slaves,
+                    nm: x_ref.len() - n_slaves,
+                    x_ref,
+                    slave_fixed,
+                    phi_c,
+                    a_terms,
+                    supp,
+                    node_norm,
+                    master_norm,
+                    w_c: comp.w,
+                }
+            }
+        };
+        Ok(Self { r_u, r_l, n_contact: nc, khat, khat_l, weights, by_node, by_col, surf })
+    }
+
+    /// Primal and dual ranks.
+    pub fn ranks(&self) -> (usize, usize) {
+        (self.r_u, self.r_l)
+    }
+
+    /// The reduced model on the first `r_u` primal and `r_l` dual basis vectors, without
+    /// recomputing `K̂`: `Phi[:, :r]^T K Phi[:, :r]` is the leading block of `K̂`, the Cholesky
+    /// factor of a leading block is the leading block of the factor, and so is `L^{-T}`.
+    pub fn leading(&self, r_u: usize, r_l: usize) -> Self {
+        assert!(r_u <= self.r_u && r_l <= self.r_l, "leading ranks exceed the model's");
+        let lead =
+            |m: &[f64]| -> Vec<f64> { (0..r_u).flat_map(|j| m[j * self.r_u..j * self.r_u + r_u].to_vec()).collect() };
+        let restride = |m: &[f64], rows: usize| -> Vec<f64> {
+            (0..rows).flat_map(|i| m[i * self.r_u..i * self.r_u + r_u].to_vec()).collect()
+        };
+        let nc = self.n_contact;
+        let mut theta = vec![0.0; nc * r_l];
+        for i in 0..nc {
+            for e in self.by_node.0[i]..self.by_node.0[i + 1] {
+                if self.by_node.1[e] < r_l {
+                    theta[i + self.by_node.1[e] * nc] = self.by_node.2[e];
+                }
+            }
+        }
+        let (by_node, by_col) = csr(&theta, nc, r_l);
+        let surf = match &self.surf {
+            SurfaceData::Fixed { cphi, cu0, paired, chat, ghat, cwc, .. } => {
+                let chat = restride(&chat[..r_l * self.r_u], r_l);
+                let range = range_rows(&chat, &lead(&self.khat_l), r_u, r_l);
+                SurfaceData::Fixed {
+                    cphi: restride(cphi, nc),
+                    cu0: cu0.clone(),
+                    paired: paired.clone(),
+                    chat,
+                    ghat: ghat.iter().map(|g| g[..r_l].to_vec()).collect(),
+                    range,
+                    cwc: cwc.clone(),
+                }
+            }
+            SurfaceData::Nts { ns, nm, x_ref, slave_fixed, phi_c, a_terms, w_c, .. } => {
+                let phi_c = restride(phi_c, x_ref.len() * 2);
+                let (node_norm, master_norm) = node_norms(&phi_c, r_u, *ns);
+                SurfaceData::Nts {
+                    ns: *ns,
+                    nm: *nm,
+                    x_ref: x_ref.clone(),
+                    slave_fixed: slave_fixed.clone(),
+                    phi_c,
+                    a_terms: a_terms.clone(),
+                    supp: (0..*ns).filter(|&s| !slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]).collect(),
+                    node_norm,
+                    master_norm,
+                    w_c: w_c.clone(),
+                }
+            }
+        };
+        Self {
+            r_u,
+            r_l,
+            n_contact: nc,
+            khat: lead(&self.khat),
+            khat_l: lead(&self.khat_l),
+            weights: self.weights.clone(),
+            by_node,
+            by_col,
+            surf,
+        }
+    }
+
+    /// Lengths of every array the online solve can read (name, length): none of them depends
+    /// on the number of dofs of the full-order model, only on the ranks and the contact surface.
+    pub fn storage(&self) -> Vec<(&'static str, usize)> {
+        let mut v = vec![
+            ("khat", self.khat.len()),
+            ("khat_l", self.khat_l.len()),
+            ("weights", self.weights.len()),
+            ("theta_by_node", self.by_node.2.len()),
+            ("theta_by_col", self.by_col.2.len()),
+        ];
+        match &self.surf {
+            SurfaceData::Fixed { cphi, cu0, chat, ghat, range, cwc, .. } => v.extend([
+                ("cphi", cphi.len()),
+                ("cu0", cu0.iter().map(Vec::len).sum()),
+                ("chat", chat.len()),
+                ("ghat", ghat.iter().map(Vec::len).sum()),
+                ("range", range.len()),
+                ("cwc", cwc.len()),
+            ]),
+            SurfaceData::Nts { x_ref, phi_c, a_terms, supp, w_c, .. } => v.extend([
+                ("x_ref", x_ref.len()),
+                ("phi_c", phi_c.len()),
+                ("a_terms", a_terms.iter().map(Vec::len).sum()),
+                ("supp", supp.len()),
+                ("w_c", w_c.len()),
+            ]),
+        }
+        v
+    }
+
+    /// The reduced pressure `Theta λ̂` (one value per potential-contact node).
+    pub fn pressure(&self, lambda_hat: &[f64]) -> Vec<f64> {
+        (0..self.n_contact)
+            .map(|i| {
+                (self.by_node.0[i]..self.by_node.0[i + 1])
+                    .map(|e| self.by_node.2[e] * lambda_hat[self.by_node.1[e]])
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// `u0(mu) + Phi û` on all dofs (offline side: reads the full `Phi`).
+    pub fn displacement(op: &dyn ContactOperator, phi: &[f64], mu: &[f64], u_hat: &[f64]) -> Vec<f64> {
+        let mut u = op.lift(mu);
+        let n = u.len();
+        for (j, c) in u_hat.iter().enumerate() {
+            for (x, p) in u.iter_mut().zip(&phi[j * n..(j + 1) * n]) {
+                *x += c * p;
+            }
+        }
+        u
+    }
+
+    /// Online: the reduced solution at `mu`. Reads only `self`, `mu` and the buffers in `w`.
+    pub fn solve(&self, mu: &[f64], p: &RomParams, w: &mut RomWork) -> ReducedSolution {
+        let info = self.solve_in(mu, p, w);
+        w.solution(&info)
+    }
+
+    /// [`Self::solve`] without allocating: the reduced coordinates stay in `w` (read them with
+    /// [`RomWork::solution`]); this is the query the online timings measure.
+    pub fn solve_in(&self, mu: &[f64], p: &RomParams, w: &mut RomWork) -> SolveInfo {
+        w.prepare(self, mu);
+        let out = match p.algorithm {
+            Algorithm::Exact => self.solve_exact(mu, p, w),
+            Algorithm::Paper => self.solve_paper(mu, p, w),
+        };
+        SolveInfo { iterations: out.0, linearizations: w.lin.count, active: out.1, outcome: out.2 }
+    }
+
+    fn solve_exact(&self, mu: &[f64], p: &RomParams, w: &mut RomWork) -> (usize, usize, RomOutcome) {
+        let ru = self.r_u;
+        self.linearize(w, true);
+        let scale = self.offset_scale(mu, w);
+        if scale == 0.0 {
+            return (0, 0, RomOutcome::Converged);
+        }
+        let tol = p.gap_tol * scale;
+        let max_steps = 10 * (ru + self.r_l) + 10;
+        let repairs = matches!(self.surf, SurfaceData::Nts { .. });
+        if w.anderson.dim() != ru {
+            w.anderson = Anderson::new(ANDERSON_DEPTH, ru);
+        }
+        w.anderson.reset();
+        w.warm.clear();
+        w.seen.clear();
+        w.seen.push(w.lin.pairing_hash());
+        let (mut steps, mut smooth, mut last_du) = (0, false, 0.0f64);
+        for _ in 0..p.max_iter {
+            let out = {
+                let RomWork { lin, qp, x, warm, .. } = w;
+                let mut oracle = Oracle { m: self, lin, mu };
+                solve_qp(&self.khat_l, ru, &mut oracle, tol, max_steps, warm, x, qp)
+            };
+            steps += w.qp.steps;
+            match out {
+                QpOutcome::Solved => {}
+                QpOutcome::Infeasible(_) => return (steps, w.qp.active.len(), RomOutcome::Infeasible),
+                QpOutcome::StepLimit => return (steps, w.qp.active.len(), RomOutcome::NotConverged),
+            }
+            w.lam.iter_mut().for_each(|l| *l = 0.0);
+            for (&a, &u) in w.qp.active.iter().zip(&w.qp.u) {
+                w.lam[a] = u;
+            }
+            w.warm.clear();
+            w.warm.extend_from_slice(&w.qp.active);
+            if !repairs {
+                // Type-1: one linearisation, the QP solution is the answer
+                w.u_hat.copy_from_slice(&w.x);
+                return (steps, w.qp.active.len(), RomOutcome::Converged);
+            }
+            let du = w.x.iter().zip(&w.u_hat).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+            let un = dot(&w.x, &w.x).sqrt();
+            // distance to the fixed point, estimated from the contraction of the last two steps
+            // (a linearly convergent iteration with ratio rho is within du rho / (1 - rho))
+            let rho = if smooth && last_du > 0.0 { du / last_du } else { f64::INFINITY };
+            let estimate = if rho < 0.5 { du * rho / (1.0 - rho) } else { du };
+            last_du = du;
+            if estimate <= p.u_tol * un {
+                // fixed point of the linearisation: converged if the pairing at the solution is
+                // the one it was computed with
+                w.u_hat.copy_from_slice(&w.x);
+                if !self.linearize_with(w, true, false) {
+                    return (steps, w.qp.active.len(), RomOutcome::Converged);
+                }
+                self.assemble(w);
+                w.anderson.reset();
+                smooth = false;
+                continue;
+            }
+            // next linearisation point: Anderson-mixed once the pairing has settled
+            let mixed = smooth && {
+                let RomWork { anderson, u_hat, x, next, .. } = w;
+                next.resize(ru, 0.0);
+                anderson.step(u_hat, x, next)
+            };
+            if mixed {
+                std::mem::swap(&mut w.u_hat, &mut w.next);
+            } else {
+                if !smooth {
+                    w.anderson.reset();
+                    let RomWork { anderson, u_hat, x, next, .. } = w;
+                    next.resize(ru, 0.0);
+                    anderson.step(u_hat, x, next);
+                }
+                w.u_hat.copy_from_slice(&w.x);
+            }
+            let changed = self.linearize(w, true);
+            if changed {
+                // a pairing seen before, reached by a change: the re-pairing cycles
+                let h = w.lin.pairing_hash();
+                if w.seen.contains(&h) {
+                    return (steps, w.qp.active.len(), RomOutcome::Cycled);
+                }
+                w.seen.push(h);
+            }
+            smooth = !changed;
+        }
+        (steps, w.qp.active.len(), RomOutcome::NotConverged)
+    }
+
+    fn solve_paper(&self, mu: &[f64], p: &RomParams, w: &mut RomWork) -> (usize, usize, RomOutcome) {
+        let (ru, rl) = (self.r_u, self.r_l);
+        self.linearize(w, true);
+        let scale = self.offset_scale(mu, w);
+        let violated = |g: f64| g < -p.gap_tol * scale;
+        // deterministic start: the most violated reduced constraint at û = 0
+        let start = (0..rl).filter(|&a| violated(w.s[a])).min_by(|&a, &b| w.s[a].total_cmp(&w.s[b]));
+        let Some(first) = start else {
+            return (0, 0, RomOutcome::Converged);
+        };
+        let mut mask = vec![false; rl];
+        mask[first] = true;
+        let mut history: Vec<(Vec<bool>, Vec<PairKind>)> = Vec::new();
+        let (mut c_a, mut g_a, mut lam_a, mut work, mut row) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new(), vec![0.0; ru]);
+        let mut prev = vec![0.0; ru];
+        let repairs = matches!(self.surf, SurfaceData::Nts { .. });
+        for it in 1..=p.max_iter {
+            prev.copy_from_slice(&w.u_hat);
+            // offsets ĝ0 at the current linearisation, rows of the active constraints
+            self.offsets(mu, w);
+            c_a.clear();
+            g_a.clear();
+            let idx: Vec<usize> = (0..rl).filter(|&a| mask[a]).collect();
+            for &a in &idx {
+                let RomWork { lin, .. } = w;
+                Oracle { m: self, lin, mu }.row(a, &mut row);
+                c_a.extend_from_slice(&row);
+                g_a.push(w.s[a]);
+            }
+            lam_a.clear();
+            lam_a.resize(idx.len(), 0.0);
+            solve_saddle(&self.khat_l, ru, &c_a, &g_a, &mut w.u_hat, &mut lam_a, &mut work);
+            w.lam.iter_mut().for_each(|x| *x = 0.0);
+            for (k, &a) in idx.iter().enumerate() {
+                w.lam[a] = lam_a[k];
+            }
+            let changed = self.linearize(w, true);
+            {
+                let RomWork { lin, s, u_hat, .. } = w;
+                Oracle { m: self, lin, mu }.values(u_hat, s);
+            }
+            let new: Vec<bool> = (0..rl).map(|a| if mask[a] { w.lam[a] >= 0.0 } else { violated(w.s[a]) }).collect();
+            let settled = new == mask && !changed;
+            let du = w.u_hat.iter().zip(&prev).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+            let un = w.u_hat.iter().map(|a| a * a).sum::<f64>().sqrt();
+            let moved = repairs && du > p.u_tol * un;
+            let active = mask.iter().filter(|m| **m).count();
+            if settled && !moved {
+                return (it, active, RomOutcome::Converged);
+            }
+            if settled {
+                continue;
+            }
+            let state = (new.clone(), w.lin.pairs.iter().map(|p| p.kind).collect());
+            if history.contains(&state) {
+                return (it, active, RomOutcome::Cycled);
+            }
+            history.push(state);
+            mask = new;
+        }
+        (p.max_iter, mask.iter().filter(|m| **m).count(), RomOutcome::NotConverged)
+    }
+
+    /// Reduced offsets `ĝ0` at the current linearisation into `w.s`; returns their largest
+    /// magnitude.
+    fn offset_scale(&self, mu: &[f64], w: &mut RomWork) -> f64 {
+        self.offsets(mu, w);
+        w.s.iter().fold(0.0f64, |m, g| m.max(g.abs()))
+    }
+
+    fn offsets(&self, mu: &[f64], w: &mut RomWork) {
+        let RomWork { lin, s, zero, .. } = w;
+        Oracle { m: self, lin, mu }.values(zero, s);
+    }
+
+    /// Type-2: positions of the needed contact nodes at `û = w.u_hat`, re-pair the supported
+    /// slaves (recording the pairing history for vertex ties) and rebuild their gap rows.
+    /// Returns whether a pairing kind changed. Type-1: nothing to do.
+    fn linearize(&self, w: &mut RomWork, record: bool) -> bool {
+        self.linearize_with(w, record, true)
+    }
+
+    /// [`Self::linearize`], rebuilding the gap rows only if `assemble`.
+    fn linearize_with(&self, w: &mut RomWork, record: bool, assemble: bool) -> bool {
+        let SurfaceData::Nts { ns, nm, supp, node_norm, master_norm, .. } = &self.surf else {
+            w.lin.count = 1;
+            return false;
+        };
+        let (ns, nm) = (*ns, *nm);
+        // Slaves found unpaired at the reference pairing with a safe radius keep that pairing
+        // while û has moved so little that neither they nor the masters can have moved by the
+        // radius ([`MasterIndex::closest_point_with_radius`]); otherwise every supported slave
+        // is re-paired and the reference moves here.
+        let moved = if w.lin.has_ref {
+            w.u_hat.iter().zip(&w.lin.u_ref).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
+        } else {
+            f64::INFINITY
+        };
+        let full = !record
+            || !w.lin.has_ref
+            || !supp.iter().all(|&s| {
+                let r = w.lin.radius[s];
+                r == 0.0 || (node_norm[s] + master_norm) * moved <= r
+            });
+        let skip = |l: &LinState, s: usize| !full && l.radius[s] > 0.0;
+        self.positions_where(w, |l, c| c >= ns || !skip(l, c));
+        let l = &mut w.lin;
+        for k in 0..nm {
+            l.xm[k] = [l.xc[2 * (ns + k)], l.xc[2 * (ns + k) + 1]];
+        }
+        l.index.build(&l.xm);
+        let mut changed = false;
+        for &s in supp {
+            if skip(l, s) {
+                continue;
+            }
+            let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
+            let p = if record {
+                let (p, r) = l.ties.pair_with_radius(s, xs, &l.xm, &l.index, l.count);
+                if full {
+                    l.radius[s] = r;
+                }
+                p
+            } else {
+                l.ties.pair_peek(s, xs, &l.xm, &l.index)
+            };
+            changed |= p.kind != l.pairs[s].kind;
+            l.pairs[s] = p;
+        }
+        if full && record {
+            l.u_ref.clear();
+            l.u_ref.extend_from_slice(&w.u_hat);
+            l.has_ref = true;
+        }
+        l.count += 1;
+        if assemble {
+            self.assemble(w);
+        }
+        changed
+    }
+
+    /// `xc = base + Phi_c û` at the contact nodes `c` (supported slaves and masters) where
+    /// `want(lin, c)`.
+    fn positions_where(&self, w: &mut RomWork, want: impl Fn(&LinState, usize) -> bool) {
+        let SurfaceData::Nts { phi_c, supp, ns, nm, .. } = &self.surf else { return };
+        let ru = self.r_u;
+        let zero = w.u_hat.iter().all(|&v| v == 0.0);
+        for c in supp.iter().copied().chain(*ns..*ns + *nm) {
+            if !want(&w.lin, c) {
+                continue;
+            }
+            for cd in [2 * c, 2 * c + 1] {
+                // at û = 0 (the first linearisation) the positions are the lifted reference
+                let d = if zero { 0.0 } else { dot(&phi_c[cd * ru..(cd + 1) * ru], &w.u_hat) };
+                w.lin.xc[cd] = w.lin.base[cd] + d;
+            }
+        }
+    }
+
+    /// `xc = base + Phi_c û` at the contact nodes `nodes`.
+    fn positions(&self, w: &mut RomWork, nodes: impl Iterator<Item = usize>) {
+        let SurfaceData::Nts { phi_c, .. } = &self.surf else { return };
+        let ru = self.r_u;
+        for c in nodes {
+            for cd in [2 * c, 2 * c + 1] {
+                w.lin.xc[cd] = w.lin.base[cd] + dot(&phi_c[cd * ru..(cd + 1) * ru], &w.u_hat);
+            }
+        }
+    }
+
+    /// Gap rows of the paired supported slaves: `C Phi` rows and constant parts.
+    fn assemble(&self, w: &mut RomWork) {
+        let SurfaceData::Nts { ns, supp, phi_c, .. } = &self.surf else { return };
+        let ru = self.r_u;
+        let l = &mut w.lin;
+        l.ps.clear();
+        l.cphi.clear();
+        l.g0.clear();
+        for &s in supp {
+            l.ps_of[s] = usize::MAX;
+            if !l.pairs[s].kind.is_paired() {
+                continue;
+            }
+            let row = GapRow::new(s, *ns, &l.pairs[s]);
+            l.ps_of[s] = l.ps.len();
+            l.ps.push(s);
+            let at = l.cphi.len();
+            l.cphi.resize(at + ru, 0.0);
+            for (cd, c) in row.entries() {
+                for (o, v) in l.cphi[at..].iter_mut().zip(&phi_c[cd * ru..(cd + 1) * ru]) {
+                    *o += c * v;
+                }
+            }
+            l.g0.push(row.apply(&l.base));
+        }
+    }
+
+    /// The indicator of the solution in `w` (after [`Self::solve`] with the same `w` and `mu`).
+    pub fn indicator(&self, mu: &[f64], w: &mut RomWork) -> Indicator {
+        let ru = self.r_u;
+        // gaps and force-carrying rows over every potential-contact node
+        let mut force = 0.0;
+        let (mut pen, mut comp_sum, mut unpaired) = (0.0f64, 0.0, 0.0);
+        let mut phit_f = std::mem::take(&mut w.phit_f);
+        phit_f.clear();
+        phit_f.resize(ru, 0.0);
+        let fww; // F^T W F
+        match &self.surf {
+            SurfaceData::Fixed { cphi, cu0, paired, cwc, .. } => {
+                let nc = self.n_contact;
+                w.fnode.clear();
+                for i in 0..nc {
+                    let f = self.weights[i] * self.pressure_at(i, &w.lam);
+                    force += f;
+                    if !paired[i] {
+                        unpaired += f;
+                        continue;
+                    }
+                    let mut g = dot(&cphi[i * ru..(i + 1) * ru], &w.u_hat);
+                    for (k, t) in cu0.iter().enumerate() {
+                        g += if k == 0 { t[i] } else { mu[k - 1] * t[i] };
+                    }
+                    pen = pen.max(-g);
+                    comp_sum += f * g.abs();
+                    if f != 0.0 {
+                        w.fnode.push((i, f));
+                        for (o, c) in phit_f.iter_mut().zip(&cphi[i * ru..(i + 1) * ru]) {
+                            *o += f * c;
+                        }
+                    }
+                }
+                fww = w
+                    .fnode
+                    .iter()
+                    .map(|&(i, fi)| w.fnode.iter().map(|&(j, fj)| fi * fj * cwc[i * nc + j]).sum::<f64>())
+                    .sum::<f64>();
+            }
+            SurfaceData::Nts { ns, nm, slave_fixed, phi_c, w_c, .. } => {
+                let (ns, nm) = (*ns, *nm);
+                let all: Vec<usize> = (0..ns).filter(|&s| !slave_fixed[s]).collect();
+                self.positions(w, all.iter().copied().chain(ns..ns + nm));
+                let l = &mut w.lin;
+                for k in 0..nm {
+                    l.xm[k] = [l.xc[2 * (ns + k)], l.xc[2 * (ns + k) + 1]];
+                }
+                l.index.build(&l.xm);
+                let ncd = l.xc.len();
+                l.fc.clear();
+                l.fc.resize(ncd, 0.0);
+                for &s in &all {
+                    let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
+                    let pr: Pair = l.ties.pair_peek(s, xs, &l.xm, &l.index);
+                    let f = self.weights[s] * self.pressure_at(s, &w.lam);
+                    force += f;
+                    if !pr.kind.is_paired() {
+                        unpaired += f;
+                        continue;
+                    }
+                    let row = GapRow::new(s, ns, &pr);
+                    let g = row.apply(&l.xc);
+                    pen = pen.max(-g);
+                    comp_sum += f * g.abs();
+                    if f != 0.0 {
+                        row.scatter(f, &mut l.fc);
+                        for (cd, c) in row.entries() {
+                            for (o, v) in phit_f.iter_mut().zip(&phi_c[cd * ru..(cd + 1) * ru]) {
+                                *o += f * c * v;
+                            }
+                        }
+                    }
+                }
+                let nz: Vec<usize> = (0..ncd).filter(|&i| l.fc[i] != 0.0).collect();
+                fww = nz
+                    .iter()
+                    .map(|&i| nz.iter().map(|&j| l.fc[i] * l.fc[j] * w_c[i * ncd + j]).sum::<f64>())
+                    .sum::<f64>();
+            }
+        }
+        // ||Phi û - K^{-1} F||_K^2 = |L^T û - L^{-1} Phi^T F|^2 + (F^T W F - |L^{-1} Phi^T F|^2)
+        let ll = &self.khat_l;
+        let mut y = phit_f.clone();
+        for i in 0..ru {
+            let mut v = y[i];
+            for k in 0..i {
+                v -= ll[i + k * ru] * y[k];
+            }
+            y[i] = v / ll[i + i * ru];
+        }
+        let z: Vec<f64> = (0..ru).map(|i| (i..ru).map(|k| ll[k + i * ru] * w.u_hat[k]).sum()).collect();
+        let first: f64 = z.iter().zip(&y).map(|(a, b)| (a - b) * (a - b)).sum();
+        let second = (fww - y.iter().map(|v| v * v).sum::<f64>()).max(0.0);
+        let un = z.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let eta = (first + second).sqrt();
+        w.phit_f = phit_f;
+        Indicator {
+            penetration: pen.max(0.0),
+            complementarity: if force > 0.0 { comp_sum / force } else { 0.0 },
+            unpaired_force: if force > 0.0 { unpaired / force } else { 0.0 },
+            residual: if un > 0.0 {
+                eta / un
+            } else if eta > 0.0 {
+                f64::INFINITY
+            } else {
+                0.0
+            },
+        }
+    }
+
+    fn pressure_at(&self, i: usize, lam: &[f64]) -> f64 {
+        (self.by_node.0[i]..self.by_node.0[i + 1]).map(|e| self.by_node.2[e] * lam[self.by_node.1[e]]).sum()
+    }
+}
+
+/// The reduced constraints at the current linearisation, for the QP.
+struct Oracle<'a> {
+    m: &'a ReducedModel,
+    lin: &'a mut LinState,
+    mu: &'a [f64],
+}
+
+impl QpConstraints for Oracle<'_> {
+    fn len(&self) -> usize {
+        self.m.r_l
+    }
+
+    fn values(&mut self, x: &[f64], s: &mut [f64]) {
+        let (m, ru) = (self.m, self.m.r_u);
+        match &m.surf {
+            SurfaceData::Fixed { chat, ghat, .. } => {
+                for (a, sa) in s.iter_mut().enumerate() {
+                    let mut g = dot(&chat[a * ru..(a + 1) * ru], x);
+                    for (k, t) in ghat.iter().enumerate() {
+                        g += if k == 0 { t[a] } else { self.mu[k - 1] * t[a] };
+                    }
+                    *sa = g;
+                }
+            }
+            SurfaceData::Nts { .. } => {
+                s.iter_mut().for_each(|v| *v = 0.0);
+                let l = &*self.lin;
+                for (k, &sl) in l.ps.iter().enumerate() {
+                    let g = dot(&l.cphi[k * ru..(k + 1) * ru], x) + l.g0[k];
+                    let wg = m.weights[sl] * g;
+                    for e in m.by_node.0[sl]..m.by_node.0[sl + 1] {
+                        s[m.by_node.1[e]] += m.by_node.2[e] * wg;
+                    }
+                }
+            }
+        }
+    }
+
+    fn range_row(&mut self, a: usize, out: &mut [f64]) -> bool {
+        let ru = self.m.r_u;
+        match &self.m.surf {
+            SurfaceData::Fixed { range, .. } => {
+                out.copy_from_slice(&range[a * ru..(a + 1) * ru]);
+                true
+            }
+            SurfaceData::Nts { .. } => false,
+        }
+    }
+
+    fn range_values(&mut self, y: &[f64], s: &mut [f64]) -> bool {
+        let ru = self.m.r_u;
+        match &self.m.surf {
+            SurfaceData::Fixed { range, ghat, .. } => {
+                for (a, sa) in s.iter_mut().enumerate() {
+                    let mut g = dot(&range[a * ru..(a + 1) * ru], y);
+                    for (k, t) in ghat.iter().enumerate() {
+                        g += if k == 0 { t[a] } else { self.mu[k - 1] * t[a] };
+                    }
+                    *sa = g;
+                }
+                true
+            }
+            SurfaceData::Nts { .. } => false,
+        }
+    }
+
+    fn row(&mut self, a: usize, out: &mut [f64]) {
+        let (m, ru) = (self.m, self.m.r_u);
+        match &m.surf {
+            SurfaceData::Fixed { chat, .. } => out.copy_from_slice(&chat[a * ru..(a + 1) * ru]),
+            SurfaceData::Nts { .. } => {
+                out.iter_mut().for_each(|v| *v = 0.0);
+                let l = &*self.lin;
+                for e in m.by_col.0[a]..m.by_col.0[a + 1] {
+                    let sl = m.by_col.1[e];
+                    let k = l.ps_of[sl];
+                    if k == usize::MAX {
+                        continue;
+                    }
+                    let tw = m.by_col.2[e] * m.weights[sl];
+                    for (o, c) in out.iter_mut().zip(&l.cphi[k * ru..(k + 1) * ru]) {
+                        *o += tw * c;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Linearisation state of a Type-2 query.
+#[derive(Debug, Clone, Default)]
+struct LinState {
+    /// Reference position plus lift on the contact dofs.
+    base: Vec<f64>,
+    /// Current positions of the contact dofs (only the needed nodes are up to date).
+    xc: Vec<f64>,
+    xm: Vec<[f64; 2]>,
+    index: MasterIndex,
+    ties: VertexTies,
+    pairs: Vec<Pair>,
+    /// Paired supported slaves, their `C Phi` rows (row-major) and constant parts.
+    ps: Vec<usize>,
+    ps_of: Vec<usize>,
+    cphi: Vec<f64>,
+    g0: Vec<f64>,
+    /// Contact forces on the contact dofs (indicator).
+    fc: Vec<f64>,
+    /// Safe radius of each slave found unpaired at the reference `û` (0: always re-pair).
+    radius: Vec<f64>,
+    u_ref: Vec<f64>,
+    has_ref: bool,
+    /// Linearisations computed.
+    count: usize,
+}
+
+impl LinState {
+    /// FNV-1a hash of the discrete pairing of every slave.
+    fn pairing_hash(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for p in &self.pairs {
+            let (tag, v) = match p.kind {
+                PairKind::None => (0u64, 0u64),
+                PairKind::Segment(k) => (1, k as u64),
+                PairKind::Vertex(v) => (2, v as u64),
+                PairKind::Tied(v) => (3, v as u64),
+            };
+            for x in [tag, v] {
+                h ^= x;
+                h = h.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        }
+        h
+    }
+}
+
+/// Depth of the Anderson mixing of the outer re-pairing loop (as the full-order solver's).
+const ANDERSON_DEPTH: usize = 3;
+
+/// Buffers of online queries; one per thread, reused across queries.
+#[derive(Debug, Clone)]
+pub struct RomWork {
+    lin: LinState,
+    qp: QpWork,
+    anderson: Anderson,
+    warm: Vec<usize>,
+    next: Vec<f64>,
+    /// Hashes of the pairings reached by a change (cycle detection).
+    seen: Vec<u64>,
+    x: Vec<f64>,
+    u_hat: Vec<f64>,
+    lam: Vec<f64>,
+    s: Vec<f64>,
+    zero: Vec<f64>,
+    phit_f: Vec<f64>,
+    fnode: Vec<(usize, f64)>,
+}
+
+impl Default for RomWork {
+    fn default() -> Self {
+        Self {
+            lin: LinState::default(),
+            qp: QpWork::default(),
+            anderson: Anderson::new(ANDERSON_DEPTH, 1),
+            warm: Vec::new(),
+            next: Vec::new(),
+            seen: Vec::new(),
+            x: Vec::new(),
+            u_hat: Vec::new(),
+            lam: Vec::new(),
+            s: Vec::new(),
+            zero: Vec::new(),
+            phit_f: Vec::new(),
+            fnode: Vec::new(),
+        }
+    }
+}
+
+impl RomWork {
+    /// The solution of the last [`ReducedModel::solve_in`] with these buffers.
+    pub fn solution(&self, info: &SolveInfo) -> ReducedSolution {
+        let max = self.lam.iter().fold(0.0f64, |m, l| m.max(*l));
+        ReducedSolution {
+            u_hat: self.u_hat.clone(),
+            lambda_hat: self.lam.clone(),
+            iterations: info.iterations,
+            linearizations: info.linearizations,
+            active: info.active,
+            nonzero_dual: self.lam.iter().filter(|l| **l > 1e-9 * max).count(),
+            outcome: info.outcome,
+        }
+    }
+
+    fn prepare(&mut self, m: &ReducedModel, mu: &[f64]) {
+        let (ru, rl) = (m.r_u, m.r_l);
+        for (v, n) in
+            [(&mut self.x, ru), (&mut self.u_hat, ru), (&mut self.zero, ru), (&mut self.lam, rl), (&mut self.s, rl)]
+        {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        self.lin.count = 0;
+        if let SurfaceData::Nts { ns, nm, x_ref, a_terms, .. } = &m.surf {
+            let ncd = 2 * x_ref.len();
+            let l = &mut self.lin;
+            l.base.resize(ncd, 0.0);
+            affine_into(a_terms, mu, &mut l.base);
+            for (cd, b) in l.base.iter_mut().enumerate() {
+                *b += x_ref[cd / 2][cd % 2];
+            }
+            l.xc.clear();
+            l.xc.resize(ncd, f64::NAN);
+            l.xm.clear();
+            l.xm.resize(*nm, [0.0; 2]);
+            l.pairs.clear();
+            l.pairs.resize(*ns, Pair::NONE);
+            l.ps_of.clear();
+            l.ps_of.resize(*ns, usize::MAX);
+            l.radius.clear();
+            l.radius.resize(*ns, 0.0);
+            l.has_ref = false;
+            l.ties.reset(*ns);
+        }
+    }
+}
