@@ -37,12 +37,18 @@ clippy:
 ci: fmt clippy test
 
 # Benchmarks (release build), printed as tables: contact solver, metrics/NNLS, whole pipeline,
-# and the scale targets (large and growing snapshot sets, 2-D parameter, store size and reads).
+# the scale targets (large and growing snapshot sets, 2-D parameter, store size and reads) and
+# the online reduced model (speed-ups, convergence, online time against the mesh).
 bench:
     cargo run --release --quiet -p crom-stages --example bench_contact
     cargo run --release --quiet -p crom-stages --example bench_metrics
     {{python}} scripts/bench_pipeline.py ironing-fine ironing-coarse hertz rope
     {{python}} scripts/bench_scale.py
+    {{python}} scripts/bench_rom.py
+
+# Only the online reduced-model targets (issue 10): speed-ups, convergence, mesh independence.
+bench-rom:
+    {{python}} scripts/bench_rom.py
 
 # Only the scale benchmarks (A-E, see scripts/bench_scale.py), e.g. `just bench-scale E`.
 bench-scale *WHICH:

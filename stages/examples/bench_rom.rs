@@ -1,15 +1,17 @@
 //! Benchmark of the online reduced solve against the mesh: the same ironing problem on the
 //! coarse mesh, the fine mesh (2x per direction) and a 4x refined mesh, at the same ranks.
 //!
-//! `cargo run --release -p crom-stages --example bench_rom [r] [repetitions] [refinement]`
+//! `cargo run --release -p crom-stages --example bench_rom [r] [repetitions] [refinement] [n_train]`
 //!
-//! For each mesh: build and factor the model, solve 32 training snapshots (d_x = 3k/31) and 31
-//! test points (midpoints), take the POD of the contact responses and the CPG of the pressures,
-//! build the reduced model once at full ranks and query its leading `r x r` block (default
-//! r = 16) at every test point with the exact online solve, single-threaded, keeping the
-//! fastest of 5 repetitions per point. Prints a markdown table: dofs, contact dofs, median
-//! online time, its ratio to the coarse mesh (target <= 2x at 4x refinement), median full-order
-//! time and speed-up, median relative H1 error, and converged points.
+//! For each mesh: build and factor the model, solve `n_train` (default 32) training snapshots
+//! (d_x = 3k/(n_train - 1)) and the `n_train - 1` test points between them, take the POD of the
+//! contact responses and the CPG of the pressures, build the reduced model once at full ranks
+//! and query its leading `r x r` block (default r = 16) at every test point with the exact
+//! online solve, single-threaded, keeping the fastest of `repetitions` (default 5) per point.
+//! Prints a markdown table: dofs, contact dofs, median online time, its ratio to the coarse
+//! mesh (target <= 2x at 4x refinement), median full-order time and speed-up, median relative
+//! H1 error, and converged points; first a row for the rope (full bases, 9 test points).
+//! `refinement` 0 runs only the rope, 1/2/4 only that mesh.
 
 use crom_stages::basis::{cpg, pod_full, CpgParams};
 use crom_stages::contact::{build_ironing, ContactSolveParams, FactoredModel, IroningParams, Material};
@@ -50,8 +52,9 @@ fn main() {
     let reps: usize = std::env::args().nth(2).and_then(|a| a.parse().ok()).unwrap_or(5).max(1);
     let only: Option<usize> = std::env::args().nth(3).and_then(|a| a.parse().ok());
     let tol = ContactSolveParams { rel_tol: 1e-10, max_iter: 500 };
-    let train: Vec<f64> = (0..32).map(|k| 3.0 * k as f64 / 31.0).collect();
-    let test: Vec<f64> = (0..31).map(|k| 3.0 * (k as f64 + 0.5) / 31.0).collect();
+    let n_train: usize = std::env::args().nth(4).and_then(|a| a.parse().ok()).unwrap_or(32).max(2);
+    let train: Vec<f64> = (0..n_train).map(|k| 3.0 * k as f64 / (n_train - 1) as f64).collect();
+    let test: Vec<f64> = (0..n_train - 1).map(|k| 3.0 * (k as f64 + 0.5) / (n_train - 1) as f64).collect();
     println!("| mesh | dofs | contact dofs | ranks | median online (ms) | vs coarse | target | median full-order (ms) | speed-up | median H1 error | converged |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     if only.is_none_or(|o| o == 0) {

@@ -293,7 +293,7 @@ fn tradeoff(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, C
             Series::line("paper Algorithm 1 (all rank pairs)", x4, y4).mark(Mark::Points),
             Series::line("Pareto front (exact)", xf, yf),
         ],
-        legend: Legend::UpperRight,
+        legend: Legend::LowerRight,
     };
     render(&chart, dir, "fig_tradeoff")?;
     let mut notes: Vec<String> = Vec::new();

@@ -1,7 +1,8 @@
 //! The reduced saddle-point system of eq. 13 by its Schur complement.
 //!
-//! With `K̂` SPD (`r x r`) and the active rows `Ĉ_A` (`a x r`):
-//! `û = K̂^{-1} Ĉ_A^T λ̂_A`, `(Ĉ_A K̂^{-1} Ĉ_A^T) λ̂_A = -ĝ0_A`. The Schur matrix is only
+//! With `K̂ = L L^T` SPD (`r x r`) and the active rows `Ĉ_A` (`a x r`):
+//! `û = K̂^{-1} Ĉ_A^T λ̂_A`, `(Ĉ_A K̂^{-1} Ĉ_A^T) λ̂_A = -ĝ0_A`, evaluated in the range space
+//! `W = L^{-1} Ĉ_A^T`: Schur matrix `W^T W`, `û = L^{-T} W λ̂_A`. The Schur matrix is only
 //! positive semi-definite when active constraints are dependent (several dual generators can be
 //! nearly parallel); a pivoted Cholesky that drops pivots below `1e-12` of the largest diagonal
 //! gives a solution with the dependent multipliers set to zero (pivots below
@@ -36,12 +37,6 @@ pub fn cholesky(a: &mut [f64], n: usize) -> bool {
     true
 }
 
-/// Solve `L L^T x = b` in place with a factor from [`cholesky`].
-pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    super::la::forward(l, n, b);
-    super::la::backward_t(l, n, b);
-}
-
 /// Solve eq. 13 on the active rows. `khat_l`: Cholesky factor of `K̂` (`r x r`); `c_a`: active
 /// rows of `Ĉ`, row-major `a x r`; `g_a`: `ĝ0_A`. Writes `û` (length r) and `λ̂_A` (length a).
 /// `work` must hold at least `a * r + a * a` values.
@@ -58,16 +53,17 @@ pub fn solve_saddle(
     work.clear();
     work.resize(a * r + a * a, 0.0);
     let (y, s) = work.split_at_mut(a * r);
-    // Y = K̂^{-1} Ĉ_A^T, column i of Y (length r) stored contiguously.
+    // Range space of K̂ = L L^T: W = L^{-1} Ĉ_A^T (column i of W, length r, contiguous), so that
+    // the Schur matrix is S = Ĉ_A K̂^{-1} Ĉ_A^T = W^T W and û = L^{-T} W λ (one triangular solve
+    // per active row instead of two).
     for i in 0..a {
         let col = &mut y[i * r..(i + 1) * r];
         col.copy_from_slice(&c_a[i * r..(i + 1) * r]);
-        cholesky_solve(khat_l, r, col);
+        super::la::forward(khat_l, r, col);
     }
-    // S = Ĉ_A Y (a x a, symmetric PSD), column-major.
     for j in 0..a {
         for i in 0..a {
-            s[i + j * a] = super::la::dot(&c_a[i * r..(i + 1) * r], &y[j * r..(j + 1) * r]);
+            s[i + j * a] = super::la::dot(&y[i * r..(i + 1) * r], &y[j * r..(j + 1) * r]);
         }
     }
     // Pivoted Cholesky with dropping of dependent rows.
@@ -128,10 +124,9 @@ pub fn solve_saddle(
     }
     u.iter_mut().for_each(|x| *x = 0.0);
     for i in 0..a {
-        for k in 0..r {
-            u[k] += y[i * r + k] * lam[i];
-        }
+        super::la::axpy(lam[i], &y[i * r..(i + 1) * r], u);
     }
+    super::la::backward_t(khat_l, r, u);
 }
 
 #[cfg(test)]
