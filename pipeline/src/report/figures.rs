@@ -301,7 +301,7 @@ fn tradeoff(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, C
         for i in 0..ru.len() {
             if inf[i] + failed[i] > 0 {
                 notes.push(format!(
-                    "{} ({}, {}): {} refused as infeasible, {} not converged of {}",
+                    "{} ({}, {}): {} refused as infeasible, {} failed (cycled or at the iteration cap) of {}",
                     alg[i], ru[i], rl[i], inf[i], failed[i], points[i]
                 ));
             }

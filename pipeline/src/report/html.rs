@@ -51,7 +51,7 @@ pub(crate) fn write_index(
     }
     let mut html = String::new();
     html.push_str(&format!(
-        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>crom report: {0}</title>\n<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:4px 10px;text-align:left}}figure{{margin:2em 0}}img{{max-width:100%;border:1px solid #eee}}figcaption{{color:#555}}</style></head><body>\n<h1>crom report: {0}</h1>\n<table>\n",
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>crom report: {0}</title>\n<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:4px 10px;text-align:left}}.wide{{overflow-x:auto;font-size:85%}}.wide td,.wide th{{padding:2px 6px}}figure{{margin:2em 0}}img{{max-width:100%;border:1px solid #eee}}figcaption{{color:#555}}</style></head><body>\n<h1>crom report: {0}</h1>\n<table>\n",
         esc(&scene.scene.name)
     ));
     for (k, v) in facts {
@@ -83,14 +83,14 @@ pub(crate) fn write_index(
 fn md_to_html(md: &str) -> String {
     let mut rows = md.lines().filter(|l| l.starts_with('|') && !l.starts_with("|---"));
     let cells = |l: &str| -> Vec<String> { l.trim_matches('|').split('|').map(|c| esc(c.trim())).collect() };
-    let mut s = String::from("<table>\n");
+    let mut s = String::from("<div class=\"wide\"><table>\n");
     if let Some(h) = rows.next() {
         s.push_str(&format!("<tr>{}</tr>\n", cells(h).iter().map(|c| format!("<th>{c}</th>")).collect::<String>()));
     }
     for r in rows {
         s.push_str(&format!("<tr>{}</tr>\n", cells(r).iter().map(|c| format!("<td>{c}</td>")).collect::<String>()));
     }
-    s.push_str("</table>\n");
+    s.push_str("</table></div>\n");
     s
 }
 
