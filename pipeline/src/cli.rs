@@ -17,6 +17,10 @@ pub struct Cli {
     /// Only errors and the final summary.
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// Memory a run may use (e.g. `8G`, `512M`); a scene whose estimated need exceeds it is
+    /// refused before anything is written. Default: the machine's available memory.
+    #[arg(long, global = true, env = "CROM_MAX_MEMORY", value_parser = crate::resources::parse_size)]
+    pub max_memory: Option<f64>,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,

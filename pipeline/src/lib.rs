@@ -9,6 +9,7 @@ pub mod io;
 pub mod physics;
 pub mod progress;
 pub mod report;
+pub mod resources;
 pub mod scenes;
 pub mod store;
 mod summary;
@@ -84,9 +85,41 @@ fn new_ctx<'a>(cli: &Cli, store: &'a Store, scene: &'a SceneConfig) -> dag::Ctx<
     }
 }
 
+/// Load a scene file and refuse it, before anything is written, when its estimated memory need
+/// exceeds the limit ([`resources`]).
+fn load_scene(cli: &Cli, scene_arg: &str) -> Result<SceneConfig, CromError> {
+    let path = scenes::resolve(scene_arg, &cli.scenes)?;
+    let scene = SceneConfig::load(&path)?;
+    let limit = match cli.max_memory {
+        Some(b) => Some((b, "the --max-memory setting allows")),
+        None => resources::available_bytes().map(|b| (b, "are available on this machine (MemAvailable)")),
+    };
+    let Some((limit, source)) = limit else { return Ok(scene) };
+    let terms = resources::estimate(&scene);
+    let total: f64 = terms.iter().map(|t| t.bytes).sum();
+    if total <= limit {
+        return Ok(scene);
+    }
+    let big = terms.iter().max_by(|a, b| a.bytes.total_cmp(&b.bytes)).expect("estimate has terms");
+    Err(CromError::Scene(crom_schemas::SceneError::Invalid {
+        path,
+        field: big.field.to_string(),
+        problem: format!(
+            "makes the run need an estimated {} (of which {}: {}), but {} {}",
+            resources::human(total),
+            big.what,
+            resources::human(big.bytes),
+            resources::human(limit),
+            source
+        ),
+        fix: "reduce this size; or, if the machine can hold it, raise the limit with --max-memory (e.g. --max-memory 64G)"
+            .to_string(),
+    }))
+}
+
 fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
     let start = Instant::now();
-    let scene = SceneConfig::load(&scenes::resolve(scene_arg, &cli.scenes)?)?;
+    let scene = load_scene(cli, scene_arg)?;
     let store = Store::open(&cli.store)?;
     let mut ctx = new_ctx(cli, &store, &scene);
     let result = dag::solve_points(&mut ctx);
@@ -96,7 +129,7 @@ fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
 
 fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput, CromError> {
     let start = Instant::now();
-    let scene = SceneConfig::load(&scenes::resolve(scene_arg, &cli.scenes)?)?;
+    let scene = load_scene(cli, scene_arg)?;
     let store = Store::open(&cli.store)?;
     let mut ctx = new_ctx(cli, &store, &scene);
     let mut result = dag::run_scene(&mut ctx, online);

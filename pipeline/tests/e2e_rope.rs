@@ -293,3 +293,39 @@ fn offline_run_stops_before_the_online_stage() {
     let computed: Vec<String> = summary(&full).into_iter().filter(|r| r.1 > 0).map(|r| r.0).collect();
     assert_eq!(computed, ["rom", "report"], "{}", text(&full));
 }
+
+/// Issue 9: a scene that parses and is within every bound but cannot fit in memory (an
+/// ironing slab of 100 000 x 20 elements: 200 002 contact dofs, a Delassus operator of ~300
+/// GiB) is refused before anything is written, exit 2, naming the file, the field that drives
+/// the estimate, the estimate and the `--max-memory` fix; so is a small scene under a
+/// `--max-memory` below its estimate, while the same scene runs under a generous one. The
+/// issue's own example, `nx = 1000000000`, is out of the scene file's bounds (exit 2 too).
+#[test]
+fn scene_too_big_for_memory_exits_2_and_writes_nothing() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let ironing = std::fs::read_to_string(repo().join("data/scenes/ironing-coarse.toml")).expect("scene");
+    for (name, nx) in [("huge.toml", "nx = 100000"), ("absurd.toml", "nx = 1000000000")] {
+        let scene = tmp.path().join(name);
+        std::fs::write(&scene, ironing.replace("nx = 100", nx)).expect("write scene");
+        let out = crom(&store, &["run", scene.to_str().expect("utf8 path")]);
+        assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+        let msg = text(&out);
+        assert!(msg.contains(name) && msg.contains("model.ironing.slab.nx") && msg.contains("fix:"), "{msg}");
+        if name == "huge.toml" {
+            assert!(msg.contains("GiB") && msg.contains("--max-memory"), "{msg}");
+        }
+        assert!(!store.exists(), "nothing written for a refused scene");
+    }
+    let out = crom(&store, &["--max-memory", "64K", "run", "rope"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(
+        text(&out).contains("model.rope.n_elements") && text(&out).contains("--max-memory setting"),
+        "{}",
+        text(&out)
+    );
+    assert!(!store.exists(), "nothing written for a refused scene");
+    let out = crom(&store, &["--max-memory", "lots", "run", "rope"]);
+    assert_eq!(out.status.code(), Some(2), "a malformed --max-memory is a usage error: {}", text(&out));
+    assert!(crom(&store, &["--max-memory", "2G", "run", "rope", "--offline"]).status.success());
+}

@@ -63,6 +63,22 @@ impl Checker<'_> {
         }
     }
 
+    /// `min <= v <= max`: every size in a scene file is bounded, so no value can ask for an
+    /// allocation the process cannot make (the bounds are far above any study crom runs; the
+    /// memory estimate of the pipeline judges what fits the machine).
+    fn between(&self, field: &str, v: usize, min: usize, max: usize) -> Result<(), SceneError> {
+        self.at_least(field, v, min)?;
+        if v <= max {
+            Ok(())
+        } else {
+            Err(self.fail(
+                field,
+                format!("is {v}, above the largest accepted value {max}"),
+                &format!("give an integer <= {max}"),
+            ))
+        }
+    }
+
     fn material(&self, field: &str, m: &MaterialSpec) -> Result<(), SceneError> {
         self.positive(&format!("{field}.young"), m.young)?;
         self.finite(&format!("{field}.poisson"), m.poisson)?;
@@ -191,7 +207,7 @@ fn check_axis(
         ));
     }
     match (n_train, train_level) {
-        (Some(n), None) => c.at_least(&format!("{at}.n_train"), n, 2),
+        (Some(n), None) => c.between(&format!("{at}.n_train"), n, 2, (1 << MAX_LEVEL) + 1),
         (None, Some(k)) if (1..=MAX_LEVEL).contains(&k) => Ok(()),
         (None, Some(k)) => Err(c.fail(
             &format!("{at}.train_level"),
@@ -214,12 +230,19 @@ fn check_axis(
 /// Largest nested or training level: 2^14 + 1 = 16 385 points.
 const MAX_LEVEL: u32 = 14;
 
+/// Largest element count along one edge of a mesh (rope, Hertz arc, ironing slab and iron).
+pub const MAX_ELEMENTS_PER_EDGE: usize = 100_000;
+/// Largest number of rope elements.
+pub const MAX_ROPE_ELEMENTS: usize = 10_000_000;
+/// Largest iteration budget, specificity sample count, basis size or fold count.
+pub const MAX_COUNT: usize = 100_000_000;
+
 fn check_solver(c: &Checker<'_>, s: &SolverSpec) -> Result<(), SceneError> {
     c.positive("solver.rel_tol", s.rel_tol)?;
     if s.rel_tol >= 1.0 {
         return Err(c.fail("solver.rel_tol", format!("is {}, must be < 1", s.rel_tol), "use e.g. 1e-10"));
     }
-    c.at_least("solver.max_iter", s.max_iter, 1)
+    c.between("solver.max_iter", s.max_iter, 1, MAX_COUNT)
 }
 
 fn check_study(c: &Checker<'_>, s: &StudySpec) -> Result<(), SceneError> {
@@ -227,7 +250,13 @@ fn check_study(c: &Checker<'_>, s: &StudySpec) -> Result<(), SceneError> {
     c.tolerance("study.dual_orth_tol", s.dual_orth_tol)?;
     c.tolerance("study.dual_cone_tol", s.dual_cone_tol)?;
     c.tolerance("study.dual_cone_tol_truncated", s.dual_cone_tol_truncated)?;
-    c.at_least("study.specificity_samples", s.specificity_samples, 1)?;
+    c.between("study.specificity_samples", s.specificity_samples, 1, MAX_COUNT)?;
+    if let Some(m) = s.max_rank {
+        c.between("study.max_rank", m, 0, MAX_COUNT)?;
+    }
+    if let Some(f) = s.loo_folds {
+        c.between("study.loo_folds", f, 0, MAX_COUNT)?;
+    }
     if s.loo_folds == Some(0) {
         return Err(c.fail(
             "study.loo_folds",
@@ -247,7 +276,7 @@ fn check_study(c: &Checker<'_>, s: &StudySpec) -> Result<(), SceneError> {
 
 fn check_rope(c: &Checker<'_>, r: &RopeSpec) -> Result<(), SceneError> {
     c.positive("model.rope.length", r.length)?;
-    c.at_least("model.rope.n_elements", r.n_elements, 2)?;
+    c.between("model.rope.n_elements", r.n_elements, 2, MAX_ROPE_ELEMENTS)?;
     c.positive("model.rope.nu", r.nu)?;
     c.finite("model.rope.f", r.f)?;
     let o = &r.obstacle;
@@ -270,14 +299,14 @@ fn check_rope(c: &Checker<'_>, r: &RopeSpec) -> Result<(), SceneError> {
 fn check_hertz(c: &Checker<'_>, h: &HertzSpec) -> Result<(), SceneError> {
     c.positive("model.hertz.radius", h.radius)?;
     c.material("model.hertz.material", &h.material)?;
-    c.at_least("model.hertz.n_arc", h.n_arc, 6)
+    c.between("model.hertz.n_arc", h.n_arc, 6, MAX_ELEMENTS_PER_EDGE)
 }
 
 fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
     c.positive("model.ironing.slab.length", i.slab.length)?;
     c.positive("model.ironing.slab.height", i.slab.height)?;
-    c.at_least("model.ironing.slab.nx", i.slab.nx, 1)?;
-    c.at_least("model.ironing.slab.ny", i.slab.ny, 1)?;
+    c.between("model.ironing.slab.nx", i.slab.nx, 1, MAX_ELEMENTS_PER_EDGE)?;
+    c.between("model.ironing.slab.ny", i.slab.ny, 1, MAX_ELEMENTS_PER_EDGE)?;
     c.material("model.ironing.slab.material", &i.slab.material)?;
     c.positive("model.ironing.iron.width", i.iron.width)?;
     c.positive("model.ironing.iron.height", i.iron.height)?;
@@ -290,8 +319,8 @@ fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
         ));
     }
     c.finite("model.ironing.iron.contact_x", i.iron.contact_x)?;
-    c.at_least("model.ironing.iron.nx", i.iron.nx, 1)?;
-    c.at_least("model.ironing.iron.ny", i.iron.ny, 1)?;
+    c.between("model.ironing.iron.nx", i.iron.nx, 1, MAX_ELEMENTS_PER_EDGE)?;
+    c.between("model.ironing.iron.ny", i.iron.ny, 1, MAX_ELEMENTS_PER_EDGE)?;
     c.material("model.ironing.iron.material", &i.iron.material)?;
     match i.d_y {
         Some(d) => c.finite("model.ironing.d_y", d),

@@ -172,3 +172,24 @@ fn loo_folds_are_all_up_to_256_snapshots_then_an_even_sample() {
     let text = rope_text().replace("seed = ", "loo_folds = 0\nseed = ");
     assert_names(&load_err(&text), &["study.loo_folds", "is 0"]);
 }
+
+/// Every size in a scene file is bounded (issue 9): the issue's `nx = 1000000000` and its
+/// kin are refused with the field, the bound and a fix, before anything is allocated.
+#[test]
+fn every_size_is_bounded() {
+    let ironing = std::fs::read_to_string(scenes_dir().join("ironing-coarse.toml")).expect("scene");
+    let hertz = std::fs::read_to_string(scenes_dir().join("hertz.toml")).expect("scene");
+    let cases = [
+        (ironing.replace("nx = 100", "nx = 1000000000"), "model.ironing.slab.nx"),
+        (ironing.replace("ny = 20", "ny = 1000000000"), "model.ironing.slab.ny"),
+        (ironing.replace("nx = 30", "nx = 1000000000"), "model.ironing.iron.nx"),
+        (hertz.replace("n_arc = 78", "n_arc = 1000000000"), "model.hertz.n_arc"),
+        (rope_text().replace("n_elements = 200", "n_elements = 1000000000"), "model.rope.n_elements"),
+        (rope_text().replace("n_train = 10", "n_train = 1000000000"), "parameter.n_train"),
+        (rope_text().replace("max_iter = ", "max_iter = 1000000000000 # "), "solver.max_iter"),
+    ];
+    for (text, field) in cases {
+        assert!(text.contains("1000000000"), "{field}: the replacement must apply");
+        assert_names(&load_err(&text), &[field, "largest accepted"]);
+    }
+}
