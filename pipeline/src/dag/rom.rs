@@ -10,11 +10,12 @@
 //! query), dual in the tributary-weighted L2 norm (`NaN` where the full-order field is zero:
 //! reported, never divided by); each query also stores the a-posteriori error indicator.
 //!
-//! **Timing.** The online time of a query is [`ReducedModel::solve`] alone (reads only the
+//! **Timing.** The online time of a query is [`ReducedModel::solve_in`] alone (reads only the
 //! reduced model: cost independent of `n_dof`); the indicator is timed separately; the
-//! full-order time is measured here, in the same process, for the same points. The trade-off
-//! sweeps the primal rank with the full and the truncated dual basis and the dual rank with the
-//! full primal basis, for both algorithms; per rank pair it counts converged, refused
+//! full-order time is measured here, in the same process, at the test points. The trade-off
+//! sweeps, for `exact`, the primal rank with the full and the truncated dual basis and the dual
+//! rank with the full primal basis, and for `paper` the primal rank with the full dual basis
+//! (up to [`PAPER_SWEEP_MAX_DUAL`] dual modes); per rank pair it counts converged, refused
 //! (infeasible) and failed queries and gives medians and 95th percentiles of time and error
 //! over the test points (errors over converged points only), and how well the indicator ranks
 //! the true errors (Spearman) and its median effectivity (indicator / error).
