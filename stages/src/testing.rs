@@ -46,3 +46,16 @@ pub(crate) fn hertz_family(rng: &mut Rng, n: usize, count: usize) -> Mat<f64> {
     }
     s
 }
+
+/// A random symmetric positive definite `n x n` matrix (column-major): `B B^T + shift I` with
+/// `B` uniform in `[-1, 1]`.
+pub(crate) fn spd(n: usize, shift: f64, rng: &mut Rng) -> Vec<f64> {
+    let b: Vec<f64> = (0..n * n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
+    let mut a = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            a[i + j * n] = (0..n).map(|k| b[i + k * n] * b[j + k * n]).sum::<f64>() + if i == j { shift } else { 0.0 };
+        }
+    }
+    a
+}

@@ -185,24 +185,25 @@ mod tests {
     /// SCENES.md → ironing-coarse.
     fn ironing_coarse() -> &'static FactoredModel {
         static M: OnceLock<FactoredModel> = OnceLock::new();
-        M.get_or_init(|| {
-            let p = IroningParams {
-                slab_length: 5.0,
-                slab_height: 1.0,
-                slab_nx: 100,
-                slab_ny: 20,
-                slab: Material { young: 1.0, poisson: 0.3 },
-                iron_width: 1.0,
-                iron_height: 1.0,
-                sole_radius: 2.0,
-                iron_nx: 30,
-                iron_ny: 30,
-                iron: Material { young: 10.0, poisson: 0.3 },
-                contact_x: 1.0,
-                d_y: Some(0.04),
-            };
-            build_ironing(&p).expect("ironing").factor().expect("factor")
-        })
+        M.get_or_init(|| build_ironing(&ironing_coarse_params()).expect("ironing").factor().expect("factor"))
+    }
+
+    fn ironing_coarse_params() -> IroningParams {
+        IroningParams {
+            slab_length: 5.0,
+            slab_height: 1.0,
+            slab_nx: 100,
+            slab_ny: 20,
+            slab: Material { young: 1.0, poisson: 0.3 },
+            iron_width: 1.0,
+            iron_height: 1.0,
+            sole_radius: 2.0,
+            iron_nx: 30,
+            iron_ny: 30,
+            iron: Material { young: 10.0, poisson: 0.3 },
+            contact_x: 1.0,
+            d_y: Some(0.04),
+        }
     }
 
     /// The operator's view of a solver snapshot: (smallest gap over paired slaves, largest
@@ -487,24 +488,8 @@ mod tests {
     /// `n_dof` differs.
     #[test]
     fn reduced_model_size_does_not_depend_on_n_dof() {
-        let deep = {
-            let p = IroningParams {
-                slab_length: 5.0,
-                slab_height: 2.0,
-                slab_nx: 100,
-                slab_ny: 40,
-                slab: Material { young: 1.0, poisson: 0.3 },
-                iron_width: 1.0,
-                iron_height: 1.0,
-                sole_radius: 2.0,
-                iron_nx: 30,
-                iron_ny: 30,
-                iron: Material { young: 10.0, poisson: 0.3 },
-                contact_x: 1.0,
-                d_y: Some(0.04),
-            };
-            build_ironing(&p).expect("ironing").factor().expect("factor")
-        };
+        let p = IroningParams { slab_height: 2.0, slab_ny: 40, ..ironing_coarse_params() };
+        let deep = build_ironing(&p).expect("ironing").factor().expect("factor");
         let coarse = ironing_coarse();
         assert!(deep.n_dof() > coarse.n_dof() + 4000);
         let mus = [0.5, 1.5, 2.5];

@@ -105,6 +105,14 @@ pub fn vertex_pair(xs: [f64; 2], m: &[[f64; 2]], v: usize, kind: PairKind) -> Pa
     Pair { kind, xi: 0.0, normal: n, gap: dot(sub(xs, m[v]), n) }
 }
 
+/// Orthogonal projection of `xs` onto segment `k` of `m`: `(xi, xs - foot)` when
+/// `xi in [0, 1]`, else `None` (the one arithmetic of every closest-point search here).
+fn project_on_segment(xs: [f64; 2], m: &[[f64; 2]], k: usize) -> Option<(f64, [f64; 2])> {
+    let t = sub(m[k + 1], m[k]);
+    let xi = dot(sub(xs, m[k]), t) / dot(t, t);
+    (0.0..=1.0).contains(&xi).then(|| (xi, sub(xs, [m[k][0] + xi * t[0], m[k][1] + xi * t[1]])))
+}
+
 /// Closest-point projection of `xs` onto the polyline `m` (at least two points), see the
 /// module docs. Returns [`Pair::NONE`] when the closest point is an end of the polyline.
 pub fn closest_point(xs: [f64; 2], m: &[[f64; 2]]) -> Pair {
@@ -112,11 +120,7 @@ pub fn closest_point(xs: [f64; 2], m: &[[f64; 2]]) -> Pair {
     let mut best_d2 = f64::INFINITY;
     let mut best = Pair::NONE;
     for k in 0..m.len() - 1 {
-        let t = sub(m[k + 1], m[k]);
-        let xi = dot(sub(xs, m[k]), t) / dot(t, t);
-        if (0.0..=1.0).contains(&xi) {
-            let foot = [m[k][0] + xi * t[0], m[k][1] + xi * t[1]];
-            let r = sub(xs, foot);
+        if let Some((xi, r)) = project_on_segment(xs, m, k) {
             let d2 = dot(r, r);
             if d2 < best_d2 {
                 best_d2 = d2;
@@ -242,8 +246,8 @@ impl MasterIndex {
     fn search(&self, xs: [f64; 2], m: &[[f64; 2]]) -> (Pair, f64, Option<(usize, f64)>) {
         let n_seg = m.len() - 1;
         assert_eq!(n_seg, self.n_seg, "index built for another polyline");
-        // best segment (d2, k, xi) and best vertex (d2, v), each lowest index among ties
-        let mut seg: (f64, usize, f64) = (f64::INFINITY, usize::MAX, 0.0);
+        // best segment (d2, k) and best vertex (d2, v), each lowest index among ties
+        let mut seg: (f64, usize) = (f64::INFINITY, usize::MAX);
         let mut ver: (f64, usize) = (f64::INFINITY, usize::MAX);
         // the two smallest candidate distances (squared) with their feature ids, and the
         // smallest bound of a skipped box
@@ -257,18 +261,14 @@ impl MasterIndex {
                 two[1] = (d2, id);
             }
         };
-        let visit = |c: usize, seg: &mut (f64, usize, f64), ver: &mut (f64, usize), two: &mut [(f64, usize); 2]| {
+        let visit = |c: usize, seg: &mut (f64, usize), ver: &mut (f64, usize), two: &mut [(f64, usize); 2]| {
             let hi = ((c + 1) * CHUNK).min(n_seg);
             for k in c * CHUNK..hi {
-                let t = sub(m[k + 1], m[k]);
-                let xi = dot(sub(xs, m[k]), t) / dot(t, t);
-                if (0.0..=1.0).contains(&xi) {
-                    let foot = [m[k][0] + xi * t[0], m[k][1] + xi * t[1]];
-                    let r = sub(xs, foot);
+                if let Some((_, r)) = project_on_segment(xs, m, k) {
                     let d2 = dot(r, r);
                     note(two, d2, k);
                     if d2 < seg.0 || (d2 <= seg.0 && k < seg.1) {
-                        *seg = (d2, k, xi);
+                        *seg = (d2, k);
                     }
                 }
             }
@@ -320,11 +320,10 @@ impl MasterIndex {
         if seg.1 == usize::MAX {
             return (Pair::NONE, l2, None);
         }
-        let (_, k, xi) = seg;
+        let k = seg.1;
+        let (xi, r) = project_on_segment(xs, m, k).expect("the best segment has a projection");
         let n = segment_normal(m, k);
-        let t = sub(m[k + 1], m[k]);
-        let foot = [m[k][0] + xi * t[0], m[k][1] + xi * t[1]];
-        (Pair { kind: PairKind::Segment(k), xi, normal: n, gap: dot(sub(xs, foot), n) }, l2, None)
+        (Pair { kind: PairKind::Segment(k), xi, normal: n, gap: dot(r, n) }, l2, None)
     }
 }
 

@@ -154,7 +154,7 @@ impl FactoredModel {
         ws.x_pair.copy_from_slice(&ws.a);
         let mut ties = if allow_ties { VertexTies::new(ns) } else { VertexTies::disabled(ns) };
         let mut repairings = 0;
-        self.pair_all(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ws.index, &mut ties, repairings, &mut ws.pairs)?;
+        self.pair_slaves(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ws.index, &mut ties, Some(repairings), &mut ws.pairs)?;
         repairings += 1;
         let mut iterations = 0;
         let mut first = true;
@@ -239,7 +239,16 @@ impl FactoredModel {
                 }
             }
             // --- re-pair in the deformed configuration ---
-            self.pair_all(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ws.index, &mut ties, repairings, &mut ws.pairs_new)?;
+            self.pair_slaves(
+                mu,
+                &ws.uc,
+                &mut ws.x,
+                &mut ws.xm,
+                &mut ws.index,
+                &mut ties,
+                Some(repairings),
+                &mut ws.pairs_new,
+            )?;
             repairings += 1;
             // --- residuals for the new pairing ---
             ws.f_new.fill(0.0);
@@ -285,7 +294,16 @@ impl FactoredModel {
             last_eq = eq;
             let mut accelerated = false;
             if smooth && ws.anderson.step(&ws.x_pair, &ws.uc, &mut ws.x_next) {
-                self.pair_frozen(&ws.x_next, &mut ws.x, &mut ws.xm, &mut ws.index, &ties, &mut ws.pairs_acc);
+                self.pair_slaves(
+                    mu,
+                    &ws.x_next,
+                    &mut ws.x,
+                    &mut ws.xm,
+                    &mut ws.index,
+                    &mut ties,
+                    None,
+                    &mut ws.pairs_acc,
+                )?;
                 if ws.pairs_acc.iter().zip(&ws.pairs_new).all(|(a, b)| a.kind == b.kind) {
                     std::mem::swap(&mut ws.pairs, &mut ws.pairs_acc);
                     std::mem::swap(&mut ws.x_pair, &mut ws.x_next);
@@ -304,8 +322,12 @@ impl FactoredModel {
         Ok(self.finish(mu, &ws, lift_inf, c_scale, iterations, ties.count()))
     }
 
+    /// Pair every slave at the contact-dof displacement `uc`. With `repairing = Some(k)` the
+    /// natural pairings are recorded as re-pairing `k` (ties may form or be released) and a
+    /// non-finite slave position is an error; with `None` only the existing ties are applied
+    /// and nothing is recorded (the Anderson-mixed configuration).
     #[allow(clippy::too_many_arguments)]
-    fn pair_all(
+    fn pair_slaves(
         &self,
         mu: &[f64],
         uc: &[f64],
@@ -313,7 +335,7 @@ impl FactoredModel {
         xm: &mut [[f64; 2]],
         index: &mut MasterIndex,
         ties: &mut VertexTies,
-        repairing: usize,
+        repairing: Option<usize>,
         out: &mut [Pair],
     ) -> Result<(), ContactError> {
         let ns = self.model.slaves.len();
@@ -325,10 +347,15 @@ impl FactoredModel {
                 continue;
             }
             let xs = [x[2 * s], x[2 * s + 1]];
-            if !(xs[0].is_finite() && xs[1].is_finite()) {
-                return Err(ContactError::Pairing { param: Mu::of(mu), slave: s });
-            }
-            out[s] = ties.pair(s, xs, xm, index, repairing);
+            out[s] = match repairing {
+                Some(k) => {
+                    if !(xs[0].is_finite() && xs[1].is_finite()) {
+                        return Err(ContactError::Pairing { param: Mu::of(mu), slave: s });
+                    }
+                    ties.pair(s, xs, xm, index, k)
+                }
+                None => ties.pair_peek(s, xs, xm, index),
+            };
         }
         Ok(())
     }
@@ -342,30 +369,6 @@ impl FactoredModel {
         }
         for (k, xk) in xm.iter_mut().enumerate() {
             *xk = [x[2 * (ns + k)], x[2 * (ns + k) + 1]];
-        }
-    }
-
-    /// Pairing at the contact-dof displacement `uc` with the current ties, without recording
-    /// history (used for the Anderson-mixed configuration).
-    fn pair_frozen(
-        &self,
-        uc: &[f64],
-        x: &mut [f64],
-        xm: &mut [[f64; 2]],
-        index: &mut MasterIndex,
-        ties: &VertexTies,
-        out: &mut [Pair],
-    ) {
-        let ns = self.model.slaves.len();
-        self.deformed_positions(uc, x, xm);
-        index.build(xm);
-        for s in 0..ns {
-            if self.slave_fixed[s] {
-                out[s] = Pair::NONE;
-                continue;
-            }
-            let xs = [x[2 * s], x[2 * s + 1]];
-            out[s] = ties.pair_peek(s, xs, xm, index);
         }
     }
 

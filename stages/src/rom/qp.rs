@@ -375,18 +375,7 @@ mod tests {
     use super::*;
     use crate::rng::Rng;
     use crate::rom::saddle::cholesky;
-
-    fn spd(n: usize, rng: &mut Rng) -> Vec<f64> {
-        let b: Vec<f64> = (0..n * n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
-        let mut a = vec![0.0; n * n];
-        for i in 0..n {
-            for j in 0..n {
-                a[i + j * n] =
-                    (0..n).map(|k| b[i + k * n] * b[j + k * n]).sum::<f64>() + if i == j { 0.5 } else { 0.0 };
-            }
-        }
-        a
-    }
+    use crate::testing::spd;
 
     /// Independent reference: enumerate every subset of constraints as the active set, solve
     /// the equality-constrained KKT system densely (Gaussian elimination with pivoting on the
@@ -463,7 +452,7 @@ mod tests {
         for case in 0..400 {
             let r = 1 + case % 6;
             let m = 1 + (case / 6) % 8;
-            let g = spd(r, &mut rng);
+            let g = spd(r, 0.5, &mut rng);
             let mut a: Vec<f64> = (0..m * r).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
             let b: Vec<f64> = (0..m).map(|_| rng.uniform_in(-1.0, 0.5)).collect();
             if case % 5 == 0 && m >= 2 {

@@ -7,6 +7,7 @@ use super::saddle::{cholesky, solve_saddle};
 use crate::contact::anderson::Anderson;
 use crate::contact::pairing::{GapRow, MasterIndex, Pair, PairKind};
 use crate::contact::vertex::VertexTies;
+use crate::mu::affine;
 use crate::operator::{ContactOperator, Surface};
 use faer::MatRef;
 
@@ -201,29 +202,24 @@ type Compressed = (Vec<usize>, Vec<usize>, Vec<f64>);
 
 /// `Theta[:, :rl]` by node (CSR) and by column (CSC).
 fn csr(theta: &[f64], nc: usize, rl: usize) -> (Compressed, Compressed) {
-    let mut node = (vec![0], Vec::new(), Vec::new());
-    for i in 0..nc {
-        for a in 0..rl {
-            let t = theta[i + a * nc];
+    let at = |i: usize, a: usize| theta[i + a * nc];
+    (compress(nc, rl, at), compress(rl, nc, |a, i| at(i, a)))
+}
+
+/// The non-zeros of `value(o, k)` row by row over `o < outer`, `k < inner`.
+fn compress(outer: usize, inner: usize, value: impl Fn(usize, usize) -> f64) -> Compressed {
+    let mut c = (vec![0], Vec::new(), Vec::new());
+    for o in 0..outer {
+        for k in 0..inner {
+            let t = value(o, k);
             if t != 0.0 {
-                node.1.push(a);
-                node.2.push(t);
+                c.1.push(k);
+                c.2.push(t);
             }
         }
-        node.0.push(node.1.len());
+        c.0.push(c.1.len());
     }
-    let mut col = (vec![0], Vec::new(), Vec::new());
-    for a in 0..rl {
-        for i in 0..nc {
-            let t = theta[i + a * nc];
-            if t != 0.0 {
-                col.1.push(i);
-                col.2.push(t);
-            }
-        }
-        col.0.push(col.1.len());
-    }
-    (node, col)
+    c
 }
 
 /// `L^{-1} Ĉ^T`, column `a` (length `r`) at `a r`, from `Ĉ` row-major `rl x r`.
@@ -233,6 +229,25 @@ fn range_rows(chat: &[f64], l: &[f64], r: usize, rl: usize) -> Vec<f64> {
         super::la::forward(l, r, &mut p[a * r..(a + 1) * r]);
     }
     p
+}
+
+/// `xc = base + Phi_c û` (`Phi_c` row-major `n_cd x r`) at the contact nodes `nodes`; at
+/// `û = 0` (the first linearisation) the positions are the lifted reference itself.
+fn set_positions(
+    phi_c: &[f64],
+    r: usize,
+    u_hat: &[f64],
+    base: &[f64],
+    xc: &mut [f64],
+    nodes: impl Iterator<Item = usize>,
+) {
+    let zero = u_hat.iter().all(|&v| v == 0.0);
+    for c in nodes {
+        for cd in [2 * c, 2 * c + 1] {
+            let d = if zero { 0.0 } else { dot(&phi_c[cd * r..(cd + 1) * r], u_hat) };
+            xc[cd] = base[cd] + d;
+        }
+    }
 }
 
 /// Per contact node the Frobenius norm of its two rows of `Phi_c` (row-major `n_cd x r`), and
@@ -245,7 +260,7 @@ fn node_norms(phi_c: &[f64], r: usize, ns: usize) -> (Vec<f64>, f64) {
 
 fn affine_into(terms: &[Vec<f64>], mu: &[f64], out: &mut [f64]) {
     for (i, o) in out.iter_mut().enumerate() {
-        *o = crate::mu::affine(&terms[0], &terms[1..], mu, i);
+        *o = affine(&terms[0], &terms[1..], mu, i);
     }
 }
 
@@ -493,7 +508,7 @@ impl ReducedModel {
 
     fn solve_exact(&self, mu: &[f64], p: &RomParams, w: &mut RomWork) -> (usize, usize, RomOutcome) {
         let ru = self.r_u;
-        self.linearize(w, true);
+        self.linearize(w);
         let scale = self.offset_scale(mu, w);
         if scale == 0.0 {
             return (0, 0, RomOutcome::Converged);
@@ -543,7 +558,7 @@ impl ReducedModel {
                 // fixed point of the linearisation: converged if the pairing at the solution is
                 // the one it was computed with
                 w.u_hat.copy_from_slice(&w.x);
-                if !self.linearize_with(w, true, false) {
+                if !self.linearize_with(w, false) {
                     return (steps, w.qp.active.len(), RomOutcome::Converged);
                 }
                 self.assemble(w);
@@ -568,7 +583,7 @@ impl ReducedModel {
                 }
                 w.u_hat.copy_from_slice(&w.x);
             }
-            let changed = self.linearize(w, true);
+            let changed = self.linearize(w);
             if changed {
                 // a pairing seen before, reached by a change: the re-pairing cycles
                 let h = w.lin.pairing_hash();
@@ -584,7 +599,7 @@ impl ReducedModel {
 
     fn solve_paper(&self, mu: &[f64], p: &RomParams, w: &mut RomWork) -> (usize, usize, RomOutcome) {
         let (ru, rl) = (self.r_u, self.r_l);
-        self.linearize(w, true);
+        self.linearize(w);
         let scale = self.offset_scale(mu, w);
         let violated = |g: f64| g < -p.gap_tol * scale;
         // deterministic start: the most violated reduced constraint at û = 0
@@ -619,7 +634,7 @@ impl ReducedModel {
             for (k, &a) in idx.iter().enumerate() {
                 w.lam[a] = lam_a[k];
             }
-            let changed = self.linearize(w, true);
+            let changed = self.linearize(w);
             {
                 let RomWork { lin, s, u_hat, .. } = w;
                 Oracle { m: self, lin, mu }.values(u_hat, s);
@@ -661,13 +676,13 @@ impl ReducedModel {
     /// Type-2: positions of the needed contact nodes at `û = w.u_hat`, re-pair the supported
     /// slaves (recording the pairing history for vertex ties) and rebuild their gap rows.
     /// Returns whether a pairing kind changed. Type-1: nothing to do.
-    fn linearize(&self, w: &mut RomWork, record: bool) -> bool {
-        self.linearize_with(w, record, true)
+    fn linearize(&self, w: &mut RomWork) -> bool {
+        self.linearize_with(w, true)
     }
 
     /// [`Self::linearize`], rebuilding the gap rows only if `assemble`.
-    fn linearize_with(&self, w: &mut RomWork, record: bool, assemble: bool) -> bool {
-        let SurfaceData::Nts { ns, nm, supp, node_norm, master_norm, .. } = &self.surf else {
+    fn linearize_with(&self, w: &mut RomWork, assemble: bool) -> bool {
+        let SurfaceData::Nts { ns, nm, supp, node_norm, master_norm, phi_c, .. } = &self.surf else {
             w.lin.count = 1;
             return false;
         };
@@ -681,38 +696,31 @@ impl ReducedModel {
         } else {
             f64::INFINITY
         };
-        let full = !record
-            || !w.lin.has_ref
+        let full = !w.lin.has_ref
             || !supp.iter().all(|&s| {
                 let r = w.lin.radius[s];
                 r == 0.0 || (node_norm[s] + master_norm) * moved <= r
             });
         let skip = |l: &LinState, s: usize| !full && l.radius[s] > 0.0;
-        self.positions_where(w, |l, c| c >= ns || !skip(l, c));
         let l = &mut w.lin;
-        for k in 0..nm {
-            l.xm[k] = [l.xc[2 * (ns + k)], l.xc[2 * (ns + k) + 1]];
-        }
-        l.index.build(&l.xm);
+        let radius = &l.radius;
+        let nodes = supp.iter().copied().filter(|&s| full || radius[s] == 0.0).chain(ns..ns + nm);
+        set_positions(phi_c, self.r_u, &w.u_hat, &l.base, &mut l.xc, nodes);
+        l.index_masters(ns, nm);
         let mut changed = false;
         for &s in supp {
             if skip(l, s) {
                 continue;
             }
             let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
-            let p = if record {
-                let (p, r) = l.ties.pair_with_radius(s, xs, &l.xm, &l.index, l.count);
-                if full {
-                    l.radius[s] = r;
-                }
-                p
-            } else {
-                l.ties.pair_peek(s, xs, &l.xm, &l.index)
-            };
+            let (p, r) = l.ties.pair_with_radius(s, xs, &l.xm, &l.index, l.count);
+            if full {
+                l.radius[s] = r;
+            }
             changed |= p.kind != l.pairs[s].kind;
             l.pairs[s] = p;
         }
-        if full && record {
+        if full {
             l.u_ref.clear();
             l.u_ref.extend_from_slice(&w.u_hat);
             l.has_ref = true;
@@ -722,35 +730,6 @@ impl ReducedModel {
             self.assemble(w);
         }
         changed
-    }
-
-    /// `xc = base + Phi_c û` at the contact nodes `c` (supported slaves and masters) where
-    /// `want(lin, c)`.
-    fn positions_where(&self, w: &mut RomWork, want: impl Fn(&LinState, usize) -> bool) {
-        let SurfaceData::Nts { phi_c, supp, ns, nm, .. } = &self.surf else { return };
-        let ru = self.r_u;
-        let zero = w.u_hat.iter().all(|&v| v == 0.0);
-        for c in supp.iter().copied().chain(*ns..*ns + *nm) {
-            if !want(&w.lin, c) {
-                continue;
-            }
-            for cd in [2 * c, 2 * c + 1] {
-                // at û = 0 (the first linearisation) the positions are the lifted reference
-                let d = if zero { 0.0 } else { dot(&phi_c[cd * ru..(cd + 1) * ru], &w.u_hat) };
-                w.lin.xc[cd] = w.lin.base[cd] + d;
-            }
-        }
-    }
-
-    /// `xc = base + Phi_c û` at the contact nodes `nodes`.
-    fn positions(&self, w: &mut RomWork, nodes: impl Iterator<Item = usize>) {
-        let SurfaceData::Nts { phi_c, .. } = &self.surf else { return };
-        let ru = self.r_u;
-        for c in nodes {
-            for cd in [2 * c, 2 * c + 1] {
-                w.lin.xc[cd] = w.lin.base[cd] + dot(&phi_c[cd * ru..(cd + 1) * ru], &w.u_hat);
-            }
-        }
     }
 
     /// Gap rows of the paired supported slaves: `C Phi` rows and constant parts.
@@ -801,10 +780,7 @@ impl ReducedModel {
                         unpaired += f;
                         continue;
                     }
-                    let mut g = dot(&cphi[i * ru..(i + 1) * ru], &w.u_hat);
-                    for (k, t) in cu0.iter().enumerate() {
-                        g += if k == 0 { t[i] } else { mu[k - 1] * t[i] };
-                    }
+                    let g = dot(&cphi[i * ru..(i + 1) * ru], &w.u_hat) + affine(&cu0[0], &cu0[1..], mu, i);
                     pen = pen.max(-g);
                     comp_sum += f * g.abs();
                     if f != 0.0 {
@@ -822,17 +798,14 @@ impl ReducedModel {
             }
             SurfaceData::Nts { ns, nm, slave_fixed, phi_c, w_c, .. } => {
                 let (ns, nm) = (*ns, *nm);
-                let all: Vec<usize> = (0..ns).filter(|&s| !slave_fixed[s]).collect();
-                self.positions(w, all.iter().copied().chain(ns..ns + nm));
                 let l = &mut w.lin;
-                for k in 0..nm {
-                    l.xm[k] = [l.xc[2 * (ns + k)], l.xc[2 * (ns + k) + 1]];
-                }
-                l.index.build(&l.xm);
+                let slaves = || (0..ns).filter(|&s| !slave_fixed[s]);
+                set_positions(phi_c, ru, &w.u_hat, &l.base, &mut l.xc, slaves().chain(ns..ns + nm));
+                l.index_masters(ns, nm);
                 let ncd = l.xc.len();
                 l.fc.clear();
                 l.fc.resize(ncd, 0.0);
-                for &s in &all {
+                for s in slaves() {
                     let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
                     let pr: Pair = l.ties.pair_peek(s, xs, &l.xm, &l.index);
                     let f = self.weights[s] * self.pressure_at(s, &w.lam);
@@ -913,11 +886,7 @@ impl QpConstraints for Oracle<'_> {
         match &m.surf {
             SurfaceData::Fixed { chat, ghat, .. } => {
                 for (a, sa) in s.iter_mut().enumerate() {
-                    let mut g = dot(&chat[a * ru..(a + 1) * ru], x);
-                    for (k, t) in ghat.iter().enumerate() {
-                        g += if k == 0 { t[a] } else { self.mu[k - 1] * t[a] };
-                    }
-                    *sa = g;
+                    *sa = dot(&chat[a * ru..(a + 1) * ru], x) + affine(&ghat[0], &ghat[1..], self.mu, a);
                 }
             }
             SurfaceData::Nts { .. } => {
@@ -950,11 +919,7 @@ impl QpConstraints for Oracle<'_> {
         match &self.m.surf {
             SurfaceData::Fixed { range, ghat, .. } => {
                 for (a, sa) in s.iter_mut().enumerate() {
-                    let mut g = dot(&range[a * ru..(a + 1) * ru], y);
-                    for (k, t) in ghat.iter().enumerate() {
-                        g += if k == 0 { t[a] } else { self.mu[k - 1] * t[a] };
-                    }
-                    *sa = g;
+                    *sa = dot(&range[a * ru..(a + 1) * ru], y) + affine(&ghat[0], &ghat[1..], self.mu, a);
                 }
                 true
             }
@@ -1012,6 +977,15 @@ struct LinState {
 }
 
 impl LinState {
+    /// Copy the masters' positions (contact nodes `ns..ns + nm`) into `xm` and rebuild the
+    /// search index over them.
+    fn index_masters(&mut self, ns: usize, nm: usize) {
+        for k in 0..nm {
+            self.xm[k] = [self.xc[2 * (ns + k)], self.xc[2 * (ns + k) + 1]];
+        }
+        self.index.build(&self.xm);
+    }
+
     /// FNV-1a hash of the discrete pairing of every slave.
     fn pairing_hash(&self) -> u64 {
         let mut h: u64 = 0xcbf2_9ce4_8422_2325;

@@ -134,19 +134,8 @@ mod tests {
     use super::*;
     use crate::approx::Tol;
     use crate::rng::Rng;
+    use crate::testing::spd;
     use crate::{assert_all_close, assert_close};
-
-    fn spd(n: usize, rng: &mut Rng) -> Vec<f64> {
-        let b: Vec<f64> = (0..n * n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
-        let mut a = vec![0.0; n * n];
-        for i in 0..n {
-            for j in 0..n {
-                a[i + j * n] =
-                    (0..n).map(|k| b[i + k * n] * b[j + k * n]).sum::<f64>() + if i == j { n as f64 } else { 0.0 };
-            }
-        }
-        a
-    }
 
     /// The solution satisfies both block rows of eq. 13 (residuals at rounding, 1e-10 relative
     /// to O(1) data), including with a duplicated (dependent) active row.
@@ -154,7 +143,7 @@ mod tests {
     fn saddle_solution_satisfies_both_block_rows() {
         let mut rng = Rng::new(3);
         let r = 6;
-        let k = spd(r, &mut rng);
+        let k = spd(r, r as f64, &mut rng);
         let mut l = k.clone();
         assert!(cholesky(&mut l, r));
         for dup in [false, true] {

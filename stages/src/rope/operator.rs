@@ -110,6 +110,15 @@ mod tests {
         (phi.modes, theta.basis)
     }
 
+    /// The reduced model of the full bases and the primal basis (column-major, for
+    /// reconstruction).
+    fn full_model(rope: &Rope) -> (ReducedModel, Vec<f64>) {
+        let (phi, theta) = full_bases(rope);
+        let (ru, rl) = (phi.ncols(), theta.ncols());
+        let phi_c = columns(&phi, ru);
+        (ReducedModel::new(rope, &phi_c, ru, &columns(&theta, rl), rl).expect("K̂ SPD"), phi_c)
+    }
+
     /// Relative H1 error of the displacement and relative Euclidean error of the pressure.
     fn errors(rope: &Rope, u: &[f64], p: &[f64], s: &crate::snapshot::Snapshot) -> (f64, f64) {
         let diff: Vec<f64> = u.iter().zip(&s.u).map(|(a, b)| a - b).collect();
@@ -130,10 +139,7 @@ mod tests {
     fn full_bases_reproduce_every_training_snapshot() {
         let rope = paper_rope();
         let (gammas, snaps, _, _) = training(&rope);
-        let (phi, theta) = full_bases(&rope);
-        let (ru, rl) = (phi.ncols(), theta.ncols());
-        let phi_c = columns(&phi, ru);
-        let rom = ReducedModel::new(&rope, &phi_c, ru, &columns(&theta, rl), rl).expect("K̂ SPD");
+        let (rom, phi_c) = full_model(&rope);
         let mut w = RomWork::default();
         for algorithm in [Algorithm::Exact, Algorithm::Paper] {
             let p = RomParams { algorithm, ..RomParams::default() };
@@ -158,10 +164,7 @@ mod tests {
     fn indicator_grows_with_truncation() {
         let rope = paper_rope();
         let (gammas, snaps, _, _) = training(&rope);
-        let (phi, theta) = full_bases(&rope);
-        let (ru, rl) = (phi.ncols(), theta.ncols());
-        let phi_c = columns(&phi, ru);
-        let full = ReducedModel::new(&rope, &phi_c, ru, &columns(&theta, rl), rl).expect("K̂ SPD");
+        let (full, phi_c) = full_model(&rope);
         let rom = full.leading(2, 2);
         let mut w = RomWork::default();
         let mut checked = 0;
@@ -247,13 +250,11 @@ mod tests {
     fn precomputed_errors_equal_direct_reconstruction() {
         let rope = paper_rope();
         let (gammas, snaps, _, _) = training(&rope);
-        let (phi, theta) = full_bases(&rope);
-        let (ru, rl) = (phi.ncols(), theta.ncols());
-        let phi_c = columns(&phi, ru);
-        let full = ReducedModel::new(&rope, &phi_c, ru, &columns(&theta, rl), rl).expect("K̂ SPD");
+        let (full, phi_c) = full_model(&rope);
         let refs: Vec<(Vec<f64>, &[f64])> =
             gammas.iter().zip(&snaps).map(|(g, s)| (vec![*g], s.u.as_slice())).collect();
         let refs: Vec<(&[f64], &[f64])> = refs.iter().map(|(m, u)| (m.as_slice(), *u)).collect();
+        let (ru, rl) = full.ranks();
         let pe = crate::rom::PrimalErrors::new(&rope, &phi_c, ru, &refs).expect("M SPD");
         let mut w = RomWork::default();
         for k in [1, 3, ru] {
