@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
 
 /// crom: can contact-mechanics solutions be compressed into a low-rank model, and at what cost?
 #[derive(Debug, Parser)]
@@ -49,15 +49,38 @@ pub enum Command {
         /// Scene name or path to a scene TOML file.
         scene: String,
     },
-    /// List the artifacts in the store.
+    /// List the artifacts in the store: a table for people, or the catalog's rows as CSV, JSON
+    /// or Parquet for programs.
     Ls {
-        /// Only this stage (mesh, snapshot, trainset, basis, compactness).
+        /// Only this stage (columns, mesh, trainset, basis, compactness, generalization,
+        /// specificity, nested, rom, report).
         #[arg(long)]
         stage: Option<String>,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = LsFormat::Text)]
+        format: LsFormat,
+        /// Write to this file instead of standard output (atomically).
+        #[arg(long, short)]
+        output: Option<PathBuf>,
     },
+    /// Rebuild the store's `catalog.parquet` from the artifacts' manifests and print its path.
+    Catalog,
     /// List the available scenes.
     Scenes,
     /// Re-hash every artifact and every snapshot block of the store; what fails is moved to the
     /// quarantine (and recomputed by the next run). Exit 1 if anything failed.
     Verify,
+}
+
+/// Output formats of `crom ls`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LsFormat {
+    /// Aligned columns for people.
+    Text,
+    /// The catalog's rows as CSV (header line first).
+    Csv,
+    /// The catalog's rows as a JSON array of objects.
+    Json,
+    /// The catalog's rows as Parquet (the layout of `catalog.parquet`).
+    Parquet,
 }

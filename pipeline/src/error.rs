@@ -76,6 +76,14 @@ pub enum CromError {
         /// How to fix it.
         fix: &'static str,
     },
+    /// A command-line request that cannot be carried out as given (exit 2).
+    #[error("{message}\n  fix: {fix}")]
+    Usage {
+        /// What is wrong.
+        message: String,
+        /// How to fix it.
+        fix: String,
+    },
     /// A reduction stage failed numerically (exit 1).
     #[error("stage `{stage}` of scene `{scene}` failed: {message}")]
     Numerical {
@@ -92,7 +100,7 @@ impl CromError {
     /// Process exit code: 2 for bad user input, 3 for a busy store, 1 otherwise.
     pub fn exit_code(&self) -> u8 {
         match self {
-            CromError::Scene(_) | CromError::UnknownScene { .. } => 2,
+            CromError::Scene(_) | CromError::UnknownScene { .. } | CromError::Usage { .. } => 2,
             CromError::Locked { .. } => 3,
             _ => 1,
         }

@@ -58,8 +58,12 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
             }
             Ok(())
         }
-        Command::Ls { stage } => {
-            summary::print_ls(&Store::open_read_only(&cli.store), stage.as_deref());
+        Command::Ls { stage, format, output } => {
+            summary::ls(&Store::open_read_only(&cli.store), stage.as_deref(), *format, output.as_deref())
+        }
+        Command::Catalog => {
+            let store = Store::open(&cli.store)?;
+            println!("{}", store::catalog::refresh(store.root())?.display());
             Ok(())
         }
         Command::Verify => summary::verify(&Store::open(&cli.store)?),
@@ -141,6 +145,16 @@ fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput,
         ctx.records.clear();
         ctx.points = dag::PointCounts::default();
         result = dag::run_scene(&mut ctx, online);
+    }
+    // Only a finished run names its artifacts; a failed one leaves the previous names.
+    if let Ok(out) = &result {
+        let study = dag::publish::study(&scene, out, online);
+        store::published::publish(store.root(), &study)?;
+    }
+    // Best effort on failure too: the catalog then also shows the blocks this run committed.
+    let refreshed = store::catalog::refresh(store.root());
+    if result.is_ok() {
+        refreshed?;
     }
     let report = result
         .as_ref()

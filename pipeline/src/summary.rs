@@ -1,11 +1,13 @@
 //! What a run tells the user at the end, and `crom ls`.
 
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 
 use crom_schemas::artifact::ArtifactKind;
 
+use crate::cli::LsFormat;
 use crate::dag::Ctx;
-use crate::store::Store;
+use crate::error::CromError;
+use crate::store::{catalog, Store};
 
 /// The closing summary of `crom run`: what ran, what came from cache, where the artifacts are.
 /// Output errors (a closed pipe) are ignored: the summary is informational.
@@ -38,10 +40,73 @@ pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool, report: Option<&s
     }
 }
 
-/// `crom ls`: one line per artifact.
-pub(crate) fn print_ls(store: &Store, stage: Option<&str>) {
-    let mut out = std::io::stdout().lock();
-    let mut all = store.catalog();
+/// `crom ls`: the store's contents, as aligned text for people or as the catalog's rows
+/// ([`crate::store::catalog`]) in CSV, JSON or Parquet for programs; to `output` (written
+/// atomically) or standard output.
+pub(crate) fn ls(
+    store: &Store,
+    stage: Option<&str>,
+    format: LsFormat,
+    output: Option<&std::path::Path>,
+) -> Result<(), CromError> {
+    if let Some(s) = stage {
+        if s != "columns" && s != "snapshot" && ArtifactKind::from_name(s).is_none() {
+            let known: Vec<&str> =
+                std::iter::once("columns").chain(ArtifactKind::ALL.iter().map(|k| k.name())).collect();
+            return Err(CromError::Usage {
+                message: format!("--stage {s}: no such stage"),
+                fix: format!("use one of: {}", known.join(", ")),
+            });
+        }
+    }
+    let bytes = match format {
+        LsFormat::Text => text_listing(store, stage).into_bytes(),
+        _ => {
+            let rows: Vec<catalog::CatalogRow> = catalog::rows(store)
+                .into_iter()
+                .filter(|r| stage.is_none_or(|s| s == r.stage || (s == "snapshot" && r.stage == "columns")))
+                .collect();
+            let t = catalog::table(&rows);
+            match format {
+                LsFormat::Csv => t.to_csv().into_bytes(),
+                LsFormat::Json => {
+                    let mut b = serde_json::to_vec_pretty(&t.to_json_records()).unwrap_or_default();
+                    b.push(b'\n');
+                    b
+                }
+                _ => {
+                    if output.is_none() && std::io::stdout().is_terminal() {
+                        return Err(CromError::Usage {
+                            message: "--format parquet writes binary data, and standard output is a terminal".into(),
+                            fix: "redirect it (crom ls --format parquet > catalog.parquet) or give --output FILE"
+                                .into(),
+                        });
+                    }
+                    let mut b = Vec::new();
+                    t.write_parquet_to(&mut b).map_err(|e| CromError::Usage {
+                        message: format!("cannot encode the listing as Parquet: {e}"),
+                        fix: "use --format csv or json".into(),
+                    })?;
+                    b
+                }
+            }
+        }
+    };
+    match output {
+        Some(path) => crate::store::columns::write_atomic(path, &bytes),
+        None => {
+            // A closed pipe (e.g. `| head`) is not an error of the listing.
+            let _ = std::io::stdout().lock().write_all(&bytes);
+            Ok(())
+        }
+    }
+}
+
+/// The human listing: one line per artifact, then the column families.
+fn text_listing(store: &Store, stage: Option<&str>) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let mut all = store.manifests();
     let order = |s: &str| ArtifactKind::from_name(s).map_or(usize::MAX, |k| k as usize);
     all.sort_by(|a, b| order(&a.stage).cmp(&order(&b.stage)).then(a.created_unix.cmp(&b.created_unix)));
     let _ = writeln!(out, "{:<12} {:<14} {:<16} {:>9}  summary", "stage", "key", "scene", "wall [s]");
@@ -85,14 +150,23 @@ pub(crate) fn print_ls(store: &Store, stage: Option<&str>) {
             }
         }
     }
+    for (scene, study) in crate::store::published::studies(store.root()) {
+        let _ = writeln!(
+            out,
+            "scene   {scene:<31} {} names in {}",
+            study.entries.len(),
+            store.root().join(crom_schemas::artifact::published::DIR).join(&scene).display()
+        );
+    }
+    out
 }
 
 /// `crom verify`: full re-hash of every artifact and every snapshot block.
-pub(crate) fn verify(store: &Store) -> Result<(), crate::error::CromError> {
+pub(crate) fn verify(store: &Store) -> Result<(), CromError> {
     let mut out = std::io::stdout().lock();
     let mut problems = Vec::new();
     let mut checked = 0;
-    for m in store.catalog() {
+    for m in store.manifests() {
         let Some(kind) = ArtifactKind::from_name(&m.stage) else { continue };
         checked += 1;
         if let crate::store::Lookup::Quarantined(to, why) = store.lookup(kind, &m.key)? {
@@ -108,6 +182,7 @@ pub(crate) fn verify(store: &Store) -> Result<(), crate::error::CromError> {
     for p in &problems {
         let _ = writeln!(out, "  FAILED {p}");
     }
+    catalog::refresh(store.root())?;
     let _ = writeln!(
         out,
         "crom verify: {checked} artifacts and {blocks} snapshot blocks checked, {} problems in {}",
@@ -117,7 +192,7 @@ pub(crate) fn verify(store: &Store) -> Result<(), crate::error::CromError> {
     if problems.is_empty() {
         Ok(())
     } else {
-        Err(crate::error::CromError::artifact(
+        Err(CromError::artifact(
             store.root(),
             format!("{} problems found (listed above); the damaged files are in .quarantine", problems.len()),
             "rerun the affected scenes: what was moved aside is recomputed",

@@ -252,6 +252,54 @@ pub mod rom {
     ];
 }
 
+/// `catalog.parquet` at the store root: one row per artifact and per snapshot column family,
+/// rebuilt from the manifests (the source of truth) and replaced atomically whenever an
+/// artifact is committed, a scene's names are published or something is quarantined.
+pub mod catalog {
+    /// Parquet file at the store root.
+    pub const FILE: &str = "catalog.parquet";
+    /// Columns, in order: `set` is train / test / nested-k for training sets; `bases` the basis
+    /// groups a basis artifact holds; `inputs` a JSON object role -> key (a set's snapshot keys
+    /// are summarised, they are in its `solver_stats.parquet`); `path` is relative to the store;
+    /// `published` lists the `scene/name` entries that point at the artifact. Empty strings
+    /// where a column does not apply.
+    pub const COLUMNS: [&str; 15] = [
+        "stage",
+        "scene",
+        "set",
+        "bases",
+        "key",
+        "inputs",
+        "schema_version",
+        "algorithm_version",
+        "crom_version",
+        "created_unix",
+        "created",
+        "bytes",
+        "files",
+        "path",
+        "published",
+    ];
+}
+
+/// Stable names of each scene's latest complete study: `scenes/<scene>` is a relative symbolic
+/// link to `scenes/.versions/<scene>.<stamp>/`, a directory of relative links to the
+/// content-addressed files plus `study.json`; a successful run swaps the one link atomically.
+pub mod published {
+    /// Directory under the store root.
+    pub const DIR: &str = "scenes";
+    /// Directory of link sets under [`DIR`].
+    pub const VERSIONS: &str = ".versions";
+    /// Description of the link set: scene, entries (stage, key, target, schema version).
+    pub const STUDY: &str = "study.json";
+    /// Layout version of [`STUDY`] and the names; bump when either changes.
+    pub const LAYOUT_VERSION: u32 = 1;
+    /// Directory of the nested levels' names.
+    pub const NESTED_DIR: &str = "nested";
+    /// Name of the report directory link.
+    pub const REPORT: &str = "report";
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -101,6 +101,16 @@ impl SceneConfig {
         if self.scene.name.trim().is_empty() {
             return Err(c.fail("scene.name", "is empty".into(), "give the scene a name, e.g. the file stem"));
         }
+        // The name becomes a directory and link name in the store (`runs/<name>`, `scenes/<name>`).
+        let name = &self.scene.name;
+        let safe = name.chars().all(|ch| ch.is_ascii_alphanumeric() || matches!(ch, '-' | '_' | '.'));
+        if !safe || name.starts_with('.') || name.len() > 100 {
+            return Err(c.fail(
+                "scene.name",
+                format!("is {name:?}; it names directories in the store, so only letters, digits, '-', '_' and '.' (not first) are allowed, at most 100 characters"),
+                "use a plain name such as \"ironing-fine-2\"",
+            ));
+        }
         self.check_parameter(&c)?;
         check_solver(&c, &self.solver)?;
         check_study(&c, &self.study)?;

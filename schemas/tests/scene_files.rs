@@ -193,3 +193,15 @@ fn every_size_is_bounded() {
         assert_names(&load_err(&text), &[field, "largest accepted"]);
     }
 }
+
+#[test]
+fn scene_names_that_are_not_plain_directory_names_are_refused() {
+    // The name becomes `runs/<name>` and `scenes/<name>` in the store: a separator, a leading dot
+    // or a parent reference would escape or hide the directory.
+    for bad in ["../escape", "a/b", ".hidden", "with space", "x".repeat(101).as_str()] {
+        let text = rope_text().replace("name = \"rope\"", &format!("name = {bad:?}"));
+        assert_names(&load_err(&text), &["scene.name", "letters, digits"]);
+    }
+    let ok = rope_text().replace("name = \"rope\"", "name = \"rope_v2.1-b\"");
+    assert!(SceneConfig::from_toml_str(&ok, Path::new("ok.toml")).is_ok());
+}

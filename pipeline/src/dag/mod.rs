@@ -13,6 +13,7 @@ mod compactness;
 mod convert;
 mod mesh;
 mod metrics;
+pub mod publish;
 mod rom;
 mod snapshots;
 pub(crate) mod trainset;
@@ -114,6 +115,8 @@ pub struct RunOutput {
     pub generalization: Key,
     /// Specificity artifact.
     pub specificity: Key,
+    /// Training-set artifacts of the nested levels 1..=K (scenes with nested levels).
+    pub nested_sets: Vec<Key>,
     /// Nested-error artifact (scenes with nested levels).
     pub nested: Option<Key>,
     /// Online ROM artifact.
@@ -231,6 +234,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
     let compactness = compactness::run(ctx, &train, &basis)?;
     let generalization = metrics::generalization(ctx, &train)?;
     let specificity = metrics::specificity(ctx, &train, &basis)?;
+    let mut nested_sets = Vec::new();
     let nested = if scene.parameter.nested_levels > 0 {
         let levels: Vec<Vec<Vec<f64>>> =
             (1..=scene.parameter.nested_levels).map(|n| scene.parameter.nested_points(n)).collect();
@@ -243,7 +247,9 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
             sets.push(trainset::run(ctx, &format!("nested-{}", n + 1), pts, rows, nested_cols.shape)?);
             at += pts.len();
         }
-        Some(metrics::nested(ctx, &sets)?)
+        let nested = metrics::nested(ctx, &sets)?;
+        nested_sets = sets;
+        Some(nested)
     } else {
         None
     };
@@ -256,6 +262,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
         compactness,
         generalization,
         specificity,
+        nested_sets,
         nested,
         rom: None,
         report: None,

@@ -53,6 +53,18 @@ impl Table {
 
     /// Write as Parquet at `path`.
     pub fn write_parquet(&self, path: &Path) -> Result<(), CromError> {
+        let file = std::fs::File::create(path).map_err(|e| CromError::io(path, "creating a Parquet file", e))?;
+        self.write_parquet_to(file).map_err(|e| {
+            CromError::artifact(
+                path,
+                format!("Parquet write: {e}"),
+                "check free space and permissions of the store directory",
+            )
+        })
+    }
+
+    /// Write as Parquet (snappy) into any writer, e.g. stdout for `crom ls --format parquet`.
+    pub fn write_parquet_to<W: std::io::Write + Send>(&self, out: W) -> Result<(), String> {
         let n = self.rows();
         assert!(self.columns.iter().all(|(_, c)| c.len() == n), "ragged table");
         let fields: Vec<Field> = self
@@ -78,25 +90,22 @@ impl Table {
                 }
             })
             .collect();
-        let fail = |e: &dyn std::fmt::Display| {
-            CromError::artifact(
-                path,
-                format!("Parquet write: {e}"),
-                "check free space and permissions of the store directory",
-            )
-        };
         let schema = Arc::new(Schema::new(fields));
-        let batch = RecordBatch::try_new(schema.clone(), arrays).map_err(|e| fail(&e))?;
-        let file = std::fs::File::create(path).map_err(|e| CromError::io(path, "creating a Parquet file", e))?;
+        let batch = RecordBatch::try_new(schema.clone(), arrays).map_err(|e| e.to_string())?;
         let props = WriterProperties::builder().set_compression(Compression::SNAPPY).build();
-        let mut w = ArrowWriter::try_new(file, schema, Some(props)).map_err(|e| fail(&e))?;
-        w.write(&batch).map_err(|e| fail(&e))?;
-        w.close().map_err(|e| fail(&e))?;
+        let mut w = ArrowWriter::try_new(out, schema, Some(props)).map_err(|e| e.to_string())?;
+        w.write(&batch).map_err(|e| e.to_string())?;
+        w.close().map_err(|e| e.to_string())?;
         Ok(())
     }
 
     /// Write as CSV at `path` (floats in shortest round-trip form).
     pub fn write_csv(&self, path: &Path) -> Result<(), CromError> {
+        std::fs::write(path, self.to_csv()).map_err(|e| CromError::io(path, "writing a CSV file", e))
+    }
+
+    /// The table as CSV text: a header line, then one line per row.
+    pub fn to_csv(&self) -> String {
         let mut out = String::new();
         let names: Vec<&str> = self.columns.iter().map(|(n, _)| n.as_str()).collect();
         out.push_str(&names.join(","));
@@ -114,7 +123,32 @@ impl Table {
             out.push_str(&cells.join(","));
             out.push('\n');
         }
-        std::fs::write(path, out).map_err(|e| CromError::io(path, "writing a CSV file", e))
+        out
+    }
+
+    /// The table as a JSON array of row objects (`pandas.read_json(..., orient="records")`);
+    /// non-finite floats become `null`.
+    pub fn to_json_records(&self) -> serde_json::Value {
+        let rows = (0..self.rows())
+            .map(|r| {
+                let obj: serde_json::Map<String, serde_json::Value> = self
+                    .columns
+                    .iter()
+                    .map(|(name, c)| {
+                        let v = match c {
+                            Column::Str(v) => serde_json::Value::from(v[r].clone()),
+                            Column::U64(v) => serde_json::Value::from(v[r]),
+                            Column::F64(v) => {
+                                serde_json::Number::from_f64(v[r]).map_or(serde_json::Value::Null, Into::into)
+                            }
+                        };
+                        (name.clone(), v)
+                    })
+                    .collect();
+                serde_json::Value::Object(obj)
+            })
+            .collect();
+        serde_json::Value::Array(rows)
     }
 }
 

@@ -135,7 +135,7 @@ fn fsync_file(path: &Path) -> Result<(), CromError> {
     f.sync_all().map_err(|e| CromError::io(path, "fsync", e))
 }
 
-fn fsync_dir(path: &Path) {
+pub(crate) fn fsync_dir(path: &Path) {
     // Best effort: directory fsync makes the rename durable on Linux; not every FS supports it.
     if let Ok(d) = std::fs::File::open(path) {
         let _ = d.sync_all();
@@ -467,6 +467,10 @@ pub fn quarantine_block(root: &Path, block: &str) -> Result<PathBuf, CromError> 
     let to = q.join(format!("columns-{family}-{}-{name}", crate::store::unix_now()));
     let from = root.join(block);
     std::fs::rename(&from, &to).map_err(|e| CromError::io(&from, "moving a corrupt block aside", e))?;
+    // A published training set reading this block would read fill values: withdraw its names.
+    let reason = format!("reads snapshot block {block}, quarantined to {}", to.display());
+    super::published::withdraw_block(root, block, &reason)?;
+    super::catalog::refresh(root)?;
     Ok(to)
 }
 

@@ -7,9 +7,11 @@
 //! artifact that fails verification is moved to `<root>/.quarantine/` (never deleted) and
 //! recomputed. One `crom run` at a time holds `<root>/.lock`.
 
+pub mod catalog;
 pub mod columns;
 mod lock;
 pub mod manifest;
+pub mod published;
 
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -88,6 +90,10 @@ impl Store {
         let q = parent.join(format!("{}-{}-{}-{}", kind.name(), key.short(), unix_now(), unique_suffix()));
         std::fs::create_dir_all(&parent).map_err(|e| CromError::io(&parent, "creating the quarantine", e))?;
         std::fs::rename(&dir, &q).map_err(|e| CromError::io(&dir, "moving an artifact aside", e))?;
+        // No published name may point into the quarantine.
+        let reason = format!("quarantined to {} at {}", q.display(), catalog::iso_utc(unix_now()));
+        published::withdraw_artifact(&self.root, kind, key, &reason)?;
+        catalog::refresh(&self.root)?;
         Ok(q)
     }
 
@@ -121,7 +127,7 @@ impl Store {
     }
 
     /// Every artifact manifest in the store (unverified; for listing).
-    pub fn catalog(&self) -> Vec<Manifest> {
+    pub fn manifests(&self) -> Vec<Manifest> {
         let mut out = Vec::new();
         for kind in ArtifactKind::ALL {
             let Ok(entries) = std::fs::read_dir(self.root.join(kind.name())) else { continue };
@@ -212,6 +218,7 @@ impl Staging {
         } else {
             std::fs::rename(&self.tmp, &dest).map_err(|e| CromError::io(&dest, "moving an artifact into place", e))?;
         }
+        catalog::refresh(store.root())?;
         Ok(manifest)
     }
 }

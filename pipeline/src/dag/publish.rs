@@ -1,0 +1,56 @@
+//! The human names of a finished study (`STORE/scenes/<scene>/…`, see
+//! [`crate::store::published`]): which artifact file each name stands for.
+
+use std::collections::BTreeMap;
+
+use crom_schemas::artifact::{self as a, published::NESTED_DIR, published::REPORT, ArtifactKind};
+use crom_schemas::SceneConfig;
+
+use super::RunOutput;
+use crate::store::published::{Entry, Study};
+
+/// The names of `out`, the result of a finished run of `scene` (`online`: with the online
+/// stage and the report).
+pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
+    use ArtifactKind as K;
+    let mut e: BTreeMap<String, Entry> = BTreeMap::new();
+    let mut put = |name: String, kind: K, key: &crate::cache::Key, file: Option<&str>| {
+        e.insert(name, Entry::new(kind, key, file));
+    };
+    put("mesh.h5".into(), K::Mesh, &out.mesh, Some(a::mesh::FILE));
+    put("mesh.xdmf".into(), K::Mesh, &out.mesh, Some(a::mesh::XDMF));
+    for (set, key) in [("train", &out.train), ("test", &out.test)] {
+        put(format!("{set}.h5"), K::TrainingSet, key, Some(a::trainset::FILE));
+        put(format!("{set}_solver_stats.parquet"), K::TrainingSet, key, Some(a::trainset::STATS));
+    }
+    for (i, key) in out.nested_sets.iter().enumerate() {
+        let level = i + 1;
+        put(format!("{NESTED_DIR}/level-{level}.h5"), K::TrainingSet, key, Some(a::trainset::FILE));
+        let stats = format!("{NESTED_DIR}/level-{level}_solver_stats.parquet");
+        put(stats, K::TrainingSet, key, Some(a::trainset::STATS));
+    }
+    put("basis.h5".into(), K::Basis, &out.basis, Some(a::basis::FILE));
+    put("compactness.parquet".into(), K::Compactness, &out.compactness, Some(a::compactness::FILE));
+    put("generalization.parquet".into(), K::Generalization, &out.generalization, Some(a::metrics::GENERALIZATION));
+    put("specificity.parquet".into(), K::Specificity, &out.specificity, Some(a::metrics::SPECIFICITY));
+    if let Some(k) = &out.nested {
+        put("nested.parquet".into(), K::Nested, k, Some(a::metrics::NESTED));
+    }
+    if let Some(k) = &out.rom {
+        put("rom_errors.parquet".into(), K::Rom, k, Some(a::rom::ERRORS));
+        put("tradeoff.parquet".into(), K::Rom, k, Some(a::rom::TRADEOFF));
+    }
+    if let Some(k) = &out.report {
+        put(REPORT.into(), K::Report, k, None);
+    }
+    Study {
+        layout_version: a::published::LAYOUT_VERSION,
+        scene: scene.scene.name.clone(),
+        crom_version: env!("CARGO_PKG_VERSION").to_string(),
+        created_unix: crate::store::unix_now(),
+        online,
+        parameter_names: scene.parameter.names().iter().map(|s| s.to_string()).collect(),
+        entries: e,
+        withdrawn: BTreeMap::new(),
+    }
+}
