@@ -46,6 +46,12 @@ bench:
     {{python}} scripts/bench_scale.py
     {{python}} scripts/bench_rom.py
 
+# Render one step of a scene's XDMF view with ParaView under Xvfb (installs Debian's paraview,
+# ~440 MB, on first use; not part of CI), e.g. `just paraview ironing-fine test 1`.
+paraview SCENE SET="train" WARP="1" OUT="paraview.png":
+    command -v pvbatch >/dev/null || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends paraview python3-paraview xvfb xauth)
+    xvfb-run -a pvbatch scripts/render_paraview.py "${CROM_STORE:-data/store}/scenes/{{SCENE}}/{{SET}}.xdmf" {{OUT}} {{WARP}}
+
 # Only the online reduced-model targets (issue 10): speed-ups, convergence, mesh independence.
 bench-rom:
     {{python}} scripts/bench_rom.py

@@ -13,11 +13,19 @@ if ! dpkg -s libhdf5-dev pkg-config >/dev/null 2>&1; then
 fi
 
 PY=${PYTHON:-python3}
-if ! command -v just >/dev/null 2>&1 || ! "$PY" -c "import h5py, pandas, pyarrow, numpy, scipy, pytest" >/dev/null 2>&1; then
-  echo "setup: installing just and the Python validation environment (PyPI)"
-  "$PY" -m pip install -q --disable-pip-version-check --root-user-action=ignore \
-    rust-just h5py pandas pyarrow numpy scipy pytest
+PIP=("$PY" -m pip install -q --disable-pip-version-check --root-user-action=ignore)
+if ! command -v just >/dev/null 2>&1 || ! "$PY" -c "import h5py, pandas, pyarrow, numpy, scipy, pytest, matplotlib, nbclient, nbformat, ipykernel, meshio" >/dev/null 2>&1; then
+  echo "setup: installing just and the Python environment (PyPI)"
+  "${PIP[@]}" rust-just h5py pandas pyarrow numpy scipy pytest matplotlib nbclient nbformat ipykernel meshio
   hash -r
+fi
+
+# The Python reader (`import crom_data`), installed editable from this checkout; reinstalled
+# when the installed one belongs to another checkout.
+REPO=$(cd "$(dirname "$0")/.." && pwd -P)
+if ! "$PY" -c "import crom_data, pathlib, sys; sys.exit(pathlib.Path(crom_data.__file__).resolve().is_relative_to('$REPO/python') is False)" >/dev/null 2>&1; then
+  echo "setup: installing the Python reader crom_data from $REPO/python"
+  "${PIP[@]}" -e "$REPO/python"
 fi
 
 if ! command -v cargo-nextest >/dev/null 2>&1; then

@@ -61,6 +61,7 @@ fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
             "snapshot",
             "trainset",
             "testset",
+            "views",
             "basis",
             "compactness",
             "generalization",
@@ -73,7 +74,8 @@ fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
     assert_eq!(rows[1], ("snapshot".to_string(), 19, 0));
     assert!(rows.iter().all(|r| r.2 == 0), "nothing cached on a fresh store");
 
-    for stage in ["mesh", "trainset", "basis", "compactness", "generalization", "specificity", "rom", "report"] {
+    for stage in ["mesh", "trainset", "views", "basis", "compactness", "generalization", "specificity", "rom", "report"]
+    {
         for dir in artifact_dirs(&store, stage) {
             let manifest: serde_json::Value =
                 serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).expect("manifest"))
@@ -181,9 +183,10 @@ fn ls_lists_every_artifact() {
     assert!(crom(&store, &["run", "rope"]).status.success());
     let out = crom(&store, &["ls"]);
     assert!(out.status.success());
-    // mesh + train + test + basis + compactness + G + S + rom + report, and one column family
+    // mesh + train + test + 3 views (train, test, basis) + basis + compactness + G + S + rom +
+    // report, and one column family
     let listing = String::from_utf8_lossy(&out.stdout);
-    assert!(listing.contains("9 artifacts"), "{}", text(&out));
+    assert!(listing.contains("12 artifacts"), "{}", text(&out));
     assert!(listing.contains("19 snapshots (201 x 201) in 1 blocks"), "{}", text(&out));
 }
 

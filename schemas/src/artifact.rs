@@ -24,6 +24,8 @@ pub enum ArtifactKind {
     Specificity,
     /// Nested-training-set error H(n) (eq. 19): `nested.parquet`.
     Nested,
+    /// ParaView time series (XDMF) of a snapshot set or a basis: `*.xdmf` + `views.h5`.
+    Views,
     /// Online reduced solves: errors and timings (`rom_errors.parquet`, `tradeoff.parquet`).
     Rom,
     /// Figures, tables and `index.html` of a scene's study.
@@ -32,7 +34,7 @@ pub enum ArtifactKind {
 
 impl ArtifactKind {
     /// Every kind, in DAG order.
-    pub const ALL: [ArtifactKind; 10] = [
+    pub const ALL: [ArtifactKind; 11] = [
         ArtifactKind::Mesh,
         ArtifactKind::Snapshot,
         ArtifactKind::TrainingSet,
@@ -41,6 +43,7 @@ impl ArtifactKind {
         ArtifactKind::Generalization,
         ArtifactKind::Specificity,
         ArtifactKind::Nested,
+        ArtifactKind::Views,
         ArtifactKind::Rom,
         ArtifactKind::Report,
     ];
@@ -56,6 +59,7 @@ impl ArtifactKind {
             ArtifactKind::Generalization => "generalization",
             ArtifactKind::Specificity => "specificity",
             ArtifactKind::Nested => "nested",
+            ArtifactKind::Views => "views",
             ArtifactKind::Rom => "rom",
             ArtifactKind::Report => "report",
         }
@@ -77,6 +81,7 @@ impl ArtifactKind {
             ArtifactKind::Generalization => 1,
             ArtifactKind::Specificity => 1,
             ArtifactKind::Nested => 1,
+            ArtifactKind::Views => 1,
             ArtifactKind::Rom => 1,
             ArtifactKind::Report => 1,
         }
@@ -250,6 +255,26 @@ pub mod rom {
         "indicator_effectivity",
         "median_indicator_seconds",
     ];
+}
+
+/// `views.h5` + XDMF files: a snapshot set (`snapshots.xdmf`) or a basis (`primal_pod.xdmf`,
+/// `dual_pod.xdmf`, `dual_cpg.xdmf`) as an XDMF temporal collection that ParaView (and
+/// meshio's `TimeSeriesReader`) opens, one step per snapshot or mode. Every step is a group
+/// `/steps/<00000>` of `views.h5` whose `displacement` (n_nodes x 3, z = 0) and `pressure`
+/// (n_nodes, 0 off the contact surface) are HDF5 virtual datasets onto the stored columns —
+/// nothing is copied — and whose parameter fields (one per component, constant over the nodes)
+/// are small compressed datasets. The mesh, `node_body` and `cell_body` come from `mesh.h5`.
+pub mod views {
+    /// HDF5 file of the step datasets.
+    pub const FILE: &str = "views.h5";
+    /// XDMF of a snapshot set.
+    pub const SET_XDMF: &str = "snapshots.xdmf";
+    /// Group of the steps.
+    pub const STEPS: &str = "steps";
+    /// Point vector field of a step (3 components, z = 0).
+    pub const DISPLACEMENT: &str = "displacement";
+    /// Point scalar field of a step (0 off the contact surface).
+    pub const PRESSURE: &str = "pressure";
 }
 
 /// `catalog.parquet` at the store root: one row per artifact and per snapshot column family,

@@ -42,3 +42,15 @@ def only_artifact(store: pathlib.Path, stage: str, file: str, where=None) -> pat
         found = [p for p in found if where(p)]
     assert len(found) == 1, f"expected one {stage}/{file}, found {found}"
     return found[0]
+
+
+# --- crom_data (python/): the reader under test is the repository's own, installed or not ------
+import sys  # noqa: E402
+
+PYTHON_PACKAGE = REPO / "python"
+sys.path.insert(0, str(PYTHON_PACKAGE))
+
+
+@pytest.fixture(scope="session")
+def ironing_fine_store(tmp_path_factory) -> pathlib.Path:
+    return run_scene(tmp_path_factory, "ironing-fine")

@@ -17,6 +17,7 @@ pub mod publish;
 mod rom;
 mod snapshots;
 pub(crate) mod trainset;
+mod views;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -119,6 +120,8 @@ pub struct RunOutput {
     pub nested_sets: Vec<Key>,
     /// Nested-error artifact (scenes with nested levels).
     pub nested: Option<Key>,
+    /// Views (XDMF time series) artifacts by subject: `train`, `test`, `nested-k`, `basis`.
+    pub views: BTreeMap<String, Key>,
     /// Online ROM artifact.
     pub rom: Option<Key>,
     /// Report artifact.
@@ -230,7 +233,11 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
     let (train_rows, test_rows) = cols.rows.split_at(train_points.len());
     let train = trainset::run(ctx, "train", &train_points, train_rows, cols.shape)?;
     let test = trainset::run(ctx, "test", &test_points, test_rows, cols.shape)?;
+    let mut views = BTreeMap::new();
+    views.insert("train".to_string(), views::set(ctx, "train", &train, &mesh_key)?);
+    views.insert("test".to_string(), views::set(ctx, "test", &test, &mesh_key)?);
     let basis = basis::run(ctx, &train)?;
+    views.insert("basis".to_string(), views::basis(ctx, &basis, &mesh_key)?);
     let compactness = compactness::run(ctx, &train, &basis)?;
     let generalization = metrics::generalization(ctx, &train)?;
     let specificity = metrics::specificity(ctx, &train, &basis)?;
@@ -244,7 +251,10 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
         let mut at = 0;
         for (n, pts) in levels.iter().enumerate() {
             let rows = &nested_cols.rows[at..at + pts.len()];
-            sets.push(trainset::run(ctx, &format!("nested-{}", n + 1), pts, rows, nested_cols.shape)?);
+            let name = format!("nested-{}", n + 1);
+            let set = trainset::run(ctx, &name, pts, rows, nested_cols.shape)?;
+            views.insert(name.clone(), views::set(ctx, &name, &set, &mesh_key)?);
+            sets.push(set);
             at += pts.len();
         }
         let nested = metrics::nested(ctx, &sets)?;
@@ -264,6 +274,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
         specificity,
         nested_sets,
         nested,
+        views,
         rom: None,
         report: None,
     };

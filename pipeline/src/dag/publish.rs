@@ -43,6 +43,21 @@ pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
     if let Some(k) = &out.report {
         put(REPORT.into(), K::Report, k, None);
     }
+    // XDMF files are copied with their references relocated (ParaView does not resolve links).
+    let mut xdmf = |name: String, key: &crate::cache::Key, file: &str| {
+        e.insert(name, Entry { relocate: true, ..Entry::new(K::Views, key, Some(file)) });
+    };
+    for (subject, key) in &out.views {
+        if subject == "basis" {
+            for (group, _) in super::views::BASIS_VIEWS {
+                xdmf(format!("basis/{group}.xdmf"), key, &format!("{group}.xdmf"));
+            }
+        } else if let Some(level) = subject.strip_prefix("nested-") {
+            xdmf(format!("{NESTED_DIR}/level-{level}.xdmf"), key, a::views::SET_XDMF);
+        } else {
+            xdmf(format!("{subject}.xdmf"), key, a::views::SET_XDMF);
+        }
+    }
     Study {
         layout_version: a::published::LAYOUT_VERSION,
         scene: scene.scene.name.clone(),

@@ -113,7 +113,7 @@ pub(crate) fn run(
 const BLOCK_PREFIX: &str = "../../";
 
 /// Column count of every block the rows refer to (read from the block files).
-fn block_columns(root: &Path, rows: &[IndexRow]) -> Result<BTreeMap<String, usize>, CromError> {
+pub(crate) fn block_columns(root: &Path, rows: &[IndexRow]) -> Result<BTreeMap<String, usize>, CromError> {
     let mut out = BTreeMap::new();
     for r in rows {
         if out.contains_key(&r.block) {
@@ -148,7 +148,7 @@ pub(crate) fn load_from(store: &crate::store::Store, key: &Key) -> Result<Traini
 }
 
 /// The index rows a stored set refers to (from its `solver_stats.parquet`).
-fn rows_of(path: &Path) -> Result<Vec<IndexRow>, CromError> {
+pub(crate) fn rows_of(path: &Path) -> Result<Vec<IndexRow>, CromError> {
     let t = read_parquet(path)?;
     let bad = |c: &str| CromError::artifact(path, format!("column `{c}` missing"), "delete the artifact and rerun");
     let keys = t.strs("snapshot_key").ok_or_else(|| bad("snapshot_key"))?;

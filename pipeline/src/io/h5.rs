@@ -184,6 +184,39 @@ impl H5Out {
         set_units(&ds, &self.path, name, units)
     }
 
+    /// A virtual float dataset of shape `shape` assembled from hyperslabs of other datasets
+    /// ([`VirtualPiece`]); elements no piece maps read as 0 (the fill value).
+    pub fn virtual_dataset(&self, name: &str, shape: &[usize], pieces: &[VirtualPiece]) -> Result<(), CromError> {
+        use hdf5::{Hyperslab, SliceOrIndex};
+        let slab = |sel: &[(usize, usize, usize)]| -> Hyperslab {
+            sel.iter()
+                .map(|&(start, step, count)| SliceOrIndex::SliceCount { start, step: step.max(1), count, block: 1 })
+                .collect::<Vec<_>>()
+                .into()
+        };
+        let builder = self.group.new_dataset::<f64>().shape(shape.to_vec()).fill_value(0.0);
+        let ds = if pieces.is_empty() || shape.contains(&0) {
+            builder.create(name)
+        } else {
+            builder
+                .with_dcpl(|p| {
+                    for piece in pieces {
+                        p.virtual_map(
+                            &piece.file,
+                            &piece.dataset,
+                            piece.source_shape.clone(),
+                            slab(&piece.source),
+                            shape.to_vec(),
+                            slab(&piece.target),
+                        );
+                    }
+                    p
+                })
+                .create(name)
+        };
+        ds.map(|_| ()).map_err(|e| werr(&self.path, name, e))
+    }
+
     /// A matrix, one column per snapshot / mode.
     pub fn matrix(&self, name: &str, m: &ColMatrix, units: &str) -> Result<(), CromError> {
         let mut row_major = vec![0.0; m.data.len()];
@@ -194,6 +227,24 @@ impl H5Out {
         }
         self.table_f64(name, m.rows, m.cols, &row_major, units)
     }
+}
+
+/// One mapping of a virtual dataset: the hyperslab `source` of `dataset` (shape
+/// `source_shape`) in the file `file` (relative to the virtual dataset's file) is seen at the
+/// hyperslab `target`. Each selection is one `(start, step, count)` per dimension; both select
+/// the same number of elements.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VirtualPiece {
+    /// Source file, relative to the virtual dataset's directory (or `.` for the same file).
+    pub file: String,
+    /// Source dataset path.
+    pub dataset: String,
+    /// Shape of the source dataset.
+    pub source_shape: Vec<usize>,
+    /// Selection in the source.
+    pub source: Vec<(usize, usize, usize)>,
+    /// Selection in the virtual dataset.
+    pub target: Vec<(usize, usize, usize)>,
 }
 
 fn set_units(ds: &hdf5::Dataset, path: &Path, name: &str, units: &str) -> Result<(), CromError> {

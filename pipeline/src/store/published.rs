@@ -47,6 +47,10 @@ pub struct Entry {
     pub target: String,
     /// Schema version of the target artifact.
     pub schema_version: u32,
+    /// An XDMF file: the name is a copy whose HDF5 references are made relative to the link
+    /// set, not a link (ParaView resolves references against the path it opened).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub relocate: bool,
 }
 
 impl Entry {
@@ -58,6 +62,7 @@ impl Entry {
             key: key.clone(),
             target: file.map_or(dir.clone(), |f| format!("{dir}/{f}")),
             schema_version: kind.schema_version(),
+            relocate: false,
         }
     }
 }
@@ -132,6 +137,13 @@ pub fn publish(root: &Path, study: &Study) -> Result<PathBuf, CromError> {
         let depth = 3 + name.matches('/').count();
         if let Some(parent) = link.parent() {
             std::fs::create_dir_all(parent).map_err(|e| CromError::io(parent, "creating a link set", e))?;
+        }
+        if entry.relocate {
+            let text = std::fs::read_to_string(&target).map_err(|e| CromError::io(&target, "reading", e))?;
+            let from = Path::new(&entry.target).parent().map(|p| p.to_string_lossy().into_owned()).unwrap_or_default();
+            let moved = crate::io::xdmf::relocate(&text, &from, depth);
+            std::fs::write(&link, moved).map_err(|e| CromError::io(&link, "writing a relocated XDMF file", e))?;
+            continue;
         }
         let relative = format!("{}{}", "../".repeat(depth), entry.target);
         std::os::unix::fs::symlink(&relative, &link).map_err(|e| CromError::io(&link, "creating a name", e))?;
@@ -258,6 +270,7 @@ mod tests {
                         key: Key((*t).into()),
                         target: format!("basis/{t}/f"),
                         schema_version: 1,
+                        relocate: false,
                     };
                     (n.to_string(), e)
                 })

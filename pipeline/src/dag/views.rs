@@ -1,0 +1,276 @@
+//! Views stage: a snapshot set or a basis as an XDMF temporal collection that ParaView opens —
+//! scrub through the sweep with the time slider, *Warp By Vector* on `displacement`, colour by
+//! `pressure`.
+//!
+//! Nothing is copied: each step's `displacement` (n_nodes x 3) and `pressure` (n_nodes) in
+//! `views.h5` are HDF5 virtual datasets whose pieces are hyperslabs of the stored columns —
+//! component c of node i is row `c + i * dofs_per_node` of a primal column; the
+//! pressure of contact node k is row k of a dual column, placed at node `contact_nodes[k]`
+//! (one piece per run of consecutive contact nodes); unmapped elements (the z component, nodes
+//! off the contact surface, the x component of the rope's vertical deflection) read as the fill
+//! value 0. Each step is its own dataset because meshio's `TimeSeriesReader`, like most XDMF
+//! readers, reads whole datasets only. The parameter enters as the step's time (scalar
+//! parameters: the value; vector parameters: the step index) and as one point field per
+//! component, constant over the nodes (a compressed dataset of a few hundred bytes per step),
+//! since ParaView colours by point fields. The views of a basis have one step per mode (time =
+//! mode number): primal POD modes as `displacement`, dual POD and CPG generators as `pressure`
+//! on the contact surface (the truncated CPG basis is a prefix of the full one and is not
+//! repeated).
+
+use std::collections::BTreeMap;
+
+use crom_schemas::artifact::{basis as basis_names, mesh as mesh_names, trainset as set_names};
+use crom_schemas::artifact::{views as names, ArtifactKind};
+use serde_json::json;
+
+use super::Ctx;
+use crate::cache::{Key, KeySpec};
+use crate::error::CromError;
+use crate::io::h5::{H5In, H5Out, VirtualPiece};
+use crate::io::xdmf::{series_xdmf, SeriesAttribute, SeriesMesh, SeriesStep};
+
+/// Bump when the layout of the views changes.
+const ALGORITHM_VERSION: u32 = 1;
+
+/// Every views file sits two directories below the store root (`views/<key>/`, and the staging
+/// directory alike), so `../../` reaches the root from either.
+const ROOT: &str = "../../";
+
+/// What the views need to know about the mesh.
+struct MeshFacts {
+    ref_path: String,
+    n_nodes: usize,
+    n_cells: usize,
+    nodes_per_cell: usize,
+    dofs_per_node: usize,
+    /// Runs of consecutive contact nodes: (first node, first contact index, length).
+    contact_runs: Vec<(usize, usize, usize)>,
+}
+
+fn mesh_facts(ctx: &Ctx<'_>, mesh: &Key) -> Result<MeshFacts, CromError> {
+    let path = ctx.store.dir(ArtifactKind::Mesh, mesh).join(mesh_names::FILE);
+    let f = H5In::open(&path)?;
+    let n_nodes = f.shape(mesh_names::NODES)?.first().copied().unwrap_or(0);
+    let cells = f.shape(mesh_names::CELLS)?;
+    let contact = f.vec_u64(mesh_names::CONTACT_NODES)?;
+    let mut contact_runs: Vec<(usize, usize, usize)> = Vec::new();
+    for (k, &node) in contact.iter().enumerate() {
+        let node = node as usize;
+        match contact_runs.last_mut() {
+            Some(r) if r.0 + r.2 == node && r.1 + r.2 == k => r.2 += 1,
+            _ => contact_runs.push((node, k, 1)),
+        }
+    }
+    Ok(MeshFacts {
+        ref_path: format!("{ROOT}{}/{}/{}", ArtifactKind::Mesh.name(), mesh.0, mesh_names::FILE),
+        n_nodes,
+        n_cells: cells.first().copied().unwrap_or(0),
+        nodes_per_cell: cells.get(1).copied().unwrap_or(4),
+        dofs_per_node: f.attr_u64("dofs_per_node")? as usize,
+        contact_runs,
+    })
+}
+
+/// Column `col` of a stored `(rows x cols)` matrix `dataset` in `file` (relative to views.h5).
+struct Column {
+    file: String,
+    dataset: String,
+    shape: (usize, usize),
+    col: usize,
+}
+
+/// One step: its name, time, fields' sources and parameter values.
+struct Step {
+    name: String,
+    time: f64,
+    primal: Option<Column>,
+    dual: Option<Column>,
+    parameters: Vec<(String, f64)>,
+}
+
+/// Write the step datasets into the group `steps` of `h5` (whose path in `views.h5` is
+/// `path`) and return the XDMF steps.
+fn write_steps(h5: &H5Out, path: &str, mesh: &MeshFacts, steps: &[Step]) -> Result<Vec<SeriesStep>, CromError> {
+    let group = h5.group(names::STEPS)?;
+    let n = mesh.n_nodes;
+    let mut out = Vec::with_capacity(steps.len());
+    for (j, s) in steps.iter().enumerate() {
+        let label = format!("{j:05}");
+        let g = group.group(&label)?;
+        let at = |field: &str| format!("{}:/{path}{}/{label}/{field}", names::FILE, names::STEPS);
+        let mut attributes = Vec::new();
+        if let Some(c) = &s.primal {
+            // One piece: the whole column, in dof order `dofs_per_node * node + component`, is
+            // the row-major order of the (n_nodes x dofs_per_node) block of the view, so both
+            // selections are plain hyperslabs (strided source selections make HDF5's virtual
+            // datasets read element by element: seconds per step instead of milliseconds). The
+            // rope's one dof per node is its vertical deflection: the y column.
+            let first = if mesh.dofs_per_node == 1 { 1 } else { 0 };
+            let pieces = [VirtualPiece {
+                file: c.file.clone(),
+                dataset: c.dataset.clone(),
+                source_shape: vec![c.shape.0, c.shape.1],
+                source: vec![(0, 1, n * mesh.dofs_per_node), (c.col, 1, 1)],
+                target: vec![(0, 1, n), (first, 1, mesh.dofs_per_node)],
+            }];
+            g.virtual_dataset(names::DISPLACEMENT, &[n, 3], &pieces)?;
+            attributes.push(attr(names::DISPLACEMENT, "Vector", "Node", vec![n, 3], "Float", at(names::DISPLACEMENT)));
+        }
+        if let Some(c) = &s.dual {
+            let pieces: Vec<VirtualPiece> = mesh
+                .contact_runs
+                .iter()
+                .map(|&(node, k, len)| VirtualPiece {
+                    file: c.file.clone(),
+                    dataset: c.dataset.clone(),
+                    source_shape: vec![c.shape.0, c.shape.1],
+                    source: vec![(k, 1, len), (c.col, 1, 1)],
+                    target: vec![(node, 1, len)],
+                })
+                .collect();
+            g.virtual_dataset(names::PRESSURE, &[n], &pieces)?;
+            attributes.push(attr(names::PRESSURE, "Scalar", "Node", vec![n], "Float", at(names::PRESSURE)));
+        }
+        for (name, value) in &s.parameters {
+            g.vec_f64(name, &vec![*value; n], "parameter value of this step")?;
+            attributes.push(attr(name, "Scalar", "Node", vec![n], "Float", at(name)));
+        }
+        let m = &mesh.ref_path;
+        attributes.push(attr(
+            "node_body",
+            "Scalar",
+            "Node",
+            vec![n],
+            "UInt",
+            format!("{m}:/{}", mesh_names::NODE_BODY),
+        ));
+        let cells = vec![mesh.n_cells];
+        attributes.push(attr("cell_body", "Scalar", "Cell", cells, "UInt", format!("{m}:/{}", mesh_names::CELL_BODY)));
+        out.push(SeriesStep { name: s.name.clone(), time: s.time, attributes });
+    }
+    Ok(out)
+}
+
+fn attr(
+    name: &str,
+    kind: &'static str,
+    center: &'static str,
+    dims: Vec<usize>,
+    number: &'static str,
+    r: String,
+) -> SeriesAttribute {
+    SeriesAttribute { name: name.to_string(), kind, center, dims, number, reference: r }
+}
+
+fn series_mesh(mesh: &MeshFacts) -> SeriesMesh {
+    SeriesMesh {
+        mesh_ref: mesh.ref_path.clone(),
+        n_nodes: mesh.n_nodes,
+        n_cells: mesh.n_cells,
+        nodes_per_cell: mesh.nodes_per_cell,
+    }
+}
+
+/// The views of the snapshot set `set` (train, test, nested-k) stored as `set_key`.
+pub(crate) fn set(ctx: &mut Ctx<'_>, set: &str, set_key: &Key, mesh: &Key) -> Result<Key, CromError> {
+    let spec = KeySpec::new(ArtifactKind::Views, ALGORITHM_VERSION, json!({ "subject": "set", "set": set }))
+        .input("set", set_key)
+        .input("mesh", mesh);
+    let names_of: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+    let root = ctx.store.root().to_path_buf();
+    let stats = ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::STATS);
+    let mesh_facts = mesh_facts(ctx, mesh)?;
+    let (n_dof, n_contact) = {
+        let f = H5In::open(&ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::FILE))?;
+        (f.shape(set_names::PRIMAL)?[0], f.shape(set_names::DUAL)?[0])
+    };
+    ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
+        let rows = super::trainset::rows_of(&stats)?;
+        let widths = super::trainset::block_columns(&root, &rows)?;
+        let scalar = names_of.len() == 1;
+        let increasing = rows.windows(2).all(|w| w[0].parameters[0] < w[1].parameters[0]);
+        let steps: Vec<Step> = rows
+            .iter()
+            .enumerate()
+            .map(|(j, r)| {
+                let width = widths.get(&r.block).copied().unwrap_or(0);
+                let column = |dataset: &str, rows: usize| Column {
+                    file: format!("{ROOT}{}", r.block),
+                    dataset: dataset.to_string(),
+                    shape: (rows, width),
+                    col: r.column,
+                };
+                let parameters: Vec<(String, f64)> =
+                    names_of.iter().cloned().zip(r.parameters.iter().copied()).collect();
+                let label: Vec<String> = parameters.iter().map(|(n, v)| format!("{n}={v}")).collect();
+                Step {
+                    name: label.join(","),
+                    time: if scalar && increasing { r.parameters[0] } else { j as f64 },
+                    primal: Some(column("primal", n_dof)),
+                    dual: Some(column("dual", n_contact)),
+                    parameters,
+                }
+            })
+            .collect();
+        let h5 = H5Out::create(&staging.path(names::FILE))?;
+        h5.attr_str("kind", "views")?;
+        h5.attr_str("set", set)?;
+        h5.attr_str("cache_key", &staging.key().0)?;
+        let series = write_steps(&h5, "", &mesh_facts, &steps)?;
+        drop(h5);
+        let xdmf = staging.path(names::SET_XDMF);
+        std::fs::write(&xdmf, series_xdmf(set, &series_mesh(&mesh_facts), &series))
+            .map_err(|e| CromError::io(&xdmf, "writing an XDMF file", e))?;
+        Ok(BTreeMap::from([("steps".to_string(), json!(steps.len()))]))
+    })
+}
+
+/// The basis groups that get a view: (group, XDMF file, primal?).
+pub(crate) const BASIS_VIEWS: [(&str, bool); 3] =
+    [(basis_names::PRIMAL_POD, true), (basis_names::DUAL_POD, false), (basis_names::DUAL_CPG, false)];
+
+/// The views of the basis artifact `basis`: one XDMF per group of [`BASIS_VIEWS`].
+pub(crate) fn basis(ctx: &mut Ctx<'_>, basis: &Key, mesh: &Key) -> Result<Key, CromError> {
+    let spec = KeySpec::new(ArtifactKind::Views, ALGORITHM_VERSION, json!({ "subject": "basis" }))
+        .input("basis", basis)
+        .input("mesh", mesh);
+    let mesh_facts = mesh_facts(ctx, mesh)?;
+    let basis_file = ctx.store.dir(ArtifactKind::Basis, basis).join(basis_names::FILE);
+    ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
+        let f = H5In::open(&basis_file)?;
+        let h5 = H5Out::create(&staging.path(names::FILE))?;
+        h5.attr_str("kind", "views")?;
+        h5.attr_str("basis", &basis.0)?;
+        h5.attr_str("cache_key", &staging.key().0)?;
+        let mut summary = BTreeMap::new();
+        for (group, primal) in BASIS_VIEWS {
+            let dataset = format!("{group}/{}", basis_names::MODES);
+            let shape = f.shape(&dataset)?;
+            let (rows, modes) = (shape.first().copied().unwrap_or(0), shape.get(1).copied().unwrap_or(0));
+            let steps: Vec<Step> = (0..modes)
+                .map(|k| {
+                    let c = Column {
+                        file: format!("{ROOT}{}/{}/{}", ArtifactKind::Basis.name(), basis.0, basis_names::FILE),
+                        dataset: dataset.clone(),
+                        shape: (rows, modes),
+                        col: k,
+                    };
+                    let (p, d) = if primal { (Some(c), None) } else { (None, Some(c)) };
+                    Step {
+                        name: format!("mode {}", k + 1),
+                        time: (k + 1) as f64,
+                        primal: p,
+                        dual: d,
+                        parameters: vec![],
+                    }
+                })
+                .collect();
+            let series = write_steps(&h5.group(group)?, &format!("{group}/"), &mesh_facts, &steps)?;
+            let xdmf = staging.path(&format!("{group}.xdmf"));
+            std::fs::write(&xdmf, series_xdmf(group, &series_mesh(&mesh_facts), &series))
+                .map_err(|e| CromError::io(&xdmf, "writing an XDMF file", e))?;
+            summary.insert(format!("{group}_modes"), json!(modes));
+        }
+        Ok(summary)
+    })
+}

@@ -1,0 +1,143 @@
+"""The XDMF views (issue 12): every step of every collection, read with meshio's XDMF
+time-series reader (an independent XDMF reader), equals the same column read through h5py; the
+views refer to the stored columns instead of copying them; a malformed or stale XDMF is caught.
+
+Expectations come from the stored snapshot and basis matrices (h5py) and the mesh (dofs are
+numbered `dofs_per_node * node + component`, dual row k is contact node `contact_nodes[k]`),
+not from the code that writes the views. Comparisons are exact: the views are the same bytes.
+"""
+import pathlib
+import shutil
+import subprocess
+
+import h5py
+import meshio
+import numpy as np
+import pytest
+
+import crom_data
+from conftest import REPO, crom_bin
+
+
+def expected_displacement(column: np.ndarray, n_nodes: int, dofs_per_node: int) -> np.ndarray:
+    u = np.zeros((n_nodes, 3))
+    if dofs_per_node == 1:
+        u[:, 1] = column  # the rope's deflection is vertical
+    else:
+        u[:, :dofs_per_node] = column.reshape(n_nodes, dofs_per_node)
+    return u
+
+
+def expected_pressure(column: np.ndarray, n_nodes: int, contact: np.ndarray) -> np.ndarray:
+    p = np.zeros(n_nodes)
+    p[contact] = column
+    return p
+
+
+def read_series(path: pathlib.Path):
+    with meshio.xdmf.TimeSeriesReader(str(path)) as r:
+        points, cells = r.read_points_cells()
+        steps = [r.read_data(k) for k in range(r.num_steps)]
+    return points, cells, steps
+
+
+@pytest.mark.parametrize("scene_fixture,scene", [("rope_store", "rope"), ("hertz_store", "hertz"),
+                                                 ("ironing_fine_store", "ironing-fine")])
+def test_every_step_of_every_set_equals_its_stored_column(request, scene_fixture, scene):
+    store = request.getfixturevalue(scene_fixture)
+    sc = crom_data.open_store(store).scene(scene)
+    mesh = sc.mesh()
+    n = len(mesh.nodes)
+    for name in sc.sets():
+        ts = sc.trainset(name)
+        points, cells, steps = read_series(sc.xdmf(name))
+        np.testing.assert_array_equal(points, mesh.nodes)
+        np.testing.assert_array_equal(cells[0].data, mesh.cells)
+        assert len(steps) == ts.primal.shape[1], name
+        params = ts.parameters.reshape(len(steps), -1)
+        names = ts.parameter_names
+        times = [t for t, _, _ in steps]
+        assert np.all(np.diff(times) > 0), f"{name}: times must increase for ParaView's slider"
+        for k, (t, point_data, cell_data) in enumerate(steps):
+            np.testing.assert_array_equal(point_data["displacement"],
+                                          expected_displacement(ts.primal[:, k], n, mesh.dofs_per_node))
+            np.testing.assert_array_equal(point_data["pressure"],
+                                          expected_pressure(ts.dual[:, k], n, mesh.contact_nodes))
+            np.testing.assert_array_equal(point_data["node_body"], mesh.node_body)
+            np.testing.assert_array_equal(cell_data["cell_body"][0], mesh.cell_body)
+            for c, pname in enumerate(names):
+                assert np.all(point_data[pname] == params[k, c]), (name, k, pname)
+            if len(names) == 1:
+                assert t == params[k, 0], "a scalar parameter is the step's time"
+
+
+@pytest.mark.parametrize("scene_fixture,scene", [("hertz_store", "hertz"), ("rope_store", "rope")])
+def test_every_mode_of_every_basis_equals_its_stored_column(request, scene_fixture, scene):
+    store = request.getfixturevalue(scene_fixture)
+    sc = crom_data.open_store(store).scene(scene)
+    mesh, bases = sc.mesh(), sc.basis()
+    n = len(mesh.nodes)
+    for group in ("primal_pod", "dual_pod", "dual_cpg"):
+        modes = bases[group].modes
+        _, _, steps = read_series(sc.xdmf(group))
+        assert len(steps) == modes.shape[1], group
+        for k, (t, point_data, _) in enumerate(steps):
+            assert t == k + 1
+            if group == "primal_pod":
+                np.testing.assert_array_equal(point_data["displacement"],
+                                              expected_displacement(modes[:, k], n, mesh.dofs_per_node))
+            else:
+                np.testing.assert_array_equal(point_data["pressure"],
+                                              expected_pressure(modes[:, k], n, mesh.contact_nodes))
+
+
+def test_views_refer_to_the_stored_columns_instead_of_copying_them(ironing_fine_store):
+    sc = crom_data.open_store(ironing_fine_store).scene("ironing-fine")
+    ts = sc.trainset("train")
+    views = ironing_fine_store / pathlib.Path(sc.entries["train.xdmf"]["target"]).parent / "views.h5"
+    with h5py.File(views, "r") as f:
+        step = f["steps/00000"]
+        assert step["displacement"].is_virtual and step["pressure"].is_virtual
+        blocks = {pathlib.Path(s.file_name).name for s in step["displacement"].virtual_sources()}
+        assert blocks == {pathlib.Path(b).name for b in ts.stats["block"][:1]}
+    # The displacement alone is 8 * n_dof bytes per step; the file holds far less than one
+    # step's worth per step (only the mappings and the compressed constant parameter fields).
+    per_step = views.stat().st_size / ts.primal.shape[1]
+    assert per_step < 8 * ts.primal.shape[0] / 4, per_step
+
+
+def copy_store(src: pathlib.Path, dst: pathlib.Path) -> pathlib.Path:
+    shutil.copytree(src, dst, symlinks=True)
+    return dst
+
+
+def test_a_malformed_or_stale_xdmf_is_caught(rope_store, tmp_path):
+    store = copy_store(rope_store, tmp_path / "store")
+    sc = crom_data.open_store(store).scene("rope")
+    published = sc.xdmf("train")
+    text = published.read_text()
+    # Malformed: cut in the middle.
+    published.write_text(text[: len(text) // 2])
+    with pytest.raises(crom_data.CorruptArtifact, match="not a readable XDMF"):
+        crom_data.open_store(store).scene("rope").xdmf("train")
+    # Stale: a step refers to a dataset that is not there.
+    published.write_text(text.replace("/steps/00003/pressure", "/steps/00099/pressure"))
+    with pytest.raises(crom_data.CorruptArtifact, match="00099"):
+        crom_data.open_store(store).scene("rope").xdmf("train")
+    # Stale: the dimensions no longer match the dataset.
+    published.write_text(text.replace('Dimensions="201 3"', 'Dimensions="202 3"', 1))
+    with pytest.raises(crom_data.CorruptArtifact, match="shape"):
+        crom_data.open_store(store).scene("rope").xdmf("train")
+    published.write_text(text)
+    assert crom_data.open_store(store).scene("rope").xdmf("train") == published
+
+
+def test_a_changed_xdmf_in_the_store_fails_crom_verify(rope_store, tmp_path):
+    store = copy_store(rope_store, tmp_path / "store")
+    target = store / crom_data.open_store(store).scene("rope").entries["test.xdmf"]["target"]
+    target.write_text(target.read_text().replace("00001", "00002"))
+    out = subprocess.run([str(crom_bin()), "--store", str(store), "verify"], cwd=REPO, capture_output=True, text=True)
+    assert out.returncode == 1, out.stdout + out.stderr
+    assert "views" in out.stdout
+    with pytest.raises(crom_data.ArtifactMissing, match="withdrawn"):
+        crom_data.open_store(store).scene("rope").xdmf("test")
