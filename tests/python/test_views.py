@@ -141,3 +141,13 @@ def test_a_changed_xdmf_in_the_store_fails_crom_verify(rope_store, tmp_path):
     assert "views" in out.stdout
     with pytest.raises(crom_data.ArtifactMissing, match="withdrawn"):
         crom_data.open_store(store).scene("rope").xdmf("test")
+
+
+def test_the_report_shows_the_deformed_bodies_of_2d_scenes_only(hertz_store, rope_store):
+    hertz = crom_data.open_store(hertz_store).scene("hertz").report_dir
+    html = (hertz / "index.html").read_text()
+    assert (hertz / "fig_bodies.png").stat().st_size > 10_000 and "fig_bodies.png" in html
+    # Three rows (first, middle, last training point), each row a pair of views and a profile.
+    assert html.count("Deformed configuration at the first, middle and last training points") >= 1
+    rope = crom_data.open_store(rope_store).scene("rope").report_dir
+    assert not (rope / "fig_bodies.png").exists(), "the rope's set-up figure is fig02 (1-D)"

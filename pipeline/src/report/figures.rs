@@ -20,6 +20,9 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
     if let Model::Rope(spec) = &scene.model {
         figs.push(rope_primal(scene, &Rope::new(RopeParams::from(spec)), d, dir)?);
     }
+    if let Some(g) = &d.geometry {
+        figs.push(deformed_bodies(scene, g, d, dir)?);
+    }
     figs.push(dual_snapshots(scene, d, dir)?);
     figs.push(singular_values(scene, d, dir)?);
     figs.push(sparsity(scene, d, dir)?);
@@ -84,6 +87,34 @@ fn rope_primal(scene: &SceneConfig, rope: &Rope, d: &ReportData, dir: &Path) -> 
     Ok(Figure {
         stem: "fig02_primal_snapshots".into(),
         caption: "Deformation u(x, γ) and obstacle g(x, γ) at training points (paper Fig. 2, left).".into(),
+    })
+}
+
+fn deformed_bodies(
+    scene: &SceneConfig,
+    g: &super::bodies::Geometry,
+    d: &ReportData,
+    dir: &Path,
+) -> Result<Figure, CromError> {
+    let n = d.train.parameters.len();
+    let mut picks = vec![0, n / 2, n.saturating_sub(1)];
+    picks.dedup();
+    let shown: Vec<super::bodies::Shown<'_>> = picks
+        .iter()
+        .filter(|&&j| j < n)
+        .map(|&j| super::bodies::Shown {
+            label: label(scene, &d.train.parameters[j]),
+            u: d.train.primal.col(j),
+            pressure: d.train.dual.col(j),
+        })
+        .collect();
+    let title = format!("{}: deformed bodies and contact pressure at three training points", scene.scene.name);
+    let factor = super::bodies::render(&title, g, &shown, dir, "fig_bodies")?;
+    Ok(Figure {
+        stem: "fig_bodies".into(),
+        caption: format!(
+            "Deformed configuration at the first, middle and last training points (paper Figs. 1, 6a, 11): true scale, and with each body's deformation about its rigid motion magnified {factor:.3} times (the displacement of its node farthest from the contact surface, on its Dirichlet boundary, is kept at true scale); the contact surface is coloured by the contact pressure λ (colour bar at the right), and the pressure profile along the surface is beside each row."
+        ),
     })
 }
 

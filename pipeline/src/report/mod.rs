@@ -2,6 +2,7 @@
 //! Markdown) and an `index.html` showing them with the run's key numbers. A cached artifact like
 //! any other: its key is the keys of everything it shows.
 
+mod bodies;
 pub mod chart;
 mod figures;
 mod html;
@@ -22,7 +23,7 @@ use crate::io::table::{read_parquet, Table};
 use crate::store::Store;
 
 /// Bump when the report's content changes.
-const ALGORITHM_VERSION: u32 = 2;
+const ALGORITHM_VERSION: u32 = 3;
 
 /// The artifacts a report shows.
 #[derive(Debug, Clone)]
@@ -87,6 +88,8 @@ pub(crate) struct ReportData {
     pub contact_x: Vec<f64>,
     /// Node x coordinates of a 1-D mesh (primal abscissa), empty for 2-D.
     pub line_x: Vec<f64>,
+    /// The 2-D mesh (scenes with two displacement components per node), for the bodies figure.
+    pub geometry: Option<bodies::Geometry>,
     /// Training set.
     pub train: trainset::TrainingSet,
     /// Singular values of the primal and dual snapshot matrices.
@@ -116,6 +119,19 @@ fn gather(store: &Store, inputs: &ReportInputs) -> Result<ReportData, CromError>
     let cells = mesh.shape(mnames::CELLS)?;
     let contact_x = contact.iter().map(|&i| nodes.data[i as usize]).collect();
     let line_x = if cells.get(1) == Some(&2) { nodes.col(0).to_vec() } else { Vec::new() };
+    let geometry = if mesh.attr_u64("dofs_per_node")? == 2 {
+        let per = cells.get(1).copied().unwrap_or(4).max(1);
+        let flat = mesh.vec_u64(mnames::CELLS)?;
+        Some(bodies::Geometry {
+            nodes: (0..nodes.rows).map(|i| [nodes.data[i], nodes.data[i + nodes.rows]]).collect(),
+            cells: flat.chunks(per).map(|c| c.iter().map(|&i| i as usize).collect()).collect(),
+            cell_body: mesh.vec_u64(mnames::CELL_BODY)?,
+            node_body: mesh.vec_u64(mnames::NODE_BODY)?,
+            contact: contact.iter().map(|&i| i as usize).collect(),
+        })
+    } else {
+        None
+    };
     let train = trainset::load_from(store, &inputs.train)?;
     let b = basis::load_full(store, &inputs.basis)?;
     let table = read_parquet(&store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
@@ -129,6 +145,7 @@ fn gather(store: &Store, inputs: &ReportInputs) -> Result<ReportData, CromError>
     Ok(ReportData {
         contact_x,
         line_x,
+        geometry,
         train,
         primal_sv: b.primal_sv,
         dual_sv: b.dual_sv,
