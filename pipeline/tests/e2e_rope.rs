@@ -183,10 +183,10 @@ fn ls_lists_every_artifact() {
     assert!(crom(&store, &["run", "rope"]).status.success());
     let out = crom(&store, &["ls"]);
     assert!(out.status.success());
-    // mesh + train + test + 3 views (train, test, basis) + basis + compactness + G + S + rom +
-    // report, and one column family
+    // mesh + train + test + 4 views (train, test, basis, online) + basis + compactness + G + S
+    // + rom + report, and one column family
     let listing = String::from_utf8_lossy(&out.stdout);
-    assert!(listing.contains("12 artifacts"), "{}", text(&out));
+    assert!(listing.contains("13 artifacts"), "{}", text(&out));
     assert!(listing.contains("19 snapshots (201 x 201) in 1 blocks"), "{}", text(&out));
 }
 
@@ -283,7 +283,7 @@ fn changing_one_metric_setting_recomputes_only_that_stage() {
 }
 
 /// `crom run --offline` stops before the online ROM and the report; the next full run computes
-/// exactly those two and finds everything else in the store.
+/// exactly those (and the online solutions' views) and finds everything else in the store.
 #[test]
 fn offline_run_stops_before_the_online_stage() {
     let tmp = tempfile::tempdir().expect("tempdir");
@@ -294,7 +294,8 @@ fn offline_run_stops_before_the_online_stage() {
     let full = crom(&store, &["run", "rope"]);
     assert!(full.status.success(), "{}", text(&full));
     let computed: Vec<String> = summary(&full).into_iter().filter(|r| r.1 > 0).map(|r| r.0).collect();
-    assert_eq!(computed, ["rom", "report"], "{}", text(&full));
+    // The online views (one XDMF per test point's online solution) come with the rom stage.
+    assert_eq!(computed, ["views", "rom", "report"], "{}", text(&full));
 }
 
 /// Issue 9: a scene that parses and is within every bound but cannot fit in memory (an

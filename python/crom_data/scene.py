@@ -42,8 +42,8 @@ except ImportError:  # pragma: no cover - depends on the environment
     _blake3 = None
 
 #: Layout version of each stage's files this reader reads (crom-schemas `schema_version`).
-SCHEMA_VERSIONS = {"mesh": 1, "trainset": 2, "basis": 1, "compactness": 1, "generalization": 1,
-                   "specificity": 1, "nested": 1, "views": 1, "rom": 1, "report": 1}
+SCHEMA_VERSIONS = {"mesh": 1, "trainset": 3, "basis": 1, "compactness": 1, "generalization": 1,
+                   "specificity": 1, "nested": 1, "views": 1, "rom": 3, "report": 1}
 #: Layout version of `study.json` this reader reads.
 LAYOUT_VERSION = 1
 BASIS_GROUPS = ("primal_pod", "dual_pod", "dual_cpg", "dual_cpg_truncated")
@@ -134,6 +134,12 @@ class SnapshotSet:
         """`solver_stats.parquet`: per snapshot (column) its key, block, blake3 and solver evidence."""
         return pd.read_parquet(self.scene._artifact_file(self.entry, "solver_stats.parquet"))
 
+    @functools.cached_property
+    def timings(self) -> pd.DataFrame:
+        """`solver_timings.parquet`: per snapshot (same rows as `stats`) its solve time in
+        seconds, kept apart from the results because it differs from run to run."""
+        return pd.read_parquet(self.scene._artifact_file(self.entry, "solver_timings.parquet"))
+
 
 class Scene:
     """The latest published study of one scene (see `Store.scene`)."""
@@ -171,7 +177,7 @@ class Scene:
             why = ("the scene has no nested levels; add `nested_levels = K` to the [parameter] table of its scene "
                    f"file and run `crom --store {self.store.root} run {self.name}`" if not nested else
                    f"its nested levels are {', '.join(nested)}; raise `nested_levels` in its scene file and rerun")
-        elif (entry.split(".")[0] in ("rom_errors", "tradeoff", "report")) and not self.study.get("online", True):
+        elif (entry.split(".")[0] in ("rom_errors", "tradeoff", "report", "online")) and not self.study.get("online", True):
             why = ("its last run was --offline (no online reduced solve, no report); run "
                    f"`crom --store {self.store.root} run {self.name}` without --offline")
         else:
@@ -305,11 +311,27 @@ class Scene:
     def nested(self) -> pd.DataFrame:
         return self.table("nested")
 
-    def rom_errors(self) -> pd.DataFrame:
-        return self.table("rom_errors")
+    def rom_errors(self, timings: bool = True) -> pd.DataFrame:
+        """One row per online query (`rom_errors.parquet`); with `timings`, the time columns of
+        `rom_timings.parquet` (same rows) beside the results."""
+        return self._with_timings("rom_errors", "rom_timings", timings)
 
-    def tradeoff(self) -> pd.DataFrame:
-        return self.table("tradeoff")
+    def tradeoff(self, timings: bool = True) -> pd.DataFrame:
+        """One row per algorithm, dual basis and rank pair (`tradeoff.parquet`); with `timings`,
+        the speed columns of `tradeoff_timings.parquet` (same rows: median online and
+        full-order seconds, speed-up) beside the accuracy."""
+        return self._with_timings("tradeoff", "tradeoff_timings", timings)
+
+    def _with_timings(self, results: str, timings: str, join: bool) -> pd.DataFrame:
+        a = self.table(results)
+        if not join:
+            return a
+        b = self.table(timings)
+        keys = [c for c in b.columns if c in a.columns]
+        if len(a) != len(b) or not a[keys].equals(b[keys]):
+            raise CorruptArtifact(f"{self._where(timings + '.parquet')}: its rows do not match {results}.parquet; "
+                                  f"{self._rerun()}")
+        return pd.concat([a, b.drop(columns=keys)], axis=1)
 
     @property
     def report_dir(self) -> pathlib.Path:
@@ -319,8 +341,9 @@ class Scene:
     # --- ParaView views ------------------------------------------------------------------------
 
     def xdmf(self, name: str = "train") -> pathlib.Path:
-        """The XDMF time series of a snapshot set ("train", "test", "nested-k") or a basis
-        ("primal_pod", "dual_pod", "dual_cpg"): open it in ParaView, or read it with
+        """The XDMF time series of a snapshot set ("train", "test", "nested-k"), a basis
+        ("primal_pod", "dual_pod", "dual_cpg") or the online solutions at the test points
+        ("online"): open it in ParaView, or read it with
         `meshio.xdmf.TimeSeriesReader`. Checked before it is returned: the views artifact
         against its manifest, and every HDF5 reference of the file it returns (the published
         copy in the scene's directory, which is the one ParaView users open) against the
@@ -331,6 +354,8 @@ class Scene:
             entry = f"nested/level-{m.group(1)}.xdmf"
         elif name in ("primal_pod", "dual_pod", "dual_cpg"):
             entry = f"basis/{name}.xdmf"
+        elif name == "online":
+            entry = "online.xdmf"  # online solutions, their errors and the full-order fields
         else:
             entry = f"{name}.xdmf"
         if entry not in self.entries:

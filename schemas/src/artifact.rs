@@ -75,18 +75,34 @@ impl ArtifactKind {
         match self {
             ArtifactKind::Mesh => 1,
             ArtifactKind::Snapshot => 1,
-            ArtifactKind::TrainingSet => 2,
+            ArtifactKind::TrainingSet => 3,
             ArtifactKind::Basis => 1,
             ArtifactKind::Compactness => 1,
             ArtifactKind::Generalization => 1,
             ArtifactKind::Specificity => 1,
             ArtifactKind::Nested => 1,
             ArtifactKind::Views => 1,
-            ArtifactKind::Rom => 1,
+            ArtifactKind::Rom => 3,
             ArtifactKind::Report => 1,
         }
     }
 }
+
+/// The files that carry wall-clock times, (stage, file): they differ from run to run. Every
+/// other file of every artifact is a result, byte-identical across runs and thread counts with
+/// the same build (tested), and so are the snapshot blocks. Store metadata — manifests, the
+/// columns' `index.parquet` (which records solve times), `catalog.parquet`, `study.json` —
+/// records when and how long, and is not a result.
+pub const TIMING_FILES: [(&str, &str); 8] = [
+    ("trainset", trainset::TIMINGS),
+    ("rom", rom::TIMINGS),
+    ("rom", rom::TRADEOFF_TIMINGS),
+    ("report", "index.html"),
+    ("report", "fig_tradeoff.png"),
+    ("report", "fig_tradeoff.svg"),
+    ("report", "table_tradeoff.csv"),
+    ("report", "table_tradeoff.md"),
+];
 
 /// Name of the JSON manifest in every artifact directory.
 pub const MANIFEST: &str = "manifest.json";
@@ -134,14 +150,19 @@ pub mod trainset {
     pub const DUAL: &str = "dual";
     /// Parameter value of each column.
     pub const PARAMETERS: &str = "parameters";
-    /// Per-snapshot solver statistics table.
+    /// Per-snapshot solver statistics table: where each column lives and the solver's evidence
+    /// (deterministic: byte-identical across runs).
     pub const STATS: &str = "solver_stats.parquet";
-    /// Columns of the statistics table, in order.
-    pub const STATS_COLUMNS: [&str; 12] = [
+    /// Columns of [`STATS`], in order; a vector parameter adds one column per component (by
+    /// name) after `parameter`, its first component.
+    pub const STATS_COLUMNS: [&str; 14] = [
         "scene",
         "index",
         "parameter",
         "snapshot_key",
+        "block",
+        "column",
+        "blake3",
         "iterations",
         "active",
         "max_penetration",
@@ -149,8 +170,11 @@ pub mod trainset {
         "complementarity",
         "kkt_residual",
         "vertex_ties",
-        "seconds",
     ];
+    /// Wall-clock solve time of each snapshot, apart from the results (it differs per run).
+    pub const TIMINGS: &str = "solver_timings.parquet";
+    /// Columns of [`TIMINGS`] (same rows as [`STATS`]).
+    pub const TIMING_COLUMNS: [&str; 4] = ["scene", "index", "snapshot_key", "seconds"];
 }
 
 /// `basis.h5`: groups `/primal_pod`, `/dual_pod` with `modes` (n x m) and `singular_values`
@@ -201,13 +225,20 @@ pub mod metrics {
     pub const NESTED_COLUMNS: [&str; 7] = ["scene", "field", "basis", "n", "value", "snapshots", "n_zero"];
 }
 
-/// `rom_errors.parquet` (one row per query point and dual basis) and `tradeoff.parquet` (one row
-/// per primal/dual rank pair, over the test points).
+/// `rom_errors.parquet` (one row per query point and dual basis), `tradeoff.parquet` (one row
+/// per primal/dual rank pair, over the test points) and `online.h5`: the online solution at
+/// every test point (exact algorithm, full ranks, full CPG dual basis) as fields — `primal`
+/// (n_dof x n_test, `u0(mu) + Phi û`), `dual` (n_contact x n_test, `Theta λ̂`), their pointwise
+/// errors against the test snapshots `primal_error`, `dual_error` (reduced minus full order),
+/// `parameters`, and `converged` (1 where the query converged).
 pub mod rom {
+    /// Online solution fields at the test points.
+    pub const ONLINE: &str = "online.h5";
     /// Errors of the online solve at training and test points.
     pub const ERRORS: &str = "rom_errors.parquet";
-    /// Columns of [`ERRORS`].
-    pub const ERROR_COLUMNS: [&str; 20] = [
+    /// Columns of [`ERRORS`]; a vector parameter adds one column per component after
+    /// `parameter`.
+    pub const ERROR_COLUMNS: [&str; 17] = [
         "scene",
         "set",
         "dual_basis",
@@ -225,14 +256,26 @@ pub mod rom {
         "penetration",
         "complementarity",
         "unpaired_force",
+    ];
+    /// Wall-clock times of each query of [`ERRORS`] (same rows), apart from the results.
+    pub const TIMINGS: &str = "rom_timings.parquet";
+    /// Columns of [`TIMINGS`].
+    pub const TIMING_COLUMNS: [&str; 10] = [
+        "scene",
+        "set",
+        "dual_basis",
+        "algorithm",
+        "parameter",
+        "r_primal",
+        "r_dual",
         "online_seconds",
         "indicator_seconds",
         "fom_seconds",
     ];
-    /// Speed/accuracy trade over rank pairs.
+    /// Accuracy over rank pairs (the results half of the speed/accuracy trade).
     pub const TRADEOFF: &str = "tradeoff.parquet";
     /// Columns of [`TRADEOFF`].
-    pub const TRADEOFF_COLUMNS: [&str; 21] = [
+    pub const TRADEOFF_COLUMNS: [&str; 16] = [
         "scene",
         "algorithm",
         "dual_basis",
@@ -247,18 +290,30 @@ pub mod rom {
         "mean_primal_error",
         "max_primal_error",
         "median_dual_error",
+        "indicator_spearman",
+        "indicator_effectivity",
+    ];
+    /// Speed over rank pairs (same rows as [`TRADEOFF`]): online and full-order times measured
+    /// in the same process, the speed-up.
+    pub const TRADEOFF_TIMINGS: &str = "tradeoff_timings.parquet";
+    /// Columns of [`TRADEOFF_TIMINGS`].
+    pub const TRADEOFF_TIMING_COLUMNS: [&str; 10] = [
+        "scene",
+        "algorithm",
+        "dual_basis",
+        "r_primal",
+        "r_dual",
         "median_online_seconds",
         "p95_online_seconds",
         "median_fom_seconds",
         "speedup",
-        "indicator_spearman",
-        "indicator_effectivity",
         "median_indicator_seconds",
     ];
 }
 
-/// `views.h5` + XDMF files: a snapshot set (`snapshots.xdmf`) or a basis (`primal_pod.xdmf`,
-/// `dual_pod.xdmf`, `dual_cpg.xdmf`) as an XDMF temporal collection that ParaView (and
+/// `views.h5` + XDMF files: a snapshot set (`snapshots.xdmf`), a basis (`primal_pod.xdmf`,
+/// `dual_pod.xdmf`, `dual_cpg.xdmf`) or the online solutions (`online.xdmf`) as an XDMF
+/// temporal collection that ParaView (and
 /// meshio's `TimeSeriesReader`) opens, one step per snapshot or mode. Every step is a group
 /// `/steps/<00000>` of `views.h5` whose `displacement` (n_nodes x 3, z = 0) and `pressure`
 /// (n_nodes, 0 off the contact surface) are HDF5 virtual datasets onto the stored columns —
@@ -269,6 +324,10 @@ pub mod views {
     pub const FILE: &str = "views.h5";
     /// XDMF of a snapshot set.
     pub const SET_XDMF: &str = "snapshots.xdmf";
+    /// XDMF of the online solutions at the test points: `displacement`, `pressure` (online),
+    /// `displacement_error`, `pressure_error` (online minus full order), `displacement_fom`,
+    /// `pressure_fom`, the parameter and `converged` (1 or 0) per step.
+    pub const ONLINE_XDMF: &str = "online.xdmf";
     /// Group of the steps.
     pub const STEPS: &str = "steps";
     /// Point vector field of a step (3 components, z = 0).

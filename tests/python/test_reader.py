@@ -144,9 +144,19 @@ def test_tables_equal_the_catalog_artifacts(ironing_fine_store, table):
     row = catalog_row(ironing_fine_store, TABLE_STAGE[table], SCENE)
     expected = pd.read_parquet(ironing_fine_store / row["path"] / f"{table}.parquet")
     assert len(expected) > 0
-    pd.testing.assert_frame_equal(getattr(sc, table)(), expected)
+    timed = table in ("rom_errors", "tradeoff")
+    pd.testing.assert_frame_equal(getattr(sc, table)(**({"timings": False} if timed else {})), expected)
     pd.testing.assert_frame_equal(sc.table(table), expected)
     assert (expected["scene"] == SCENE).all()
+    if timed:
+        # By default the timings (a separate file, same rows) are joined beside the results.
+        name = {"rom_errors": "rom_timings", "tradeoff": "tradeoff_timings"}[table]
+        times = pd.read_parquet(ironing_fine_store / row["path"] / f"{name}.parquet")
+        joined = getattr(sc, table)()
+        pd.testing.assert_frame_equal(joined[expected.columns], expected)
+        extra = [c for c in times.columns if c not in expected.columns]
+        assert extra and all(c.endswith("seconds") or c == "speedup" for c in extra), extra
+        pd.testing.assert_frame_equal(joined[extra], times[extra])
 
 
 def test_report_dir_is_the_report_artifact(ironing_fine_store):

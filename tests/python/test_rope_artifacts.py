@@ -15,7 +15,7 @@ from scipy.optimize import nnls
 
 from conftest import only_artifact
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 
 def train_file(store):
@@ -39,7 +39,7 @@ def test_training_set_shapes_attributes_and_parameters(rope_store):
         assert f["primal"].is_virtual and f["dual"].is_virtual
     manifest = json.loads((path.parent / "manifest.json").read_text())
     assert manifest["stage"] == "trainset" and manifest["schema_version"] == SCHEMA_VERSION
-    assert {e["name"] for e in manifest["files"]} == {"snapshots.h5", "solver_stats.parquet"}
+    assert {e["name"] for e in manifest["files"]} == {"snapshots.h5", "solver_stats.parquet", "solver_timings.parquet"}
 
 
 def test_solver_statistics_table(rope_store):
@@ -47,8 +47,14 @@ def test_solver_statistics_table(rope_store):
                                           where=lambda p: len(pd.read_parquet(p)) == 10))
     assert list(stats.columns) == ["scene", "index", "parameter", "snapshot_key", "block", "column", "blake3",
                                    "iterations", "active", "max_penetration", "min_lambda", "complementarity",
-                                   "kkt_residual", "vertex_ties", "seconds"]
+                                   "kkt_residual", "vertex_ties"]
     assert (stats["complementarity"] <= 1e-10).all()
+    # The solve times, apart from the results: same rows, same snapshots.
+    times = pd.read_parquet(only_artifact(rope_store, "trainset", "solver_timings.parquet",
+                                          where=lambda p: len(pd.read_parquet(p)) == 10))
+    assert list(times.columns) == ["scene", "index", "snapshot_key", "seconds"]
+    assert times["snapshot_key"].tolist() == stats["snapshot_key"].tolist()
+    assert (times["seconds"] > 0).all()
     assert (stats["active"] > 0).all()
     assert stats["snapshot_key"].str.len().eq(64).all()
 

@@ -151,3 +151,52 @@ def test_the_report_shows_the_deformed_bodies_of_2d_scenes_only(hertz_store, rop
     assert html.count("Deformed configuration at the first, middle and last training points") >= 1
     rope = crom_data.open_store(rope_store).scene("rope").report_dir
     assert not (rope / "fig_bodies.png").exists(), "the rope's set-up figure is fig02 (1-D)"
+
+
+@pytest.mark.parametrize("scene_fixture,scene", [("rope_store", "rope"), ("ironing_fine_store", "ironing-fine")])
+def test_every_online_step_shows_the_online_solution_its_error_and_the_full_order_one(request, scene_fixture, scene):
+    store = request.getfixturevalue(scene_fixture)
+    sc = crom_data.open_store(store).scene(scene)
+    mesh, test = sc.mesh(), sc.trainset("test")
+    n = len(mesh.nodes)
+    with h5py.File(sc.file("online.h5"), "r") as f:
+        online = {k: f[k][()] for k in ("primal", "dual", "primal_error", "dual_error", "converged")}
+    # The stored error is the online field minus the test snapshot (same IEEE subtraction).
+    np.testing.assert_array_equal(online["primal_error"], online["primal"] - test.primal)
+    np.testing.assert_array_equal(online["dual_error"], online["dual"] - test.dual)
+    # Cross-check with the error table (an independent path: reduced coordinates, H1 norm):
+    # converged queries with a zero table error have a zero field error and vice versa.
+    errors = sc.rom_errors()
+    rows = errors[(errors["set"] == "test") & (errors["algorithm"] == "exact") & (errors["dual_basis"] == "full")
+                  & (errors["r_primal"] == errors["r_primal"].max())]
+    assert len(rows) == test.primal.shape[1]
+    np.testing.assert_array_equal(online["converged"] == 1, (rows["outcome"] == "converged").to_numpy())
+    field_zero = np.all(online["primal_error"] == 0, axis=0)
+    table_zero = rows["primal_error"].to_numpy() == 0
+    np.testing.assert_array_equal(field_zero, table_zero)
+    _, _, steps = read_series(sc.xdmf("online"))
+    assert len(steps) == test.primal.shape[1]
+    for k, (t, pd, _) in enumerate(steps):
+        for field, matrix in (("displacement", online["primal"]), ("displacement_error", online["primal_error"]),
+                              ("displacement_fom", test.primal)):
+            np.testing.assert_array_equal(pd[field], expected_displacement(matrix[:, k], n, mesh.dofs_per_node))
+        for field, matrix in (("pressure", online["dual"]), ("pressure_error", online["dual_error"]),
+                              ("pressure_fom", test.dual)):
+            np.testing.assert_array_equal(pd[field], expected_pressure(matrix[:, k], n, mesh.contact_nodes))
+        assert np.all(pd["converged"] == online["converged"][k])
+
+
+def test_a_vector_parameter_is_the_step_index_as_time_and_one_field_per_component(tmp_path):
+    from test_vector_parameter import run, scene_2d
+    store = tmp_path / "store"
+    run(store, scene_2d(tmp_path))
+    sc = crom_data.open_store(store).scene("ironing-2d-small")
+    ts, mesh = sc.trainset("train"), sc.mesh()
+    assert ts.parameter_names == ["d_x", "d_y"]
+    _, _, steps = read_series(sc.xdmf("train"))
+    assert len(steps) == ts.parameters.shape[0] == 9
+    for k, (t, pd, _) in enumerate(steps):
+        assert t == k, "the tensor grid is not monotone in one component: time is the step index"
+        assert np.all(pd["d_x"] == ts.parameters[k, 0]) and np.all(pd["d_y"] == ts.parameters[k, 1])
+        np.testing.assert_array_equal(pd["displacement"],
+                                      expected_displacement(ts.primal[:, k], len(mesh.nodes), mesh.dofs_per_node))

@@ -282,6 +282,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
         return Ok(out);
     }
     let rom = rom::run(ctx, &mut physics, &out.train, &out.test, &out.basis)?;
+    out.views.insert("online".to_string(), views::online(ctx, &rom, &out.test, &out.mesh)?);
     let inputs = crate::report::ReportInputs {
         mesh: out.mesh.clone(),
         train: out.train.clone(),

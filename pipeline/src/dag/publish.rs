@@ -22,12 +22,15 @@ pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
     for (set, key) in [("train", &out.train), ("test", &out.test)] {
         put(format!("{set}.h5"), K::TrainingSet, key, Some(a::trainset::FILE));
         put(format!("{set}_solver_stats.parquet"), K::TrainingSet, key, Some(a::trainset::STATS));
+        put(format!("{set}_solver_timings.parquet"), K::TrainingSet, key, Some(a::trainset::TIMINGS));
     }
     for (i, key) in out.nested_sets.iter().enumerate() {
         let level = i + 1;
         put(format!("{NESTED_DIR}/level-{level}.h5"), K::TrainingSet, key, Some(a::trainset::FILE));
         let stats = format!("{NESTED_DIR}/level-{level}_solver_stats.parquet");
         put(stats, K::TrainingSet, key, Some(a::trainset::STATS));
+        let timings = format!("{NESTED_DIR}/level-{level}_solver_timings.parquet");
+        put(timings, K::TrainingSet, key, Some(a::trainset::TIMINGS));
     }
     put("basis.h5".into(), K::Basis, &out.basis, Some(a::basis::FILE));
     put("compactness.parquet".into(), K::Compactness, &out.compactness, Some(a::compactness::FILE));
@@ -39,6 +42,9 @@ pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
     if let Some(k) = &out.rom {
         put("rom_errors.parquet".into(), K::Rom, k, Some(a::rom::ERRORS));
         put("tradeoff.parquet".into(), K::Rom, k, Some(a::rom::TRADEOFF));
+        put("rom_timings.parquet".into(), K::Rom, k, Some(a::rom::TIMINGS));
+        put("tradeoff_timings.parquet".into(), K::Rom, k, Some(a::rom::TRADEOFF_TIMINGS));
+        put("online.h5".into(), K::Rom, k, Some(a::rom::ONLINE));
     }
     if let Some(k) = &out.report {
         put(REPORT.into(), K::Report, k, None);
@@ -52,6 +58,8 @@ pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
             for (group, _) in super::views::BASIS_VIEWS {
                 xdmf(format!("basis/{group}.xdmf"), key, &format!("{group}.xdmf"));
             }
+        } else if subject == "online" {
+            xdmf("online.xdmf".to_string(), key, a::views::ONLINE_XDMF);
         } else if let Some(level) = subject.strip_prefix("nested-") {
             xdmf(format!("{NESTED_DIR}/level-{level}.xdmf"), key, a::views::SET_XDMF);
         } else {

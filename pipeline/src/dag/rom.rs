@@ -36,12 +36,12 @@ use serde_json::json;
 use super::{trainset, Ctx, LazyPhysics};
 use crate::cache::{Key, KeySpec};
 use crate::error::CromError;
-use crate::io::h5::{ColMatrix, H5In};
+use crate::io::h5::{ColMatrix, H5In, H5Out};
 use crate::io::table::{Column, Table};
 use crate::physics::Physics;
 
 /// Bump when the online stage changes its numbers.
-const ALGORITHM_VERSION: u32 = 4;
+const ALGORITHM_VERSION: u32 = 6;
 
 /// Timing repetitions of an online query whose first solve took less than [`REPEAT_BELOW`]
 /// seconds (the minimum is kept: sub-millisecond solves are otherwise dominated by noise).
@@ -135,6 +135,8 @@ pub(crate) fn run(
     }
     let mut errors =
         ErrorRows { names: ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect(), ..Default::default() };
+    // The solutions whose fields are stored (`online.h5`): exact, full ranks, full dual basis.
+    let mut shown: Vec<ReducedSolution> = Vec::new();
     for (dual_basis, model) in [("full", &full), ("truncated", &trunc)] {
         for alg in ALGORITHMS {
             let p = RomParams { algorithm: alg, ..params };
@@ -142,17 +144,26 @@ pub(crate) fn run(
                 let pe = pe.as_ref().ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
                 let cached = if *set == "test" { at_full_ranks.remove(&(alg.name(), dual_basis)) } else { None };
                 let rows = cached.unwrap_or_else(|| solve_set(model, data, &p));
+                let keep = *set == "test" && dual_basis == "full" && alg == Algorithm::Exact;
                 for (j, q) in rows.into_iter().enumerate() {
                     let errs = (pe.relative(j, &q.sol.u_hat), dual_error(op, model, &q.sol, data, j));
                     errors.push(&scene, set, dual_basis, alg, &data.parameters[j], model.ranks(), errs, &q, fom[j]);
                     progress.inc(&format!("{set} {dual_basis} {}", alg.name()));
+                    if keep {
+                        shown.push(q.sol);
+                    }
                 }
             }
         }
     }
     let staging = ctx.store.stage(&spec)?;
-    errors.table().write_parquet(&staging.path(names::ERRORS))?;
-    trade.table().write_parquet(&staging.path(names::TRADEOFF))?;
+    let (errors, query_times) = errors.tables();
+    errors.write_parquet(&staging.path(names::ERRORS))?;
+    query_times.write_parquet(&staging.path(names::TIMINGS))?;
+    let (trade, trade_times) = trade.tables();
+    trade.write_parquet(&staging.path(names::TRADEOFF))?;
+    trade_times.write_parquet(&staging.path(names::TRADEOFF_TIMINGS))?;
+    write_online(&staging.path(names::ONLINE), op, &phi, &full, &test_set, &shown)?;
     let summary = BTreeMap::from([
         ("r_primal".to_string(), json!(phi.cols)),
         ("r_dual_full".to_string(), json!(theta_full.cols)),
@@ -163,6 +174,57 @@ pub(crate) fn run(
     progress.finish("computed");
     ctx.record("rom", 1, 0, ctx.store.dir(ArtifactKind::Rom, &key));
     Ok(key)
+}
+
+/// `online.h5`: the online solution at every test point as fields, with its pointwise error
+/// against the test snapshot (reconstructed here, outside every timer, one block of columns at
+/// a time so that a large test set never needs the whole matrices in memory).
+fn write_online(
+    path: &std::path::Path,
+    op: &dyn ContactOperator,
+    phi: &ColMatrix,
+    model: &ReducedModel,
+    test: &trainset::TrainingSet,
+    shown: &[ReducedSolution],
+) -> Result<(), CromError> {
+    let (n, m, k) = (test.primal.rows, test.dual.rows, shown.len());
+    let f = H5Out::create(path)?;
+    f.attr_str("algorithm", Algorithm::Exact.name())?;
+    f.attr_str("dual_basis", "full")?;
+    f.attr_u64("r_primal", model.ranks().0 as u64)?;
+    f.attr_u64("r_dual", model.ranks().1 as u64)?;
+    let primal = f.column_writer("primal", n, k, "online solution u0(mu) + Phi u_hat, one test point per column")?;
+    let dual = f.column_writer("dual", m, k, "online contact pressure Theta lambda_hat")?;
+    let primal_error = f.column_writer("primal_error", n, k, "online minus full-order displacement")?;
+    let dual_error = f.column_writer("dual_error", m, k, "online minus full-order contact pressure")?;
+    const BLOCK: usize = 64;
+    for start in (0..k).step_by(BLOCK) {
+        let cols: Vec<(Vec<f64>, Vec<f64>)> = (start..(start + BLOCK).min(k))
+            .into_par_iter()
+            .map(|j| {
+                let u = ReducedModel::displacement(op, &phi.data, &test.parameters[j], &shown[j].u_hat);
+                (u, model.pressure(&shown[j].lambda_hat))
+            })
+            .collect();
+        for (i, (u, p)) in cols.iter().enumerate() {
+            let j = start + i;
+            primal.write(j, u)?;
+            dual.write(j, p)?;
+            let du: Vec<f64> = u.iter().zip(test.primal.col(j)).map(|(a, b)| a - b).collect();
+            let dp: Vec<f64> = p.iter().zip(test.dual.col(j)).map(|(a, b)| a - b).collect();
+            primal_error.write(j, &du)?;
+            dual_error.write(j, &dp)?;
+        }
+    }
+    let names_len = test.parameters.first().map_or(1, Vec::len);
+    let flat: Vec<f64> = test.parameters.iter().flatten().copied().collect();
+    if names_len == 1 {
+        f.vec_f64("parameters", &flat, "parameter value of each column")?;
+    } else {
+        f.table_f64("parameters", k, names_len, &flat, "parameter values of each column")?;
+    }
+    let converged: Vec<u64> = shown.iter().map(|s| u64::from(s.outcome == RomOutcome::Converged)).collect();
+    f.vec_u64("converged", &converged)
 }
 
 /// High-fidelity solve time at each parameter, measured here — same build, same process, same
@@ -349,16 +411,19 @@ impl TradeRows {
         }
     }
 
-    fn table(self) -> Table {
+    /// The results (`tradeoff.parquet`) and, same rows, the timings (`tradeoff_timings.parquet`).
+    fn tables(self) -> (Table, Table) {
         let [scene, alg, basis] = self.s;
         let [ru, rl, points, conv, inf, failed] = self.ints;
         let [pm, p95, mean, max, dm, om, o95, fm, sp, rho, eff, ind_s] = self.vals;
-        Table::default()
+        let keys = Table::default()
             .with("scene", Column::Str(scene))
             .with("algorithm", Column::Str(alg))
             .with("dual_basis", Column::Str(basis))
             .with("r_primal", Column::U64(ru))
-            .with("r_dual", Column::U64(rl))
+            .with("r_dual", Column::U64(rl));
+        let results = keys
+            .clone()
             .with("points", Column::U64(points))
             .with("converged", Column::U64(conv))
             .with("infeasible", Column::U64(inf))
@@ -368,13 +433,15 @@ impl TradeRows {
             .with("mean_primal_error", Column::F64(mean))
             .with("max_primal_error", Column::F64(max))
             .with("median_dual_error", Column::F64(dm))
+            .with("indicator_spearman", Column::F64(rho))
+            .with("indicator_effectivity", Column::F64(eff));
+        let timings = keys
             .with("median_online_seconds", Column::F64(om))
             .with("p95_online_seconds", Column::F64(o95))
             .with("median_fom_seconds", Column::F64(fm))
             .with("speedup", Column::F64(sp))
-            .with("indicator_spearman", Column::F64(rho))
-            .with("indicator_effectivity", Column::F64(eff))
-            .with("median_indicator_seconds", Column::F64(ind_s))
+            .with("median_indicator_seconds", Column::F64(ind_s));
+        (results, timings)
     }
 }
 
@@ -428,7 +495,8 @@ impl ErrorRows {
         }
     }
 
-    fn table(self) -> Table {
+    /// The results (`rom_errors.parquet`) and, same rows, the timings (`rom_timings.parquet`).
+    fn tables(self) -> (Table, Table) {
         let [scene, set, basis, alg] = self.s;
         let [rp, rd] = self.ranks;
         let [pe, de] = self.errs;
@@ -442,9 +510,11 @@ impl ErrorRows {
             .with("dual_basis", Column::Str(basis))
             .with("algorithm", Column::Str(alg));
         let points: Vec<&[f64]> = self.param.iter().map(Vec::as_slice).collect();
-        super::with_parameters(t, &self.names, &points)
+        let keys = super::with_parameters(t, &self.names, &points)
             .with("r_primal", Column::U64(rp))
-            .with("r_dual", Column::U64(rd))
+            .with("r_dual", Column::U64(rd));
+        let results = keys
+            .clone()
             .with("primal_error", Column::F64(pe))
             .with("dual_error", Column::F64(de))
             .with("iterations", Column::U64(it))
@@ -454,9 +524,34 @@ impl ErrorRows {
             .with("indicator", Column::F64(res))
             .with("penetration", Column::F64(pen))
             .with("complementarity", Column::F64(comp))
-            .with("unpaired_force", Column::F64(unp))
+            .with("unpaired_force", Column::F64(unp));
+        let timings = keys
             .with("online_seconds", Column::F64(on))
             .with("indicator_seconds", Column::F64(ind_s))
-            .with("fom_seconds", Column::F64(fom))
+            .with("fom_seconds", Column::F64(fom));
+        (results, timings)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cols(t: &Table) -> Vec<String> {
+        t.columns.iter().map(|(n, _)| n.clone()).collect()
+    }
+
+    #[test]
+    fn results_and_timings_have_the_contract_columns() {
+        let (errors, times) = ErrorRows { names: vec!["p".to_string()], ..Default::default() }.tables();
+        assert_eq!(cols(&errors), names::ERROR_COLUMNS);
+        assert_eq!(cols(&times), names::TIMING_COLUMNS);
+        let (trade, trade_times) = TradeRows::default().tables();
+        assert_eq!(cols(&trade), names::TRADEOFF_COLUMNS);
+        assert_eq!(cols(&trade_times), names::TRADEOFF_TIMING_COLUMNS);
+        // No wall-clock column among the results.
+        for c in cols(&errors).iter().chain(&cols(&trade)) {
+            assert!(!c.contains("seconds") && c != "speedup", "{c} is a timing");
+        }
     }
 }

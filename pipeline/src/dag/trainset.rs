@@ -1,8 +1,9 @@
 //! Training-set stage: a named set of snapshot columns (train, test, a nested level) as one
 //! HDF5 file whose `primal` (n_dof x N) and `dual` (n_contact x N) are **virtual datasets**
 //! mapping each column to its block in the column store — nothing is copied — plus the real
-//! `parameters` and the per-snapshot table `solver_stats.parquet` (key, parameter, block,
-//! column, blake3 of the column, solver evidence).
+//! `parameters`, the per-snapshot table `solver_stats.parquet` (key, parameter, block,
+//! column, blake3 of the column, solver evidence) and, apart because it differs from run to
+//! run, `solver_timings.parquet` (each snapshot's solve time).
 //!
 //! The set's key is its name, its parameter values and its snapshots' content keys, not where
 //! the columns live: a set rebuilt after a block was quarantined and re-solved keeps its key and
@@ -24,7 +25,7 @@ use crate::io::table::{read_parquet, Column, Table};
 use crate::store::columns::{read_columns, Evidence, IndexRow};
 
 /// Bump when the assembly of the set changes.
-const ALGORITHM_VERSION: u32 = 2;
+const ALGORITHM_VERSION: u32 = 3;
 
 /// A loaded training set.
 #[derive(Debug, Clone, PartialEq)]
@@ -99,6 +100,7 @@ pub(crate) fn run(
         }
         drop(f);
         stats_table(&scene, &names, points, rows).write_parquet(&staging.path(names::STATS))?;
+        timings_table(&scene, rows).write_parquet(&staging.path(names::TIMINGS))?;
         Ok(BTreeMap::from([
             ("snapshots".to_string(), json!(points.len())),
             ("primal_shape".to_string(), json!([shape.0, rows.len()])),
@@ -202,5 +204,37 @@ fn stats_table(scene: &str, names: &[String], points: &[Vec<f64>], rows: &[Index
         .with("complementarity", x(&|e| e.complementarity))
         .with("kkt_residual", x(&|e| e.kkt_residual))
         .with("vertex_ties", u(&|e| e.vertex_ties))
-        .with("seconds", x(&|e| e.seconds))
+}
+
+/// Per-snapshot solve time, apart from the results (same rows as the statistics).
+fn timings_table(scene: &str, rows: &[IndexRow]) -> Table {
+    let n = rows.len();
+    Table::default()
+        .with("scene", Column::Str(vec![scene.to_string(); n]))
+        .with("index", Column::U64((0..n as u64).collect()))
+        .with("snapshot_key", Column::Str(rows.iter().map(|r| r.key.0.clone()).collect()))
+        .with("seconds", Column::F64(rows.iter().map(|r| r.evidence.seconds).collect()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tables_have_the_contract_columns_and_no_timing_in_the_results() {
+        let row = IndexRow {
+            key: Key("k".into()),
+            parameters: vec![0.5],
+            block: "b".into(),
+            column: 0,
+            blake3: "h".into(),
+            block_bytes: 0,
+            block_blake3: String::new(),
+            evidence: Evidence::default(),
+        };
+        let cols = |t: &Table| t.columns.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
+        let stats = stats_table("s", &["p".to_string()], &[vec![0.5]], std::slice::from_ref(&row));
+        assert_eq!(cols(&stats), names::STATS_COLUMNS);
+        assert_eq!(cols(&timings_table("s", &[row])), names::TIMING_COLUMNS);
+    }
 }

@@ -15,11 +15,13 @@
 //! since ParaView colours by point fields. The views of a basis have one step per mode (time =
 //! mode number): primal POD modes as `displacement`, dual POD and CPG generators as `pressure`
 //! on the contact surface (the truncated CPG basis is a prefix of the full one and is not
-//! repeated).
+//! repeated). The views of the online solutions have one step per test point: the reduced
+//! model's fields and their errors (stored by the rom stage in `online.h5`) beside the
+//! full-order fields (virtual, onto the snapshot columns) and a `converged` flag.
 
 use std::collections::BTreeMap;
 
-use crom_schemas::artifact::{basis as basis_names, mesh as mesh_names, trainset as set_names};
+use crom_schemas::artifact::{basis as basis_names, mesh as mesh_names, rom as rom_names, trainset as set_names};
 use crom_schemas::artifact::{views as names, ArtifactKind};
 use serde_json::json;
 
@@ -79,13 +81,21 @@ struct Column {
     col: usize,
 }
 
-/// One step: its name, time, fields' sources and parameter values.
+/// How a stored column is shown: a primal column as a displacement vector, a dual column as
+/// a pressure scalar on the contact nodes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Shape {
+    Displacement,
+    Pressure,
+}
+
+/// One step: its name, time, fields (name, how, source) and constant fields (parameter values,
+/// flags).
 struct Step {
     name: String,
     time: f64,
-    primal: Option<Column>,
-    dual: Option<Column>,
-    parameters: Vec<(String, f64)>,
+    fields: Vec<(String, Shape, Column)>,
+    constants: Vec<(String, f64)>,
 }
 
 /// Write the step datasets into the group `steps` of `h5` (whose path in `views.h5` is
@@ -99,40 +109,45 @@ fn write_steps(h5: &H5Out, path: &str, mesh: &MeshFacts, steps: &[Step]) -> Resu
         let g = group.group(&label)?;
         let at = |field: &str| format!("{}:/{path}{}/{label}/{field}", names::FILE, names::STEPS);
         let mut attributes = Vec::new();
-        if let Some(c) = &s.primal {
-            // One piece: the whole column, in dof order `dofs_per_node * node + component`, is
-            // the row-major order of the (n_nodes x dofs_per_node) block of the view, so both
-            // selections are plain hyperslabs (strided source selections make HDF5's virtual
-            // datasets read element by element: seconds per step instead of milliseconds). The
-            // rope's one dof per node is its vertical deflection: the y column.
-            let first = if mesh.dofs_per_node == 1 { 1 } else { 0 };
-            let pieces = [VirtualPiece {
-                file: c.file.clone(),
-                dataset: c.dataset.clone(),
-                source_shape: vec![c.shape.0, c.shape.1],
-                source: vec![(0, 1, n * mesh.dofs_per_node), (c.col, 1, 1)],
-                target: vec![(0, 1, n), (first, 1, mesh.dofs_per_node)],
-            }];
-            g.virtual_dataset(names::DISPLACEMENT, &[n, 3], &pieces)?;
-            attributes.push(attr(names::DISPLACEMENT, "Vector", "Node", vec![n, 3], "Float", at(names::DISPLACEMENT)));
+        for (field, shape, c) in &s.fields {
+            match shape {
+                Shape::Displacement => {
+                    // One piece: the whole column, in dof order `dofs_per_node * node +
+                    // component`, is the row-major order of the (n_nodes x dofs_per_node) block
+                    // of the view, so both selections are plain hyperslabs (strided source
+                    // selections make HDF5's virtual datasets read element by element: seconds
+                    // per step instead of milliseconds). The rope's one dof per node is its
+                    // vertical deflection: the y column.
+                    let first = if mesh.dofs_per_node == 1 { 1 } else { 0 };
+                    let pieces = [VirtualPiece {
+                        file: c.file.clone(),
+                        dataset: c.dataset.clone(),
+                        source_shape: vec![c.shape.0, c.shape.1],
+                        source: vec![(0, 1, n * mesh.dofs_per_node), (c.col, 1, 1)],
+                        target: vec![(0, 1, n), (first, 1, mesh.dofs_per_node)],
+                    }];
+                    g.virtual_dataset(field, &[n, 3], &pieces)?;
+                    attributes.push(attr(field, "Vector", "Node", vec![n, 3], "Float", at(field)));
+                }
+                Shape::Pressure => {
+                    let pieces: Vec<VirtualPiece> = mesh
+                        .contact_runs
+                        .iter()
+                        .map(|&(node, k, len)| VirtualPiece {
+                            file: c.file.clone(),
+                            dataset: c.dataset.clone(),
+                            source_shape: vec![c.shape.0, c.shape.1],
+                            source: vec![(k, 1, len), (c.col, 1, 1)],
+                            target: vec![(node, 1, len)],
+                        })
+                        .collect();
+                    g.virtual_dataset(field, &[n], &pieces)?;
+                    attributes.push(attr(field, "Scalar", "Node", vec![n], "Float", at(field)));
+                }
+            }
         }
-        if let Some(c) = &s.dual {
-            let pieces: Vec<VirtualPiece> = mesh
-                .contact_runs
-                .iter()
-                .map(|&(node, k, len)| VirtualPiece {
-                    file: c.file.clone(),
-                    dataset: c.dataset.clone(),
-                    source_shape: vec![c.shape.0, c.shape.1],
-                    source: vec![(k, 1, len), (c.col, 1, 1)],
-                    target: vec![(node, 1, len)],
-                })
-                .collect();
-            g.virtual_dataset(names::PRESSURE, &[n], &pieces)?;
-            attributes.push(attr(names::PRESSURE, "Scalar", "Node", vec![n], "Float", at(names::PRESSURE)));
-        }
-        for (name, value) in &s.parameters {
-            g.vec_f64(name, &vec![*value; n], "parameter value of this step")?;
+        for (name, value) in &s.constants {
+            g.vec_f64(name, &vec![*value; n], "constant over the nodes: a value of this step")?;
             attributes.push(attr(name, "Scalar", "Node", vec![n], "Float", at(name)));
         }
         let m = &mesh.ref_path;
@@ -206,9 +221,11 @@ pub(crate) fn set(ctx: &mut Ctx<'_>, set: &str, set_key: &Key, mesh: &Key) -> Re
                 Step {
                     name: label.join(","),
                     time: if scalar && increasing { r.parameters[0] } else { j as f64 },
-                    primal: Some(column("primal", n_dof)),
-                    dual: Some(column("dual", n_contact)),
-                    parameters,
+                    fields: vec![
+                        (names::DISPLACEMENT.to_string(), Shape::Displacement, column("primal", n_dof)),
+                        (names::PRESSURE.to_string(), Shape::Pressure, column("dual", n_contact)),
+                    ],
+                    constants: parameters,
                 }
             })
             .collect();
@@ -255,13 +272,16 @@ pub(crate) fn basis(ctx: &mut Ctx<'_>, basis: &Key, mesh: &Key) -> Result<Key, C
                         shape: (rows, modes),
                         col: k,
                     };
-                    let (p, d) = if primal { (Some(c), None) } else { (None, Some(c)) };
+                    let field = if primal {
+                        (names::DISPLACEMENT.to_string(), Shape::Displacement, c)
+                    } else {
+                        (names::PRESSURE.to_string(), Shape::Pressure, c)
+                    };
                     Step {
                         name: format!("mode {}", k + 1),
                         time: (k + 1) as f64,
-                        primal: p,
-                        dual: d,
-                        parameters: vec![],
+                        fields: vec![field],
+                        constants: vec![],
                     }
                 })
                 .collect();
@@ -272,5 +292,90 @@ pub(crate) fn basis(ctx: &mut Ctx<'_>, basis: &Key, mesh: &Key) -> Result<Key, C
             summary.insert(format!("{group}_modes"), json!(modes));
         }
         Ok(summary)
+    })
+}
+
+/// The views of the online solutions (`online.h5` of the rom artifact `rom`) at the points of
+/// the test set `test`: per test point the online fields, their errors and the full-order
+/// fields (onto the snapshot columns), the parameter and whether the query converged.
+pub(crate) fn online(ctx: &mut Ctx<'_>, rom: &Key, test: &Key, mesh: &Key) -> Result<Key, CromError> {
+    let spec = KeySpec::new(ArtifactKind::Views, ALGORITHM_VERSION, json!({ "subject": "online" }))
+        .input("rom", rom)
+        .input("test", test)
+        .input("mesh", mesh);
+    let names_of: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+    let root = ctx.store.root().to_path_buf();
+    let mesh_facts = mesh_facts(ctx, mesh)?;
+    let stats = ctx.store.dir(ArtifactKind::TrainingSet, test).join(set_names::STATS);
+    let online_file = ctx.store.dir(ArtifactKind::Rom, rom).join(rom_names::ONLINE);
+    ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
+        let rows = super::trainset::rows_of(&stats)?;
+        let widths = super::trainset::block_columns(&root, &rows)?;
+        let f = H5In::open(&online_file)?;
+        let (n_dof, k) = {
+            let s = f.shape("primal")?;
+            (s.first().copied().unwrap_or(0), s.get(1).copied().unwrap_or(0))
+        };
+        let n_contact = f.shape("dual")?.first().copied().unwrap_or(0);
+        let converged = f.vec_u64("converged")?;
+        drop(f);
+        if k != rows.len() || converged.len() != k {
+            return Err(CromError::artifact(
+                &online_file,
+                format!("{k} online solutions for {} test points", rows.len()),
+                "delete the rom artifact and rerun",
+            ));
+        }
+        let scalar = names_of.len() == 1;
+        let increasing = rows.windows(2).all(|w| w[0].parameters[0] < w[1].parameters[0]);
+        let here = format!("{ROOT}{}/{}/{}", ArtifactKind::Rom.name(), rom.0, rom_names::ONLINE);
+        let steps: Vec<Step> = rows
+            .iter()
+            .enumerate()
+            .map(|(j, r)| {
+                let online = |dataset: &str, rows: usize| Column {
+                    file: here.clone(),
+                    dataset: dataset.to_string(),
+                    shape: (rows, k),
+                    col: j,
+                };
+                let width = widths.get(&r.block).copied().unwrap_or(0);
+                let fom = |dataset: &str, rows: usize| Column {
+                    file: format!("{ROOT}{}", r.block),
+                    dataset: dataset.to_string(),
+                    shape: (rows, width),
+                    col: r.column,
+                };
+                let mut constants: Vec<(String, f64)> =
+                    names_of.iter().cloned().zip(r.parameters.iter().copied()).collect();
+                let label: Vec<String> = constants.iter().map(|(n, v)| format!("{n}={v}")).collect();
+                constants.push(("converged".to_string(), converged[j] as f64));
+                let d = Shape::Displacement;
+                let p = Shape::Pressure;
+                Step {
+                    name: label.join(","),
+                    time: if scalar && increasing { r.parameters[0] } else { j as f64 },
+                    fields: vec![
+                        (names::DISPLACEMENT.to_string(), d, online("primal", n_dof)),
+                        (names::PRESSURE.to_string(), p, online("dual", n_contact)),
+                        ("displacement_error".to_string(), d, online("primal_error", n_dof)),
+                        ("pressure_error".to_string(), p, online("dual_error", n_contact)),
+                        ("displacement_fom".to_string(), d, fom("primal", n_dof)),
+                        ("pressure_fom".to_string(), p, fom("dual", n_contact)),
+                    ],
+                    constants,
+                }
+            })
+            .collect();
+        let h5 = H5Out::create(&staging.path(names::FILE))?;
+        h5.attr_str("kind", "views")?;
+        h5.attr_str("rom", &rom.0)?;
+        h5.attr_str("cache_key", &staging.key().0)?;
+        let series = write_steps(&h5, "", &mesh_facts, &steps)?;
+        drop(h5);
+        let xdmf = staging.path(names::ONLINE_XDMF);
+        std::fs::write(&xdmf, series_xdmf("online", &series_mesh(&mesh_facts), &series))
+            .map_err(|e| CromError::io(&xdmf, "writing an XDMF file", e))?;
+        Ok(BTreeMap::from([("steps".to_string(), json!(steps.len()))]))
     })
 }

@@ -217,6 +217,20 @@ impl H5Out {
         ds.map(|_| ()).map_err(|e| werr(&self.path, name, e))
     }
 
+    /// A `(rows, cols)` float dataset written one column at a time ([`ColumnWriter`]), for
+    /// matrices too large to hold in memory; chunked by column, shuffled and deflated.
+    pub fn column_writer(&self, name: &str, rows: usize, cols: usize, units: &str) -> Result<ColumnWriter, CromError> {
+        let builder = self.group.new_dataset::<f64>().shape((rows, cols));
+        let ds = if rows == 0 || cols == 0 {
+            builder.create(name)
+        } else {
+            builder.chunk((rows.min(1 << 16), 1)).shuffle().deflate(4).create(name)
+        };
+        let ds = ds.map_err(|e| werr(&self.path, name, e))?;
+        set_units(&ds, &self.path, name, units)?;
+        Ok(ColumnWriter { path: self.path.clone(), name: name.to_string(), ds })
+    }
+
     /// A matrix, one column per snapshot / mode.
     pub fn matrix(&self, name: &str, m: &ColMatrix, units: &str) -> Result<(), CromError> {
         let mut row_major = vec![0.0; m.data.len()];
@@ -226,6 +240,21 @@ impl H5Out {
             }
         }
         self.table_f64(name, m.rows, m.cols, &row_major, units)
+    }
+}
+
+/// A matrix dataset being written column by column ([`H5Out::column_writer`]).
+#[derive(Debug)]
+pub struct ColumnWriter {
+    path: PathBuf,
+    name: String,
+    ds: hdf5::Dataset,
+}
+
+impl ColumnWriter {
+    /// Write column `j`.
+    pub fn write(&self, j: usize, column: &[f64]) -> Result<(), CromError> {
+        self.ds.write_slice(column, (.., j)).map_err(|e| werr(&self.path, &self.name, e))
     }
 }
 

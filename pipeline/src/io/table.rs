@@ -46,6 +46,24 @@ impl Table {
         self
     }
 
+    /// The columns of `other` appended to this table's, for two tables written row by row
+    /// together (results and their timings): `None` unless both have the same number of rows
+    /// and equal `keys` columns; `other`'s key columns are not repeated.
+    pub fn join_rows(mut self, other: Table, keys: &[&str]) -> Option<Table> {
+        if self.rows() != other.rows() {
+            return None;
+        }
+        for k in keys {
+            let a = self.columns.iter().find(|(n, _)| n == k).map(|(_, c)| c);
+            let b = other.columns.iter().find(|(n, _)| n == k).map(|(_, c)| c);
+            if a.is_none() || a != b {
+                return None;
+            }
+        }
+        self.columns.extend(other.columns.into_iter().filter(|(n, _)| !keys.contains(&n.as_str())));
+        Some(self)
+    }
+
     /// Number of rows (0 for no columns).
     pub fn rows(&self) -> usize {
         self.columns.first().map_or(0, |(_, c)| c.len())

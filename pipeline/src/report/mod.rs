@@ -151,8 +151,8 @@ fn gather(store: &Store, inputs: &ReportInputs) -> Result<ReportData, CromError>
         dual_sv: b.dual_sv,
         ranks: b.ranks,
         compactness,
-        rom_errors: read_parquet(&rom_dir.join(rnames::ERRORS))?,
-        tradeoff: read_parquet(&rom_dir.join(rnames::TRADEOFF))?,
+        rom_errors: joined(&rom_dir, rnames::ERRORS, rnames::TIMINGS, &QUERY_KEYS)?,
+        tradeoff: joined(&rom_dir, rnames::TRADEOFF, rnames::TRADEOFF_TIMINGS, &TRADE_KEYS)?,
         generalization: read_parquet(
             &store.dir(ArtifactKind::Generalization, &inputs.generalization).join(metric_names::GENERALIZATION),
         )?,
@@ -163,5 +163,23 @@ fn gather(store: &Store, inputs: &ReportInputs) -> Result<ReportData, CromError>
             Some(k) => Some(read_parquet(&store.dir(ArtifactKind::Nested, k).join(metric_names::NESTED))?),
             None => None,
         },
+    })
+}
+
+/// Columns that identify a row of the rom stage's query tables (with the parameter columns).
+const QUERY_KEYS: [&str; 6] = ["scene", "set", "dual_basis", "algorithm", "r_primal", "r_dual"];
+/// Columns that identify a row of the trade-off tables.
+const TRADE_KEYS: [&str; 5] = ["scene", "algorithm", "dual_basis", "r_primal", "r_dual"];
+
+/// A results table with its timings table (same rows) beside it.
+fn joined(dir: &std::path::Path, results: &str, timings: &str, keys: &[&str]) -> Result<Table, CromError> {
+    let a = read_parquet(&dir.join(results))?;
+    let b = read_parquet(&dir.join(timings))?;
+    a.join_rows(b, keys).ok_or_else(|| {
+        CromError::artifact(
+            dir.join(timings),
+            format!("its rows do not match those of {results}"),
+            "delete the rom artifact and rerun",
+        )
     })
 }
