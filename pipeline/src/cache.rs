@@ -62,17 +62,56 @@ impl KeySpec {
         self
     }
 
-    /// blake3 of the canonical JSON.
+    /// blake3 of the canonical JSON. A `KeySpec` is strings, integers, a JSON value and a map
+    /// with string keys: its serialisation cannot fail.
     pub fn key(&self) -> Key {
-        let bytes = serde_json::to_vec(self).unwrap_or_default();
+        let bytes = serde_json::to_vec(self).expect("a KeySpec (strings, integers, JSON, string-keyed map) serialises");
         Key(blake3::hash(&bytes).to_hex().to_string())
+    }
+
+    /// The key spec of a typed stage key (inputs are added with [`KeySpec::input`]).
+    pub fn of<K: StageKey>(key: &K) -> Self {
+        Self::new(K::KIND, K::ALGORITHM_VERSION, params(key))
     }
 }
 
-/// Serialise stage parameters for a [`KeySpec`]; serde_json cannot fail on the plain data structs
-/// crom passes here (no maps with non-string keys), `Null` otherwise.
+/// A stage's cache key as a type: exactly the settings that determine its output (its inputs'
+/// keys are added to the [`KeySpec`]), so that a setting the stage uses cannot be left out of
+/// its key, nor a setting it does not use (a timing constant) be put in.
+pub trait StageKey: Serialize {
+    /// The artifact kind the stage writes.
+    const KIND: ArtifactKind;
+    /// Version of the stage's algorithm: bump when the numbers it produces change.
+    const ALGORITHM_VERSION: u32;
+}
+
+/// The NNLS settings of every cone computation (CPG, cone projections): part of the key of
+/// each stage that solves NNLS problems. crom uses `NnlsParams::default()` throughout, so a
+/// change of those defaults changes these keys.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct NnlsKey {
+    /// Outer iteration cap (`None`: `3 k + 10`).
+    pub max_iter: Option<usize>,
+    /// Relative KKT tolerance.
+    pub tol: f64,
+    /// Relative pivot tolerance.
+    pub pivot_tol: f64,
+}
+
+impl NnlsKey {
+    /// The settings crom's stages use.
+    pub fn used() -> Self {
+        let p = crom_stages::cone::NnlsParams::default();
+        Self { max_iter: p.max_iter, tol: p.tol, pivot_tol: p.pivot_tol }
+    }
+}
+
+/// Serialise typed key fields for a [`KeySpec`]. Key structs hold numbers, strings, options,
+/// vectors and string-keyed maps, which serde_json always serialises (a non-finite float
+/// becomes `null`); a map with non-string keys would be a programming error, caught by the
+/// tests of every key type.
 pub fn params<T: Serialize>(value: &T) -> serde_json::Value {
-    serde_json::to_value(value).unwrap_or(serde_json::Value::Null)
+    serde_json::to_value(value).expect("a stage key (numbers, strings, options, vectors) serialises")
 }
 
 #[cfg(test)]
@@ -93,5 +132,29 @@ mod tests {
         let mut other_schema = base.clone();
         other_schema.schema_version += 1;
         assert_ne!(k, other_schema.key());
+    }
+
+    #[derive(Serialize)]
+    struct Example {
+        tol: f64,
+        nnls: NnlsKey,
+    }
+
+    impl StageKey for Example {
+        const KIND: ArtifactKind = ArtifactKind::Basis;
+        const ALGORITHM_VERSION: u32 = 7;
+    }
+
+    #[test]
+    fn a_typed_key_carries_its_kind_version_and_every_field() {
+        let spec = KeySpec::of(&Example { tol: 0.5, nnls: NnlsKey::used() });
+        assert_eq!((spec.stage, spec.algorithm_version), ("basis", 7));
+        assert_eq!(spec.schema_version, ArtifactKind::Basis.schema_version());
+        assert_eq!(spec.params["tol"], json!(0.5));
+        // The NNLS settings the stages use are in the key: a change of them changes it.
+        let p = crom_stages::cone::NnlsParams::default();
+        assert_eq!(spec.params["nnls"], json!({ "max_iter": p.max_iter, "tol": p.tol, "pivot_tol": p.pivot_tol }));
+        let other = KeySpec::of(&Example { tol: 0.5, nnls: NnlsKey { tol: 2.0 * p.tol, ..NnlsKey::used() } });
+        assert_ne!(spec.key(), other.key());
     }
 }

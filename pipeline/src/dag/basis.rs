@@ -7,16 +7,14 @@ use std::sync::{Arc, Mutex};
 use crom_schemas::artifact::{basis as names, ArtifactKind};
 use crom_stages::basis::{cpg_path, pod, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
 use crom_stages::cone::NnlsParams;
+use serde::Serialize;
 use serde_json::json;
 
 use super::convert::{to_col, view};
 use super::{trainset, Ctx};
-use crate::cache::{Key, KeySpec};
+use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In, H5Out};
-
-/// Bump when POD or CPG change the bases they produce.
-const ALGORITHM_VERSION: u32 = 1;
 
 /// The bases of one training set, as stored.
 #[derive(Debug, Clone)]
@@ -79,17 +77,35 @@ pub(crate) fn max_rank(ctx: &Ctx<'_>) -> usize {
     ctx.scene.study.max_rank_for(ctx.scene.parameter.train_points().len())
 }
 
+/// What determines the bases of a training set (its key is an input).
+#[derive(Debug, Serialize)]
+struct BasisKey {
+    primal_tol: f64,
+    dual_orth_tol: f64,
+    dual_cone_tol: f64,
+    dual_cone_tol_truncated: f64,
+    /// The CPG greedy solves NNLS problems.
+    nnls: NnlsKey,
+}
+
+impl StageKey for BasisKey {
+    const KIND: ArtifactKind = ArtifactKind::Basis;
+    /// Bump when POD or CPG change the bases they produce (2: the NNLS settings in the key).
+    const ALGORITHM_VERSION: u32 = 2;
+}
+
 pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
     let st = ctx.scene.study.clone();
     let max_rank = max_rank(ctx);
     let progress = ctx.progress;
-    let params = json!({
-        "primal_tol": st.primal_tol,
-        "dual_orth_tol": st.dual_orth_tol,
-        "dual_cone_tol": st.dual_cone_tol,
-        "dual_cone_tol_truncated": st.dual_cone_tol_truncated,
-    });
-    let spec = KeySpec::new(ArtifactKind::Basis, ALGORITHM_VERSION, params).input("train", train);
+    let spec = KeySpec::of(&BasisKey {
+        primal_tol: st.primal_tol,
+        dual_orth_tol: st.dual_orth_tol,
+        dual_cone_tol: st.dual_cone_tol,
+        dual_cone_tol_truncated: st.dual_cone_tol_truncated,
+        nnls: NnlsKey::used(),
+    })
+    .input("train", train);
     let store = ctx.store;
     let scene = ctx.scene.scene.name.clone();
     let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };

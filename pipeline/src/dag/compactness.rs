@@ -4,21 +4,30 @@ use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{compactness as names, ArtifactKind};
 use crom_stages::metrics::compactness_orth;
+use serde::Serialize;
 use serde_json::json;
 
 use super::convert::view;
 use super::{basis, trainset, Ctx};
-use crate::cache::{Key, KeySpec};
+use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::table::{Column, Table};
 
-/// Bump when the compactness computation changes.
-const ALGORITHM_VERSION: u32 = 1;
+/// What determines C(m) besides the training set and the bases (inputs).
+#[derive(Debug, Serialize)]
+struct CompactnessKey {
+    /// C(m) of the cone comes from the CPG path's NNLS solves.
+    nnls: NnlsKey,
+}
+
+impl StageKey for CompactnessKey {
+    const KIND: ArtifactKind = ArtifactKind::Compactness;
+    /// Bump when the compactness computation changes (2: the NNLS settings in the key).
+    const ALGORITHM_VERSION: u32 = 2;
+}
 
 pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
-    let spec = KeySpec::new(ArtifactKind::Compactness, ALGORITHM_VERSION, json!({}))
-        .input("train", train)
-        .input("basis", basis_key);
+    let spec = KeySpec::of(&CompactnessKey { nnls: NnlsKey::used() }).input("train", train).input("basis", basis_key);
     let store = ctx.store;
     let scene = ctx.scene.scene.name.clone();
     let (progress, max_rank) = (ctx.progress, basis::max_rank(ctx));

@@ -3,20 +3,30 @@
 use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{mesh as names, ArtifactKind};
+use serde::Serialize;
 use serde_json::json;
 
 use super::{Ctx, LazyPhysics};
-use crate::cache::{params, Key, KeySpec};
+use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5Out;
 use crate::io::xdmf::write_mesh_xdmf;
 
-/// Bump when the mesh generators change their output.
-const ALGORITHM_VERSION: u32 = 1;
+/// The mesh artifact's key: the whole model specification (geometry, mesh sizes, materials —
+/// the materials are not used by the mesh but by everything keyed on it downstream).
+#[derive(Debug, Serialize)]
+#[serde(transparent)]
+struct MeshKey<'a>(&'a crom_schemas::scene::Model);
 
-/// The mesh artifact's key: the whole model specification.
+impl StageKey for MeshKey<'_> {
+    const KIND: ArtifactKind = ArtifactKind::Mesh;
+    /// Bump when the mesh generators change their output.
+    const ALGORITHM_VERSION: u32 = 1;
+}
+
+/// The mesh artifact's key spec.
 pub(crate) fn spec(ctx: &Ctx<'_>) -> KeySpec {
-    KeySpec::new(ArtifactKind::Mesh, ALGORITHM_VERSION, params(&ctx.scene.model))
+    KeySpec::of(&MeshKey(&ctx.scene.model))
 }
 
 pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Key, CromError> {
@@ -54,4 +64,18 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Ke
             ("contact_nodes".to_string(), json!(m.contact_nodes.len())),
         ]))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn typed_key_keeps_the_layout_existing_stores_were_keyed_with() {
+        let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/scenes/hertz.toml"))
+            .expect("hertz.toml");
+        let scene = crom_schemas::SceneConfig::from_toml_str(&text, std::path::Path::new("hertz.toml")).expect("scene");
+        let before = KeySpec::new(ArtifactKind::Mesh, 1, crate::cache::params(&scene.model)).key();
+        assert_eq!(KeySpec::of(&MeshKey(&scene.model)).key(), before);
+    }
 }

@@ -11,18 +11,61 @@ use crom_stages::metrics::{
     LooOrth, MetricCurve, SpecificityParams,
 };
 use rayon::prelude::*;
+use serde::Serialize;
 use serde_json::json;
 
 use super::basis::Ticker;
 use super::convert::view;
 use super::{basis, trainset, Ctx};
-use crate::cache::{Key, KeySpec};
+use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::h5::ColMatrix;
 use crate::io::table::{Column, Table};
 
 /// Bump when a metric's numbers change.
-const ALGORITHM_VERSION: u32 = 1;
+/// G(m): the rank range, the folds when only a sample of them is used, the NNLS settings of
+/// the cone folds.
+#[derive(Debug, Serialize)]
+struct GeneralizationKey {
+    max_rank: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    folds: Option<usize>,
+    nnls: NnlsKey,
+}
+
+impl StageKey for GeneralizationKey {
+    const KIND: ArtifactKind = ArtifactKind::Generalization;
+    /// Bump when G(m) changes (2: the NNLS settings in the key).
+    const ALGORITHM_VERSION: u32 = 2;
+}
+
+/// S(m): samples, seed, rank range, NNLS settings of the cone projections.
+#[derive(Debug, Serialize)]
+struct SpecificityKey {
+    samples: usize,
+    seed: u64,
+    max_rank: usize,
+    nnls: NnlsKey,
+}
+
+impl StageKey for SpecificityKey {
+    const KIND: ArtifactKind = ArtifactKind::Specificity;
+    /// Bump when S(m) changes (2: the NNLS settings in the key).
+    const ALGORITHM_VERSION: u32 = 2;
+}
+
+/// H(n): the number of levels (their keys are inputs), the NNLS settings of the cone errors.
+#[derive(Debug, Serialize)]
+struct NestedKey {
+    levels: usize,
+    nnls: NnlsKey,
+}
+
+impl StageKey for NestedKey {
+    const KIND: ArtifactKind = ArtifactKind::Nested;
+    /// Bump when H(n) changes (2: the NNLS settings in the key).
+    const ALGORITHM_VERSION: u32 = 2;
+}
 
 fn numerical(scene: &str, stage: &'static str, e: impl std::fmt::Display) -> CromError {
     CromError::Numerical { stage, scene: scene.to_string(), message: e.to_string() }
@@ -33,13 +76,10 @@ pub(crate) fn generalization(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, Crom
     let max_rank = basis::max_rank(ctx);
     let n_train = ctx.scene.parameter.train_points().len();
     let folds = ctx.scene.study.loo_folds_for(n_train);
-    // Every fold: the key is what it always was; a sample of folds is part of the key.
-    let params = if folds.len() == n_train {
-        json!({ "max_rank": max_rank })
-    } else {
-        json!({ "max_rank": max_rank, "folds": folds.len() })
-    };
-    let spec = KeySpec::new(ArtifactKind::Generalization, ALGORITHM_VERSION, params).input("train", train);
+    // A sample of folds is part of the key; every fold is the default.
+    let sampled = (folds.len() != n_train).then_some(folds.len());
+    let spec =
+        KeySpec::of(&GeneralizationKey { max_rank, folds: sampled, nnls: NnlsKey::used() }).input("train", train);
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
     let progress = ctx.progress;
@@ -106,13 +146,8 @@ fn loo_cone(
 pub(crate) fn specificity(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
     let params = SpecificityParams { samples: ctx.scene.study.specificity_samples, seed: ctx.scene.study.seed };
     let max_rank = basis::max_rank(ctx);
-    let spec = KeySpec::new(
-        ArtifactKind::Specificity,
-        ALGORITHM_VERSION,
-        json!({ "samples": params.samples, "seed": params.seed, "max_rank": max_rank }),
-    )
-    .input("train", train)
-    .input("basis", basis_key);
+    let key = SpecificityKey { samples: params.samples, seed: params.seed, max_rank, nnls: NnlsKey::used() };
+    let spec = KeySpec::of(&key).input("train", train).input("basis", basis_key);
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
     let progress = ctx.progress;
@@ -162,7 +197,7 @@ impl<A, B, C> IntoFlat<A, B, C> for (A, (B, C)) {
 
 /// H(n), n = 1..levels-1, from the nested sets (level n at index n-1).
 pub(crate) fn nested(ctx: &mut Ctx<'_>, levels: &[Key]) -> Result<Key, CromError> {
-    let mut spec = KeySpec::new(ArtifactKind::Nested, ALGORITHM_VERSION, json!({ "levels": levels.len() }));
+    let mut spec = KeySpec::of(&NestedKey { levels: levels.len(), nnls: NnlsKey::used() });
     for (i, k) in levels.iter().enumerate() {
         spec = spec.input(&format!("level{}", i + 1), k);
     }

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{Ctx, LazyPhysics, PointCounts};
-use crate::cache::{params, Key, KeySpec};
+use crate::cache::{params, Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
 use crate::io::table::{Column, Table};
@@ -58,13 +58,23 @@ struct FamilyParams<'a> {
     parameters: Vec<&'a str>,
 }
 
+impl StageKey for SnapshotParams<'_> {
+    const KIND: ArtifactKind = ArtifactKind::Snapshot;
+    const ALGORITHM_VERSION: u32 = ALGORITHM_VERSION;
+}
+
+impl StageKey for VectorSnapshotParams<'_> {
+    const KIND: ArtifactKind = ArtifactKind::Snapshot;
+    const ALGORITHM_VERSION: u32 = ALGORITHM_VERSION;
+}
+
 /// The key spec of the snapshot at the parameter point `mu` on the mesh `mesh`.
 pub(crate) fn spec(mesh: &Key, solver: &SolverSpec, mu: &[f64]) -> KeySpec {
-    let p = match mu {
-        [parameter] => params(&SnapshotParams { parameter: *parameter, solver }),
-        _ => params(&VectorSnapshotParams { parameters: mu, solver }),
+    let spec = match mu {
+        [parameter] => KeySpec::of(&SnapshotParams { parameter: *parameter, solver }),
+        _ => KeySpec::of(&VectorSnapshotParams { parameters: mu, solver }),
     };
-    KeySpec::new(ArtifactKind::Snapshot, ALGORITHM_VERSION, p).input("mesh", mesh)
+    spec.input("mesh", mesh)
 }
 
 /// The key of the column family holding every snapshot of this mesh and solver.

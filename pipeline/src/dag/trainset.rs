@@ -15,17 +15,37 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use crom_schemas::artifact::{trainset as names, ArtifactKind};
+use serde::Serialize;
 use serde_json::json;
 
 use super::Ctx;
-use crate::cache::{Key, KeySpec};
+use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In, H5Out};
 use crate::io::table::{read_parquet, Column, Table};
 use crate::store::columns::{read_columns, Evidence, IndexRow};
 
-/// Bump when the assembly of the set changes.
-const ALGORITHM_VERSION: u32 = 3;
+/// A set's parameter values as keyed: a flat list for a scalar parameter (the layout it always
+/// had), one list per point for a vector parameter.
+#[derive(Debug, Serialize)]
+#[serde(untagged)]
+enum Values {
+    Scalar(Vec<f64>),
+    Vector(Vec<Vec<f64>>),
+}
+
+/// A set's key: its name and parameter values (its snapshots' keys are inputs).
+#[derive(Debug, Serialize)]
+struct SetKey<'a> {
+    set: &'a str,
+    parameters: Values,
+}
+
+impl StageKey for SetKey<'_> {
+    const KIND: ArtifactKind = ArtifactKind::TrainingSet;
+    /// Bump when the assembly of the set changes.
+    const ALGORITHM_VERSION: u32 = 3;
+}
 
 /// A loaded training set.
 #[derive(Debug, Clone, PartialEq)]
@@ -42,12 +62,11 @@ pub(crate) struct TrainingSet {
 /// values as a flat list (as it always did).
 fn spec(set: &str, points: &[Vec<f64>], rows: &[IndexRow]) -> KeySpec {
     let values = if points.iter().all(|p| p.len() == 1) {
-        json!(points.iter().map(|p| p[0]).collect::<Vec<f64>>())
+        Values::Scalar(points.iter().map(|p| p[0]).collect())
     } else {
-        json!(points)
+        Values::Vector(points.to_vec())
     };
-    let mut spec =
-        KeySpec::new(ArtifactKind::TrainingSet, ALGORITHM_VERSION, json!({ "set": set, "parameters": values }));
+    let mut spec = KeySpec::of(&SetKey { set, parameters: values });
     for (i, r) in rows.iter().enumerate() {
         spec = spec.input(&format!("snapshot{i:05}"), &r.key);
     }
@@ -219,6 +238,18 @@ fn timings_table(scene: &str, rows: &[IndexRow]) -> Table {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn typed_key_keeps_the_layout_existing_stores_were_keyed_with() {
+        // The untyped layout before typed keys: {"set", "parameters": flat list or list of points}.
+        let old = |v: serde_json::Value| {
+            KeySpec::new(ArtifactKind::TrainingSet, 3, serde_json::json!({ "set": "train", "parameters": v })).key()
+        };
+        let scalar = spec("train", &[vec![0.5], vec![1.5]], &[]).key();
+        assert_eq!(scalar, old(serde_json::json!([0.5, 1.5])));
+        let vector = spec("train", &[vec![0.5, 0.02]], &[]).key();
+        assert_eq!(vector, old(serde_json::json!([[0.5, 0.02]])));
+    }
 
     #[test]
     fn tables_have_the_contract_columns_and_no_timing_in_the_results() {

@@ -23,16 +23,30 @@ use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{basis as basis_names, mesh as mesh_names, rom as rom_names, trainset as set_names};
 use crom_schemas::artifact::{views as names, ArtifactKind};
+use serde::Serialize;
 use serde_json::json;
 
 use super::Ctx;
-use crate::cache::{Key, KeySpec};
+use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{H5In, H5Out, VirtualPiece};
 use crate::io::xdmf::{series_xdmf, SeriesAttribute, SeriesMesh, SeriesStep};
 
-/// Bump when the layout of the views changes.
-const ALGORITHM_VERSION: u32 = 1;
+/// What a view shows (its inputs' keys say of what).
+#[derive(Debug, Serialize)]
+struct ViewsKey<'a> {
+    /// `set`, `basis` or `online`.
+    subject: &'static str,
+    /// The set's name, for a set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    set: Option<&'a str>,
+}
+
+impl StageKey for ViewsKey<'_> {
+    const KIND: ArtifactKind = ArtifactKind::Views;
+    /// Bump when the layout of the views changes.
+    const ALGORITHM_VERSION: u32 = 1;
+}
 
 /// Every views file sits two directories below the store root (`views/<key>/`, and the staging
 /// directory alike), so `../../` reaches the root from either.
@@ -188,9 +202,7 @@ fn series_mesh(mesh: &MeshFacts) -> SeriesMesh {
 
 /// The views of the snapshot set `set` (train, test, nested-k) stored as `set_key`.
 pub(crate) fn set(ctx: &mut Ctx<'_>, set: &str, set_key: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let spec = KeySpec::new(ArtifactKind::Views, ALGORITHM_VERSION, json!({ "subject": "set", "set": set }))
-        .input("set", set_key)
-        .input("mesh", mesh);
+    let spec = KeySpec::of(&ViewsKey { subject: "set", set: Some(set) }).input("set", set_key).input("mesh", mesh);
     let names_of: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
     let root = ctx.store.root().to_path_buf();
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::STATS);
@@ -248,9 +260,7 @@ pub(crate) const BASIS_VIEWS: [(&str, bool); 3] =
 
 /// The views of the basis artifact `basis`: one XDMF per group of [`BASIS_VIEWS`].
 pub(crate) fn basis(ctx: &mut Ctx<'_>, basis: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let spec = KeySpec::new(ArtifactKind::Views, ALGORITHM_VERSION, json!({ "subject": "basis" }))
-        .input("basis", basis)
-        .input("mesh", mesh);
+    let spec = KeySpec::of(&ViewsKey { subject: "basis", set: None }).input("basis", basis).input("mesh", mesh);
     let mesh_facts = mesh_facts(ctx, mesh)?;
     let basis_file = ctx.store.dir(ArtifactKind::Basis, basis).join(basis_names::FILE);
     ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
@@ -299,7 +309,7 @@ pub(crate) fn basis(ctx: &mut Ctx<'_>, basis: &Key, mesh: &Key) -> Result<Key, C
 /// the test set `test`: per test point the online fields, their errors and the full-order
 /// fields (onto the snapshot columns), the parameter and whether the query converged.
 pub(crate) fn online(ctx: &mut Ctx<'_>, rom: &Key, test: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let spec = KeySpec::new(ArtifactKind::Views, ALGORITHM_VERSION, json!({ "subject": "online" }))
+    let spec = KeySpec::of(&ViewsKey { subject: "online", set: None })
         .input("rom", rom)
         .input("test", test)
         .input("mesh", mesh);

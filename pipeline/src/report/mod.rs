@@ -15,15 +15,22 @@ use crom_schemas::artifact::{
 };
 use serde_json::json;
 
-use crate::cache::{Key, KeySpec};
+use crate::cache::{Key, KeySpec, StageKey};
 use crate::dag::{basis, trainset, Ctx};
 use crate::error::CromError;
 use crate::io::h5::H5In;
 use crate::io::table::{read_parquet, Table};
 use crate::store::Store;
 
-/// Bump when the report's content changes.
-const ALGORITHM_VERSION: u32 = 3;
+/// The report is determined by its inputs alone.
+#[derive(Debug, serde::Serialize)]
+struct ReportKey {}
+
+impl StageKey for ReportKey {
+    const KIND: ArtifactKind = ArtifactKind::Report;
+    /// Bump when the report's content changes.
+    const ALGORITHM_VERSION: u32 = 3;
+}
 
 /// The artifacts a report shows.
 #[derive(Debug, Clone)]
@@ -57,7 +64,7 @@ pub(crate) struct Figure {
 
 /// Build (or find) the report; returns its key.
 pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
-    let spec = KeySpec::new(ArtifactKind::Report, ALGORITHM_VERSION, json!({}))
+    let spec = KeySpec::of(&ReportKey {})
         .input("mesh", &inputs.mesh)
         .input("train", &inputs.train)
         .input("basis", &inputs.basis)
