@@ -53,6 +53,16 @@ impl Store {
             std::fs::remove_dir_all(&staging)
                 .map_err(|e| CromError::io(&staging, "clearing stale staging directories", e))?;
         }
+        // Likewise the temporary files of an atomic write that a kill interrupted (the catalog's,
+        // a scene's link): never under their final name, so garbage.
+        for dir in [root.to_path_buf(), root.join(crom_schemas::artifact::published::DIR)] {
+            for e in std::fs::read_dir(&dir).into_iter().flatten().flatten() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if name.starts_with(".tmp-") {
+                    let _ = std::fs::remove_file(e.path());
+                }
+            }
+        }
         Ok(Self { root: root.to_path_buf(), _lock: Some(lock) })
     }
 
