@@ -1,27 +1,13 @@
 //! End-to-end: the columnar snapshot store — a study grown by one level solves only the new
 //! points, and a sweep killed mid-way resumes to the same results as an uninterrupted run.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Output;
+use std::time::Duration;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn crom_cmd(store: &Path, args: &[&str]) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_crom"));
-    c.current_dir(repo()).arg("--store").arg(store).args(args).env_remove("CROM_STORE").env_remove("CROM_SCENES");
-    c
-}
-
-fn crom(store: &Path, args: &[&str]) -> Output {
-    crom_cmd(store, args).output().expect("crom runs")
-}
-
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
+use common::{crom, crom_cmd, kill_when, repo, text};
 
 /// `(computed, cached)` of one stage in the closing summary.
 fn stage_counts(o: &Output, stage: &str) -> (usize, usize) {
@@ -107,20 +93,10 @@ fn a_sweep_killed_mid_way_resumes_to_identical_results() {
     assert!(clean.status.success(), "{}", text(&clean));
 
     let store = tmp.path().join("killed");
-    let mut child = crom_cmd(&store, &["--quiet", "run", scene])
-        .env("CROM_BLOCK_COLUMNS", "1")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn crom");
+    let mut cmd = crom_cmd(&store, &["--quiet", "run", scene]);
+    cmd.env("CROM_BLOCK_COLUMNS", "1");
     // Kill (SIGKILL) as soon as a few one-snapshot blocks are committed, during the sweep.
-    let start = Instant::now();
-    while blocks(&store) < 3 && start.elapsed() < Duration::from_secs(120) {
-        assert!(child.try_wait().expect("poll").is_none(), "the run ended before it could be killed");
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    child.kill().expect("kill");
-    let _ = child.wait();
+    kill_when(cmd, "during the sweep", Duration::from_secs(120), || blocks(&store) >= 3);
     let done_before = blocks(&store);
     assert!(done_before >= 3, "no block was committed before the kill");
     assert!(done_before < 19 + 257, "the sweep had finished before the kill");

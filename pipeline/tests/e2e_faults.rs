@@ -11,26 +11,7 @@ use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-use common::{artifacts, assert_same_results, crom, crom_cmd, text, variant};
-
-/// Kill a run of `scene` into `store` as soon as `ready(store)` holds, while it still runs.
-fn kill_when(store: &Path, scene: &str, name: &str, what: &str, ready: impl Fn(&Path) -> bool) {
-    let mut child = crom_cmd(store, &["--quiet", "run", scene])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn crom");
-    let start = Instant::now();
-    while !ready(store) && start.elapsed() < Duration::from_secs(600) {
-        assert!(child.try_wait().expect("poll").is_none(), "{what}: the run ended before it could be killed");
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    assert!(ready(store), "{what}: the moment never came");
-    assert!(child.try_wait().expect("poll").is_none(), "{what}: the run ended before it could be killed");
-    child.kill().expect("kill");
-    let _ = child.wait();
-    assert!(!store.join("scenes").join(name).exists(), "{what}: the run had not finished (it names its study last)");
-}
+use common::{artifacts, assert_same_results, crom, crom_cmd, kill_when, text, variant};
 
 #[test]
 fn a_run_killed_during_the_metrics_the_online_stage_or_the_report_resumes_to_identical_results() {
@@ -52,7 +33,10 @@ fn a_run_killed_during_the_metrics_the_online_stage_or_the_report_resumes_to_ide
     let moments: [(&str, &str); 3] = [("metrics", "basis"), ("online stage", "nested"), ("report", "rom")];
     for (what, after) in moments {
         let store = tmp.path().join(what.replace(' ', "-"));
-        kill_when(&store, scene, "ironing-coarse", what, |s| artifacts(s, after) > 0);
+        let patience = Duration::from_secs(600);
+        kill_when(crom_cmd(&store, &["--quiet", "run", scene]), what, patience, || artifacts(&store, after) > 0);
+        // It names its study last: the killed run had not finished.
+        assert!(!store.join("scenes/ironing-coarse").exists(), "{what}: the run had finished");
         let resumed = crom(&store, &["--quiet", "run", scene]);
         assert!(resumed.status.success(), "{what}: {}", text(&resumed));
         assert_same_results(&reference, &store, what);
@@ -109,29 +93,26 @@ fn a_flipped_byte_or_a_truncated_manifest_is_quarantined_and_recomputed_to_the_s
     let tmp = tempfile::tempdir().expect("tempdir");
     let reference = tmp.path().join("reference");
     assert!(crom(&reference, &["--quiet", "run", "rope"]).status.success());
-    type Damage = fn(&Path);
-    let damages: [(&str, &str, Damage); 3] = [
-        ("a byte of basis.h5", "basis", |d| {
-            let mut b = std::fs::read(d.join("basis.h5")).expect("read");
-            let at = b.len() / 2;
-            b[at] ^= 0x01;
-            std::fs::write(d.join("basis.h5"), b).expect("write");
-        }),
-        ("a byte of compactness.parquet", "compactness", |d| {
-            let mut b = std::fs::read(d.join("compactness.parquet")).expect("read");
-            let at = b.len() / 2;
-            b[at] ^= 0x01;
-            std::fs::write(d.join("compactness.parquet"), b).expect("write");
-        }),
-        ("a truncated manifest", "specificity", |d| {
-            let m = std::fs::read(d.join("manifest.json")).expect("read");
-            std::fs::write(d.join("manifest.json"), &m[..m.len() / 2]).expect("write");
-        }),
+    /// Flip the lowest bit of the middle byte, or cut the file in half.
+    fn damage(path: &Path, truncate: bool) {
+        let mut bytes = std::fs::read(path).expect("read");
+        let half = bytes.len() / 2;
+        if truncate {
+            bytes.truncate(half);
+        } else {
+            bytes[half] ^= 0x01;
+        }
+        std::fs::write(path, bytes).expect("write");
+    }
+    let damages = [
+        ("a byte of basis.h5", "basis", "basis.h5", false),
+        ("a byte of compactness.parquet", "compactness", "compactness.parquet", false),
+        ("a truncated manifest", "specificity", "manifest.json", true),
     ];
-    for (what, stage, damage) in damages {
+    for (what, stage, file, truncate) in damages {
         let store = tmp.path().join(stage);
         assert!(crom(&store, &["--quiet", "run", "rope"]).status.success());
-        damage(&first_dir(&store, stage));
+        damage(&first_dir(&store, stage).join(file), truncate);
         let rerun = crom(&store, &["run", "rope"]);
         assert!(rerun.status.success(), "{what}: {}", text(&rerun));
         assert!(text(&rerun).contains("failed verification"), "{what} not detected: {}", text(&rerun));

@@ -2,51 +2,24 @@
 //! follow finished runs only — a failed or killed run leaves the previous ones — never point
 //! into the quarantine, and `crom ls` in every format agrees with `catalog.parquet`.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+mod common;
 
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use common::{artifacts, crom, crom_cmd, kill_when, text, variant};
 use crom_pipeline::io::table::read_parquet;
 use crom_schemas::artifact::catalog::COLUMNS;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn crom_cmd(store: &Path, args: &[&str]) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_crom"));
-    c.current_dir(repo()).arg("--store").arg(store).args(args).env_remove("CROM_STORE").env_remove("CROM_SCENES");
-    c
-}
-
-fn crom(store: &Path, args: &[&str]) -> Output {
-    crom_cmd(store, args).output().expect("crom runs")
-}
-
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
-
 /// A variant of the rope scene (same scene name, so it publishes under `scenes/rope`).
 fn rope_variant(dir: &Path, file: &str, edits: &[(&str, &str)]) -> PathBuf {
-    let mut text = std::fs::read_to_string(repo().join("data/scenes/rope.toml")).expect("rope.toml");
-    for (from, to) in edits {
-        assert!(text.contains(from), "rope.toml no longer contains `{from}`: update this test");
-        text = text.replace(from, to);
-    }
-    let path = dir.join(file);
-    std::fs::write(&path, text).expect("write scene");
-    path
+    variant(dir, "rope", file, edits)
 }
 
 /// Where a published name leads, as a path relative to the store root.
 fn resolved(store: &Path, name: &str) -> PathBuf {
     let real = std::fs::canonicalize(store.join("scenes/rope").join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     real.strip_prefix(std::fs::canonicalize(store).expect("store")).expect("inside the store").to_path_buf()
-}
-
-fn artifacts(store: &Path, stage: &str) -> usize {
-    std::fs::read_dir(store.join(stage)).map_or(0, |d| d.flatten().count())
 }
 
 #[test]
@@ -82,20 +55,9 @@ fn names_follow_finished_runs_and_a_failed_or_killed_run_keeps_the_old_ones() {
         ],
     );
     let changed = changed.to_str().expect("utf8");
-    let mut child = crom_cmd(&store, &["--quiet", "run", changed])
-        .env("CROM_BLOCK_COLUMNS", "1")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn crom");
-    let start = Instant::now();
-    while artifacts(&store, "basis") < 2 && start.elapsed() < Duration::from_secs(300) {
-        assert!(child.try_wait().expect("poll").is_none(), "the run ended before it could be killed");
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    assert_eq!(artifacts(&store, "basis"), 2, "the changed run committed its basis");
-    child.kill().expect("kill");
-    let _ = child.wait();
+    let mut cmd = crom_cmd(&store, &["--quiet", "run", changed]);
+    cmd.env("CROM_BLOCK_COLUMNS", "1");
+    kill_when(cmd, "after the new basis", Duration::from_secs(300), || artifacts(&store, "basis") == 2);
     assert_eq!(artifacts(&store, "nested"), 0, "the run was killed before it finished");
     assert_eq!(std::fs::read_link(store.join("scenes/rope")).expect("link"), old_link);
     assert_eq!(resolved(&store, "basis.h5"), old_basis);

@@ -3,7 +3,8 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
 
 use crom_schemas::artifact::{MANIFEST, TIMING_FILES};
 
@@ -34,6 +35,21 @@ pub fn crom(store: &Path, args: &[&str]) -> Output {
 /// Standard output and error of a finished command.
 pub fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+/// Spawn `cmd` and kill it (SIGKILL) as soon as `ready()` holds (waiting at most `patience`),
+/// asserting that it was still running then: the kill lands mid-run, never after the end.
+pub fn kill_when(mut cmd: Command, what: &str, patience: Duration, ready: impl Fn() -> bool) {
+    let mut child = cmd.stdout(Stdio::null()).stderr(Stdio::null()).spawn().expect("spawn crom");
+    let start = Instant::now();
+    while !ready() && start.elapsed() < patience {
+        assert!(child.try_wait().expect("poll").is_none(), "{what}: the run ended before it could be killed");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert!(ready(), "{what}: the moment never came");
+    assert!(child.try_wait().expect("poll").is_none(), "{what}: the run ended before it could be killed");
+    child.kill().expect("kill");
+    let _ = child.wait();
 }
 
 /// Artifacts (directories) of one stage.
