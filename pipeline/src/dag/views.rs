@@ -31,6 +31,7 @@ use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{H5In, H5Out, VirtualPiece};
 use crate::io::xdmf::{series_xdmf, SeriesAttribute, SeriesMesh, SeriesStep};
+use crate::store::Staging;
 
 /// What a view shows (its inputs' keys say of what).
 #[derive(Debug, Serialize)]
@@ -200,6 +201,67 @@ fn series_mesh(mesh: &MeshFacts) -> SeriesMesh {
     }
 }
 
+/// One step per column of a stored set (its `solver_stats.parquet` rows): `displacement` and
+/// `pressure` onto the set's snapshot columns, the parameter components as constants, the
+/// parameter value as time when it is a scalar increasing over the steps (else the step index).
+fn set_steps(
+    root: &std::path::Path,
+    stats: &std::path::Path,
+    names_of: &[String],
+    (n_dof, n_contact): (usize, usize),
+) -> Result<Vec<Step>, CromError> {
+    let rows = super::trainset::rows_of(stats)?;
+    let widths = super::trainset::block_columns(root, &rows)?;
+    let scalar = names_of.len() == 1;
+    let increasing = rows.windows(2).all(|w| w[0].parameters[0] < w[1].parameters[0]);
+    Ok(rows
+        .iter()
+        .enumerate()
+        .map(|(j, r)| {
+            let width = widths.get(&r.block).copied().unwrap_or(0);
+            let column = |dataset: &str, rows: usize| Column {
+                file: format!("{ROOT}{}", r.block),
+                dataset: dataset.to_string(),
+                shape: (rows, width),
+                col: r.column,
+            };
+            let parameters: Vec<(String, f64)> = names_of.iter().cloned().zip(r.parameters.iter().copied()).collect();
+            let label: Vec<String> = parameters.iter().map(|(n, v)| format!("{n}={v}")).collect();
+            Step {
+                name: label.join(","),
+                time: if scalar && increasing { r.parameters[0] } else { j as f64 },
+                fields: vec![
+                    (names::DISPLACEMENT.to_string(), Shape::Displacement, column("primal", n_dof)),
+                    (names::PRESSURE.to_string(), Shape::Pressure, column("dual", n_contact)),
+                ],
+                constants: parameters,
+            }
+        })
+        .collect())
+}
+
+/// Write `views.h5` (with the attribute `about`) and the XDMF `xdmf` of the temporal
+/// collection `name` into the staging directory.
+fn write_series(
+    staging: &Staging,
+    about: (&str, &str),
+    mesh: &MeshFacts,
+    steps: &[Step],
+    xdmf: &str,
+    name: &str,
+) -> Result<BTreeMap<String, serde_json::Value>, CromError> {
+    let h5 = H5Out::create(&staging.path(names::FILE))?;
+    h5.attr_str("kind", "views")?;
+    h5.attr_str(about.0, about.1)?;
+    h5.attr_str("cache_key", &staging.key().0)?;
+    let series = write_steps(&h5, "", mesh, steps)?;
+    drop(h5);
+    let path = staging.path(xdmf);
+    std::fs::write(&path, series_xdmf(name, &series_mesh(mesh), &series))
+        .map_err(|e| CromError::io(&path, "writing an XDMF file", e))?;
+    Ok(BTreeMap::from([("steps".to_string(), json!(steps.len()))]))
+}
+
 /// The views of the snapshot set `set` (train, test, nested-k) stored as `set_key`.
 pub(crate) fn set(ctx: &mut Ctx<'_>, set: &str, set_key: &Key, mesh: &Key) -> Result<Key, CromError> {
     let spec = KeySpec::of(&ViewsKey { subject: "set", set: Some(set) }).input("set", set_key).input("mesh", mesh);
@@ -207,50 +269,13 @@ pub(crate) fn set(ctx: &mut Ctx<'_>, set: &str, set_key: &Key, mesh: &Key) -> Re
     let root = ctx.store.root().to_path_buf();
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::STATS);
     let mesh_facts = mesh_facts(ctx, mesh)?;
-    let (n_dof, n_contact) = {
+    let shape = {
         let f = H5In::open(&ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::FILE))?;
         (f.shape(set_names::PRIMAL)?[0], f.shape(set_names::DUAL)?[0])
     };
     ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
-        let rows = super::trainset::rows_of(&stats)?;
-        let widths = super::trainset::block_columns(&root, &rows)?;
-        let scalar = names_of.len() == 1;
-        let increasing = rows.windows(2).all(|w| w[0].parameters[0] < w[1].parameters[0]);
-        let steps: Vec<Step> = rows
-            .iter()
-            .enumerate()
-            .map(|(j, r)| {
-                let width = widths.get(&r.block).copied().unwrap_or(0);
-                let column = |dataset: &str, rows: usize| Column {
-                    file: format!("{ROOT}{}", r.block),
-                    dataset: dataset.to_string(),
-                    shape: (rows, width),
-                    col: r.column,
-                };
-                let parameters: Vec<(String, f64)> =
-                    names_of.iter().cloned().zip(r.parameters.iter().copied()).collect();
-                let label: Vec<String> = parameters.iter().map(|(n, v)| format!("{n}={v}")).collect();
-                Step {
-                    name: label.join(","),
-                    time: if scalar && increasing { r.parameters[0] } else { j as f64 },
-                    fields: vec![
-                        (names::DISPLACEMENT.to_string(), Shape::Displacement, column("primal", n_dof)),
-                        (names::PRESSURE.to_string(), Shape::Pressure, column("dual", n_contact)),
-                    ],
-                    constants: parameters,
-                }
-            })
-            .collect();
-        let h5 = H5Out::create(&staging.path(names::FILE))?;
-        h5.attr_str("kind", "views")?;
-        h5.attr_str("set", set)?;
-        h5.attr_str("cache_key", &staging.key().0)?;
-        let series = write_steps(&h5, "", &mesh_facts, &steps)?;
-        drop(h5);
-        let xdmf = staging.path(names::SET_XDMF);
-        std::fs::write(&xdmf, series_xdmf(set, &series_mesh(&mesh_facts), &series))
-            .map_err(|e| CromError::io(&xdmf, "writing an XDMF file", e))?;
-        Ok(BTreeMap::from([("steps".to_string(), json!(steps.len()))]))
+        let steps = set_steps(&root, &stats, &names_of, shape)?;
+        write_series(staging, ("set", set), &mesh_facts, &steps, names::SET_XDMF, set)
     })
 }
 
@@ -319,8 +344,6 @@ pub(crate) fn online(ctx: &mut Ctx<'_>, rom: &Key, test: &Key, mesh: &Key) -> Re
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, test).join(set_names::STATS);
     let online_file = ctx.store.dir(ArtifactKind::Rom, rom).join(rom_names::ONLINE);
     ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
-        let rows = super::trainset::rows_of(&stats)?;
-        let widths = super::trainset::block_columns(&root, &rows)?;
         let f = H5In::open(&online_file)?;
         let (n_dof, k) = {
             let s = f.shape("primal")?;
@@ -329,63 +352,36 @@ pub(crate) fn online(ctx: &mut Ctx<'_>, rom: &Key, test: &Key, mesh: &Key) -> Re
         let n_contact = f.shape("dual")?.first().copied().unwrap_or(0);
         let converged = f.vec_u64("converged")?;
         drop(f);
-        if k != rows.len() || converged.len() != k {
+        // The test set's own steps give the full-order fields, renamed, and the parameter.
+        let mut steps = set_steps(&root, &stats, &names_of, (n_dof, n_contact))?;
+        if k != steps.len() || converged.len() != k {
             return Err(CromError::artifact(
                 &online_file,
-                format!("{k} online solutions for {} test points", rows.len()),
+                format!("{k} online solutions for {} test points", steps.len()),
                 "delete the rom artifact and rerun",
             ));
         }
-        let scalar = names_of.len() == 1;
-        let increasing = rows.windows(2).all(|w| w[0].parameters[0] < w[1].parameters[0]);
         let here = format!("{ROOT}{}/{}/{}", ArtifactKind::Rom.name(), rom.0, rom_names::ONLINE);
-        let steps: Vec<Step> = rows
-            .iter()
-            .enumerate()
-            .map(|(j, r)| {
-                let online = |dataset: &str, rows: usize| Column {
-                    file: here.clone(),
-                    dataset: dataset.to_string(),
-                    shape: (rows, k),
-                    col: j,
-                };
-                let width = widths.get(&r.block).copied().unwrap_or(0);
-                let fom = |dataset: &str, rows: usize| Column {
-                    file: format!("{ROOT}{}", r.block),
-                    dataset: dataset.to_string(),
-                    shape: (rows, width),
-                    col: r.column,
-                };
-                let mut constants: Vec<(String, f64)> =
-                    names_of.iter().cloned().zip(r.parameters.iter().copied()).collect();
-                let label: Vec<String> = constants.iter().map(|(n, v)| format!("{n}={v}")).collect();
-                constants.push(("converged".to_string(), converged[j] as f64));
-                let d = Shape::Displacement;
-                let p = Shape::Pressure;
-                Step {
-                    name: label.join(","),
-                    time: if scalar && increasing { r.parameters[0] } else { j as f64 },
-                    fields: vec![
-                        (names::DISPLACEMENT.to_string(), d, online("primal", n_dof)),
-                        (names::PRESSURE.to_string(), p, online("dual", n_contact)),
-                        ("displacement_error".to_string(), d, online("primal_error", n_dof)),
-                        ("pressure_error".to_string(), p, online("dual_error", n_contact)),
-                        ("displacement_fom".to_string(), d, fom("primal", n_dof)),
-                        ("pressure_fom".to_string(), p, fom("dual", n_contact)),
-                    ],
-                    constants,
-                }
-            })
-            .collect();
-        let h5 = H5Out::create(&staging.path(names::FILE))?;
-        h5.attr_str("kind", "views")?;
-        h5.attr_str("rom", &rom.0)?;
-        h5.attr_str("cache_key", &staging.key().0)?;
-        let series = write_steps(&h5, "", &mesh_facts, &steps)?;
-        drop(h5);
-        let xdmf = staging.path(names::ONLINE_XDMF);
-        std::fs::write(&xdmf, series_xdmf("online", &series_mesh(&mesh_facts), &series))
-            .map_err(|e| CromError::io(&xdmf, "writing an XDMF file", e))?;
-        Ok(BTreeMap::from([("steps".to_string(), json!(steps.len()))]))
+        for (j, step) in steps.iter_mut().enumerate() {
+            let online = |dataset: &str, rows: usize| Column {
+                file: here.clone(),
+                dataset: dataset.to_string(),
+                shape: (rows, k),
+                col: j,
+            };
+            let (d, p) = (Shape::Displacement, Shape::Pressure);
+            let mut fields = vec![
+                (names::DISPLACEMENT.to_string(), d, online("primal", n_dof)),
+                (names::PRESSURE.to_string(), p, online("dual", n_contact)),
+                ("displacement_error".to_string(), d, online("primal_error", n_dof)),
+                ("pressure_error".to_string(), p, online("dual_error", n_contact)),
+            ];
+            for (name, shape, column) in step.fields.drain(..) {
+                fields.push((format!("{name}_fom"), shape, column));
+            }
+            step.fields = fields;
+            step.constants.push(("converged".to_string(), converged[j] as f64));
+        }
+        write_series(staging, ("rom", &rom.0), &mesh_facts, &steps, names::ONLINE_XDMF, "online")
     })
 }
