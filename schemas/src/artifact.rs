@@ -75,7 +75,7 @@ impl ArtifactKind {
         match self {
             ArtifactKind::Mesh => 1,
             ArtifactKind::Snapshot => 1,
-            ArtifactKind::TrainingSet => 3,
+            ArtifactKind::TrainingSet => 4,
             ArtifactKind::Basis => 1,
             ArtifactKind::Compactness => 1,
             ArtifactKind::Generalization => 1,
@@ -155,7 +155,7 @@ pub mod trainset {
     pub const STATS: &str = "solver_stats.parquet";
     /// Columns of [`STATS`], in order; a vector parameter adds one column per component (by
     /// name) after `parameter`, its first component.
-    pub const STATS_COLUMNS: [&str; 14] = [
+    pub const STATS_COLUMNS: [&str; 19] = [
         "scene",
         "index",
         "parameter",
@@ -170,6 +170,11 @@ pub mod trainset {
         "complementarity",
         "kkt_residual",
         "vertex_ties",
+        "vertex_nodes",
+        "vertex_rounds",
+        "min_gap",
+        "active_gap",
+        "cone_angle",
     ];
     /// Wall-clock solve time of each snapshot, apart from the results (it differs per run).
     pub const TIMINGS: &str = "solver_timings.parquet";

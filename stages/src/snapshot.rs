@@ -17,8 +17,23 @@ pub struct SolveStats {
     /// Relative residual of the equilibrium equation `||K u - f + C^T lambda|| / ||f_ref||`.
     pub kkt_residual: f64,
     /// Number of slave nodes that had to be tied to a master vertex (averaged normal) because the
-    /// closest-point pairing kept flipping between two segments. 0 for the rope.
+    /// closest-point pairing kept flipping between two segments, or because it sits in a
+    /// vertex's zone (the vertex-zone rule, `contact::vertex`). 0 for the rope.
     pub vertex_ties: usize,
+    /// The tied slaves as `slave:vertex` pairs (slave and master-vertex indices along the slave
+    /// and master lists), space-separated, ascending; empty for none and for the rope.
+    pub vertex_nodes: String,
+    /// Cold re-solves the vertex-zone rule needed after the first solve (0 for the rope).
+    pub vertex_rounds: usize,
+    /// Geometric check (`contact::check`): smallest signed distance of a slave to the deformed
+    /// master (negative: penetration); for the rope `min (u - g)` over the obstacle.
+    pub min_gap: f64,
+    /// Geometric check: largest `|signed distance|` of a slave with pressure (rope: `|u - g|`
+    /// where the obstacle pushes).
+    pub active_gap: f64,
+    /// Geometric check: largest angle (rad) by which an active slave's force lies outside the
+    /// normal cone of the feature it touches (0 for the rope, where every force is vertical).
+    pub cone_angle: f64,
 }
 
 /// One high-fidelity solution at one parameter value.

@@ -15,7 +15,7 @@ from scipy.optimize import nnls
 
 from conftest import only_artifact
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 
 def train_file(store):
@@ -47,7 +47,12 @@ def test_solver_statistics_table(rope_store):
                                           where=lambda p: len(pd.read_parquet(p)) == 10))
     assert list(stats.columns) == ["scene", "index", "parameter", "snapshot_key", "block", "column", "blake3",
                                    "iterations", "active", "max_penetration", "min_lambda", "complementarity",
-                                   "kkt_residual", "vertex_ties"]
+                                   "kkt_residual", "vertex_ties", "vertex_nodes", "vertex_rounds", "min_gap",
+                                   "active_gap", "cone_angle"]
+    # The rope's geometric check is its obstacle gap u - g: no penetration beyond the solver's
+    # tolerance, and no vertices to tie.
+    assert (stats["min_gap"] >= -1e-10).all() and (stats["active_gap"] <= 1e-10).all()
+    assert (stats["vertex_ties"] == 0).all() and (stats["vertex_nodes"] == "").all()
     assert (stats["complementarity"] <= 1e-10).all()
     # The solve times, apart from the results: same rows, same snapshots.
     times = pd.read_parquet(only_artifact(rope_store, "trainset", "solver_timings.parquet",

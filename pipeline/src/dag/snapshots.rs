@@ -30,7 +30,9 @@ use crate::store::columns::{
 use crate::store::Lookup;
 
 /// Bump when the solvers change the numbers they produce.
-const ALGORITHM_VERSION: u32 = 1;
+/// 2: the vertex-zone rule (design note 27) changes the snapshots near sole vertices, and the
+/// index gains the geometric check.
+const ALGORITHM_VERSION: u32 = 2;
 
 /// A block is committed when it holds about this many bytes of snapshot data...
 const BLOCK_BYTES: usize = 32 << 20;
@@ -293,6 +295,11 @@ fn evidence(s: &SolveStats, seconds: f64) -> Evidence {
         iterations: s.iterations as u64,
         active: s.active as u64,
         vertex_ties: s.vertex_ties as u64,
+        vertex_nodes: s.vertex_nodes.clone(),
+        vertex_rounds: s.vertex_rounds as u64,
+        min_gap: s.min_gap,
+        active_gap: s.active_gap,
+        cone_angle: s.cone_angle,
         max_penetration: s.max_penetration,
         min_lambda: s.min_lambda,
         complementarity: s.complementarity,
@@ -325,6 +332,11 @@ fn import_old_layout(ctx: &mut Ctx<'_>, key: &Key, p: &[f64]) -> Option<PendingC
             iterations: u("iterations"),
             active: u("active"),
             vertex_ties: u("vertex_ties"),
+            vertex_nodes: s.get("vertex_nodes").and_then(serde_json::Value::as_str).unwrap_or_default().to_string(),
+            vertex_rounds: u("vertex_rounds"),
+            min_gap: x("min_gap"),
+            active_gap: x("active_gap"),
+            cone_angle: x("cone_angle"),
             max_penetration: x("max_penetration"),
             min_lambda: x("min_lambda"),
             complementarity: x("complementarity"),

@@ -223,6 +223,11 @@ fn stats_table(scene: &str, names: &[String], points: &[Vec<f64>], rows: &[Index
         .with("complementarity", x(&|e| e.complementarity))
         .with("kkt_residual", x(&|e| e.kkt_residual))
         .with("vertex_ties", u(&|e| e.vertex_ties))
+        .with("vertex_nodes", Column::Str(rows.iter().map(|r| r.evidence.vertex_nodes.clone()).collect()))
+        .with("vertex_rounds", u(&|e| e.vertex_rounds))
+        .with("min_gap", x(&|e| e.min_gap))
+        .with("active_gap", x(&|e| e.active_gap))
+        .with("cone_angle", x(&|e| e.cone_angle))
 }
 
 /// Per-snapshot solve time, apart from the results (same rows as the statistics).

@@ -36,7 +36,7 @@ use crate::io::h5::ColMatrix;
 use crate::io::table::{read_parquet, Column, Table};
 
 /// Layout version of a column family (family.json, blocks, index).
-pub const COLUMNS_SCHEMA_VERSION: u32 = 1;
+pub const COLUMNS_SCHEMA_VERSION: u32 = 2;
 
 /// Directory of all column families under the store root.
 pub const COLUMNS_DIR: &str = "columns";
@@ -63,7 +63,7 @@ pub struct FamilyMeta {
 }
 
 /// Solver evidence of one snapshot (index columns).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Evidence {
     /// Active-set iterations.
     pub iterations: u64,
@@ -71,6 +71,16 @@ pub struct Evidence {
     pub active: u64,
     /// Slave nodes tied to a vertex.
     pub vertex_ties: u64,
+    /// The tied slaves, `slave:vertex` pairs separated by spaces.
+    pub vertex_nodes: String,
+    /// Cold re-solves of the vertex-zone rule.
+    pub vertex_rounds: u64,
+    /// Geometric check: smallest signed distance of a slave to the master (negative: penetration).
+    pub min_gap: f64,
+    /// Geometric check: largest `|distance|` of a slave with pressure.
+    pub active_gap: f64,
+    /// Geometric check: largest angle (rad) of a contact force outside its normal cone.
+    pub cone_angle: f64,
     /// Largest penetration.
     pub max_penetration: f64,
     /// Smallest multiplier.
@@ -306,6 +316,8 @@ impl ColumnFamily {
         let (it, act, ties) = (u("iterations")?, u("active")?, u("vertex_ties")?);
         let (pen, minl, comp, kkt, secs) =
             (f("max_penetration")?, f("min_lambda")?, f("complementarity")?, f("kkt_residual")?, f("seconds")?);
+        let (rounds, nodes) = (u("vertex_rounds")?, t.strs("vertex_nodes").ok_or_else(|| bad("vertex_nodes"))?);
+        let (min_gap, active_gap, cone) = (f("min_gap")?, f("active_gap")?, f("cone_angle")?);
         Ok((0..t.rows())
             .map(|i| IndexRow {
                 key: Key(keys[i].clone()),
@@ -319,6 +331,11 @@ impl ColumnFamily {
                     iterations: it[i],
                     active: act[i],
                     vertex_ties: ties[i],
+                    vertex_nodes: nodes[i].clone(),
+                    vertex_rounds: rounds[i],
+                    min_gap: min_gap[i],
+                    active_gap: active_gap[i],
+                    cone_angle: cone[i],
                     max_penetration: pen[i],
                     min_lambda: minl[i],
                     complementarity: comp[i],
@@ -348,6 +365,11 @@ impl ColumnFamily {
             .with("iterations", u(&|r| r.evidence.iterations))
             .with("active", u(&|r| r.evidence.active))
             .with("vertex_ties", u(&|r| r.evidence.vertex_ties))
+            .with("vertex_nodes", s(&|r| r.evidence.vertex_nodes.clone()))
+            .with("vertex_rounds", u(&|r| r.evidence.vertex_rounds))
+            .with("min_gap", x(&|r| r.evidence.min_gap))
+            .with("active_gap", x(&|r| r.evidence.active_gap))
+            .with("cone_angle", x(&|r| r.evidence.cone_angle))
             .with("max_penetration", x(&|r| r.evidence.max_penetration))
             .with("min_lambda", x(&|r| r.evidence.min_lambda))
             .with("complementarity", x(&|r| r.evidence.complementarity))
@@ -406,7 +428,7 @@ impl ColumnFamily {
                 blake3: column_hash(&c.primal, &c.dual),
                 block_bytes: bytes,
                 block_blake3: bhash.clone(),
-                evidence: c.evidence,
+                evidence: c.evidence.clone(),
             })
             .collect();
         let frag = self.dir.join("index").join(format!("{id}.parquet"));

@@ -18,7 +18,8 @@
 //! - [`pairing`]: closest-point projection onto the master polyline;
 //! - [`delassus`]: the compliance `W = E_c^T K^{-1} E_c` on the contact dofs;
 //! - [`active_set`]: the condensed LCP `g = q + B W B^T lambda` (PDAS, fallback primal active set);
-//! - [`vertex`]: vertex-flip detection and ties;
+//! - [`vertex`]: vertex-flip detection, ties and the vertex-zone rule;
+//! - [`check`]: the geometric check of a converged state;
 //! - [`anderson`]: acceleration of the re-pairing fixed point;
 //! - `model`, `factor`, `solve`: the scenes, the factorisation, the re-pairing loop.
 //!
@@ -28,6 +29,7 @@
 
 pub mod active_set;
 pub mod anderson;
+pub mod check;
 pub mod delassus;
 mod error;
 mod factor;
@@ -45,4 +47,4 @@ pub use crate::fem::Material;
 pub use error::{ContactError, ModelError};
 pub use factor::FactoredModel;
 pub use model::{build_hertz, build_ironing, ContactModel, HertzParams, IroningParams, SceneKind};
-pub use solve::ContactSolveParams;
+pub use solve::{ContactSolveParams, SolveStart, VertexRule};

@@ -295,7 +295,10 @@ mod tests {
     /// Points: every ironing-coarse point of the 8-point sweep (the solver needs no vertex tie
     /// there), and hertz at d = 0.025 (no tie) and d = 0.05, where the solver ties exactly one
     /// slave — the apex, which sits on the master's apex vertex and gets the same averaged
-    /// normal from the vertex snap. (Larger hertz approaches: see the next test.)
+    /// normal from the vertex snap. (Larger hertz approaches: see the next test.) The snapshots
+    /// are solved with flip ties only: the vertex-zone rule ties slaves near a sole vertex at
+    /// many more points, and a tie is exactly where the stateless linearisation differs (next
+    /// test; the tied states are checked by `contact::tests::geometric_check_on_every_training_point`).
     #[test]
     fn linearisation_at_a_snapshot_matches_the_solver() {
         let cases: Vec<(&FactoredModel, f64)> = (0..8)
@@ -303,7 +306,9 @@ mod tests {
             .chain([(hertz(), 0.025), (hertz(), 0.05)])
             .collect();
         for (fm, mu) in cases {
-            let s = fm.solve(&[mu], &TOL).expect("solve");
+            let s = fm
+                .solve_with_rule(&[mu], &TOL, &crate::contact::SolveStart::COLD, crate::contact::VertexRule::FlipTies)
+                .expect("solve");
             assert!(s.stats.vertex_ties <= 1, "mu {mu}: {:?}", s.stats);
             let (min_gap, active_gap, eq) = operator_residuals(fm, mu, &s);
             assert!(min_gap >= -1e-10, "mu {mu}: gap {min_gap:e}");
@@ -314,7 +319,7 @@ mod tests {
 
     /// Hertz at larger approaches: both arcs carry the same 78 equal elements, so under load
     /// every active slave sits within ξ ~ 1e-3 .. 1e-2 of a master vertex and the solver ties
-    /// several of them (3 to 15 over d in 0.1 .. 0.3; without ties it does not converge at all
+    /// several of them (at least 3 over d in 0.1 .. 0.3; without ties it does not converge at all
     /// from d = 0.05 on, see below). A tie uses the averaged normal where the stateless
     /// closest-point rule uses the segment's, so the operator's linearisation at such a snapshot
     /// differs from the solver's — and only there: at every slave with pressure the solver's
@@ -361,7 +366,11 @@ mod tests {
                 }
             }
             assert!(tied >= 1, "d {d}: expected tied slaves");
-            assert!(fm.solve_impl(&[d], &TOL, false).is_err(), "d {d}: plain closest point converged in the solver");
+            assert!(
+                fm.solve_with_rule(&[d], &TOL, &crate::contact::SolveStart::COLD, crate::contact::VertexRule::Off)
+                    .is_err(),
+                "d {d}: plain closest point converged in the solver"
+            );
         }
     }
 
@@ -434,18 +443,29 @@ mod tests {
             .collect()
     }
 
-    /// Ironing-coarse, 8 training points d_x = 3k/7 with full bases. The solver needs no vertex
-    /// tie there and the reduced solve uses the solver's pairing and gap rows, so each snapshot
-    /// is the KKT point of the reduced problem at its own linearisation: both algorithms
-    /// reproduce every snapshot to the solver's tolerance, 1e-10, in relative H1 norm and
-    /// pressure, and the indicator is at rounding level (penetration and complementarity
-    /// <= 1e-10 in lengths ~0.1; residual <= 1e-6, the square root of a difference of energies).
+    /// Ironing-coarse, 8 training points d_x = 3k/7 with full bases. The exact reduced solve
+    /// uses the solver's pairing, gap rows and vertex-zone rule, so each snapshot is the KKT
+    /// point of the reduced problem at its own linearisation: it reproduces every snapshot to
+    /// the solver's tolerance, 1e-10, in relative H1 norm and pressure, and the indicator is at
+    /// rounding level (penetration and complementarity <= 1e-10 in lengths ~0.1; residual
+    /// <= 1e-6, the square root of a difference of energies). The paper's Algorithm 1 (flip
+    /// ties only) does the same where the solver tied no slave, and where it did (d_x = 0 and 3
+    /// here) settles on the untied state: errors measured 1.6e-5, bound 5e-4 as on hertz, and
+    /// the indicator's residual is at least the primal error.
     #[test]
     fn full_bases_reproduce_ironing_training_snapshots() {
         let fm = ironing_coarse();
         let mus: Vec<f64> = (0..8).map(|k| 3.0 * k as f64 / 7.0).collect();
+        let tied: Vec<bool> =
+            mus.iter().map(|&mu| fm.solve(&[mu], &TOL).expect("solve").stats.vertex_ties > 0).collect();
+        assert!(tied.iter().any(|t| *t) && !tied.iter().all(|t| *t), "{tied:?}");
         for algorithm in [Algorithm::Exact, Algorithm::Paper] {
-            for (mu, eu, ep, ind) in reproduce(fm, &mus, algorithm) {
+            for ((mu, eu, ep, ind), tied) in reproduce(fm, &mus, algorithm).into_iter().zip(&tied) {
+                if algorithm == Algorithm::Paper && *tied {
+                    assert!(eu <= 5e-4 && ep <= 5e-4, "paper d_x {mu}: errors {eu:e} {ep:e}");
+                    assert!(ind.residual >= eu, "paper d_x {mu}: error {eu:e} vs {ind:?}");
+                    continue;
+                }
                 assert!(eu <= 1e-10 && ep <= 1e-10, "{algorithm:?} d_x {mu}: errors {eu:e} {ep:e}");
                 assert!(ind.penetration <= 1e-10 && ind.complementarity <= 1e-10, "d_x {mu}: {ind:?}");
                 assert!(ind.residual <= 1e-6 && ind.unpaired_force == 0.0, "d_x {mu}: {ind:?}");
@@ -453,32 +473,31 @@ mod tests {
         }
     }
 
-    /// Hertz, 6 training points d = 0.05 k with full bases. At d = 0.05 the solver ties only
-    /// the apex and the exact reduced solve reproduces the snapshot to the solver's tolerance,
-    /// 1e-10. From d = 0.1 on the solver ties 3 to 15 slaves to master vertices, and which ones
-    /// depends on its iteration history ([`crate::contact::vertex`]); the reduced solve applies
-    /// the same rule along its own history and settles on another of the discrete problem's
-    /// equilibria (issue 9: the node-to-segment problem has several at vertex contacts), which
-    /// the training space represents only approximately. The two differ by the normal tilts of
-    /// the tied slaves (at most half a vertex angle, pi/156): relative errors measured
-    /// 1e-5 .. 1.5e-4, bound 5e-4 — and the indicator sees it: its equilibrium residual is at
-    /// least the primal error at every such point, while it is at rounding (<= 1e-6) where the
-    /// snapshot is reproduced.
+    /// Hertz, 6 training points d = 0.05 k with full bases. The solver ties 1 to 17 slaves to
+    /// master vertices there by the vertex-zone rule ([`crate::contact::vertex`]). The exact
+    /// reduced solve applies the same rule (a slave with pressure in a zone is forced to its
+    /// vertex), so every snapshot is the KKT point of its reduced problem and it reproduces
+    /// them: bound 1e-9 on the relative H1 and pressure errors (the snapshots are KKT points to
+    /// 1e-10 relative, and the pressure error is that residual over the smallest active force,
+    /// ~0.1 of the largest; measured at most 1.3e-10), indicator residual at rounding (<= 1e-6,
+    /// as for ironing). Before the rule both used flip ties along their own histories and
+    /// settled on different equilibria (errors 1e-5 .. 1.5e-4).
+    ///
+    /// The paper's Algorithm 1 keeps flip ties only, as the paper states it, and still settles
+    /// elsewhere: the tied slaves' normals differ by at most half a vertex angle, pi/156,
+    /// giving relative errors measured 4e-6 .. 3.3e-4, bound 5e-4 — and the indicator sees it:
+    /// its equilibrium residual is at least the primal error at every point.
     #[test]
     fn full_bases_reproduce_hertz_training_snapshots() {
         let fm = hertz();
         let mus: Vec<f64> = (1..=6).map(|k| 0.05 * k as f64).collect();
-        for algorithm in [Algorithm::Exact, Algorithm::Paper] {
-            for (mu, eu, ep, ind) in reproduce(fm, &mus, algorithm) {
-                let exact = algorithm == Algorithm::Exact && mu < 0.075;
-                let tol = if exact { 1e-10 } else { 5e-4 };
-                assert!(eu <= tol && ep <= tol, "{algorithm:?} d {mu}: errors {eu:e} {ep:e}");
-                if exact {
-                    assert!(ind.residual <= 1e-6, "d {mu}: {ind:?}");
-                } else {
-                    assert!(ind.residual >= eu, "{algorithm:?} d {mu}: error {eu:e} vs {ind:?}");
-                }
-            }
+        for (mu, eu, ep, ind) in reproduce(fm, &mus, Algorithm::Exact) {
+            assert!(eu <= 1e-9 && ep <= 1e-9, "exact d {mu}: errors {eu:e} {ep:e}");
+            assert!(ind.residual <= 1e-6, "exact d {mu}: {ind:?}");
+        }
+        for (mu, eu, ep, ind) in reproduce(fm, &mus, Algorithm::Paper) {
+            assert!(eu <= 5e-4 && ep <= 5e-4, "paper d {mu}: errors {eu:e} {ep:e}");
+            assert!(ind.residual >= eu, "paper d {mu}: error {eu:e} vs {ind:?}");
         }
     }
 

@@ -33,7 +33,7 @@ use super::anderson::Anderson;
 use super::error::ContactError;
 use super::factor::FactoredModel;
 use super::pairing::{GapRow as Row, MasterIndex, Pair};
-use super::vertex::VertexTies;
+use super::vertex::{zone_vertex, VertexTies, VERTEX_ZONE};
 use crate::mu::{affine, Mu};
 use crate::snapshot::{Snapshot, SolveStats};
 
@@ -83,6 +83,8 @@ struct Work {
     lam: Vec<f64>,
     g: Vec<f64>,
     act: Vec<bool>,
+    /// First active-set guess per slave ([`SolveStart::active`]).
+    act_first: Vec<bool>,
     lam_s: Vec<f64>,
     lam_s_new: Vec<f64>,
     f_old: Vec<f64>,
@@ -96,28 +98,140 @@ struct Work {
     lcp: LcpWork,
 }
 
+/// Where a solve starts. Production solves start cold ([`SolveStart::COLD`]); the other starts
+/// exist to show that the returned state does not depend on the start (the vertex-zone rule,
+/// [`super::vertex`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SolveStart<'a> {
+    /// A full displacement to pair the slaves at first (e.g. a neighbouring point's snapshot);
+    /// `None`: the response without contact.
+    pub u: Option<&'a [f64]>,
+    /// The first active-set guess, one flag per slave; `None`: no slave active.
+    pub active: Option<&'a [bool]>,
+}
+
+impl SolveStart<'_> {
+    /// The cold start: no contact, empty active set.
+    pub const COLD: SolveStart<'static> = SolveStart { u: None, active: None };
+
+    fn is_cold(&self) -> bool {
+        self.u.is_none() && self.active.is_none()
+    }
+}
+
+/// How slaves near a master vertex are settled ([`super::vertex`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VertexRule {
+    /// The vertex-zone rule on top of flip ties: the returned state does not depend on the
+    /// start. What [`FactoredModel::solve`] uses.
+    Zone,
+    /// Flip ties only (the state depends on the iteration history; kept to measure the rule
+    /// against).
+    FlipTies,
+    /// Plain closest point, no ties (does not converge where a slave flips).
+    Off,
+}
+
 impl FactoredModel {
-    /// Solve the contact problem at parameter `mu` (Hertz: approach `d`; ironing: travel `d_x`).
+    /// Solve the contact problem at parameter `mu` (Hertz: approach `d`; ironing: travel `d_x`)
+    /// from the cold start.
     pub fn solve(&self, mu: &[f64], p: &ContactSolveParams) -> Result<Snapshot, ContactError> {
-        self.solve_impl(mu, p, true)
+        self.solve_with_rule(mu, p, &SolveStart::COLD, VertexRule::Zone)
     }
 
-    /// [`Self::solve`] with vertex ties switchable (off only to demonstrate, in tests, that
-    /// some ironing-fine points need them).
-    pub(crate) fn solve_impl(
+    /// [`Self::solve`] from another start; returns the same state (the vertex-zone rule).
+    pub fn solve_from(&self, mu: &[f64], p: &ContactSolveParams, start: &SolveStart) -> Result<Snapshot, ContactError> {
+        self.solve_with_rule(mu, p, start, VertexRule::Zone)
+    }
+
+    /// [`Self::solve_from`] with another [`VertexRule`] (to measure the rule against the
+    /// alternatives; production solves use [`VertexRule::Zone`]).
+    ///
+    /// The vertex-zone rule: the first solve (from `start`) gives a state `S_0` and the tie set
+    /// `T_1 = Z(S_0)`, where `Z(S)` is the set of slaves with pressure at `S` that are in a
+    /// vertex zone or that the solve of `S` flip-tied (a slave without pressure is not
+    /// constrained, whatever its pairing). Then `S_n = cold(T_n)` (the cold solve with `T_n` forced) and
+    /// `T_{n+1} = T_n ∪ Z(S_n)`, until `T_{n+1} = T_n`; the state returned is that last `S_n`.
+    /// The sequence is monotone, so it ends after at most `ns + 1` rounds, and a start enters
+    /// only through `Z(S_0)`: the states a start can lead to differ only for slaves near a vertex,
+    /// and those are in the zone whichever side they settled on (the zone is five times the
+    /// widest such difference seen, see [`super::vertex::VERTEX_ZONE`]).
+    pub fn solve_with_rule(
         &self,
         mu: &[f64],
         p: &ContactSolveParams,
-        allow_ties: bool,
+        start: &SolveStart,
+        rule: VertexRule,
     ) -> Result<Snapshot, ContactError> {
         if mu.len() != self.model.n_params() || mu.iter().any(|m| !m.is_finite()) {
             return Err(ContactError::BadParameter(Mu::of(mu)));
         }
+        let ns = self.model.slaves.len();
+        if start.u.is_some_and(|u| u.len() != self.model.n_dof()) || start.active.is_some_and(|a| a.len() != ns) {
+            return Err(ContactError::BadParameter(Mu::of(mu)));
+        }
+        let mut ws = self.work(mu);
+        let lift_inf =
+            (0..self.lift[0].len()).fold(0.0f64, |acc, i| acc.max(affine(&self.lift[0], &self.lift[1..], mu, i).abs()));
+        let mut ties = if rule == VertexRule::Off { VertexTies::disabled(ns) } else { VertexTies::new(ns) };
+        let (mut iterations, mut c_scale) = self.active_set_loop(mu, p, start, lift_inf, &mut ws, &mut ties)?;
+        let mut rounds = 0;
+        if rule == VertexRule::Zone {
+            let mut forced = vec![None; ns];
+            let mut next = vec![None; ns];
+            let mut cold = start.is_cold();
+            loop {
+                self.rule_ties(&mut ws, &ties, &mut next);
+                // monotone: a slave once tied stays tied (to its first vertex)
+                for (n, f) in next.iter_mut().zip(&forced) {
+                    if f.is_some() {
+                        *n = *f;
+                    }
+                }
+                if cold && next == forced {
+                    break;
+                }
+                // every round but the first adds a slave: at most ns + 1 rounds
+                rounds += 1;
+                std::mem::swap(&mut forced, &mut next);
+                ties.force(&forced);
+                cold = true;
+                let (it, c) = self.active_set_loop(mu, p, &SolveStart::COLD, lift_inf, &mut ws, &mut ties)?;
+                iterations += it;
+                c_scale = c;
+            }
+        }
+        Ok(self.finish(mu, &ws, lift_inf, c_scale, (iterations, rounds), &ties))
+    }
+
+    /// The vertex-zone rule's tie set `T(S)` of the state in `ws` (see [`Self::solve_with_rule`]).
+    fn rule_ties(&self, ws: &mut Work, ties: &VertexTies, out: &mut [Option<usize>]) {
+        self.deformed_positions(&ws.uc, &mut ws.x, &mut ws.xm);
+        ws.index.build(&ws.xm);
+        for (s, o) in out.iter_mut().enumerate() {
+            *o = None;
+            if self.slave_fixed[s] {
+                continue;
+            }
+            let xs = [ws.x[2 * s], ws.x[2 * s + 1]];
+            let nat = ws.index.closest_point(xs, &ws.xm);
+            if ws.lam_s[s] <= 0.0 {
+                continue;
+            }
+            *o = zone_vertex(xs, &ws.xm, nat.kind, VERTEX_ZONE).or(if ties.forced(s).is_none() {
+                ties.tied(s)
+            } else {
+                None
+            });
+        }
+    }
+
+    /// Buffers of one solve at `mu`.
+    fn work(&self, mu: &[f64]) -> Work {
         let m = &self.model;
         let ns = m.slaves.len();
         let nm = m.masters.len();
         let ncd = 2 * (ns + nm);
-        let tol = p.rel_tol;
         let mut ws = Work {
             a: (0..ncd).map(|i| affine(&self.a[0], &self.a[1..], mu, i)).collect(),
             xa: vec![0.0; ncd],
@@ -135,6 +249,7 @@ impl FactoredModel {
             lam: vec![0.0; ns],
             g: vec![0.0; ns],
             act: vec![false; ns],
+            act_first: vec![false; ns],
             lam_s: vec![0.0; ns],
             lam_s_new: vec![0.0; ns],
             f_old: vec![0.0; ncd],
@@ -148,13 +263,41 @@ impl FactoredModel {
         for (i, xa) in ws.xa.iter_mut().enumerate() {
             *xa = self.x_ref[i / 2][i % 2] + ws.a[i];
         }
-        let lift_inf =
-            (0..self.lift[0].len()).fold(0.0f64, |acc, i| acc.max(affine(&self.lift[0], &self.lift[1..], mu, i).abs()));
-        ws.uc.copy_from_slice(&ws.a);
-        ws.x_pair.copy_from_slice(&ws.a);
-        let mut ties = if allow_ties { VertexTies::new(ns) } else { VertexTies::disabled(ns) };
+        ws
+    }
+
+    /// The active-set loop with re-pairing (module docs) from `start`, with the ties `ties`
+    /// (forced ones included); leaves the converged state in `ws` and returns the iterations and
+    /// the complementarity scale.
+    fn active_set_loop(
+        &self,
+        mu: &[f64],
+        p: &ContactSolveParams,
+        start: &SolveStart,
+        lift_inf: f64,
+        ws: &mut Work,
+        ties: &mut VertexTies,
+    ) -> Result<(usize, f64), ContactError> {
+        let ns = self.model.slaves.len();
+        let ncd = ws.uc.len();
+        let tol = p.rel_tol;
+        match start.u {
+            Some(u) => {
+                for (i, uc) in ws.uc.iter_mut().enumerate() {
+                    *uc = u[2 * self.cnodes[i / 2] + i % 2];
+                }
+            }
+            None => ws.uc.copy_from_slice(&ws.a),
+        }
+        ws.x_pair.copy_from_slice(&ws.uc);
+        ws.lam_s.fill(0.0);
+        ws.act_first.fill(false);
+        if let Some(a) = start.active {
+            ws.act_first.copy_from_slice(a);
+        }
+        ws.anderson.reset();
         let mut repairings = 0;
-        self.pair_slaves(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ws.index, &mut ties, Some(repairings), &mut ws.pairs)?;
+        self.pair_slaves(mu, &ws.uc, &mut ws.x, &mut ws.xm, &mut ws.index, ties, Some(repairings), &mut ws.pairs)?;
         repairings += 1;
         let mut iterations = 0;
         let mut first = true;
@@ -200,7 +343,7 @@ impl FactoredModel {
             }
             let mut f_scale = 0.0f64;
             for (r, &s) in ws.pidx.iter().enumerate() {
-                ws.act[r] = ws.lam_s[s] > 0.0;
+                ws.act[r] = if first { ws.act_first[s] } else { ws.lam_s[s] > 0.0 };
                 f_scale = f_scale.max(ws.lam_s[s]).max(-c_scale * ws.q[r]);
             }
             let lcp = Lcp { d: &ws.d[..np * np], q: &ws.q[..np], c: c_scale, eps: 0.01 * tol * f_scale };
@@ -245,7 +388,7 @@ impl FactoredModel {
                 &mut ws.x,
                 &mut ws.xm,
                 &mut ws.index,
-                &mut ties,
+                ties,
                 Some(repairings),
                 &mut ws.pairs_new,
             )?;
@@ -294,16 +437,7 @@ impl FactoredModel {
             last_eq = eq;
             let mut accelerated = false;
             if smooth && ws.anderson.step(&ws.x_pair, &ws.uc, &mut ws.x_next) {
-                self.pair_slaves(
-                    mu,
-                    &ws.x_next,
-                    &mut ws.x,
-                    &mut ws.xm,
-                    &mut ws.index,
-                    &mut ties,
-                    None,
-                    &mut ws.pairs_acc,
-                )?;
+                self.pair_slaves(mu, &ws.x_next, &mut ws.x, &mut ws.xm, &mut ws.index, ties, None, &mut ws.pairs_acc)?;
                 if ws.pairs_acc.iter().zip(&ws.pairs_new).all(|(a, b)| a.kind == b.kind) {
                     std::mem::swap(&mut ws.pairs, &mut ws.pairs_acc);
                     std::mem::swap(&mut ws.x_pair, &mut ws.x_next);
@@ -319,7 +453,7 @@ impl FactoredModel {
             }
             first = false;
         }
-        Ok(self.finish(mu, &ws, lift_inf, c_scale, iterations, ties.count()))
+        Ok((iterations, c_scale))
     }
 
     /// Pair every slave at the contact-dof displacement `uc`. With `repairing = Some(k)` the
@@ -379,8 +513,8 @@ impl FactoredModel {
         ws: &Work,
         lift_inf: f64,
         c_scale: f64,
-        iterations: usize,
-        vertex_ties: usize,
+        (iterations, vertex_rounds): (usize, usize),
+        ties: &VertexTies,
     ) -> Snapshot {
         let m = &self.model;
         let ns = m.slaves.len();
@@ -433,6 +567,8 @@ impl FactoredModel {
         let kkt = res / residual_scale(f_inf, lift_inf);
         let pressure: Vec<f64> = ws.lam_s.iter().zip(&m.tributary).map(|(l, t)| l / t).collect();
         let min_lambda = pressure.iter().copied().fold(f64::INFINITY, f64::min);
+        let geo = self.check_geometry(&u, &pressure);
+        let vertex_nodes: Vec<String> = (0..ns).filter_map(|s| ties.tied(s).map(|v| format!("{s}:{v}"))).collect();
         Snapshot {
             u,
             stats: SolveStats {
@@ -442,7 +578,12 @@ impl FactoredModel {
                 min_lambda: if ns == 0 { 0.0 } else { min_lambda },
                 complementarity: comp / lam_inf.max(neg_gap).max(f64::MIN_POSITIVE),
                 kkt_residual: kkt,
-                vertex_ties,
+                vertex_ties: vertex_nodes.len(),
+                vertex_nodes: vertex_nodes.join(" "),
+                vertex_rounds,
+                min_gap: geo.min_gap,
+                active_gap: geo.active_gap,
+                cone_angle: geo.cone_angle,
             },
             pressure,
         }

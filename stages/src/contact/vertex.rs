@@ -10,8 +10,41 @@
 //! `(x_s - x_v) . n`. The tie persists as long as the natural pairing stays around `v` and is
 //! released as soon as it moves elsewhere. The tied constraint is an ordinary node-to-node
 //! constraint, so the loop then converges to a KKT point of the tied problem.
+//!
+//! Flip ties depend on the iteration history. The state a solve returns does not: it is fixed
+//! by the **vertex-zone rule** ([`zone_vertex`], applied by the solver's outer rounds, see
+//! `super::solve`): a slave is *in the zone* of interior vertex `v` when its deformed position
+//! is within `VERTEX_ZONE h_v` of `x_v`, `h_v` the shorter deformed segment at `v`; the
+//! returned state is a KKT point, solved from the cold start, in which the slaves with pressure
+//! that were in a zone (or that a solve had to flip-tie) are [`PairKind::Tied`] to their
+//! vertex; the exact sequence of solves is in `super::solve`. Such slaves are *forced*
+//! ([`VertexTies::force`]): tied from the first re-pairing and never released.
 
 use super::pairing::{vertex_pair, MasterIndex, Pair, PairKind};
+
+/// Radius of a vertex's zone, relative to the shorter segment at the vertex: 1 %, five times
+/// the 0.2 % within which an independent implementation and crom settled ironing-coarse slaves
+/// on different sides of a sole vertex (issue 9), so that both of those states put the slave in
+/// the same zone.
+pub const VERTEX_ZONE: f64 = 0.01;
+
+/// The interior vertex `v` whose zone holds the slave at `xs`, given its natural closest-point
+/// pairing `nat` on the polyline `xm` (the zone's vertex is an end of the closest segment, or
+/// the closest vertex): `|xs - x_v| <= zone min(|x_v - x_{v-1}|, |x_{v+1} - x_v|)`, with `zone`
+/// [`VERTEX_ZONE`] for the rule.
+pub fn zone_vertex(xs: [f64; 2], xm: &[[f64; 2]], nat: PairKind, zone: f64) -> Option<usize> {
+    let last = xm.len() - 1;
+    let candidates = match nat {
+        PairKind::None => [None, None],
+        PairKind::Segment(k) => [Some(k), Some(k + 1)],
+        PairKind::Vertex(v) | PairKind::Tied(v) => [Some(v), None],
+    };
+    let dist = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+    candidates.into_iter().flatten().filter(|&v| v >= 1 && v < last).find(|&v| {
+        let h = dist(xm[v], xm[v - 1]).min(dist(xm[v + 1], xm[v]));
+        dist(xs, xm[v]) <= zone * h
+    })
+}
 
 /// Re-pairings after which any change between pairings sharing a vertex counts as a flip.
 pub const STALL_REPAIRINGS: usize = 12;
@@ -20,6 +53,8 @@ pub const STALL_REPAIRINGS: usize = 12;
 #[derive(Debug, Clone)]
 pub struct VertexTies {
     enabled: bool,
+    /// Ties imposed for the whole solve (the vertex-zone rule).
+    forced: Vec<Option<usize>>,
     tie: Vec<Option<usize>>,
     last: Vec<PairKind>,
     before_last: Vec<PairKind>,
@@ -28,7 +63,31 @@ pub struct VertexTies {
 impl VertexTies {
     /// No history, no ties, for `n` slaves.
     pub fn new(n: usize) -> Self {
-        Self { enabled: true, tie: vec![None; n], last: vec![PairKind::None; n], before_last: vec![PairKind::None; n] }
+        Self {
+            enabled: true,
+            forced: vec![None; n],
+            tie: vec![None; n],
+            last: vec![PairKind::None; n],
+            before_last: vec![PairKind::None; n],
+        }
+    }
+
+    /// Forget all history and flip ties and tie slave `s` to `forced[s]` (when `Some`) for the
+    /// whole solve, whatever its natural pairing (enabled or not).
+    pub fn force(&mut self, forced: &[Option<usize>]) {
+        self.reset(forced.len());
+        self.forced.clear();
+        self.forced.extend_from_slice(forced);
+    }
+
+    /// The vertex slave `s` is tied to, forced or by a flip.
+    pub fn tied(&self, s: usize) -> Option<usize> {
+        self.forced[s].or(self.tie[s])
+    }
+
+    /// The vertex slave `s` was forced to.
+    pub fn forced(&self, s: usize) -> Option<usize> {
+        self.forced[s]
     }
 
     /// Forget every tie and all history, for `n` slaves (keeps the capacity and `enabled`).
@@ -37,8 +96,10 @@ impl VertexTies {
             v.clear();
             v.resize(n, PairKind::None);
         }
-        self.tie.clear();
-        self.tie.resize(n, None);
+        for v in [&mut self.tie, &mut self.forced] {
+            v.clear();
+            v.resize(n, None);
+        }
     }
 
     /// A tracker that never ties (plain closest-point pairing).
@@ -49,6 +110,9 @@ impl VertexTies {
     /// Record the natural pairing `nat` of slave `s` at re-pairing number `repairing` and return
     /// the pairing to use (`nat` or [`PairKind::Tied`]).
     pub fn resolve(&mut self, s: usize, nat: PairKind, repairing: usize) -> PairKind {
+        if let Some(v) = self.forced[s] {
+            return PairKind::Tied(v);
+        }
         if !self.enabled {
             return nat;
         }
@@ -75,6 +139,9 @@ impl VertexTies {
     /// The pairing [`Self::resolve`] would keep for an existing tie, without recording
     /// anything: `Tied(v)` if slave `s` is tied to `v` and `nat` is around `v`, else `nat`.
     pub fn peek(&self, s: usize, nat: PairKind) -> PairKind {
+        if let Some(v) = self.forced[s] {
+            return PairKind::Tied(v);
+        }
         match self.tie[s] {
             Some(v) if self.enabled && nat.touches_vertex(v) => PairKind::Tied(v),
             _ => nat,
@@ -120,7 +187,7 @@ impl VertexTies {
 
     /// Number of slaves currently tied.
     pub fn count(&self) -> usize {
-        self.tie.iter().filter(|t| t.is_some()).count()
+        (0..self.tie.len()).filter(|&s| self.tied(s).is_some()).count()
     }
 }
 
@@ -134,6 +201,32 @@ impl Default for VertexTies {
 mod tests {
     use super::*;
     use PairKind::{Segment, Tied, Vertex};
+
+    /// The zone is a disc of radius `VERTEX_ZONE` times the shorter adjacent segment around an
+    /// interior vertex (here `h = 1`, the shorter of 1 and sqrt(1.01)): points at distance
+    /// 0.00707 and 0.0103 from `x_1` fall inside and outside; end vertices have no zone.
+    #[test]
+    fn zones_are_discs_around_interior_vertices() {
+        let m = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.1]];
+        assert_eq!(zone_vertex([1.005, -0.005], &m, Segment(1), VERTEX_ZONE), Some(1));
+        assert_eq!(zone_vertex([0.995, -0.005], &m, Segment(0), VERTEX_ZONE), Some(1));
+        assert_eq!(zone_vertex([1.009, -0.005], &m, Segment(1), VERTEX_ZONE), None);
+        assert_eq!(zone_vertex([1.009, -0.005], &m, Segment(1), 2.0 * VERTEX_ZONE), Some(1));
+        assert_eq!(zone_vertex([1.0, 0.001], &m, Vertex(1), VERTEX_ZONE), Some(1));
+        assert_eq!(zone_vertex([0.001, -0.001], &m, Segment(0), VERTEX_ZONE), None);
+        assert_eq!(zone_vertex([1.0, 0.0], &m, PairKind::None, VERTEX_ZONE), None);
+    }
+
+    /// Forced ties hold whatever the natural pairing, and `force` clears the history.
+    #[test]
+    fn forced_ties_hold() {
+        let mut t = VertexTies::new(2);
+        t.force(&[Some(3), None]);
+        assert_eq!(t.resolve(0, Segment(9), 0), Tied(3));
+        assert_eq!(t.resolve(0, PairKind::None, 1), Tied(3));
+        assert_eq!(t.peek(0, Segment(1)), Tied(3));
+        assert_eq!((t.tied(0), t.forced(0), t.tied(1), t.count()), (Some(3), Some(3), None, 1));
+    }
 
     #[test]
     fn period_two_flip_ties_and_release() {

@@ -158,6 +158,11 @@ fn finish(
         complementarity,
         kkt_residual: kkt,
         vertex_ties: 0,
+        vertex_nodes: String::new(),
+        vertex_rounds: 0,
+        min_gap: (0..n).map(|i| u[i] - g[i]).fold(f64::INFINITY, f64::min),
+        active_gap: (0..n).filter(|&i| force[i] > 0.0).map(|i| (u[i] - g[i]).abs()).fold(0.0, f64::max),
+        cone_angle: 0.0,
     };
     Snapshot { u, pressure, stats }
 }
