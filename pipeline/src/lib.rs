@@ -86,6 +86,7 @@ fn new_ctx<'a>(cli: &Cli, store: &'a Store, scene: &'a SceneConfig) -> dag::Ctx<
         records: Vec::new(),
         warnings: Vec::new(),
         points: dag::PointCounts::default(),
+        loaded: Default::default(),
     }
 }
 

@@ -11,9 +11,11 @@ pub mod mesh;
 pub mod metrics;
 pub mod mu;
 pub mod operator;
+pub mod q1;
 pub mod rng;
 pub mod rom;
 pub mod rope;
+pub mod running_stats;
 pub mod shipped;
 pub mod snapshot;
 #[cfg(test)]

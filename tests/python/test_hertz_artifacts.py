@@ -86,7 +86,6 @@ def test_online_errors_and_report(hertz_store):
     rom = pd.read_parquet(only_artifact(hertz_store, "rom", "rom_errors.parquet"))
     assert set(rom["set"]) == {"train", "test"} and set(rom["dual_basis"]) == {"full", "truncated"}
     assert set(rom["algorithm"]) == {"exact", "paper"}
-    assert set(rom["outcome"]) <= {"converged", "infeasible", "cycled", "not_converged"}
     full_train = rom[(rom.set == "train") & (rom.dual_basis == "full")]
     # With full bases the exact online solve applies the full-order solver's vertex-zone rule
     # and reproduces the training snapshots to their KKT tolerance (1e-10 relative, over the

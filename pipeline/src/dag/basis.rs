@@ -11,7 +11,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::convert::{to_col, view};
-use super::{trainset, Ctx};
+use super::Ctx;
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In, H5Out};
@@ -106,11 +106,11 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
         nnls: NnlsKey::used(),
     })
     .input("train", train);
-    let store = ctx.store;
+    let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let scene = ctx.scene.scene.name.clone();
     let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
     ctx.single(ArtifactKind::Basis, "basis", &spec, |staging| {
-        let set = trainset::load_from(store, train)?;
+        let set = loaded.set(store, train)?;
         // The primal POD (the large SVD) beside the dual POD and the greedy path: independent
         // computations, each deterministic, on the two cores.
         let (primal, (dual, path)) = rayon::join(

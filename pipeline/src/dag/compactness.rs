@@ -8,7 +8,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::convert::view;
-use super::{basis, trainset, Ctx};
+use super::{basis, Ctx};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::table::{Column, Table};
@@ -28,12 +28,12 @@ impl StageKey for CompactnessKey {
 
 pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
     let spec = KeySpec::of(&CompactnessKey { nnls: NnlsKey::used() }).input("train", train).input("basis", basis_key);
-    let store = ctx.store;
+    let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let scene = ctx.scene.scene.name.clone();
     let (progress, max_rank) = (ctx.progress, basis::max_rank(ctx));
     ctx.single(ArtifactKind::Compactness, "compactness", &spec, |staging| {
-        let set = trainset::load_from(store, train)?;
-        let b = basis::load_from(store, basis_key)?;
+        let set = loaded.set(store, train)?;
+        let b = loaded.bases(store, basis_key)?;
         let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
         let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
         // C(m) of the stored cone basis: the prefix of the CPG path's curve (the same pass).

@@ -81,10 +81,10 @@ pub(crate) fn generalization(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, Crom
     let spec =
         KeySpec::of(&GeneralizationKey { max_rank, folds: sampled, nnls: NnlsKey::used() }).input("train", train);
     let scene = ctx.scene.scene.name.clone();
-    let store = ctx.store;
+    let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
     ctx.single(ArtifactKind::Generalization, "generalization", &spec, |staging| {
-        let set = trainset::load_from(store, train)?;
+        let set = loaded.set(store, train)?;
         let max_m = set.dual.cols.saturating_sub(1).min(max_rank);
         let fail = |e: String| numerical(&scene, "generalization", e);
         let path = basis::dual_path(progress, train, &set.dual, max_rank).map_err(fail)?;
@@ -149,11 +149,11 @@ pub(crate) fn specificity(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Re
     let key = SpecificityKey { samples: params.samples, seed: params.seed, max_rank, nnls: NnlsKey::used() };
     let spec = KeySpec::of(&key).input("train", train).input("basis", basis_key);
     let scene = ctx.scene.scene.name.clone();
-    let store = ctx.store;
+    let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
     ctx.single(ArtifactKind::Specificity, "specificity", &spec, |staging| {
-        let set = trainset::load_from(store, train)?;
-        let b = basis::load_from(store, basis_key)?;
+        let set = loaded.set(store, train)?;
+        let b = loaded.bases(store, basis_key)?;
         let path =
             basis::dual_path(progress, train, &set.dual, max_rank).map_err(|e| numerical(&scene, "specificity", e))?;
         let pm = view(&b.primal_pod).subcols(0, b.primal_pod.cols.min(max_rank));

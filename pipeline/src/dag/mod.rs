@@ -11,9 +11,11 @@
 pub(crate) mod basis;
 mod compactness;
 mod convert;
+mod loaded;
 mod mesh;
 mod metrics;
 pub mod publish;
+mod report;
 mod rom;
 mod snapshots;
 pub(crate) mod trainset;
@@ -95,6 +97,8 @@ pub struct Ctx<'a> {
     pub warnings: Vec<String>,
     /// Snapshot points solved, reused and failed.
     pub points: PointCounts,
+    /// Inputs already read in this run ([`loaded`]).
+    pub(crate) loaded: std::sync::Arc<loaded::Loaded>,
 }
 
 /// The keys of a finished run, for callers and tests.
@@ -283,7 +287,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
     }
     let rom = rom::run(ctx, &mut physics, &out.train, &out.test, &out.basis)?;
     out.views.insert("online".to_string(), views::online(ctx, &rom, &out.test, &out.mesh)?);
-    let inputs = crate::report::ReportInputs {
+    let inputs = report::ReportInputs {
         mesh: out.mesh.clone(),
         train: out.train.clone(),
         basis: out.basis.clone(),
@@ -293,7 +297,7 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
         specificity: out.specificity.clone(),
         nested: out.nested.clone(),
     };
-    out.report = Some(crate::report::run(ctx, &inputs)?);
+    out.report = Some(report::run(ctx, &inputs)?);
     out.rom = Some(rom);
     Ok(out)
 }

@@ -86,7 +86,7 @@ pub(crate) fn run(
     let scene = ctx.scene.scene.name.clone();
     let fail = |m: String| CromError::Numerical { stage: "rom", scene: scene.clone(), message: m };
     let phys = physics.get()?;
-    let (train_set, test_set) = (trainset::load_from(ctx.store, train)?, trainset::load_from(ctx.store, test)?);
+    let (train_set, test_set) = (ctx.loaded.set(ctx.store, train)?, ctx.loaded.set(ctx.store, test)?);
     let bfile = H5In::open(&ctx.store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
     let theta_full = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
     let theta_trunc = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG_TRUNCATED, bnames::MODES))?;

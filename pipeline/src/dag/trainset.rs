@@ -21,7 +21,7 @@ use serde_json::json;
 use super::Ctx;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
-use crate::io::h5::{ColMatrix, H5In, H5Out};
+use crate::io::h5::{H5In, H5Out};
 use crate::io::table::{read_parquet, Column, Table};
 use crate::store::columns::{read_columns, Evidence, IndexRow};
 
@@ -47,16 +47,7 @@ impl StageKey for SetKey<'_> {
     const ALGORITHM_VERSION: u32 = 3;
 }
 
-/// A loaded training set.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct TrainingSet {
-    /// Primal snapshots, `n_dof x n_snap`.
-    pub primal: ColMatrix,
-    /// Dual snapshots (pressure), `n_contact x n_snap`.
-    pub dual: ColMatrix,
-    /// Parameter points, one value per component each.
-    pub parameters: Vec<Vec<f64>>,
-}
+pub(crate) use crate::io::snapshot_set::TrainingSet;
 
 /// The set's key spec: name, parameter values, snapshot keys. A scalar parameter keys its
 /// values as a flat list (as it always did).

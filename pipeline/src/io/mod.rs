@@ -2,5 +2,6 @@
 //! pipeline does I/O; stages never open a file.
 
 pub mod h5;
+pub(crate) mod snapshot_set;
 pub mod table;
 pub mod xdmf;

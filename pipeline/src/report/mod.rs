@@ -1,57 +1,21 @@
-//! Report stage: every paper figure that applies to the scene (PNG + SVG), the tables (CSV +
-//! Markdown) and an `index.html` showing them with the run's key numbers. A cached artifact like
-//! any other: its key is the keys of everything it shows.
+//! The report's content: every paper figure that applies to the scene (PNG + SVG), the tables
+//! (CSV + Markdown) and an `index.html` showing them with the run's key numbers, rendered from
+//! [`ReportData`]. The stage that keys it and reads its inputs is `dag::report`; this module
+//! reads no artifact.
 
-mod bodies;
+pub(crate) mod bodies;
 pub mod chart;
 mod figures;
 mod html;
 mod tables;
 
 use std::collections::BTreeMap;
+use std::path::Path;
 
-use crom_schemas::artifact::{
-    compactness as cnames, mesh as mnames, metrics as metric_names, rom as rnames, ArtifactKind,
-};
-use serde_json::json;
-
-use crate::cache::{Key, KeySpec, StageKey};
-use crate::dag::{basis, trainset, Ctx};
 use crate::error::CromError;
-use crate::io::h5::H5In;
-use crate::io::table::{read_parquet, Table};
-use crate::store::Store;
-
-/// The report is determined by its inputs alone.
-#[derive(Debug, serde::Serialize)]
-struct ReportKey {}
-
-impl StageKey for ReportKey {
-    const KIND: ArtifactKind = ArtifactKind::Report;
-    /// Bump when the report's content changes.
-    const ALGORITHM_VERSION: u32 = 3;
-}
-
-/// The artifacts a report shows.
-#[derive(Debug, Clone)]
-pub struct ReportInputs {
-    /// Mesh.
-    pub mesh: Key,
-    /// Training set.
-    pub train: Key,
-    /// Bases.
-    pub basis: Key,
-    /// Compactness table.
-    pub compactness: Key,
-    /// Online ROM tables.
-    pub rom: Key,
-    /// G(m) table.
-    pub generalization: Key,
-    /// S(m) table.
-    pub specificity: Key,
-    /// H(n) table, for scenes with nested levels.
-    pub nested: Option<Key>,
-}
+use crate::io::snapshot_set::TrainingSet;
+use crate::io::table::Table;
+use crom_schemas::SceneConfig;
 
 /// One figure of the report.
 #[derive(Debug, Clone)]
@@ -62,30 +26,12 @@ pub(crate) struct Figure {
     pub caption: String,
 }
 
-/// Build (or find) the report; returns its key.
-pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
-    let spec = KeySpec::of(&ReportKey {})
-        .input("mesh", &inputs.mesh)
-        .input("train", &inputs.train)
-        .input("basis", &inputs.basis)
-        .input("compactness", &inputs.compactness)
-        .input("rom", &inputs.rom)
-        .input("generalization", &inputs.generalization)
-        .input("specificity", &inputs.specificity);
-    let spec = match &inputs.nested {
-        Some(k) => spec.input("nested", k),
-        None => spec,
-    };
-    let scene = ctx.scene.clone();
-    let store = ctx.store;
-    ctx.single(ArtifactKind::Report, "report", &spec, |staging| {
-        let data = gather(store, inputs)?;
-        let dir = staging.path("");
-        let figures = figures::all(&scene, &data, &dir)?;
-        let tables = tables::write_all(&scene, &data, &dir)?;
-        html::write_index(&scene, &data, &figures, &tables, &dir)?;
-        Ok(BTreeMap::from([("figures".to_string(), json!(figures.len()))]))
-    })
+/// Render every figure, table and `index.html` into `dir`; returns the number of figures.
+pub(crate) fn render(scene: &SceneConfig, data: &ReportData, dir: &Path) -> Result<usize, CromError> {
+    let figures = figures::all(scene, data, dir)?;
+    let tables = tables::write_all(scene, data, dir)?;
+    html::write_index(scene, data, &figures, &tables, dir)?;
+    Ok(figures.len())
 }
 
 /// Everything the figures need, read from the artifacts.
@@ -98,7 +44,7 @@ pub(crate) struct ReportData {
     /// The 2-D mesh (scenes with two displacement components per node), for the bodies figure.
     pub geometry: Option<bodies::Geometry>,
     /// Training set.
-    pub train: trainset::TrainingSet,
+    pub train: std::sync::Arc<TrainingSet>,
     /// Singular values of the primal and dual snapshot matrices.
     pub primal_sv: Vec<f64>,
     /// Dual singular values.
@@ -117,76 +63,4 @@ pub(crate) struct ReportData {
     pub specificity: Table,
     /// H(n), if the scene has nested levels.
     pub nested: Option<Table>,
-}
-
-fn gather(store: &Store, inputs: &ReportInputs) -> Result<ReportData, CromError> {
-    let mesh = H5In::open(&store.dir(ArtifactKind::Mesh, &inputs.mesh).join(mnames::FILE))?;
-    let nodes = mesh.matrix(mnames::NODES)?; // n x 2, column-major
-    let contact = mesh.vec_u64(mnames::CONTACT_NODES)?;
-    let cells = mesh.shape(mnames::CELLS)?;
-    let contact_x = contact.iter().map(|&i| nodes.data[i as usize]).collect();
-    let line_x = if cells.get(1) == Some(&2) { nodes.col(0).to_vec() } else { Vec::new() };
-    let geometry = if mesh.attr_u64("dofs_per_node")? == 2 {
-        let per = cells.get(1).copied().unwrap_or(4).max(1);
-        let flat = mesh.vec_u64(mnames::CELLS)?;
-        Some(bodies::Geometry {
-            nodes: (0..nodes.rows).map(|i| [nodes.data[i], nodes.data[i + nodes.rows]]).collect(),
-            cells: flat.chunks(per).map(|c| c.iter().map(|&i| i as usize).collect()).collect(),
-            cell_body: mesh.vec_u64(mnames::CELL_BODY)?,
-            node_body: mesh.vec_u64(mnames::NODE_BODY)?,
-            contact: contact.iter().map(|&i| i as usize).collect(),
-        })
-    } else {
-        None
-    };
-    let train = trainset::load_from(store, &inputs.train)?;
-    let b = basis::load_full(store, &inputs.basis)?;
-    let table = read_parquet(&store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
-    let mut compactness: BTreeMap<(String, String), Vec<f64>> = BTreeMap::new();
-    if let (Some(f), Some(bs), Some(v)) = (table.strs("field"), table.strs("basis"), table.f64s("value")) {
-        for ((f, b), v) in f.iter().zip(bs).zip(v) {
-            compactness.entry((f.clone(), b.clone())).or_default().push(*v);
-        }
-    }
-    let rom_dir = store.dir(ArtifactKind::Rom, &inputs.rom);
-    Ok(ReportData {
-        contact_x,
-        line_x,
-        geometry,
-        train,
-        primal_sv: b.primal_sv,
-        dual_sv: b.dual_sv,
-        ranks: b.ranks,
-        compactness,
-        rom_errors: joined(&rom_dir, rnames::ERRORS, rnames::TIMINGS, &QUERY_KEYS)?,
-        tradeoff: joined(&rom_dir, rnames::TRADEOFF, rnames::TRADEOFF_TIMINGS, &TRADE_KEYS)?,
-        generalization: read_parquet(
-            &store.dir(ArtifactKind::Generalization, &inputs.generalization).join(metric_names::GENERALIZATION),
-        )?,
-        specificity: read_parquet(
-            &store.dir(ArtifactKind::Specificity, &inputs.specificity).join(metric_names::SPECIFICITY),
-        )?,
-        nested: match &inputs.nested {
-            Some(k) => Some(read_parquet(&store.dir(ArtifactKind::Nested, k).join(metric_names::NESTED))?),
-            None => None,
-        },
-    })
-}
-
-/// Columns that identify a row of the rom stage's query tables (with the parameter columns).
-const QUERY_KEYS: [&str; 6] = ["scene", "set", "dual_basis", "algorithm", "r_primal", "r_dual"];
-/// Columns that identify a row of the trade-off tables.
-const TRADE_KEYS: [&str; 5] = ["scene", "algorithm", "dual_basis", "r_primal", "r_dual"];
-
-/// A results table with its timings table (same rows) beside it.
-fn joined(dir: &std::path::Path, results: &str, timings: &str, keys: &[&str]) -> Result<Table, CromError> {
-    let a = read_parquet(&dir.join(results))?;
-    let b = read_parquet(&dir.join(timings))?;
-    a.join_rows(b, keys).ok_or_else(|| {
-        CromError::artifact(
-            dir.join(timings),
-            format!("its rows do not match those of {results}"),
-            "delete the rom artifact and rerun",
-        )
-    })
 }

@@ -38,7 +38,6 @@ use faer::{Mat, MatRef};
 
 use crate::approx::{close, Tol};
 use crate::cone::{copy_column, norm2, ConeError, ConeProjector, GrowingCone, NnlsParams, IN_CONE_REL_TOL};
-use crate::metrics::cone_intervals;
 
 /// Parameters of [`cpg`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -428,7 +427,7 @@ fn cpg_path_until(
                     e.push(norm2(&[cone.residuals()[j]]) / single_norms[j]);
                 }
             }
-            cone_ranges.push(cone_intervals(&cone, t + 1));
+            cone_ranges.push(cone.coefficient_intervals(t + 1));
         }
         tick();
     }

@@ -11,6 +11,7 @@
 //! to the cone one at a time (CPG, compactness C(m)), warm-starting each NNLS from the previous
 //! coefficients.
 
+use crate::running_stats::RunningStats;
 use faer::{Mat, MatRef};
 
 use super::nnls::{at_b, norm2, ConeError, Nnls, NnlsParams};
@@ -367,6 +368,18 @@ impl<'a> GrowingCone<'a> {
     /// Coefficients of snapshot j on the current generators.
     pub fn coeffs(&self, j: usize) -> &[f64] {
         &self.coeffs[j]
+    }
+
+    /// The clipped intervals `[max(0, mu - sigma), mu + sigma]` of the coefficients of every
+    /// snapshot on the first `m` generators (the specificity's sampling ranges, paper eq. 18).
+    pub fn coefficient_intervals(&self, m: usize) -> Vec<(f64, f64)> {
+        let mut stats = vec![RunningStats::new(); m];
+        for j in 0..self.norms.len() {
+            for (st, a) in stats.iter_mut().zip(self.coeffs(j)) {
+                st.push(*a);
+            }
+        }
+        stats.iter().map(|st| st.interval(true)).collect()
     }
 
     /// Relative projection error of snapshot j, `None` for a zero snapshot.

@@ -1,7 +1,8 @@
 //! Global sparse assembly `K = sum_e A_e^T K_e A_e` into a compressed-row matrix over all dofs.
 
-use super::{q1, Material};
+use super::Material;
 use crate::mesh::Mesh2d;
+use crate::q1;
 
 /// A square sparse matrix in compressed-row form (sorted column indices, no duplicates).
 #[derive(Debug, Clone, PartialEq)]

@@ -12,8 +12,8 @@
 //! `N_a N_b det J` is at most cubic per reference coordinate). [`h1_norm_sq`] loops over the
 //! elements and allocates nothing.
 
-use super::q1::{jacobian, shape, GAUSS_2X2};
 use crate::mesh::Mesh2d;
+use crate::q1::{jacobian, shape, GAUSS_2X2};
 
 /// Scalar Q1 element matrix `M_e + G_e` (mass plus Laplacian) with 2x2 Gauss quadrature.
 /// The element must have a positive Jacobian (checked when the mesh was built).

@@ -1,6 +1,6 @@
 //! Finite elements for 2-D small-strain linear elasticity (plane strain, Q1).
 //!
-//! Equilibrium `K u = f` with `K = sum_e A_e^T K_e A_e` (element kernel [`q1::stiffness`],
+//! Equilibrium `K u = f` with `K = sum_e A_e^T K_e A_e` (element kernel [`crate::q1::stiffness`],
 //! global assembly [`assemble_stiffness`]). Dirichlet conditions `u_D` are imposed by
 //! elimination ([`DofSplit`]): with free dofs `F` and fixed dofs `D`,
 //! `K_FF u_F = f_F - K_FD u_D`, the imposed displacements entering the right-hand side.
@@ -9,7 +9,6 @@ mod assembly;
 mod dirichlet;
 pub mod h1;
 mod material;
-pub mod q1;
 
 pub use assembly::{assemble_stiffness, AssemblyError, CsrMatrix};
 pub use dirichlet::DofSplit;

@@ -1,7 +1,7 @@
 //! The mesh type shared by every 2-D scene: nodes, counter-clockwise Q1 quads and body ids.
 
 use super::Grid;
-use crate::fem::q1;
+use crate::q1;
 
 /// Errors of mesh construction.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

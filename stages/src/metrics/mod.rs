@@ -36,5 +36,4 @@ pub use specificity::{
     cone_ranges_reference, specificity_cone, specificity_cone_path, specificity_orth, SpecificityParams,
 };
 
-pub(crate) use specificity::cone_intervals;
 pub use stats::{MetricCurve, RunningStats};

@@ -74,7 +74,7 @@ pub fn specificity_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>, params: Spec
         .map(|l| {
             let mut st = RunningStats::new();
             (0..s.ncols()).for_each(|j| st.push(frame.coords[(l, j)]));
-            interval(&st, false)
+            st.interval(false)
         })
         .collect();
     let stats: Vec<RunningStats> = (1..=k)
@@ -241,13 +241,6 @@ impl Frame {
     }
 }
 
-/// `[mu - sigma, mu + sigma]`, the lower end clipped at 0 for cone coefficients.
-fn interval(stats: &RunningStats, clip: bool) -> (f64, f64) {
-    let (mu, sigma) = (stats.mean(), stats.std());
-    let lo = if clip { (mu - sigma).max(0.0) } else { mu - sigma };
-    (lo, mu + sigma)
-}
-
 /// The sampling intervals of the cone coordinates for every m: `ranges[m - 1]` has m entries,
 /// from the NNLS coefficients of every training snapshot on the first m generators. Kept as
 /// the reference: [`CpgPath::cone_ranges`] holds the same numbers from the basis' own pass.
@@ -263,21 +256,9 @@ pub fn cone_ranges_reference(
     for m in 1..=k {
         copy_column(cone_basis, m - 1, &mut column);
         cone.push(&column)?;
-        all.push(cone_intervals(&cone, m));
+        all.push(cone.coefficient_intervals(m));
     }
     Ok(all)
-}
-
-/// The clipped intervals `[max(0, mu - sigma), mu + sigma]` of the coefficients of every
-/// snapshot of `cone` on its first m generators.
-pub(crate) fn cone_intervals(cone: &GrowingCone<'_>, m: usize) -> Vec<(f64, f64)> {
-    let mut stats = vec![RunningStats::new(); m];
-    for j in 0..cone.norms().len() {
-        for (st, a) in stats.iter_mut().zip(cone.coeffs(j)) {
-            st.push(*a);
-        }
-    }
-    stats.iter().map(|st| interval(st, true)).collect()
 }
 
 /// The random stream of basis size m: a SplitMix64 hash of m mixed into the seed.
@@ -444,7 +425,7 @@ mod tests {
                 let x = nnls_reference(basis.subcols(0, m), &b, NnlsParams::default()).expect("ok").x;
                 x.iter().zip(stats.iter_mut()).for_each(|(a, st)| st.push(*a));
             }
-            let expected: Vec<(f64, f64)> = stats.iter().map(|st| interval(st, true)).collect();
+            let expected: Vec<(f64, f64)> = stats.iter().map(|st| st.interval(true)).collect();
             for ((lo, hi), (elo, ehi)) in ranges[m - 1].iter().zip(&expected) {
                 // Coefficients of O(1) snapshots on unit generators, round-off apart: 1e-10.
                 assert_close!(*lo, *elo, Tol::abs(1e-10));

@@ -3,54 +3,9 @@
 //!
 //! The standard deviation is the population one, `sqrt(sum (x - mean)^2 / count)` (numpy's
 //! default `ddof = 0`): the paper's ±1σ bars (Figs. 10 and 16) describe the spread of the
-//! per-snapshot (or per-sample) values themselves. It is accumulated with Welford's update, so
-//! there is no `E[x^2] - E[x]^2` cancellation when every value is (nearly) the same.
+//! per-snapshot (or per-sample) values themselves ([`RunningStats`], Welford's update).
 
-/// Running count, mean and population standard deviation (Welford).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct RunningStats {
-    count: usize,
-    mean: f64,
-    m2: f64,
-}
-
-impl RunningStats {
-    /// No values yet.
-    pub const fn new() -> Self {
-        Self { count: 0, mean: 0.0, m2: 0.0 }
-    }
-
-    /// Add one value.
-    pub fn push(&mut self, x: f64) {
-        self.count += 1;
-        let delta = x - self.mean;
-        self.mean += delta / self.count as f64;
-        self.m2 += delta * (x - self.mean);
-    }
-
-    /// Number of values pushed.
-    pub fn count(&self) -> usize {
-        self.count
-    }
-
-    /// Mean, NaN when no value was pushed.
-    pub fn mean(&self) -> f64 {
-        if self.count == 0 {
-            f64::NAN
-        } else {
-            self.mean
-        }
-    }
-
-    /// Population standard deviation, NaN when no value was pushed (0 for one value).
-    pub fn std(&self) -> f64 {
-        if self.count == 0 {
-            f64::NAN
-        } else {
-            (self.m2.max(0.0) / self.count as f64).sqrt()
-        }
-    }
-}
+pub use crate::running_stats::RunningStats;
 
 /// Statistics of a metric for basis sizes m = 1..=len (entry `k` is m = k + 1).
 ///

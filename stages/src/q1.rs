@@ -10,6 +10,9 @@
 //! ```
 //!
 //! Element dofs are interleaved: `[u_x0, u_y0, u_x1, u_y1, ...]`.
+//!
+//! Below both `mesh` (which checks every element's Jacobian when it builds a mesh) and `fem`
+//! (which assembles with it), so neither depends on the other for it.
 
 /// `1 / sqrt(3)`, the 2-point Gauss abscissa.
 const G: f64 = 0.577_350_269_189_625_8;

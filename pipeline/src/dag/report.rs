@@ -1,0 +1,145 @@
+//! Report stage: keys the report by everything it shows, reads those artifacts into
+//! [`ReportData`] and renders it with [`crate::report::render`]. A cached artifact like any
+//! other.
+
+use std::collections::BTreeMap;
+
+use crom_schemas::artifact::{
+    compactness as cnames, mesh as mnames, metrics as metric_names, rom as rnames, ArtifactKind,
+};
+use serde_json::json;
+
+use super::loaded::Loaded;
+use super::{basis, Ctx};
+use crate::cache::{Key, KeySpec, StageKey};
+use crate::error::CromError;
+use crate::io::h5::H5In;
+use crate::io::table::{read_parquet, Table};
+use crate::report::{bodies, render, ReportData};
+use crate::store::Store;
+
+/// The report is determined by its inputs alone.
+#[derive(Debug, serde::Serialize)]
+struct ReportKey {}
+
+impl StageKey for ReportKey {
+    const KIND: ArtifactKind = ArtifactKind::Report;
+    /// Bump when the report's content changes.
+    const ALGORITHM_VERSION: u32 = 3;
+}
+
+/// The artifacts a report shows.
+#[derive(Debug, Clone)]
+pub struct ReportInputs {
+    /// Mesh.
+    pub mesh: Key,
+    /// Training set.
+    pub train: Key,
+    /// Bases.
+    pub basis: Key,
+    /// Compactness table.
+    pub compactness: Key,
+    /// Online ROM tables.
+    pub rom: Key,
+    /// G(m) table.
+    pub generalization: Key,
+    /// S(m) table.
+    pub specificity: Key,
+    /// H(n) table, for scenes with nested levels.
+    pub nested: Option<Key>,
+}
+
+/// Build (or find) the report; returns its key.
+pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
+    let spec = KeySpec::of(&ReportKey {})
+        .input("mesh", &inputs.mesh)
+        .input("train", &inputs.train)
+        .input("basis", &inputs.basis)
+        .input("compactness", &inputs.compactness)
+        .input("rom", &inputs.rom)
+        .input("generalization", &inputs.generalization)
+        .input("specificity", &inputs.specificity);
+    let spec = match &inputs.nested {
+        Some(k) => spec.input("nested", k),
+        None => spec,
+    };
+    let scene = ctx.scene.clone();
+    let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
+    ctx.single(ArtifactKind::Report, "report", &spec, |staging| {
+        let data = gather(store, &loaded, inputs)?;
+        let figures = render(&scene, &data, &staging.path(""))?;
+        Ok(BTreeMap::from([("figures".to_string(), json!(figures))]))
+    })
+}
+
+fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<ReportData, CromError> {
+    let mesh = H5In::open(&store.dir(ArtifactKind::Mesh, &inputs.mesh).join(mnames::FILE))?;
+    let nodes = mesh.matrix(mnames::NODES)?; // n x 2, column-major
+    let contact = mesh.vec_u64(mnames::CONTACT_NODES)?;
+    let cells = mesh.shape(mnames::CELLS)?;
+    let contact_x = contact.iter().map(|&i| nodes.data[i as usize]).collect();
+    let line_x = if cells.get(1) == Some(&2) { nodes.col(0).to_vec() } else { Vec::new() };
+    let geometry = if mesh.attr_u64("dofs_per_node")? == 2 {
+        let per = cells.get(1).copied().unwrap_or(4).max(1);
+        let flat = mesh.vec_u64(mnames::CELLS)?;
+        Some(bodies::Geometry {
+            nodes: (0..nodes.rows).map(|i| [nodes.data[i], nodes.data[i + nodes.rows]]).collect(),
+            cells: flat.chunks(per).map(|c| c.iter().map(|&i| i as usize).collect()).collect(),
+            cell_body: mesh.vec_u64(mnames::CELL_BODY)?,
+            node_body: mesh.vec_u64(mnames::NODE_BODY)?,
+            contact: contact.iter().map(|&i| i as usize).collect(),
+        })
+    } else {
+        None
+    };
+    let train = loaded.set(store, &inputs.train)?;
+    let b = basis::load_full(store, &inputs.basis)?;
+    let table = read_parquet(&store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
+    let mut compactness: BTreeMap<(String, String), Vec<f64>> = BTreeMap::new();
+    if let (Some(f), Some(bs), Some(v)) = (table.strs("field"), table.strs("basis"), table.f64s("value")) {
+        for ((f, b), v) in f.iter().zip(bs).zip(v) {
+            compactness.entry((f.clone(), b.clone())).or_default().push(*v);
+        }
+    }
+    let rom_dir = store.dir(ArtifactKind::Rom, &inputs.rom);
+    Ok(ReportData {
+        contact_x,
+        line_x,
+        geometry,
+        train,
+        primal_sv: b.primal_sv,
+        dual_sv: b.dual_sv,
+        ranks: b.ranks,
+        compactness,
+        rom_errors: joined(&rom_dir, rnames::ERRORS, rnames::TIMINGS, &QUERY_KEYS)?,
+        tradeoff: joined(&rom_dir, rnames::TRADEOFF, rnames::TRADEOFF_TIMINGS, &TRADE_KEYS)?,
+        generalization: read_parquet(
+            &store.dir(ArtifactKind::Generalization, &inputs.generalization).join(metric_names::GENERALIZATION),
+        )?,
+        specificity: read_parquet(
+            &store.dir(ArtifactKind::Specificity, &inputs.specificity).join(metric_names::SPECIFICITY),
+        )?,
+        nested: match &inputs.nested {
+            Some(k) => Some(read_parquet(&store.dir(ArtifactKind::Nested, k).join(metric_names::NESTED))?),
+            None => None,
+        },
+    })
+}
+
+/// Columns that identify a row of the rom stage's query tables (with the parameter columns).
+const QUERY_KEYS: [&str; 6] = ["scene", "set", "dual_basis", "algorithm", "r_primal", "r_dual"];
+/// Columns that identify a row of the trade-off tables.
+const TRADE_KEYS: [&str; 5] = ["scene", "algorithm", "dual_basis", "r_primal", "r_dual"];
+
+/// A results table with its timings table (same rows) beside it.
+fn joined(dir: &std::path::Path, results: &str, timings: &str, keys: &[&str]) -> Result<Table, CromError> {
+    let a = read_parquet(&dir.join(results))?;
+    let b = read_parquet(&dir.join(timings))?;
+    a.join_rows(b, keys).ok_or_else(|| {
+        CromError::artifact(
+            dir.join(timings),
+            format!("its rows do not match those of {results}"),
+            "delete the rom artifact and rerun",
+        )
+    })
+}
