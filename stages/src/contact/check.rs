@@ -76,12 +76,17 @@ impl FactoredModel {
     /// The geometric check of the state `(u, pressure)` (full displacement, one pressure per
     /// slave), see the module docs.
     pub fn check_geometry(&self, u: &[f64], pressure: &[f64]) -> GeometryCheck {
+        self.check_geometry_with(u, &self.model.k.matvec(u), pressure)
+    }
+
+    /// [`Self::check_geometry`] with `ku = K u` already computed (the solver has it from its
+    /// KKT residual).
+    pub(crate) fn check_geometry_with(&self, u: &[f64], ku: &[f64], pressure: &[f64]) -> GeometryCheck {
         let m = &self.model;
         let pos = |n: usize| [m.mesh.nodes[n][0] + u[2 * n], m.mesh.nodes[n][1] + u[2 * n + 1]];
         let xm: Vec<[f64; 2]> = m.masters.iter().map(|&n| pos(n)).collect();
         let mut index = MasterIndex::default();
         index.build(&xm);
-        let ku = m.k.matvec(u);
         let mut out = GeometryCheck { min_gap: f64::INFINITY, active_gap: 0.0, cone_angle: 0.0 };
         for (s, &sn) in m.slaves.iter().enumerate() {
             if self.slave_fixed[s] {

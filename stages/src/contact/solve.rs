@@ -33,7 +33,7 @@ use super::anderson::Anderson;
 use super::error::ContactError;
 use super::factor::FactoredModel;
 use super::pairing::{GapRow as Row, MasterIndex, Pair};
-use super::vertex::{zone_vertex, VertexTies, VERTEX_ZONE};
+use super::vertex::VertexTies;
 use crate::mu::{affine, Mu};
 use crate::snapshot::{Snapshot, SolveStats};
 
@@ -213,16 +213,9 @@ impl FactoredModel {
             if self.slave_fixed[s] {
                 continue;
             }
-            let xs = [ws.x[2 * s], ws.x[2 * s + 1]];
-            let nat = ws.index.closest_point(xs, &ws.xm);
-            if ws.lam_s[s] <= 0.0 {
-                continue;
+            if ws.lam_s[s] > 0.0 {
+                *o = ties.rule_tie(s, [ws.x[2 * s], ws.x[2 * s + 1]], &ws.xm, &ws.index);
             }
-            *o = zone_vertex(xs, &ws.xm, nat.kind, VERTEX_ZONE).or(if ties.forced(s).is_none() {
-                ties.tied(s)
-            } else {
-                None
-            });
         }
     }
 
@@ -567,7 +560,7 @@ impl FactoredModel {
         let kkt = res / residual_scale(f_inf, lift_inf);
         let pressure: Vec<f64> = ws.lam_s.iter().zip(&m.tributary).map(|(l, t)| l / t).collect();
         let min_lambda = pressure.iter().copied().fold(f64::INFINITY, f64::min);
-        let geo = self.check_geometry(&u, &pressure);
+        let geo = self.check_geometry_with(&u, &ku, &pressure);
         let vertex_nodes: Vec<String> = (0..ns).filter_map(|s| ties.tied(s).map(|v| format!("{s}:{v}"))).collect();
         Snapshot {
             u,

@@ -189,6 +189,15 @@ impl VertexTies {
     pub fn count(&self) -> usize {
         (0..self.tie.len()).filter(|&s| self.tied(s).is_some()).count()
     }
+
+    /// The vertex-zone rule's tie for slave `s` at `xs` on the polyline `xm` (with its
+    /// `index`): the vertex whose zone holds the slave, from its natural closest point, else
+    /// the vertex a flip tied it to in this solve (a forced tie is not a flip). The solver and
+    /// the online solve both ask this of every slave with pressure.
+    pub fn rule_tie(&self, s: usize, xs: [f64; 2], xm: &[[f64; 2]], index: &MasterIndex) -> Option<usize> {
+        let nat = index.closest_point(xs, xm);
+        zone_vertex(xs, xm, nat.kind, VERTEX_ZONE).or(if self.forced[s].is_none() { self.tie[s] } else { None })
+    }
 }
 
 impl Default for VertexTies {

@@ -6,7 +6,7 @@ use super::qp::{solve_qp, QpConstraints, QpOutcome, QpWork};
 use super::saddle::{cholesky, solve_saddle};
 use crate::contact::anderson::Anderson;
 use crate::contact::pairing::{GapRow, MasterIndex, Pair, PairKind};
-use crate::contact::vertex::{zone_vertex, VertexTies, VERTEX_ZONE};
+use crate::contact::vertex::VertexTies;
 use crate::mu::affine;
 use crate::operator::{ContactOperator, Surface};
 use faer::MatRef;
@@ -539,9 +539,7 @@ impl ReducedModel {
             if w.forced[s].is_some() || !l.pairs[s].kind.is_paired() || self.pressure_at(s, &w.lam) <= 1e-9 * max {
                 continue;
             }
-            let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
-            let nat = l.index.closest_point(xs, &l.xm);
-            if let Some(v) = zone_vertex(xs, &l.xm, nat.kind, VERTEX_ZONE).or(l.ties.tied(s)) {
+            if let Some(v) = l.ties.rule_tie(s, [l.xc[2 * s], l.xc[2 * s + 1]], &l.xm, &l.index) {
                 w.forced[s] = Some(v);
                 added = true;
             }
