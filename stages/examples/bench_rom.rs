@@ -55,8 +55,8 @@ fn main() {
     let n_train: usize = std::env::args().nth(4).and_then(|a| a.parse().ok()).unwrap_or(32).max(2);
     let train: Vec<f64> = (0..n_train).map(|k| 3.0 * k as f64 / (n_train - 1) as f64).collect();
     let test: Vec<f64> = (0..n_train - 1).map(|k| 3.0 * (k as f64 + 0.5) / (n_train - 1) as f64).collect();
-    println!("| mesh | dofs | contact dofs | ranks | median online (ms) | vs coarse | target | median full-order (ms) | speed-up | median H1 error | converged |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| mesh | dofs | contact dofs | ranks | median online (ms) | vs coarse | target | median full-order (ms) | speed-up | median H1 error | converged | mean linearisations |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     if only.is_none_or(|o| o == 0) {
         rope_row(reps.max(50));
     }
@@ -91,7 +91,7 @@ fn main() {
         let refs_view: Vec<(&[f64], &[f64])> = refs.iter().map(|(m, u)| (m.as_slice(), u.as_slice())).collect();
         let pe = PrimalErrors::new(&fm, &phi_c, ru, &refs_view).expect("M SPD");
         let mut w = RomWork::default();
-        let (mut times, mut errs, mut conv) = (Vec::new(), Vec::new(), 0);
+        let (mut times, mut errs, mut conv, mut lins) = (Vec::new(), Vec::new(), 0, 0);
         for (j, &d) in test.iter().enumerate() {
             let mut best = f64::INFINITY;
             let mut info = None;
@@ -103,6 +103,7 @@ fn main() {
             }
             let s = w.solution(&info.expect("at least one repetition"));
             conv += usize::from(s.outcome == RomOutcome::Converged);
+            lins += s.linearizations;
             errs.push(pe.relative(j, &s.u_hat));
             times.push(best);
         }
@@ -110,7 +111,7 @@ fn main() {
         let ratio = on / *base.get_or_insert(on);
         let (ranks, target) = (rom.ranks(), if refine == 4 { "<= 2" } else { "" });
         println!(
-            "| {name} | {n} | {} | ({}, {}) | {:.4} | {:.2} | {target} | {:.2} | {:.0} | {:.2e} | {conv}/{} |",
+            "| {name} | {n} | {} | ({}, {}) | {:.4} | {:.2} | {target} | {:.2} | {:.0} | {:.2e} | {conv}/{} | {:.1} |",
             fm.n_contact_dof(),
             ranks.0,
             ranks.1,
@@ -119,7 +120,8 @@ fn main() {
             fom * 1e3,
             fom / on,
             median(errs),
-            test.len()
+            test.len(),
+            lins as f64 / test.len() as f64
         );
     }
 }
@@ -166,7 +168,7 @@ fn rope_row(reps: usize) {
     }
     let (on, fom) = (median(on), median(fom));
     println!(
-        "| rope | {n} | {n} | ({ru}, {rl}) | {:.5} | | | {:.4} | {:.0} | | {}/{} |",
+        "| rope | {n} | {n} | ({ru}, {rl}) | {:.5} | | | {:.4} | {:.0} | | {}/{} | 1 |",
         on * 1e3,
         fom * 1e3,
         fom / on,

@@ -225,11 +225,36 @@ impl MasterIndex {
     ///   `(d_s + d_m) + 2 d_m D / (h - 2 d_m) < g`, the line turning by at most
     ///   `2 d_m / (h - 2 d_m)` — implied by `(d_s + d_m)(1 + 4 D / h) < g` when `d_m <= h / 4`;
     ///
-    /// `R` is half the smallest of `(L - D) / 2`, `g / (1 + 4 D / h)` and `h / 4`. Paired slaves
-    /// get `R = 0`.
+    /// `R` is half the smallest of `(L - D) / 2`, `g / (1 + 4 D / h)` and `h / 4`.
+    ///
+    /// A slave paired with a segment `k` (length `h`, ends `a`, `b`) keeps `k` within `R`: with
+    /// `D` its distance to `k`, `L` as above, `s = xi h` its foot's distance from `a`, and
+    /// `P = max(|x_s - a|, |x_s - b|)`,
+    ///
+    /// - `k` stays closer than any other candidate while `2 (d_s + d_m) < L - D` (a distance to
+    ///   a point or to a segment changes by at most the motion of the slave plus that of the
+    ///   segment's ends, and a segment whose projection is invalid is no closer than one of
+    ///   its ends, itself a candidate);
+    /// - the projection stays valid, `0 <= s' <= h'`: `s` moves by at most
+    ///   `(d_s + d_m) + P |t̂' - t̂|` with `|t̂' - t̂| <= 4 d_m / h`, and `h' >= h - 2 d_m`, so
+    ///   `(d_s + d_m)(3 + 4 P / h) < min(s, h - s)` suffices;
+    ///
+    /// `R` is half the smallest of `(L - D) / 2`, `min(s, h - s) / (3 + 4 P / h)` and `h / 4`.
+    /// Slaves paired with an interior vertex get `R = 0`.
     pub fn closest_point_with_radius(&self, xs: [f64; 2], m: &[[f64; 2]]) -> (Pair, f64) {
         let (p, l2, end) = self.search(xs, m);
-        let Some((e, d2)) = end else { return (p, 0.0) };
+        let Some((e, d2)) = end else {
+            let PairKind::Segment(k) = p.kind else { return (p, 0.0) };
+            let (a, b) = (m[k], m[k + 1]);
+            let t = sub(b, a);
+            let h = dot(t, t).sqrt();
+            let along = p.xi * h;
+            let margin = along.min(h - along);
+            let (ra, rb) = (sub(xs, a), sub(xs, b));
+            let reach = dot(ra, ra).max(dot(rb, rb)).sqrt();
+            let r = 0.5 * ((l2.sqrt() - p.gap.abs()) / 2.0).min(margin / (3.0 + 4.0 * reach / h)).min(h / 4.0);
+            return (p, if r.is_finite() && r > 0.0 { r } else { 0.0 });
+        };
         let last = m.len() - 1;
         let (a, b) = if e == 0 { (m[0], m[1]) } else { (m[last], m[last - 1]) };
         let t = sub(b, a);
@@ -239,6 +264,15 @@ impl MasterIndex {
         let (dd, ll) = (d2.sqrt(), l2.sqrt());
         let r = 0.5 * ((ll - dd) / 2.0).min(g / (1.0 + 4.0 * dd / h)).min(h / 4.0);
         (p, if r.is_finite() && r > 0.0 { r } else { 0.0 })
+    }
+
+    /// The pair with segment `k` itself (what [`Self::closest_point`] returns when `k` is the
+    /// closest feature: the same arithmetic), or `None` when the projection onto `k` is
+    /// invalid. For a slave known to stay paired with `k` ([`Self::closest_point_with_radius`]).
+    pub fn segment_pair(xs: [f64; 2], m: &[[f64; 2]], k: usize) -> Option<Pair> {
+        let (xi, r) = project_on_segment(xs, m, k)?;
+        let n = segment_normal(m, k);
+        Some(Pair { kind: PairKind::Segment(k), xi, normal: n, gap: dot(r, n) })
     }
 
     /// The search: the pair, a lower bound (squared) of the distance to every candidate but the
@@ -320,10 +354,7 @@ impl MasterIndex {
         if seg.1 == usize::MAX {
             return (Pair::NONE, l2, None);
         }
-        let k = seg.1;
-        let (xi, r) = project_on_segment(xs, m, k).expect("the best segment has a projection");
-        let n = segment_normal(m, k);
-        (Pair { kind: PairKind::Segment(k), xi, normal: n, gap: dot(r, n) }, l2, None)
+        (Self::segment_pair(xs, m, seg.1).expect("the best segment has a projection"), l2, None)
     }
 }
 
@@ -542,5 +573,56 @@ mod tests {
             }
         }
         assert!(checked > 100, "too few unpaired points: {checked}");
+    }
+
+    /// The radius of a slave paired with a segment is safe: moving the slave and every master
+    /// vertex at random by amounts summing to at most the radius leaves it paired with the same
+    /// segment (brute-force [`closest_point`] after the move), and `segment_pair` there equals
+    /// the brute force bit for bit.
+    #[test]
+    fn segment_radius_is_safe() {
+        let mut rng = crate::rng::Rng::new(23);
+        let mut index = MasterIndex::default();
+        let mut checked = 0;
+        for case in 0..200 {
+            let n = 3 + case % 30;
+            let m: Vec<[f64; 2]> = (0..n)
+                .map(|i| {
+                    let x = i as f64 * 0.1;
+                    [x + rng.uniform_in(-0.01, 0.01), 0.1 * (4.0 * x).sin() + rng.uniform_in(-0.02, 0.02)]
+                })
+                .collect();
+            index.build(&m);
+            for _ in 0..10 {
+                let xs = [rng.uniform_in(-0.1, n as f64 * 0.1), rng.uniform_in(-0.2, 0.3)];
+                let (p, r) = index.closest_point_with_radius(xs, &m);
+                let PairKind::Segment(k) = p.kind else { continue };
+                if r == 0.0 {
+                    continue;
+                }
+                checked += 1;
+                for _ in 0..20 {
+                    let split = rng.uniform();
+                    let mv = |rng: &mut crate::rng::Rng, len: f64| {
+                        let a = rng.uniform_in(0.0, std::f64::consts::TAU);
+                        [len * a.cos(), len * a.sin()]
+                    };
+                    let ds = mv(&mut rng, r * split);
+                    let xs2 = [xs[0] + ds[0], xs[1] + ds[1]];
+                    let m2: Vec<[f64; 2]> = m
+                        .iter()
+                        .map(|p| {
+                            let len = r * (1.0 - split) * rng.uniform();
+                            let d = mv(&mut rng, len);
+                            [p[0] + d[0], p[1] + d[1]]
+                        })
+                        .collect();
+                    let brute = closest_point(xs2, &m2);
+                    assert_eq!(brute.kind, PairKind::Segment(k), "case {case}: {xs:?} r {r}");
+                    assert_eq!(MasterIndex::segment_pair(xs2, &m2, k), Some(brute), "case {case}");
+                }
+            }
+        }
+        assert!(checked > 500, "too few paired points: {checked}");
     }
 }

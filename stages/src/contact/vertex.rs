@@ -176,6 +176,16 @@ impl VertexTies {
         }
     }
 
+    /// [`Self::pair`] for a slave whose natural pair `nat` is already known (proven unchanged
+    /// by a radius of [`MasterIndex::closest_point_with_radius`]): the same resolution and
+    /// history update, no search.
+    pub fn pair_known(&mut self, s: usize, nat: Pair, xs: [f64; 2], xm: &[[f64; 2]], repairing: usize) -> Pair {
+        match self.resolve(s, nat.kind, repairing) {
+            PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
+            _ => nat,
+        }
+    }
+
     /// [`Self::pair`] without recording anything (existing ties only, [`Self::peek`]).
     pub fn pair_peek(&self, s: usize, xs: [f64; 2], xm: &[[f64; 2]], index: &MasterIndex) -> Pair {
         let nat = index.closest_point(xs, xm);

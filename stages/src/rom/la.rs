@@ -31,6 +31,33 @@ pub fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
     }
 }
 
+/// The metric of a reduced space: the lower Cholesky factor `L` (column-major `r x r`) of its
+/// Gram matrix `G = L L^T`, or the identity — coordinates in which `G = I` need no triangular
+/// solve (the online solve works in them, see [`crate::rom`]).
+#[derive(Debug, Clone, Copy)]
+pub enum Factor<'a> {
+    /// `G = I`.
+    Identity,
+    /// `G = L L^T`, `L` column-major `r x r`.
+    Lower(&'a [f64]),
+}
+
+impl Factor<'_> {
+    /// `b <- L^{-1} b` (nothing for the identity).
+    pub fn forward(self, r: usize, b: &mut [f64]) {
+        if let Factor::Lower(l) = self {
+            forward(l, r, b);
+        }
+    }
+
+    /// `b <- L^{-T} b` (nothing for the identity).
+    pub fn backward_t(self, r: usize, b: &mut [f64]) {
+        if let Factor::Lower(l) = self {
+            backward_t(l, r, b);
+        }
+    }
+}
+
 /// `b <- L^{-1} b` with the lower factor `L` stored column-major (`r x r`): column sweeps, so the
 /// inner loop is an `axpy` over contiguous memory.
 pub fn forward(l: &[f64], r: usize, b: &mut [f64]) {

@@ -28,7 +28,7 @@
 //! supplied through [`QpConstraints`], so a caller can evaluate all `s(x)` cheaply without
 //! forming every row (the Type-2 online solve does).
 
-use super::la::{axpy, backward_t, dot, forward};
+use super::la::{axpy, dot, Factor};
 
 /// The constraints `s_i(x) = a_i . x + b_i >= 0`.
 pub trait QpConstraints {
@@ -55,11 +55,11 @@ pub trait QpConstraints {
 }
 
 /// `w = L^{-1} a_i`, through the fast path when the constraints offer it.
-fn range_row(cons: &mut dyn QpConstraints, l: &[f64], r: usize, i: usize, np: &mut [f64], wp: &mut [f64]) {
+fn range_row(cons: &mut dyn QpConstraints, l: Factor<'_>, r: usize, i: usize, np: &mut [f64], wp: &mut [f64]) {
     if !cons.range_row(i, wp) {
         cons.row(i, np);
         wp.copy_from_slice(np);
-        forward(l, r, wp);
+        l.forward(r, wp);
     }
 }
 
@@ -201,13 +201,14 @@ impl QpWork {
     }
 }
 
-/// Solve the QP. `l`: the Cholesky factor of `G` (column-major `r x r`, lower triangle);
+/// Solve the QP. `l`: the Cholesky factor of `G` (column-major `r x r`, lower triangle), or
+/// [`Factor::Identity`] when `G = I` (then no triangular solve is made);
 /// `feas_tol`: a constraint counts as satisfied when `s_i >= -feas_tol`; `max_steps`: cap on
 /// add/drop steps; `warm`: an active set to start from (may be empty or not optimal). On return
 /// `x` holds the minimiser and `w.active`, `w.u` the active constraints and their multipliers.
 #[allow(clippy::too_many_arguments)]
 pub fn solve_qp(
-    l: &[f64],
+    l: Factor<'_>,
     r: usize,
     cons: &mut dyn QpConstraints,
     feas_tol: f64,
@@ -217,7 +218,9 @@ pub fn solve_qp(
     w: &mut QpWork,
 ) -> QpOutcome {
     let m = cons.len();
-    assert_eq!(l.len(), r * r, "factor shape");
+    if let Factor::Lower(f) = l {
+        assert_eq!(f.len(), r * r, "factor shape");
+    }
     assert_eq!(x.len(), r, "x length");
     for v in [&mut w.y, &mut w.wp, &mut w.np, &mut w.z, &mut w.zero] {
         v.clear();
@@ -291,7 +294,7 @@ pub fn solve_qp(
         // Step 1: the most violated constraint at x = L^{-T} y.
         if !cons.range_values(&w.y, &mut w.s) {
             x.copy_from_slice(&w.y);
-            backward_t(l, r, x);
+            l.backward_t(r, x);
             cons.values(x, &mut w.s);
         }
         let mut p = usize::MAX;
@@ -304,7 +307,7 @@ pub fn solve_qp(
         }
         if p == usize::MAX {
             x.copy_from_slice(&w.y);
-            backward_t(l, r, x);
+            l.backward_t(r, x);
             return QpOutcome::Solved;
         }
         let mut sp = w.s[p];
@@ -374,6 +377,7 @@ pub fn solve_qp(
 mod tests {
     use super::*;
     use crate::rng::Rng;
+    use crate::rom::la::Factor;
     use crate::rom::saddle::cholesky;
     use crate::testing::spd;
 
@@ -465,9 +469,27 @@ mod tests {
             let mut w = QpWork::default();
             // cold, then warm-started from a random subset (must not change the answer)
             let warm: Vec<usize> = (0..m).filter(|_| rng.uniform() < 0.5).collect();
-            let cold = solve_qp(&l, r, &mut DenseConstraints { a: &a, b: &b }, 1e-12, 1000, &[], &mut x, &mut w);
+            let cold = solve_qp(
+                Factor::Lower(&l),
+                r,
+                &mut DenseConstraints { a: &a, b: &b },
+                1e-12,
+                1000,
+                &[],
+                &mut x,
+                &mut w,
+            );
             let x_cold = x.clone();
-            let out = solve_qp(&l, r, &mut DenseConstraints { a: &a, b: &b }, 1e-12, 1000, &warm, &mut x, &mut w);
+            let out = solve_qp(
+                Factor::Lower(&l),
+                r,
+                &mut DenseConstraints { a: &a, b: &b },
+                1e-12,
+                1000,
+                &warm,
+                &mut x,
+                &mut w,
+            );
             assert_eq!(std::mem::discriminant(&cold), std::mem::discriminant(&out), "case {case}: warm start");
             if cold == QpOutcome::Solved {
                 for (p, q) in x.iter().zip(&x_cold) {

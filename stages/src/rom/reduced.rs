@@ -1,11 +1,11 @@
 //! [`ReducedModel`]: the offline/online split, the exact and the paper's online solves, and the
 //! a-posteriori error indicator (see the module doc of [`crate::rom`]).
 
-use super::la::dot;
+use super::la::{axpy, backward_t, dot, forward, Factor};
 use super::qp::{solve_qp, QpConstraints, QpOutcome, QpWork};
 use super::saddle::{cholesky, solve_saddle};
 use crate::contact::anderson::Anderson;
-use crate::contact::pairing::{GapRow, MasterIndex, Pair, PairKind};
+use crate::contact::pairing::{vertex_pair, GapRow, MasterIndex, Pair, PairKind};
 use crate::contact::vertex::VertexTies;
 use crate::mu::affine;
 use crate::operator::{ContactOperator, Surface};
@@ -143,18 +143,16 @@ pub enum RomError {
 enum SurfaceData {
     /// Type-1: everything precomputed.
     Fixed {
-        /// `C Phi`, row-major `n_contact x r_u`.
+        /// `C Psi`, row-major `n_contact x r_u`.
         cphi: Vec<f64>,
         /// Affine terms of `C u0(mu) + gap0(mu)`, each length `n_contact`.
         cu0: Vec<Vec<f64>>,
         paired: Vec<bool>,
-        /// `Ĉ = Theta^T W C Phi`, row-major `r_l x r_u`.
+        /// `Ĉ = Theta^T W C Psi`, row-major `r_l x r_u` (the constraints are already in the
+        /// QP's range space, so a query makes no triangular solve).
         chat: Vec<f64>,
         /// Affine terms of `ĝ0(mu)`, each length `r_l`.
         ghat: Vec<Vec<f64>>,
-        /// `P = L^{-1} Ĉ^T` (column `a` at `a r_u`): the constraints in the QP's range space,
-        /// so a Type-1 query needs no triangular solve.
-        range: Vec<f64>,
         /// `C W C^T` (row-major `n_contact^2`), for the indicator.
         cwc: Vec<f64>,
     },
@@ -164,7 +162,7 @@ enum SurfaceData {
         nm: usize,
         x_ref: Vec<[f64; 2]>,
         slave_fixed: Vec<bool>,
-        /// `Phi` on the contact dofs, row-major `n_cd x r_u`.
+        /// `Psi` on the contact dofs, row-major `n_cd x r_u`.
         phi_c: Vec<f64>,
         /// Affine terms of the lift on the contact dofs.
         a_terms: Vec<Vec<f64>>,
@@ -186,9 +184,12 @@ pub struct ReducedModel {
     r_u: usize,
     r_l: usize,
     n_contact: usize,
-    /// `K̂` and its Cholesky factor (column-major).
-    khat: Vec<f64>,
+    /// The Cholesky factor `L` of `K̂ = Phi^T K Phi` (column-major). Every operator below is
+    /// stored in the coordinates `y = L^T û` of the K-orthonormal basis `Psi = Phi L^{-T}`, in
+    /// which the reduced stiffness is the identity; `L` only turns the answer back into `û`.
     khat_l: Vec<f64>,
+    /// `L^{-T}` (column-major, upper triangular): `û = L^{-T} y` as a product.
+    u_of_y: Vec<f64>,
     weights: Vec<f64>,
     /// `Theta[:, :r_l]` by node (CSR): `(column, value)`.
     by_node: Compressed,
@@ -222,15 +223,6 @@ fn compress(outer: usize, inner: usize, value: impl Fn(usize, usize) -> f64) -> 
     c
 }
 
-/// `L^{-1} Ĉ^T`, column `a` (length `r`) at `a r`, from `Ĉ` row-major `rl x r`.
-fn range_rows(chat: &[f64], l: &[f64], r: usize, rl: usize) -> Vec<f64> {
-    let mut p = chat.to_vec();
-    for a in 0..rl {
-        super::la::forward(l, r, &mut p[a * r..(a + 1) * r]);
-    }
-    p
-}
-
 /// `xc = base + Phi_c û` (`Phi_c` row-major `n_cd x r`) at the contact nodes `nodes`; at
 /// `û = 0` (the first linearisation) the positions are the lifted reference itself.
 fn set_positions(
@@ -256,6 +248,16 @@ fn node_norms(phi_c: &[f64], r: usize, ns: usize) -> (Vec<f64>, f64) {
     let norms: Vec<f64> = phi_c.chunks(2 * r.max(1)).map(|rows| dot(rows, rows).sqrt()).collect();
     let master = norms[ns.min(norms.len())..].iter().fold(0.0f64, |m, v| m.max(*v));
     (norms, master)
+}
+
+/// `L^{-T}` (column-major) of a lower factor `L` (column-major `r x r`).
+fn inverse_transpose(l: &[f64], r: usize) -> Vec<f64> {
+    let mut u = vec![0.0; r * r];
+    for (j, col) in u.chunks_exact_mut(r.max(1)).enumerate().take(r) {
+        col[j] = 1.0;
+        backward_t(l, r, col);
+    }
+    u
 }
 
 fn affine_into(terms: &[Vec<f64>], mu: &[f64], out: &mut [f64]) {
@@ -284,10 +286,16 @@ impl ReducedModel {
                 khat[i + j * r_u] = 0.5 * (kg[(i, j)] + kg[(j, i)]);
             }
         }
-        let mut khat_l = khat.clone();
+        let mut khat_l = khat;
         if !cholesky(&mut khat_l, r_u) {
             return Err(RomError::SingularStiffness);
         }
+        // a row `rho` of an operator on `û` becomes `L^{-1} rho` on `y = L^T û`
+        let to_psi = |rows: &mut [f64]| {
+            for row in rows.chunks_exact_mut(r_u.max(1)) {
+                forward(&khat_l, r_u, row);
+            }
+        };
         let (by_node, by_col) = csr(theta, nc, r_l);
         let weights = op.weights().to_vec();
         let lift = op.lift_terms();
@@ -303,6 +311,7 @@ impl ReducedModel {
                         }
                     }
                 }
+                to_psi(&mut cphi);
                 let cu0: Vec<Vec<f64>> = lift
                     .iter()
                     .zip(&gap0_terms)
@@ -341,12 +350,13 @@ impl ReducedModel {
                         cwc[i * nc + j] = v;
                     }
                 }
-                let range = range_rows(&chat, &khat_l, r_u, r_l);
-                SurfaceData::Fixed { cphi, cu0, paired: rows.paired, chat, ghat, range, cwc }
+                SurfaceData::Fixed { cphi, cu0, paired: rows.paired, chat, ghat, cwc }
             }
             Surface::NodeToSegment { n_slaves, x_ref, dofs, slave_fixed } => {
                 assert_eq!(comp.dofs, dofs, "compliance on the contact dofs");
-                let phi_c: Vec<f64> = dofs.iter().flat_map(|&d| (0..r_u).map(move |j| phi[d + j * n_dof])).collect();
+                let mut phi_c: Vec<f64> =
+                    dofs.iter().flat_map(|&d| (0..r_u).map(move |j| phi[d + j * n_dof])).collect();
+                to_psi(&mut phi_c);
                 let a_terms = lift.iter().map(|t| dofs.iter().map(|&d| t[d]).collect()).collect();
                 let supp = (0..n_slaves).filter(|&s| !slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]).collect();
                 let (node_norm, master_norm) = node_norms(&phi_c, r_u, n_slaves);
@@ -364,7 +374,8 @@ impl ReducedModel {
                 }
             }
         };
-        Ok(Self { r_u, r_l, n_contact: nc, khat, khat_l, weights, by_node, by_col, surf })
+        let u_of_y = inverse_transpose(&khat_l, r_u);
+        Ok(Self { r_u, r_l, n_contact: nc, khat_l, u_of_y, weights, by_node, by_col, surf })
     }
 
     /// Primal and dual ranks.
@@ -374,7 +385,8 @@ impl ReducedModel {
 
     /// The reduced model on the first `r_u` primal and `r_l` dual basis vectors, without
     /// recomputing `K̂`: `Phi[:, :r]^T K Phi[:, :r]` is the leading block of `K̂`, the Cholesky
-    /// factor of a leading block is the leading block of the factor, and so is `L^{-T}`.
+    /// factor of a leading block is the leading block of the factor, and so is `L^{-T}` (upper
+    /// triangular), so `Psi[:, :r] = Phi[:, :r] L_r^{-T}` is the leading columns of `Psi`.
     pub fn leading(&self, r_u: usize, r_l: usize) -> Self {
         assert!(r_u <= self.r_u && r_l <= self.r_l, "leading ranks exceed the model's");
         let lead =
@@ -393,19 +405,14 @@ impl ReducedModel {
         }
         let (by_node, by_col) = csr(&theta, nc, r_l);
         let surf = match &self.surf {
-            SurfaceData::Fixed { cphi, cu0, paired, chat, ghat, cwc, .. } => {
-                let chat = restride(&chat[..r_l * self.r_u], r_l);
-                let range = range_rows(&chat, &lead(&self.khat_l), r_u, r_l);
-                SurfaceData::Fixed {
-                    cphi: restride(cphi, nc),
-                    cu0: cu0.clone(),
-                    paired: paired.clone(),
-                    chat,
-                    ghat: ghat.iter().map(|g| g[..r_l].to_vec()).collect(),
-                    range,
-                    cwc: cwc.clone(),
-                }
-            }
+            SurfaceData::Fixed { cphi, cu0, paired, chat, ghat, cwc } => SurfaceData::Fixed {
+                cphi: restride(cphi, nc),
+                cu0: cu0.clone(),
+                paired: paired.clone(),
+                chat: restride(&chat[..r_l * self.r_u], r_l),
+                ghat: ghat.iter().map(|g| g[..r_l].to_vec()).collect(),
+                cwc: cwc.clone(),
+            },
             SurfaceData::Nts { ns, nm, x_ref, slave_fixed, phi_c, a_terms, w_c, .. } => {
                 let phi_c = restride(phi_c, x_ref.len() * 2);
                 let (node_norm, master_norm) = node_norms(&phi_c, r_u, *ns);
@@ -427,8 +434,8 @@ impl ReducedModel {
             r_u,
             r_l,
             n_contact: nc,
-            khat: lead(&self.khat),
             khat_l: lead(&self.khat_l),
+            u_of_y: lead(&self.u_of_y),
             weights: self.weights.clone(),
             by_node,
             by_col,
@@ -440,19 +447,18 @@ impl ReducedModel {
     /// on the number of dofs of the full-order model, only on the ranks and the contact surface.
     pub fn storage(&self) -> Vec<(&'static str, usize)> {
         let mut v = vec![
-            ("khat", self.khat.len()),
             ("khat_l", self.khat_l.len()),
+            ("u_of_y", self.u_of_y.len()),
             ("weights", self.weights.len()),
             ("theta_by_node", self.by_node.2.len()),
             ("theta_by_col", self.by_col.2.len()),
         ];
         match &self.surf {
-            SurfaceData::Fixed { cphi, cu0, chat, ghat, range, cwc, .. } => v.extend([
+            SurfaceData::Fixed { cphi, cu0, chat, ghat, cwc, .. } => v.extend([
                 ("cphi", cphi.len()),
                 ("cu0", cu0.iter().map(Vec::len).sum()),
                 ("chat", chat.len()),
                 ("ghat", ghat.iter().map(Vec::len).sum()),
-                ("range", range.len()),
                 ("cwc", cwc.len()),
             ]),
             SurfaceData::Nts { x_ref, phi_c, a_terms, supp, w_c, .. } => v.extend([
@@ -511,20 +517,28 @@ impl ReducedModel {
         if let SurfaceData::Nts { ns, .. } = &self.surf {
             w.forced.resize(*ns, None);
         }
-        let (mut iterations, mut linearizations) = (0, 0);
+        let (mut iterations, mut linearizations, mut resume) = (0, 0, false);
         loop {
             let out = match p.algorithm {
-                Algorithm::Exact => self.solve_exact(mu, p, w),
-                Algorithm::Paper => self.solve_paper(mu, p, w),
+                Algorithm::Exact => self.solve_exact(p, w, resume),
+                Algorithm::Paper => self.solve_paper(p, w),
             };
             iterations += out.0;
             linearizations += w.lin.count;
             let rule = p.algorithm == Algorithm::Exact;
             if out.2 != RomOutcome::Converged || !rule || !self.add_zone_ties(w) {
+                // the answer in the caller's basis: û = L^{-T} y
+                let ru = self.r_u;
+                w.coords.clear();
+                w.coords.resize(ru, 0.0);
+                for (j, &y) in w.u_hat.iter().enumerate() {
+                    axpy(y, &self.u_of_y[j * ru..j * ru + j + 1], &mut w.coords[..j + 1]);
+                }
                 return SolveInfo { iterations, linearizations, active: out.1, outcome: out.2 };
             }
-            w.prepare(self, mu);
-            w.lin.ties.force(&w.forced);
+            // the next round starts from this round's answer (see `solve_exact`)
+            w.lin.restart(&w.forced);
+            resume = true;
         }
     }
 
@@ -547,10 +561,20 @@ impl ReducedModel {
         added
     }
 
-    fn solve_exact(&self, mu: &[f64], p: &RomParams, w: &mut RomWork) -> (usize, usize, RomOutcome) {
+    /// The exact online solve from `w.u_hat`. `resume`: a later round of the vertex-zone rule,
+    /// started from the previous round's answer and active set instead of from the cold start
+    /// the full-order solver uses (a tied slave moves by less than 1 % of a segment). Where the
+    /// re-pairing has one fixed point with those ties, as the rule makes it for the full-order
+    /// problem (design note 27), that is the cold round's answer: the full-basis reproduction
+    /// of every hertz training snapshot (each has tied slaves) to 1e-9 tests it. Where a
+    /// truncated reduced problem has several nearby fixed points, which one a start reaches
+    /// is a property of the start, cold or resumed alike (measured with other starts on
+    /// ironing-coarse: 1 point in 30 moved, by 5e-5 relative, against a reduced-model error of
+    /// 1.4e-2 there).
+    fn solve_exact(&self, p: &RomParams, w: &mut RomWork, resume: bool) -> (usize, usize, RomOutcome) {
         let ru = self.r_u;
         self.linearize(w);
-        let scale = self.offset_scale(mu, w);
+        let scale = self.offset_scale(w);
         if scale == 0.0 {
             return (0, 0, RomOutcome::Converged);
         }
@@ -561,15 +585,17 @@ impl ReducedModel {
             w.anderson = Anderson::new(ANDERSON_DEPTH, ru);
         }
         w.anderson.reset();
-        w.warm.clear();
+        if !resume {
+            w.warm.clear();
+        }
         w.seen.clear();
         w.seen.push(w.lin.pairing_hash());
         let (mut steps, mut smooth, mut last_du) = (0, false, 0.0f64);
         for _ in 0..p.max_iter {
             let out = {
                 let RomWork { lin, qp, x, warm, .. } = w;
-                let mut oracle = Oracle { m: self, lin, mu };
-                solve_qp(&self.khat_l, ru, &mut oracle, tol, max_steps, warm, x, qp)
+                let mut oracle = Oracle { m: self, lin };
+                solve_qp(Factor::Identity, ru, &mut oracle, tol, max_steps, warm, x, qp)
             };
             steps += w.qp.steps;
             match out {
@@ -638,10 +664,10 @@ impl ReducedModel {
         (steps, w.qp.active.len(), RomOutcome::NotConverged)
     }
 
-    fn solve_paper(&self, mu: &[f64], p: &RomParams, w: &mut RomWork) -> (usize, usize, RomOutcome) {
+    fn solve_paper(&self, p: &RomParams, w: &mut RomWork) -> (usize, usize, RomOutcome) {
         let (ru, rl) = (self.r_u, self.r_l);
         self.linearize(w);
-        let scale = self.offset_scale(mu, w);
+        let scale = self.offset_scale(w);
         let violated = |g: f64| g < -p.gap_tol * scale;
         // deterministic start: the most violated reduced constraint at û = 0
         let start = (0..rl).filter(|&a| violated(w.s[a])).min_by(|&a, &b| w.s[a].total_cmp(&w.s[b]));
@@ -658,19 +684,19 @@ impl ReducedModel {
         for it in 1..=p.max_iter {
             prev.copy_from_slice(&w.u_hat);
             // offsets ĝ0 at the current linearisation, rows of the active constraints
-            self.offsets(mu, w);
+            self.offsets(w);
             c_a.clear();
             g_a.clear();
             let idx: Vec<usize> = (0..rl).filter(|&a| mask[a]).collect();
             for &a in &idx {
                 let RomWork { lin, .. } = w;
-                Oracle { m: self, lin, mu }.row(a, &mut row);
+                Oracle { m: self, lin }.row(a, &mut row);
                 c_a.extend_from_slice(&row);
                 g_a.push(w.s[a]);
             }
             lam_a.clear();
             lam_a.resize(idx.len(), 0.0);
-            solve_saddle(&self.khat_l, ru, &c_a, &g_a, &mut w.u_hat, &mut lam_a, &mut work);
+            solve_saddle(Factor::Identity, ru, &c_a, &g_a, &mut w.u_hat, &mut lam_a, &mut work);
             w.lam.iter_mut().for_each(|x| *x = 0.0);
             for (k, &a) in idx.iter().enumerate() {
                 w.lam[a] = lam_a[k];
@@ -678,7 +704,7 @@ impl ReducedModel {
             let changed = self.linearize(w);
             {
                 let RomWork { lin, s, u_hat, .. } = w;
-                Oracle { m: self, lin, mu }.values(u_hat, s);
+                Oracle { m: self, lin }.values(u_hat, s);
             }
             // a multiplier counts as negative below -PAPER_LAM_TOL of the largest one: an exact
             // sign test cycles on degenerate constraints (zero gap, multiplier zero up to
@@ -709,17 +735,17 @@ impl ReducedModel {
 
     /// Reduced offsets `ĝ0` at the current linearisation into `w.s`; returns their largest
     /// magnitude.
-    fn offset_scale(&self, mu: &[f64], w: &mut RomWork) -> f64 {
-        self.offsets(mu, w);
+    fn offset_scale(&self, w: &mut RomWork) -> f64 {
+        self.offsets(w);
         w.s.iter().fold(0.0f64, |m, g| m.max(g.abs()))
     }
 
-    fn offsets(&self, mu: &[f64], w: &mut RomWork) {
+    fn offsets(&self, w: &mut RomWork) {
         let RomWork { lin, s, zero, .. } = w;
-        Oracle { m: self, lin, mu }.values(zero, s);
+        Oracle { m: self, lin }.values(zero, s);
     }
 
-    /// Type-2: positions of the needed contact nodes at `û = w.u_hat`, re-pair the supported
+    /// Type-2: positions of the needed contact nodes at `y = w.u_hat`, re-pair the supported
     /// slaves (recording the pairing history for vertex ties) and rebuild their gap rows.
     /// Returns whether a pairing kind changed. Type-1: nothing to do.
     fn linearize(&self, w: &mut RomWork) -> bool {
@@ -727,51 +753,73 @@ impl ReducedModel {
     }
 
     /// [`Self::linearize`], rebuilding the gap rows only if `assemble`.
+    ///
+    /// Each supported slave gets a safe radius `R_s` where it is searched
+    /// ([`MasterIndex::closest_point_with_radius`]): its pairing kind cannot change while the
+    /// slave and the masters have moved by less than `R_s` in all. They move by at most
+    /// `(|Psi_s| + max_m |Psi_m|) |Δy|` per change `Δy` of the coordinates, so with `T` the
+    /// path length of `y` over the linearisations of this round, the slave's kind is known
+    /// while `T <= T_s + R_s / (|Psi_s| + max_m |Psi_m|)` (its budget), `T_s` the path length
+    /// when it was searched. Then an unpaired slave keeps its pairing and a slave paired with
+    /// segment `k` is projected on `k` again (the search's own arithmetic); slaves forced to a
+    /// vertex by the zone rule are never searched; every other slave is searched and gets a
+    /// new budget. Without `assemble` (the check after convergence), a pairing known unchanged
+    /// returns at once: positions, pairs and rows stay those of the last linearisation,
+    /// `|Δy| <= u_tol |y|` away.
     fn linearize_with(&self, w: &mut RomWork, assemble: bool) -> bool {
         let SurfaceData::Nts { ns, nm, supp, node_norm, master_norm, phi_c, .. } = &self.surf else {
             w.lin.count = 1;
             return false;
         };
         let (ns, nm) = (*ns, *nm);
-        // Slaves found unpaired at the reference pairing with a safe radius keep that pairing
-        // while û has moved so little that neither they nor the masters can have moved by the
-        // radius ([`MasterIndex::closest_point_with_radius`]); otherwise every supported slave
-        // is re-paired and the reference moves here.
-        let moved = if w.lin.has_ref {
-            w.u_hat.iter().zip(&w.lin.u_ref).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
-        } else {
-            f64::INFINITY
-        };
-        let full = !w.lin.has_ref
-            || !supp.iter().all(|&s| {
-                let r = w.lin.radius[s];
-                r == 0.0 || (node_norm[s] + master_norm) * moved <= r
-            });
-        let skip = |l: &LinState, s: usize| !full && l.radius[s] > 0.0;
         let l = &mut w.lin;
-        let radius = &l.radius;
-        let nodes = supp.iter().copied().filter(|&s| full || radius[s] == 0.0).chain(ns..ns + nm);
+        let step = if l.fresh {
+            0.0
+        } else {
+            w.u_hat.iter().zip(&l.last_u).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
+        };
+        let travel = l.travel + step;
+        let known = |l: &LinState, s: usize| !l.fresh && travel <= l.budget[s];
+        if !assemble && supp.iter().all(|&s| known(l, s) || l.ties.forced(s).is_some()) {
+            return false;
+        }
+        l.travel = travel;
+        l.last_u.clear();
+        l.last_u.extend_from_slice(&w.u_hat);
+        let (pairs, first) = (&l.pairs, l.fresh);
+        let budget = &l.budget;
+        let nodes = supp
+            .iter()
+            .copied()
+            .filter(|&s| first || travel > budget[s] || pairs[s].kind.is_paired())
+            .chain(ns..ns + nm);
         set_positions(phi_c, self.r_u, &w.u_hat, &l.base, &mut l.xc, nodes);
         l.index_masters(ns, nm);
         let mut changed = false;
         for &s in supp {
-            if skip(l, s) {
-                continue;
-            }
             let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
-            let (p, r) = l.ties.pair_with_radius(s, xs, &l.xm, &l.index, l.count);
-            if full {
-                l.radius[s] = r;
-            }
+            let p = if let Some(v) = l.ties.forced(s) {
+                vertex_pair(xs, &l.xm, v, PairKind::Tied(v))
+            } else if known(l, s) {
+                match l.pairs[s].kind {
+                    PairKind::None => continue,
+                    PairKind::Segment(k) => match MasterIndex::segment_pair(xs, &l.xm, k) {
+                        Some(nat) => l.ties.pair_known(s, nat, xs, &l.xm, l.count),
+                        None => l.ties.pair(s, xs, &l.xm, &l.index, l.count),
+                    },
+                    _ => l.ties.pair(s, xs, &l.xm, &l.index, l.count),
+                }
+            } else {
+                let (p, r) = l.ties.pair_with_radius(s, xs, &l.xm, &l.index, l.count);
+                let speed = node_norm[s] + master_norm;
+                l.budget[s] = if speed > 0.0 { travel + r / speed } else { f64::INFINITY };
+                p
+            };
             changed |= p.kind != l.pairs[s].kind;
             l.pairs[s] = p;
         }
-        if full {
-            l.u_ref.clear();
-            l.u_ref.extend_from_slice(&w.u_hat);
-            l.has_ref = true;
-        }
         l.count += 1;
+        l.fresh = false;
         if assemble {
             self.assemble(w);
         }
@@ -880,20 +928,11 @@ impl ReducedModel {
                     .sum::<f64>();
             }
         }
-        // ||Phi û - K^{-1} F||_K^2 = |L^T û - L^{-1} Phi^T F|^2 + (F^T W F - |L^{-1} Phi^T F|^2)
-        let ll = &self.khat_l;
-        let mut y = phit_f.clone();
-        for i in 0..ru {
-            let mut v = y[i];
-            for k in 0..i {
-                v -= ll[i + k * ru] * y[k];
-            }
-            y[i] = v / ll[i + i * ru];
-        }
-        let z: Vec<f64> = (0..ru).map(|i| (i..ru).map(|k| ll[k + i * ru] * w.u_hat[k]).sum()).collect();
-        let first: f64 = z.iter().zip(&y).map(|(a, b)| (a - b) * (a - b)).sum();
-        let second = (fww - y.iter().map(|v| v * v).sum::<f64>()).max(0.0);
-        let un = z.iter().map(|v| v * v).sum::<f64>().sqrt();
+        // ||Psi y - K^{-1} F||_K^2 = |y - Psi^T F|^2 + (F^T W F - |Psi^T F|^2), Psi K-orthonormal
+        let (z, y) = (&w.u_hat, &phit_f);
+        let first: f64 = z.iter().zip(y).map(|(a, b)| (a - b) * (a - b)).sum();
+        let second = (fww - dot(y, y)).max(0.0);
+        let un = dot(z, z).sqrt();
         let eta = (first + second).sqrt();
         w.phit_f = phit_f;
         Indicator {
@@ -919,7 +958,6 @@ impl ReducedModel {
 struct Oracle<'a> {
     m: &'a ReducedModel,
     lin: &'a mut LinState,
-    mu: &'a [f64],
 }
 
 impl QpConstraints for Oracle<'_> {
@@ -930,9 +968,9 @@ impl QpConstraints for Oracle<'_> {
     fn values(&mut self, x: &[f64], s: &mut [f64]) {
         let (m, ru) = (self.m, self.m.r_u);
         match &m.surf {
-            SurfaceData::Fixed { chat, ghat, .. } => {
+            SurfaceData::Fixed { chat, .. } => {
                 for (a, sa) in s.iter_mut().enumerate() {
-                    *sa = dot(&chat[a * ru..(a + 1) * ru], x) + affine(&ghat[0], &ghat[1..], self.mu, a);
+                    *sa = dot(&chat[a * ru..(a + 1) * ru], x) + self.lin.g_mu[a];
                 }
             }
             SurfaceData::Nts { .. } => {
@@ -946,30 +984,6 @@ impl QpConstraints for Oracle<'_> {
                     }
                 }
             }
-        }
-    }
-
-    fn range_row(&mut self, a: usize, out: &mut [f64]) -> bool {
-        let ru = self.m.r_u;
-        match &self.m.surf {
-            SurfaceData::Fixed { range, .. } => {
-                out.copy_from_slice(&range[a * ru..(a + 1) * ru]);
-                true
-            }
-            SurfaceData::Nts { .. } => false,
-        }
-    }
-
-    fn range_values(&mut self, y: &[f64], s: &mut [f64]) -> bool {
-        let ru = self.m.r_u;
-        match &self.m.surf {
-            SurfaceData::Fixed { range, ghat, .. } => {
-                for (a, sa) in s.iter_mut().enumerate() {
-                    *sa = dot(&range[a * ru..(a + 1) * ru], y) + affine(&ghat[0], &ghat[1..], self.mu, a);
-                }
-                true
-            }
-            SurfaceData::Nts { .. } => false,
         }
     }
 
@@ -1014,15 +1028,28 @@ struct LinState {
     g0: Vec<f64>,
     /// Contact forces on the contact dofs (indicator).
     fc: Vec<f64>,
-    /// Safe radius of each slave found unpaired at the reference `û` (0: always re-pair).
-    radius: Vec<f64>,
-    u_ref: Vec<f64>,
-    has_ref: bool,
+    /// Type-1: `ĝ0(mu)` of the query.
+    g_mu: Vec<f64>,
+    /// No linearisation yet in this query: every supported slave is searched.
+    fresh: bool,
+    /// Path length of `y` over the linearisations of this query, and `y` at the last one.
+    travel: f64,
+    last_u: Vec<f64>,
+    /// Path length up to which each slave's pairing kind is known (see
+    /// [`ReducedModel::linearize_with`]).
+    budget: Vec<f64>,
     /// Linearisations computed.
     count: usize,
 }
 
 impl LinState {
+    /// A new round of the vertex-zone rule: `forced` slaves tied, pairing history cleared.
+    /// The budgets stay: they bound the natural pairing kinds, which do not depend on ties.
+    fn restart(&mut self, forced: &[Option<usize>]) {
+        self.ties.force(forced);
+        self.count = 0;
+    }
+
     /// Copy the masters' positions (contact nodes `ns..ns + nm`) into `xm` and rebuild the
     /// search index over them.
     fn index_masters(&mut self, ns: usize, nm: usize) {
@@ -1070,7 +1097,10 @@ pub struct RomWork {
     /// Hashes of the pairings reached by a change (cycle detection).
     seen: Vec<u64>,
     x: Vec<f64>,
+    /// The iterate in the K-orthonormal coordinates `y` (see [`ReducedModel`]).
     u_hat: Vec<f64>,
+    /// The answer `û = L^{-T} y` in the caller's primal basis.
+    coords: Vec<f64>,
     lam: Vec<f64>,
     s: Vec<f64>,
     zero: Vec<f64>,
@@ -1091,6 +1121,7 @@ impl Default for RomWork {
             seen: Vec::new(),
             x: Vec::new(),
             u_hat: Vec::new(),
+            coords: Vec::new(),
             lam: Vec::new(),
             s: Vec::new(),
             zero: Vec::new(),
@@ -1106,7 +1137,7 @@ impl RomWork {
     pub fn solution(&self, info: &SolveInfo) -> ReducedSolution {
         let max = self.lam.iter().fold(0.0f64, |m, l| m.max(*l));
         ReducedSolution {
-            u_hat: self.u_hat.clone(),
+            u_hat: self.coords.clone(),
             lambda_hat: self.lam.clone(),
             iterations: info.iterations,
             linearizations: info.linearizations,
@@ -1125,6 +1156,10 @@ impl RomWork {
             v.resize(n, 0.0);
         }
         self.lin.count = 0;
+        if let SurfaceData::Fixed { ghat, .. } = &m.surf {
+            self.lin.g_mu.resize(rl, 0.0);
+            affine_into(ghat, mu, &mut self.lin.g_mu);
+        }
         if let SurfaceData::Nts { ns, nm, x_ref, a_terms, .. } = &m.surf {
             let ncd = 2 * x_ref.len();
             let l = &mut self.lin;
@@ -1141,9 +1176,10 @@ impl RomWork {
             l.pairs.resize(*ns, Pair::NONE);
             l.ps_of.clear();
             l.ps_of.resize(*ns, usize::MAX);
-            l.radius.clear();
-            l.radius.resize(*ns, 0.0);
-            l.has_ref = false;
+            l.budget.clear();
+            l.budget.resize(*ns, 0.0);
+            l.travel = 0.0;
+            l.fresh = true;
             l.ties.reset(*ns);
         }
     }

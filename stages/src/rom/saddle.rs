@@ -8,6 +8,8 @@
 //! gives a solution with the dependent multipliers set to zero (pivots below
 //! [`SCHUR_PIVOT_TOL`] of the largest diagonal).
 
+use super::la::Factor;
+
 /// Relative pivot below which an active row of the Schur complement counts as dependent. The
 /// Schur matrix squares the conditioning of `Ĉ_A`: a pivot `1e-10` of the largest means rows
 /// dependent to ~1e-5, whose multipliers would otherwise be amplified ~1e10 (seen when the dual
@@ -37,11 +39,12 @@ pub fn cholesky(a: &mut [f64], n: usize) -> bool {
     true
 }
 
-/// Solve eq. 13 on the active rows. `khat_l`: Cholesky factor of `K̂` (`r x r`); `c_a`: active
+/// Solve eq. 13 on the active rows. `khat_l`: Cholesky factor of `K̂` (`r x r`, or the
+/// identity in coordinates where `K̂ = I`); `c_a`: active
 /// rows of `Ĉ`, row-major `a x r`; `g_a`: `ĝ0_A`. Writes `û` (length r) and `λ̂_A` (length a).
 /// `work` must hold at least `a * r + a * a` values.
 pub fn solve_saddle(
-    khat_l: &[f64],
+    khat_l: Factor<'_>,
     r: usize,
     c_a: &[f64],
     g_a: &[f64],
@@ -59,7 +62,7 @@ pub fn solve_saddle(
     for i in 0..a {
         let col = &mut y[i * r..(i + 1) * r];
         col.copy_from_slice(&c_a[i * r..(i + 1) * r]);
-        super::la::forward(khat_l, r, col);
+        khat_l.forward(r, col);
     }
     for j in 0..a {
         for i in 0..a {
@@ -126,7 +129,7 @@ pub fn solve_saddle(
     for i in 0..a {
         super::la::axpy(lam[i], &y[i * r..(i + 1) * r], u);
     }
-    super::la::backward_t(khat_l, r, u);
+    khat_l.backward_t(r, u);
 }
 
 #[cfg(test)]
@@ -134,6 +137,7 @@ mod tests {
     use super::*;
     use crate::approx::Tol;
     use crate::rng::Rng;
+    use crate::rom::la::Factor;
     use crate::testing::spd;
     use crate::{assert_all_close, assert_close};
 
@@ -157,7 +161,7 @@ mod tests {
             }
             let a = g.len();
             let (mut u, mut lam, mut w) = (vec![0.0; r], vec![0.0; a], Vec::new());
-            solve_saddle(&l, r, &c, &g, &mut u, &mut lam, &mut w);
+            solve_saddle(Factor::Lower(&l), r, &c, &g, &mut u, &mut lam, &mut w);
             for i in 0..a {
                 let cu: f64 = (0..r).map(|k2| c[i * r + k2] * u[k2]).sum();
                 assert_close!(cu, -g[i], Tol { abs: 1e-10, rel: 1e-10 });
