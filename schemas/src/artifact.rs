@@ -4,6 +4,24 @@
 //!
 //! Bump a kind's `schema_version` whenever the layout of its files changes: the version is part of
 //! every cache key, so old artifacts are never read with a new layout.
+//!
+//! **Undefined values.** No table or array holds NaN or infinity. A float that is undefined is a
+//! Parquet null (every float column is nullable; pandas reads it as NaN, `Table::read_parquet` in
+//! crom too), and its reason is what the row says:
+//!
+//! | table | column | null when |
+//! |---|---|---|
+//! | `rom_timings.parquet` | `fom_seconds` | `set == "train"`: the full-order solve is timed at test points only |
+//! | `rom_errors.parquet` | `dual_error` | the full-order pressure of the point is zero everywhere (`0/0`; no contact) |
+//! | `tradeoff.parquet` | `median_primal_error`, `p95_primal_error`, `mean_primal_error`, `max_primal_error`, `median_dual_error` | `converged == 0` (errors are taken over converged points only), or no converged point has a defined dual error |
+//! | `tradeoff.parquet` | `indicator_spearman` | fewer than three converged points with finite indicator and error, or either side constant |
+//! | `tradeoff.parquet` | `indicator_effectivity` | no converged point with a non-zero error |
+//! | `tradeoff_timings.parquet` | `speedup` | no test point (no full-order time) |
+//! | `solver_stats.parquet`, the column index | `min_gap` | no slave has the master under it (no signed distance to take the minimum of) |
+//!
+//! Tested: `io::table` writes every non-finite float as a null (checked with the arrow reader),
+//! and `tests/python/test_no_nonfinite.py` scans every Parquet and HDF5 file of the rope, hertz
+//! and ironing-fine stores with pyarrow and h5py.
 
 /// One kind of artifact (one stage's output).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]

@@ -392,7 +392,8 @@ impl TradeRows {
         let eff: Vec<f64> = ind.iter().zip(&perr).filter(|(_, e)| **e > 0.0).map(|(i, e)| i / e).collect();
         let online: Vec<f64> = rows.iter().map(|q| q.seconds).collect();
         let finite: Vec<f64> = perr.iter().copied().filter(|x| x.is_finite()).collect();
-        let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
+        // no converged point: the mean is undefined (a null in the table), not 0
+        let mean = if finite.is_empty() { f64::NAN } else { finite.iter().sum::<f64>() / finite.len() as f64 };
         let max = finite.iter().fold(f64::NAN, |m, x| if m.is_nan() { *x } else { m.max(*x) });
         let (on_med, fom_med) = (quantile(&online, 0.5), quantile(fom, 0.5));
         for (v, x) in self.s.iter_mut().zip([scene, alg.name(), dual_basis]) {

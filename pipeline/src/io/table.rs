@@ -94,7 +94,10 @@ impl Table {
                     Column::U64(_) => DataType::UInt64,
                     Column::F64(_) => DataType::Float64,
                 };
-                Field::new(name, t, false)
+                // a float column may hold nulls: the undefined values (NaN, infinity) of crom's
+                // tables are written as nulls, never as IEEE specials (documented per column in
+                // crom_schemas::artifact)
+                Field::new(name, t, matches!(c, Column::F64(_)))
             })
             .collect();
         let arrays: Vec<ArrayRef> = self
@@ -104,7 +107,7 @@ impl Table {
                 match c {
                     Column::Str(v) => Arc::new(StringArray::from(v.clone())),
                     Column::U64(v) => Arc::new(UInt64Array::from(v.clone())),
-                    Column::F64(v) => Arc::new(Float64Array::from(v.clone())),
+                    Column::F64(v) => Arc::new(v.iter().map(|x| x.is_finite().then_some(*x)).collect::<Float64Array>()),
                 }
             })
             .collect();
@@ -135,6 +138,8 @@ impl Table {
                 .map(|(_, c)| match c {
                     Column::Str(v) => csv_quote(&v[r]),
                     Column::U64(v) => v[r].to_string(),
+                    // an undefined value is an empty cell, as pandas reads it
+                    Column::F64(v) if !v[r].is_finite() => String::new(),
                     Column::F64(v) => v[r].to_string(),
                 })
                 .collect();
@@ -178,7 +183,8 @@ fn csv_quote(s: &str) -> String {
     }
 }
 
-/// Read a Parquet file written by [`Table::write_parquet`] (Utf8, UInt64 and Float64 columns).
+/// Read a Parquet file written by [`Table::write_parquet`] (Utf8, UInt64 and Float64 columns; a
+/// null float reads as NaN).
 pub fn read_parquet(path: &Path) -> Result<Table, CromError> {
     use arrow_array::Array;
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
@@ -213,7 +219,7 @@ pub fn read_parquet(path: &Path) -> Result<Table, CromError> {
             } else if let Some(a) = col.as_any().downcast_ref::<UInt64Array>() {
                 Column::U64(a.values().to_vec())
             } else if let Some(a) = col.as_any().downcast_ref::<Float64Array>() {
-                Column::F64(a.values().to_vec())
+                Column::F64((0..a.len()).map(|k| if a.is_null(k) { f64::NAN } else { a.value(k) }).collect())
             } else {
                 return Err(fail(&format!("column {} has unsupported type {}", field.name(), field.data_type())));
             };
@@ -263,5 +269,39 @@ impl Table {
             Column::Str(v) if n == name => Some(v.as_slice()),
             _ => None,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use arrow_array::Array;
+
+    /// Undefined floats (NaN, ±infinity) are written as Parquet nulls — checked with the arrow
+    /// reader itself, not with `read_parquet` — read back as NaN, and written as empty CSV
+    /// cells; finite values round-trip exactly.
+    #[test]
+    fn undefined_floats_are_nulls() {
+        let v = vec![1.5, f64::NAN, f64::INFINITY, -0.25, f64::NEG_INFINITY];
+        let t = Table::default().with("x", Column::F64(v.clone())).with("n", Column::U64(vec![1, 2, 3, 4, 5]));
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("t.parquet");
+        t.write_parquet(&path).expect("write");
+        let file = std::fs::File::open(&path).expect("open");
+        let reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+            .expect("parquet")
+            .build()
+            .expect("reader");
+        let batches: Vec<RecordBatch> = reader.map(|b| b.expect("batch")).collect();
+        let col = batches[0].column(0).as_any().downcast_ref::<Float64Array>().expect("float column");
+        let nulls: Vec<bool> = (0..col.len()).map(|k| col.is_null(k)).collect();
+        assert_eq!(nulls, [false, true, true, false, true]);
+        assert_eq!((col.value(0), col.value(3)), (1.5, -0.25));
+        assert_eq!(batches[0].column(1).null_count(), 0);
+        let back = read_parquet(&path).expect("read");
+        let x = back.f64s("x").expect("x");
+        assert_eq!((x[0], x[3]), (1.5, -0.25));
+        assert!(x[1].is_nan() && x[2].is_nan() && x[4].is_nan());
+        assert_eq!(t.to_csv(), "x,n\n1.5,1\n,2\n,3\n-0.25,4\n,5\n");
     }
 }
