@@ -189,6 +189,13 @@ impl SceneConfig {
                 }
                 _ => {}
             }
+            // the deepest press of the study, fixed or the d_y axis's upper end
+            let (field, deepest) = match (i.d_y, p.axes.iter().position(|a| a.name == "d_y")) {
+                (Some(d), _) => ("model.ironing.d_y".to_string(), d),
+                (None, Some(k)) => (format!("parameter.axes[{k}].max"), p.axes[k].max),
+                (None, None) => unreachable!("checked above"),
+            };
+            check_press(c, &field, deepest, i)?;
         }
         Ok(())
     }
@@ -312,6 +319,32 @@ fn check_hertz(c: &Checker<'_>, h: &HertzSpec) -> Result<(), SceneError> {
     c.between("model.hertz.n_arc", h.n_arc, 6, MAX_ELEMENTS_PER_EDGE)
 }
 
+/// The rise of the iron's circular sole over its half width, `R - sqrt(R^2 - (w/2)^2)`: pressed
+/// deeper than this into the undeformed slab, the block's lower corners — not its sole — would
+/// meet the slab. The contact model has the sole as its only master surface (SCENES.md), so
+/// such a press cannot be solved: the slab would pass through the block's sides, and the
+/// active-set loop, which sees nothing there, cycles until its iteration cap.
+pub fn sole_rise(i: &IroningSpec) -> f64 {
+    let (r, h) = (i.iron.sole_radius, 0.5 * i.iron.width);
+    r - (r * r - h * h).max(0.0).sqrt()
+}
+
+/// A press `d` (the field `field`) must stay below the sole's rise ([`sole_rise`]).
+fn check_press(c: &Checker<'_>, field: &str, d: f64, i: &IroningSpec) -> Result<(), SceneError> {
+    let rise = sole_rise(i);
+    if d.is_finite() && d >= rise {
+        return Err(c.fail(
+            field,
+            format!(
+                "is {d}, not below the rise {rise:.4} of the iron's sole (sole_radius {}, width {}): the block's corners, not its sole, would meet the slab, and the contact model has only the sole",
+                i.iron.sole_radius, i.iron.width
+            ),
+            &format!("press less than {rise:.4} (d_y), or give the sole more rise (a smaller model.ironing.iron.sole_radius or a wider iron)"),
+        ));
+    }
+    Ok(())
+}
+
 fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
     c.positive("model.ironing.slab.length", i.slab.length)?;
     c.positive("model.ironing.slab.height", i.slab.height)?;
@@ -335,5 +368,63 @@ fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
     match i.d_y {
         Some(d) => c.finite("model.ironing.d_y", d),
         None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::error::SceneError;
+    use crate::scene::SceneConfig;
+    use std::path::Path;
+
+    /// A scene name becomes a directory and a link in the store (`runs/<name>`,
+    /// `scenes/<name>`): every attempt to leave the store through it, or to hide it, is refused
+    /// with an error naming the field; plain names pass.
+    /// An iron pressed deeper than its sole's rise is a setting that cannot work (exit 2 naming
+    /// the field), fixed or as the d_y axis; the rise is `R - sqrt(R^2 - (w/2)^2)`, 0.0635 for
+    /// the shipped sole (R = 2, w = 1).
+    #[test]
+    fn an_iron_pressed_past_its_sole_is_refused() {
+        let ironing = include_str!("../../data/scenes/ironing-coarse.toml");
+        let parse = |from: &str, to: &str| {
+            assert!(ironing.contains(from), "ironing-coarse.toml changed: update this test");
+            SceneConfig::from_toml_str(&ironing.replacen(from, to, 1), Path::new("i.toml"))
+        };
+        assert!(parse("d_y = 0.04", "d_y = 0.063").is_ok());
+        for deep in ["d_y = 0.0636", "d_y = 0.4"] {
+            match parse("d_y = 0.04", deep) {
+                Err(SceneError::Invalid { field, problem, .. }) => {
+                    assert_eq!(field, "model.ironing.d_y");
+                    assert!(problem.contains("0.0635"), "{problem}");
+                }
+                other => panic!("{deep}: {other:?}"),
+            }
+        }
+        let two_d = include_str!("../../data/scenes/ironing-fine-2d.toml");
+        let axis_max = two_d.lines().find(|l| l.trim_start().starts_with("max = 0.06")).expect("d_y axis max");
+        let text = two_d.replacen(axis_max, "max = 0.07", 1);
+        match SceneConfig::from_toml_str(&text, Path::new("i2.toml")) {
+            Err(SceneError::Invalid { field, .. }) => assert_eq!(field, "parameter.axes[0].max"),
+            other => panic!("d_y axis to 0.07: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn scene_names_cannot_leave_the_store() {
+        let rope = include_str!("../../data/scenes/rope.toml");
+        assert!(rope.contains("name = \"rope\""), "rope.toml changed: update this test");
+        let parse = |name: &str| {
+            let text = rope.replacen("name = \"rope\"", &format!("name = {name:?}"), 1);
+            SceneConfig::from_toml_str(&text, Path::new("rope.toml"))
+        };
+        for bad in ["../../../escaped", "..", ".", "a/b", "a\\b", "/abs", ".hidden", "", " ", "x y", "é", "a:b"] {
+            match parse(bad) {
+                Err(SceneError::Invalid { field, .. }) => assert_eq!(field, "scene.name", "{bad:?}"),
+                other => panic!("{bad:?}: {other:?}"),
+            }
+        }
+        for good in ["rope", "rope-2", "ironing_fine.v2"] {
+            assert!(parse(good).is_ok(), "{good:?} refused");
+        }
     }
 }

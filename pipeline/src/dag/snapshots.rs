@@ -355,7 +355,7 @@ fn write_failures(
     points: &[Vec<f64>],
     keys: &[Key],
 ) -> Result<std::path::PathBuf, CromError> {
-    let dir = ctx.store.root().join("runs").join(&ctx.scene.scene.name);
+    let dir = crate::store::named_dir(ctx.store.root(), "runs", &ctx.scene.scene.name)?;
     std::fs::create_dir_all(&dir).map_err(|e| CromError::io(&dir, "creating the run directory", e))?;
     let n = failures.len();
     let table = Table::default().with("scene", Column::Str(vec![ctx.scene.scene.name.clone(); n]));

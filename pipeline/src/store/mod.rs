@@ -23,6 +23,26 @@ use crate::error::CromError;
 pub use manifest::Manifest;
 use manifest::{hash_file, FileEntry};
 
+/// `root/dir/name`, where `name` comes from a scene file (a scene name under `runs/` or
+/// `scenes/`): refused unless it is one plain path component — no separator, not `.` or `..`,
+/// no leading dot — so that no scene file can make crom write outside its store. Scene
+/// validation refuses such names first (`scene.name`); this is the second line, at the place
+/// where the path is made.
+pub fn named_dir(root: &Path, dir: &str, name: &str) -> Result<PathBuf, CromError> {
+    use std::path::Component;
+    let mut parts = Path::new(name).components();
+    let plain = matches!((parts.next(), parts.next()), (Some(Component::Normal(_)), None))
+        && !name.starts_with('.')
+        && !name.contains(['/', '\\']);
+    if !plain {
+        return Err(CromError::Usage {
+            message: format!("scene name {name:?} would make a path outside {}/{dir}", root.display()),
+            fix: "give scene.name a plain name of letters, digits, '-', '_' and '.' (not first)".into(),
+        });
+    }
+    Ok(root.join(dir).join(name))
+}
+
 /// An open store.
 #[derive(Debug)]
 pub struct Store {
@@ -262,4 +282,22 @@ fn unique_suffix() -> u128 {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let nanos = SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0);
     nanos.wrapping_mul(1000) + u128::from(COUNTER.fetch_add(1, Ordering::Relaxed))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every traversal through a name is refused; plain names pass and stay inside the store.
+    #[test]
+    fn named_dirs_stay_inside_the_store() {
+        let root = Path::new("/store");
+        for bad in ["../../../escaped", "..", ".", "a/b", "a\\b", "/abs", ".hidden", "", "x/../.."] {
+            assert!(named_dir(root, "runs", bad).is_err(), "{bad:?} accepted");
+        }
+        for good in ["rope", "ironing-fine-2d", "a.b_c"] {
+            let p = named_dir(root, "runs", good).expect("plain name");
+            assert_eq!(p, root.join("runs").join(good));
+        }
+    }
 }

@@ -102,15 +102,15 @@ fn scenes_dir(root: &Path) -> PathBuf {
 /// Publish `study` as the current names of its scene (see the module doc for the protocol).
 pub fn publish(root: &Path, study: &Study) -> Result<PathBuf, CromError> {
     let scenes = scenes_dir(root);
+    let named = super::named_dir(root, names::DIR, &study.scene)?;
     // A rerun that found everything in the cache names the same files: nothing to swap.
-    let current = std::fs::read_to_string(scenes.join(&study.scene).join(names::STUDY))
-        .ok()
-        .and_then(|t| serde_json::from_str::<Study>(&t).ok());
+    let current =
+        std::fs::read_to_string(named.join(names::STUDY)).ok().and_then(|t| serde_json::from_str::<Study>(&t).ok());
     if let Some(c) = current {
         let same = c.entries == study.entries && c.online == study.online && c.withdrawn == study.withdrawn;
         if same && c.layout_version == study.layout_version && c.entries.values().all(|e| root.join(&e.target).exists())
         {
-            return Ok(scenes.join(&study.scene));
+            return Ok(named);
         }
     }
     let versions = scenes.join(names::VERSIONS);
@@ -155,7 +155,7 @@ pub fn publish(root: &Path, study: &Study) -> Result<PathBuf, CromError> {
     super::columns::fsync_dir(&versions);
 
     // Swap the one link: a new link under a temporary name, renamed over the old one.
-    let link = scenes.join(&study.scene);
+    let link = named;
     if link.exists() && !link.is_symlink() {
         return Err(CromError::artifact(
             &link,
