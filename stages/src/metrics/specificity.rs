@@ -20,7 +20,8 @@
 //!   and NaN for that m.
 //! * Mean and population standard deviation over the `samples` draws, for m = 1..=k (k basis
 //!   vectors given). The draws for m come from their own stream `Rng::new(mix(seed, m))`, so
-//!   S(m) does not depend on which other m are computed (or on the basis size beyond m).
+//!   S(m) does not depend on which other m are computed (or on the basis size beyond m), and
+//!   the sizes m are computed in parallel (rayon) with the same numbers bit for bit.
 //!
 //! # Distances without cancellation and without forming `Psi alpha`
 //!
@@ -39,6 +40,7 @@
 //! sample equal to a snapshot gives a round-off-level distance.
 
 use faer::{Mat, MatRef};
+use rayon::prelude::*;
 
 use super::stats::{MetricCurve, RunningStats};
 use crate::basis::CpgPath;
@@ -77,7 +79,9 @@ pub fn specificity_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>, params: Spec
             st.interval(false)
         })
         .collect();
+    // each m draws from its own stream: the sizes run in parallel, collected in order
     let stats: Vec<RunningStats> = (1..=k)
+        .into_par_iter()
         .map(|m| {
             sample_stats(&frame, &ranges[..m], stream(params.seed, m), params.samples, m, |alpha, beta| {
                 beta.copy_from_slice(alpha)
@@ -137,6 +141,7 @@ fn specificity_cone_with(
     let frame = Frame::new(s, q.as_ref());
     let qdim = q.ncols();
     let stats: Vec<RunningStats> = (1..=k)
+        .into_par_iter()
         .map(|m| {
             let p = m.min(qdim);
             let st = sample_stats(&frame, &ranges[m - 1], stream(params.seed, m), params.samples, p, |alpha, beta| {
