@@ -64,8 +64,9 @@ pub fn solve_saddle(
         col.copy_from_slice(&c_a[i * r..(i + 1) * r]);
         khat_l.forward(r, col);
     }
+    // S = W^T W is symmetric: the factorisation below reads its lower triangle only
     for j in 0..a {
-        for i in 0..a {
+        for i in j..a {
             s[i + j * a] = super::la::dot(&y[i * r..(i + 1) * r], &y[j * r..(j + 1) * r]);
         }
     }
