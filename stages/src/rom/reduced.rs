@@ -676,7 +676,7 @@ impl ReducedModel {
         };
         let mut mask = vec![false; rl];
         mask[first] = true;
-        let mut history: Vec<(u64, (Vec<bool>, Vec<PairKind>))> = Vec::new();
+        let mut history: Vec<(u64, PaperState)> = Vec::new();
         let (mut c_a, mut g_a, mut lam_a, mut work, mut row) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), vec![0.0; ru]);
         let mut prev = vec![0.0; ru];
@@ -1080,6 +1080,9 @@ impl LinState {
         h
     }
 }
+
+/// A discrete state of the paper's algorithm: the active-set mask and every slave's pairing.
+type PaperState = (Vec<bool>, Vec<PairKind>);
 
 /// FNV-1a of an active-set mask, continued from a pairing hash.
 fn state_hash(mask: &[bool], pairing: u64) -> u64 {
