@@ -186,6 +186,15 @@ impl VertexTies {
         }
     }
 
+    /// [`Self::pair_peek`] for a slave whose natural pair `nat` is already known (see
+    /// [`Self::pair_known`]): no search, no history update.
+    pub fn peek_known(&self, s: usize, nat: Pair, xs: [f64; 2], xm: &[[f64; 2]]) -> Pair {
+        match self.peek(s, nat.kind) {
+            PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
+            _ => nat,
+        }
+    }
+
     /// [`Self::pair`] without recording anything (existing ties only, [`Self::peek`]).
     pub fn pair_peek(&self, s: usize, xs: [f64; 2], xm: &[[f64; 2]], index: &MasterIndex) -> Pair {
         let nat = index.closest_point(xs, xm);

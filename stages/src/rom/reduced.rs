@@ -897,6 +897,16 @@ impl ReducedModel {
                 let (ns, nm) = (*ns, *nm);
                 let l = &mut w.lin;
                 let slaves = || (0..ns).filter(|&s| !slave_fixed[s]);
+                // supported slaves whose natural pairing kind the solve's budgets still prove
+                // (see `linearize_with`) are not searched again; the others are
+                let step = if l.fresh {
+                    f64::INFINITY
+                } else {
+                    w.u_hat.iter().zip(&l.last_u).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
+                };
+                let travel = l.travel + step;
+                let by_node = &self.by_node;
+                let known = |l: &LinState, s: usize| by_node.0[s + 1] > by_node.0[s] && travel <= l.budget[s];
                 set_positions(phi_c, ru, &w.u_hat, &l.base, &mut l.xc, slaves().chain(ns..ns + nm));
                 l.index_masters(ns, nm);
                 let ncd = l.xc.len();
@@ -904,7 +914,15 @@ impl ReducedModel {
                 l.fc.resize(ncd, 0.0);
                 for s in slaves() {
                     let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
-                    let pr: Pair = l.ties.pair_peek(s, xs, &l.xm, &l.index);
+                    let nat = match (known(l, s), l.pairs[s].kind) {
+                        (true, PairKind::None) => Some(Pair::NONE),
+                        (true, PairKind::Segment(k)) => MasterIndex::segment_pair(xs, &l.xm, k),
+                        _ => None,
+                    };
+                    let pr: Pair = match nat {
+                        Some(nat) => l.ties.peek_known(s, nat, xs, &l.xm),
+                        None => l.ties.pair_peek(s, xs, &l.xm, &l.index),
+                    };
                     let f = self.weights[s] * self.pressure_at(s, &w.lam);
                     force += f;
                     if !pr.kind.is_paired() {
