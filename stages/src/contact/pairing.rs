@@ -528,6 +528,26 @@ mod tests {
         assert_close!(row.apply(&x), v.gap, Tol::abs(1e-15));
     }
 
+    /// The slave `xs` and every vertex of `m` moved in random directions by amounts summing to
+    /// at most `r` (a random split between the slave and the masters).
+    fn random_motion(rng: &mut crate::rng::Rng, xs: [f64; 2], m: &[[f64; 2]], r: f64) -> ([f64; 2], Vec<[f64; 2]>) {
+        let split = rng.uniform();
+        let mv = |rng: &mut crate::rng::Rng, len: f64| {
+            let a = rng.uniform_in(0.0, std::f64::consts::TAU);
+            [len * a.cos(), len * a.sin()]
+        };
+        let ds = mv(rng, r * split);
+        let m2 = m
+            .iter()
+            .map(|p| {
+                let len = r * (1.0 - split) * rng.uniform();
+                let d = mv(rng, len);
+                [p[0] + d[0], p[1] + d[1]]
+            })
+            .collect();
+        ([xs[0] + ds[0], xs[1] + ds[1]], m2)
+    }
+
     /// The radius of an unpaired slave is safe: moving the slave and every master vertex at
     /// random by amounts summing to at most the radius never pairs it (brute-force
     /// [`closest_point`] after the move), over random polylines and far points on both sides.
@@ -553,21 +573,7 @@ mod tests {
                 }
                 checked += 1;
                 for _ in 0..20 {
-                    let split = rng.uniform();
-                    let mv = |rng: &mut crate::rng::Rng, len: f64| {
-                        let a = rng.uniform_in(0.0, std::f64::consts::TAU);
-                        [len * a.cos(), len * a.sin()]
-                    };
-                    let ds = mv(&mut rng, r * split);
-                    let xs2 = [xs[0] + ds[0], xs[1] + ds[1]];
-                    let m2: Vec<[f64; 2]> = m
-                        .iter()
-                        .map(|p| {
-                            let len = r * (1.0 - split) * rng.uniform();
-                            let d = mv(&mut rng, len);
-                            [p[0] + d[0], p[1] + d[1]]
-                        })
-                        .collect();
+                    let (xs2, m2) = random_motion(&mut rng, xs, &m, r);
                     assert_eq!(closest_point(xs2, &m2).kind, PairKind::None, "case {case}: {xs:?} r {r}");
                 }
             }
@@ -602,21 +608,7 @@ mod tests {
                 }
                 checked += 1;
                 for _ in 0..20 {
-                    let split = rng.uniform();
-                    let mv = |rng: &mut crate::rng::Rng, len: f64| {
-                        let a = rng.uniform_in(0.0, std::f64::consts::TAU);
-                        [len * a.cos(), len * a.sin()]
-                    };
-                    let ds = mv(&mut rng, r * split);
-                    let xs2 = [xs[0] + ds[0], xs[1] + ds[1]];
-                    let m2: Vec<[f64; 2]> = m
-                        .iter()
-                        .map(|p| {
-                            let len = r * (1.0 - split) * rng.uniform();
-                            let d = mv(&mut rng, len);
-                            [p[0] + d[0], p[1] + d[1]]
-                        })
-                        .collect();
+                    let (xs2, m2) = random_motion(&mut rng, xs, &m, r);
                     let brute = closest_point(xs2, &m2);
                     assert_eq!(brute.kind, PairKind::Segment(k), "case {case}: {xs:?} r {r}");
                     assert_eq!(MasterIndex::segment_pair(xs2, &m2, k), Some(brute), "case {case}");

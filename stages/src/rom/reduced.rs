@@ -776,13 +776,9 @@ impl ReducedModel {
         };
         let (ns, nm) = (*ns, *nm);
         let l = &mut w.lin;
-        let step = if l.fresh {
-            0.0
-        } else {
-            w.u_hat.iter().zip(&l.last_u).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
-        };
-        let travel = l.travel + step;
-        let known = |l: &LinState, s: usize| !l.fresh && travel <= l.budget[s];
+        let path = l.travel_to(&w.u_hat);
+        let travel = path.unwrap_or(0.0);
+        let known = |l: &LinState, s: usize| path.is_some_and(|t| t <= l.budget[s]);
         if !assemble && supp.iter().all(|&s| known(l, s) || l.ties.forced(s).is_some()) {
             return false;
         }
@@ -899,14 +895,10 @@ impl ReducedModel {
                 let slaves = || (0..ns).filter(|&s| !slave_fixed[s]);
                 // supported slaves whose natural pairing kind the solve's budgets still prove
                 // (see `linearize_with`) are not searched again; the others are
-                let step = if l.fresh {
-                    f64::INFINITY
-                } else {
-                    w.u_hat.iter().zip(&l.last_u).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
-                };
-                let travel = l.travel + step;
+                let path = l.travel_to(&w.u_hat);
                 let by_node = &self.by_node;
-                let known = |l: &LinState, s: usize| by_node.0[s + 1] > by_node.0[s] && travel <= l.budget[s];
+                let known =
+                    |l: &LinState, s: usize| by_node.0[s + 1] > by_node.0[s] && path.is_some_and(|t| t <= l.budget[s]);
                 set_positions(phi_c, ru, &w.u_hat, &l.base, &mut l.xc, slaves().chain(ns..ns + nm));
                 l.index_masters(ns, nm);
                 let ncd = l.xc.len();
@@ -1064,6 +1056,13 @@ struct LinState {
 }
 
 impl LinState {
+    /// The path length of `y` up to `u` (the linearisations' path plus the step from the last
+    /// one to `u`); `None` before the first linearisation of the query.
+    fn travel_to(&self, u: &[f64]) -> Option<f64> {
+        (!self.fresh)
+            .then(|| self.travel + u.iter().zip(&self.last_u).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt())
+    }
+
     /// A new round of the vertex-zone rule: `forced` slaves tied, pairing history cleared.
     /// The budgets stay: they bound the natural pairing kinds, which do not depend on ties.
     fn restart(&mut self, forced: &[Option<usize>]) {
