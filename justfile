@@ -45,6 +45,7 @@ bench:
     {{python}} scripts/bench_pipeline.py ironing-fine ironing-coarse hertz rope
     {{python}} scripts/bench_scale.py
     {{python}} scripts/bench_rom.py
+    {{python}} scripts/bench_cluster.py
 
 # Render one step of a scene's XDMF view with ParaView under Xvfb (installs Debian's paraview,
 # ~440 MB, on first use; not part of CI), e.g. `just paraview ironing-fine test 1`.
@@ -59,3 +60,15 @@ bench-rom:
 # Only the scale benchmarks (A-E, see scripts/bench_scale.py), e.g. `just bench-scale E`.
 bench-scale *WHICH:
     {{python}} scripts/bench_scale.py {{WHICH}}
+
+# Only the sharded-sweep overheads (issue 11): sbatch, worker start, block commit, index.
+bench-cluster:
+    {{python}} scripts/bench_cluster.py
+
+# A single-node Slurm on this machine from Debian's packages (root; see scripts/slurm-up.sh),
+# for `crom run SCENE --executor slurm`; `just slurm-down` stops what it started.
+slurm-up:
+    bash scripts/slurm-up.sh start
+
+slurm-down:
+    bash scripts/slurm-up.sh stop

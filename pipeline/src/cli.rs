@@ -4,6 +4,8 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
+use crate::executor::Executor;
+
 /// crom: can contact-mechanics solutions be compressed into a low-rank model, and at what cost?
 #[derive(Debug, Parser)]
 #[command(name = "crom", version, about, long_about = None)]
@@ -36,6 +38,32 @@ pub enum Command {
         /// Stop before the online reduced solve and the report (the offline study only).
         #[arg(long)]
         offline: bool,
+        /// Print what is stored and what would run; write nothing.
+        #[arg(long)]
+        dry_run: bool,
+        /// Where the snapshot sweeps run: this process, or a Slurm job array of `crom work`
+        /// workers on this store (which must be on a file system the compute nodes share).
+        #[arg(long, value_enum, default_value_t = Executor::Local)]
+        executor: Executor,
+        /// Slurm settings (override the scene's `[executor.slurm]`).
+        #[command(flatten)]
+        slurm: SlurmFlags,
+    },
+    /// Solve the missing points of shard K of N of a scene's snapshot sweeps into the store,
+    /// as one of many concurrent workers (the Slurm executor's array task; usable from any
+    /// scheduler). Does not run the other stages: `crom run` does, once all shards are done.
+    Work {
+        /// Scene name or path to a scene TOML file.
+        scene: String,
+        /// Which shard: `K/N` with 0 <= K < N.
+        #[arg(long, value_parser = parse_shard)]
+        shard: (usize, usize),
+    },
+    /// Show where a scene's study stands: each stage stored or not, the snapshot points stored,
+    /// the sharded workers (done, failed, killed) and the Slurm job's queue.
+    Status {
+        /// Scene name or path to a scene TOML file.
+        scene: String,
     },
     /// Solve every snapshot of a scene's study (training, test and nested points) into the
     /// store and stop; `crom run` then finds them there.
@@ -70,6 +98,59 @@ pub enum Command {
     /// Re-hash every artifact and every snapshot block of the store; what fails is moved to the
     /// quarantine (and recomputed by the next run). Exit 1 if anything failed.
     Verify,
+}
+
+/// The `sbatch` settings of `crom run --executor slurm`.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SlurmFlags {
+    /// sbatch --partition.
+    #[arg(long)]
+    pub partition: Option<String>,
+    /// sbatch --time of one array task (e.g. 01:00:00).
+    #[arg(long)]
+    pub time: Option<String>,
+    /// sbatch --mem of one array task (e.g. 4G).
+    #[arg(long)]
+    pub mem: Option<String>,
+    /// sbatch --account.
+    #[arg(long)]
+    pub account: Option<String>,
+    /// Snapshot points per array task (rounded to whole blocks).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub shard_size: Option<u64>,
+    /// At most this many array tasks at once.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub max_parallel: Option<u64>,
+    /// CPUs (worker threads) per array task.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub cpus_per_task: Option<u64>,
+}
+
+impl SlurmFlags {
+    /// As the scene file's table.
+    pub fn spec(&self) -> crom_schemas::scene::SlurmSpec {
+        let n = |v: Option<u64>| v.map(|v| v as usize);
+        crom_schemas::scene::SlurmSpec {
+            partition: self.partition.clone(),
+            time: self.time.clone(),
+            mem: self.mem.clone(),
+            account: self.account.clone(),
+            shard_size: n(self.shard_size),
+            max_parallel: n(self.max_parallel),
+            cpus_per_task: n(self.cpus_per_task),
+        }
+    }
+}
+
+/// `K/N` with `0 <= K < N`.
+fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let bad = || format!("'{s}' is not a shard; give K/N with 0 <= K < N, e.g. 0/4");
+    let (k, n) = s.split_once('/').ok_or_else(bad)?;
+    let (k, n): (usize, usize) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+    if n == 0 || k >= n {
+        return Err(bad());
+    }
+    Ok((k, n))
 }
 
 /// Output formats of `crom ls`.

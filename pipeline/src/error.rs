@@ -84,6 +84,14 @@ pub enum CromError {
         /// How to fix it.
         fix: String,
     },
+    /// An executor (the cluster's scheduler, its workers) could not do the work (exit 1).
+    #[error("{message}\n  fix: {fix}")]
+    Executor {
+        /// What went wrong.
+        message: String,
+        /// How to fix it.
+        fix: String,
+    },
     /// A reduction stage failed numerically (exit 1).
     #[error("stage `{stage}` of scene `{scene}` failed: {message}")]
     Numerical {

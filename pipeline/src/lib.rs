@@ -5,12 +5,14 @@ pub mod cache;
 pub mod cli;
 pub mod dag;
 pub mod error;
+pub mod executor;
 pub mod io;
 pub mod physics;
 pub mod progress;
 pub mod report;
 pub mod resources;
 pub mod scenes;
+mod status;
 pub mod store;
 mod summary;
 
@@ -46,7 +48,23 @@ pub fn main_with_args(args: impl IntoIterator<Item = OsString>) -> u8 {
 /// Execute a parsed command line.
 pub fn run(cli: &Cli) -> Result<(), CromError> {
     match &cli.command {
-        Command::Run { scene, offline } => run_scene(cli, scene, !offline).map(|_| ()),
+        Command::Run { scene, offline, dry_run, executor, slurm } => {
+            if *dry_run {
+                let scene = load_scene(cli, scene)?;
+                print!("{}", status::render(&cli.store, &scene, status::View::DryRun { online: !offline })?);
+                return Ok(());
+            }
+            if *executor == executor::Executor::Slurm {
+                slurm_sweep(cli, scene, slurm)?;
+            }
+            run_scene(cli, scene, !offline).map(|_| ())
+        }
+        Command::Work { scene, shard } => work(cli, scene, shard.0, shard.1),
+        Command::Status { scene } => {
+            let scene = SceneConfig::load(&scenes::resolve(scene, &cli.scenes)?)?;
+            print!("{}", status::render(&cli.store, &scene, status::View::Status)?);
+            Ok(())
+        }
         Command::Solve { scene } => solve_scene(cli, scene),
         Command::Report { scene } => {
             let out = run_scene(cli, scene, true)?;
@@ -130,6 +148,73 @@ fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
     let result = dag::solve_points(&mut ctx);
     summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok(), None);
     result
+}
+
+/// `crom work SCENE --shard K/N`: one worker of a sharded sweep, under the store's shared lock,
+/// leaving a record of what it did ([`executor::tasks`]).
+fn work(cli: &Cli, scene_arg: &str, k: usize, n: usize) -> Result<(), CromError> {
+    let start = Instant::now();
+    let scene = load_scene(cli, scene_arg)?;
+    // Under Slurm, as many threads as the task was given CPUs (unless set explicitly).
+    if std::env::var_os("RAYON_NUM_THREADS").is_none() {
+        if let Some(c) = std::env::var("SLURM_CPUS_PER_TASK").ok().and_then(|v| v.parse::<usize>().ok()) {
+            let _ = rayon::ThreadPoolBuilder::new().num_threads(c.max(1)).build_global();
+        }
+    }
+    let store = Store::open_shared(&cli.store)?;
+    let name = scene.scene.name.clone();
+    let mut record = executor::tasks::TaskRecord::start(k, n);
+    record.write(store.root(), &name)?;
+    let mut ctx = new_ctx(cli, &store, &scene);
+    let result = dag::work_shard(&mut ctx, k, n);
+    let p = ctx.points;
+    record.solved = p.solved;
+    record.reused = p.reused;
+    record.failed = p.failed;
+    record.ended = Some(store::unix_now());
+    record.state = if result.is_ok() { executor::tasks::TaskState::Done } else { executor::tasks::TaskState::Failed };
+    record.error = result.as_ref().err().map(|e| e.to_string().lines().next().unwrap_or_default().to_string());
+    record.write(store.root(), &name)?;
+    println!(
+        "crom work {name} --shard {k}/{n}: {} in {:.2} s: {} solved, {} reused, {} failed",
+        if result.is_ok() { "done" } else { "stopped" },
+        start.elapsed().as_secs_f64(),
+        p.solved,
+        p.reused,
+        p.failed
+    );
+    result.map(|_| ())
+}
+
+/// The Slurm part of `crom run --executor slurm`: the mesh here (exclusive lock), then the
+/// snapshot sweeps as a job array ([`executor::slurm`]); `crom run` then goes on locally.
+fn slurm_sweep(cli: &Cli, scene_arg: &str, flags: &cli::SlurmFlags) -> Result<(), CromError> {
+    let path = scenes::resolve(scene_arg, &cli.scenes)?;
+    let scene = load_scene(cli, scene_arg)?;
+    std::fs::create_dir_all(&cli.store).map_err(|e| CromError::io(&cli.store, "creating the store", e))?;
+    let root = cli.store.canonicalize().map_err(|e| CromError::io(&cli.store, "resolving the store path", e))?;
+    let scene_file = path.canonicalize().map_err(|e| CromError::io(&path, "resolving the scene path", e))?;
+    match Store::open(&root) {
+        Ok(store) => {
+            let mut ctx = new_ctx(cli, &store, &scene);
+            dag::prepare_sweeps(&mut ctx)?;
+        }
+        // Workers of an earlier submission hold the store: wait for that job (sweep does).
+        Err(CromError::Locked { .. })
+            if executor::slurm::job_record(&root, &scene.scene.name)
+                .is_some_and(|j| executor::slurm::queued(&j.job_id).is_ok_and(|q| !q.is_empty())) => {}
+        Err(e) => return Err(e),
+    }
+    let plan = dag::plan::Plan::of(&scene);
+    executor::slurm::sweep(&executor::slurm::Submission {
+        root: &root,
+        scene_file: &scene_file,
+        scene: &scene,
+        plan: &plan,
+        chunk_columns: dag::chunk_columns(&scene),
+        options: executor::slurm::options(&scene, &flags.spec()),
+        progress: Progress::new(cli.quiet),
+    })
 }
 
 fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput, CromError> {

@@ -36,31 +36,7 @@ pub struct Term {
 /// The estimated peak memory of a run of `scene`, term by term (floats: sizes of absurd scenes
 /// overflow integers).
 pub fn estimate(scene: &SceneConfig) -> Vec<Term> {
-    // dofs, contact dofs, slaves; the fields that set the mesh size and the contact size
-    let (n, c, s, mesh_field, contact_field): (f64, f64, f64, &'static str, &'static str) = match &scene.model {
-        Model::Rope(r) => {
-            let nodes = r.n_elements as f64 + 1.0;
-            (nodes, nodes, nodes, "model.rope.n_elements", "model.rope.n_elements")
-        }
-        Model::Hertz(h) => {
-            let arc = h.n_arc as f64;
-            let side = (7.0 * arc / 78.0).round().max(1.0);
-            let nodes = 2.0 * (arc - 2.0 * side + 1.0).max(1.0) * (side + 1.0);
-            (2.0 * nodes, 2.0 * 2.0 * (arc + 1.0), arc + 1.0, "model.hertz.n_arc", "model.hertz.n_arc")
-        }
-        Model::Ironing(i) => {
-            let (snx, sny, inx, iny) = (i.slab.nx as f64, i.slab.ny as f64, i.iron.nx as f64, i.iron.ny as f64);
-            let (slab, iron) = ((snx + 1.0) * (sny + 1.0), (inx + 1.0) * (iny + 1.0));
-            let mesh_field = match (slab >= iron, snx >= sny, inx >= iny) {
-                (true, true, _) => "model.ironing.slab.nx",
-                (true, false, _) => "model.ironing.slab.ny",
-                (false, _, true) => "model.ironing.iron.nx",
-                (false, _, false) => "model.ironing.iron.ny",
-            };
-            let contact_field = if snx >= inx { "model.ironing.slab.nx" } else { "model.ironing.iron.nx" };
-            (2.0 * (slab + iron), 2.0 * (snx + inx + 2.0), snx + 1.0, mesh_field, contact_field)
-        }
-    };
+    let (n, c, s, mesh_field, contact_field) = sizes(scene);
     let p = &scene.parameter;
     let n_train: f64 = p.train_points().len() as f64;
     let n_test: f64 = p.test_points().len() as f64;
@@ -83,6 +59,41 @@ pub fn estimate(scene: &SceneConfig) -> Vec<Term> {
     };
     terms.push(Term { field, what, bytes });
     terms
+}
+
+/// Rows of one snapshot column from the scene alone (no meshing): displacement dofs and
+/// contact dofs as [`estimate`] counts them. Used to size snapshot blocks before any solve.
+pub fn snapshot_rows(scene: &SceneConfig) -> (f64, f64) {
+    let (n, c, ..) = sizes(scene);
+    (n, c)
+}
+
+/// Dofs, contact dofs, slaves, and the fields that set the mesh size and the contact size.
+fn sizes(scene: &SceneConfig) -> (f64, f64, f64, &'static str, &'static str) {
+    match &scene.model {
+        Model::Rope(r) => {
+            let nodes = r.n_elements as f64 + 1.0;
+            (nodes, nodes, nodes, "model.rope.n_elements", "model.rope.n_elements")
+        }
+        Model::Hertz(h) => {
+            let arc = h.n_arc as f64;
+            let side = (7.0 * arc / 78.0).round().max(1.0);
+            let nodes = 2.0 * (arc - 2.0 * side + 1.0).max(1.0) * (side + 1.0);
+            (2.0 * nodes, 2.0 * 2.0 * (arc + 1.0), arc + 1.0, "model.hertz.n_arc", "model.hertz.n_arc")
+        }
+        Model::Ironing(i) => {
+            let (snx, sny, inx, iny) = (i.slab.nx as f64, i.slab.ny as f64, i.iron.nx as f64, i.iron.ny as f64);
+            let (slab, iron) = ((snx + 1.0) * (sny + 1.0), (inx + 1.0) * (iny + 1.0));
+            let mesh_field = match (slab >= iron, snx >= sny, inx >= iny) {
+                (true, true, _) => "model.ironing.slab.nx",
+                (true, false, _) => "model.ironing.slab.ny",
+                (false, _, true) => "model.ironing.iron.nx",
+                (false, _, false) => "model.ironing.iron.ny",
+            };
+            let contact_field = if snx >= inx { "model.ironing.slab.nx" } else { "model.ironing.iron.nx" };
+            (2.0 * (slab + iron), 2.0 * (snx + inx + 2.0), snx + 1.0, mesh_field, contact_field)
+        }
+    }
 }
 
 /// Bytes available to a run: `MemAvailable` from `/proc/meminfo`, if readable.

@@ -32,6 +32,39 @@ pub struct SceneConfig {
     pub solver: SolverSpec,
     /// Reduced-basis and metric settings.
     pub study: StudySpec,
+    /// Where the work runs (`crom run --executor`); changes no key and no result.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub executor: Option<ExecutorSpec>,
+}
+
+/// `[executor]`: settings of the executors other than the local one.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExecutorSpec {
+    /// `[executor.slurm]`: the job array of `crom run --executor slurm`.
+    #[serde(default)]
+    pub slurm: SlurmSpec,
+}
+
+/// `[executor.slurm]`: how `crom run --executor slurm` submits its job array. Every field is
+/// optional; a command-line flag of the same name overrides it.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlurmSpec {
+    /// `sbatch --partition`.
+    pub partition: Option<String>,
+    /// `sbatch --time` of one array task, e.g. `"01:00:00"`.
+    pub time: Option<String>,
+    /// `sbatch --mem` of one array task, e.g. `"4G"`.
+    pub mem: Option<String>,
+    /// `sbatch --account`.
+    pub account: Option<String>,
+    /// Snapshot points per array task (rounded to whole blocks); default 512.
+    pub shard_size: Option<usize>,
+    /// At most this many array tasks at once (`--array=…%N`).
+    pub max_parallel: Option<usize>,
+    /// CPUs per array task (`--cpus-per-task`, the worker's threads); default 1.
+    pub cpus_per_task: Option<usize>,
 }
 
 /// Name and description of a scene.

@@ -94,6 +94,32 @@ impl Checker<'_> {
     }
 }
 
+fn check_slurm(c: &Checker<'_>, s: &crate::scene::SlurmSpec) -> Result<(), SceneError> {
+    for (field, v) in
+        [("shard_size", s.shard_size), ("max_parallel", s.max_parallel), ("cpus_per_task", s.cpus_per_task)]
+    {
+        if v == Some(0) {
+            return Err(c.fail(
+                &format!("executor.slurm.{field}"),
+                "is 0".into(),
+                "give a positive count, or leave it out",
+            ));
+        }
+    }
+    for (field, v) in [("partition", &s.partition), ("time", &s.time), ("mem", &s.mem), ("account", &s.account)] {
+        if let Some(v) = v {
+            if v.trim().is_empty() || v.chars().any(|ch| ch.is_whitespace() || ch.is_control()) {
+                return Err(c.fail(
+                    &format!("executor.slurm.{field}"),
+                    format!("is {v:?}; an sbatch option value has no spaces"),
+                    "give the value sbatch expects (e.g. time = \"01:00:00\", mem = \"4G\"), or leave it out",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 impl SceneConfig {
     /// Check every value's range. Called by [`SceneConfig::from_toml_str`].
     pub(crate) fn validate(&self, path: &Path) -> Result<(), SceneError> {
@@ -114,6 +140,9 @@ impl SceneConfig {
         self.check_parameter(&c)?;
         check_solver(&c, &self.solver)?;
         check_study(&c, &self.study)?;
+        if let Some(e) = &self.executor {
+            check_slurm(&c, &e.slurm)?;
+        }
         match &self.model {
             Model::Rope(r) => check_rope(&c, r),
             Model::Hertz(h) => check_hertz(&c, h),

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
 use crom_schemas::artifact::{basis as names, ArtifactKind};
+use crom_schemas::SceneConfig;
 use crom_stages::basis::{cpg_path, pod, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
 use crom_stages::cone::NnlsParams;
 use serde::Serialize;
@@ -74,7 +75,12 @@ impl Ticker {
 /// The resolved `study.max_rank` of the scene (every m up to 256 training snapshots; the
 /// training set of a vector parameter is the whole tensor grid).
 pub(crate) fn max_rank(ctx: &Ctx<'_>) -> usize {
-    ctx.scene.study.max_rank_for(ctx.scene.parameter.train_points().len())
+    max_rank_of(ctx.scene)
+}
+
+/// [`max_rank`] from the scene alone.
+pub(crate) fn max_rank_of(scene: &SceneConfig) -> usize {
+    scene.study.max_rank_for(scene.parameter.train_points().len())
 }
 
 /// What determines the bases of a training set (its key is an input).
@@ -94,18 +100,24 @@ impl StageKey for BasisKey {
     const ALGORITHM_VERSION: u32 = 2;
 }
 
-pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
-    let st = ctx.scene.study.clone();
-    let max_rank = max_rank(ctx);
-    let progress = ctx.progress;
-    let spec = KeySpec::of(&BasisKey {
+/// The basis artifact's key spec for the training set `train`.
+pub(crate) fn spec(scene: &SceneConfig, train: &Key) -> KeySpec {
+    let st = &scene.study;
+    KeySpec::of(&BasisKey {
         primal_tol: st.primal_tol,
         dual_orth_tol: st.dual_orth_tol,
         dual_cone_tol: st.dual_cone_tol,
         dual_cone_tol_truncated: st.dual_cone_tol_truncated,
         nnls: NnlsKey::used(),
     })
-    .input("train", train);
+    .input("train", train)
+}
+
+pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
+    let st = ctx.scene.study.clone();
+    let max_rank = max_rank(ctx);
+    let progress = ctx.progress;
+    let spec = spec(ctx.scene, train);
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let scene = ctx.scene.scene.name.clone();
     let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };

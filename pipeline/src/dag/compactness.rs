@@ -26,8 +26,13 @@ impl StageKey for CompactnessKey {
     const ALGORITHM_VERSION: u32 = 2;
 }
 
+/// The compactness artifact's key spec.
+pub(crate) fn spec(train: &Key, basis_key: &Key) -> KeySpec {
+    KeySpec::of(&CompactnessKey { nnls: NnlsKey::used() }).input("train", train).input("basis", basis_key)
+}
+
 pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
-    let spec = KeySpec::of(&CompactnessKey { nnls: NnlsKey::used() }).input("train", train).input("basis", basis_key);
+    let spec = spec(train, basis_key);
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let scene = ctx.scene.scene.name.clone();
     let (progress, max_rank) = (ctx.progress, basis::max_rank(ctx));

@@ -25,12 +25,12 @@ impl StageKey for MeshKey<'_> {
 }
 
 /// The mesh artifact's key spec.
-pub(crate) fn spec(ctx: &Ctx<'_>) -> KeySpec {
-    KeySpec::of(&MeshKey(&ctx.scene.model))
+pub(crate) fn spec(scene: &crom_schemas::SceneConfig) -> KeySpec {
+    KeySpec::of(&MeshKey(&scene.model))
 }
 
 pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Key, CromError> {
-    let spec = spec(ctx);
+    let spec = spec(ctx.scene);
     let key = spec.key();
     let scene = ctx.scene.scene.name.clone();
     ctx.single(ArtifactKind::Mesh, "mesh", &spec, |staging| {

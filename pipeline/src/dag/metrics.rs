@@ -5,6 +5,7 @@
 use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{metrics as names, ArtifactKind};
+use crom_schemas::SceneConfig;
 use crom_stages::cone::NnlsParams;
 use crom_stages::metrics::{
     combine_folds, loo_fold_cone, nested_error_cone, nested_error_orth, specificity_cone_path, specificity_orth,
@@ -71,15 +72,39 @@ fn numerical(scene: &str, stage: &'static str, e: impl std::fmt::Display) -> Cro
     CromError::Numerical { stage, scene: scene.to_string(), message: e.to_string() }
 }
 
+/// The generalization artifact's key spec.
+pub(crate) fn generalization_spec(scene: &SceneConfig, train: &Key) -> KeySpec {
+    let max_rank = basis::max_rank_of(scene);
+    let n_train = scene.parameter.train_points().len();
+    let folds = scene.study.loo_folds_for(n_train);
+    // A sample of folds is part of the key; every fold is the default.
+    let sampled = (folds.len() != n_train).then_some(folds.len());
+    KeySpec::of(&GeneralizationKey { max_rank, folds: sampled, nnls: NnlsKey::used() }).input("train", train)
+}
+
+/// The specificity artifact's key spec.
+pub(crate) fn specificity_spec(scene: &SceneConfig, train: &Key, basis_key: &Key) -> KeySpec {
+    let st = &scene.study;
+    let max_rank = basis::max_rank_of(scene);
+    let key = SpecificityKey { samples: st.specificity_samples, seed: st.seed, max_rank, nnls: NnlsKey::used() };
+    KeySpec::of(&key).input("train", train).input("basis", basis_key)
+}
+
+/// The nested-error artifact's key spec for the nested sets `levels` (level n at index n-1).
+pub(crate) fn nested_spec(levels: &[Key]) -> KeySpec {
+    let mut spec = KeySpec::of(&NestedKey { levels: levels.len(), nnls: NnlsKey::used() });
+    for (i, k) in levels.iter().enumerate() {
+        spec = spec.input(&format!("level{}", i + 1), k);
+    }
+    spec
+}
+
 /// G(m) for primal orth, dual orth and dual cone, m = 1..=min(N - 1, max_rank).
 pub(crate) fn generalization(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
     let max_rank = basis::max_rank(ctx);
     let n_train = ctx.scene.parameter.train_points().len();
     let folds = ctx.scene.study.loo_folds_for(n_train);
-    // A sample of folds is part of the key; every fold is the default.
-    let sampled = (folds.len() != n_train).then_some(folds.len());
-    let spec =
-        KeySpec::of(&GeneralizationKey { max_rank, folds: sampled, nnls: NnlsKey::used() }).input("train", train);
+    let spec = generalization_spec(ctx.scene, train);
     let scene = ctx.scene.scene.name.clone();
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
@@ -146,8 +171,7 @@ fn loo_cone(
 pub(crate) fn specificity(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
     let params = SpecificityParams { samples: ctx.scene.study.specificity_samples, seed: ctx.scene.study.seed };
     let max_rank = basis::max_rank(ctx);
-    let key = SpecificityKey { samples: params.samples, seed: params.seed, max_rank, nnls: NnlsKey::used() };
-    let spec = KeySpec::of(&key).input("train", train).input("basis", basis_key);
+    let spec = specificity_spec(ctx.scene, train, basis_key);
     let scene = ctx.scene.scene.name.clone();
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
@@ -197,10 +221,7 @@ impl<A, B, C> IntoFlat<A, B, C> for (A, (B, C)) {
 
 /// H(n), n = 1..levels-1, from the nested sets (level n at index n-1).
 pub(crate) fn nested(ctx: &mut Ctx<'_>, levels: &[Key]) -> Result<Key, CromError> {
-    let mut spec = KeySpec::of(&NestedKey { levels: levels.len(), nnls: NnlsKey::used() });
-    for (i, k) in levels.iter().enumerate() {
-        spec = spec.input(&format!("level{}", i + 1), k);
-    }
+    let spec = nested_spec(levels);
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
     let progress = ctx.progress;

@@ -14,12 +14,15 @@ mod convert;
 mod loaded;
 mod mesh;
 mod metrics;
+pub mod plan;
 pub mod publish;
 mod report;
 mod rom;
 mod snapshots;
 pub(crate) mod trainset;
 mod views;
+
+pub(crate) use snapshots::{chunk_columns, shard_range};
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -217,11 +220,34 @@ pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
     let scene = ctx.scene;
     let mut physics = LazyPhysics { scene, built: None };
     let mesh_key = mesh::run(ctx, &mut physics)?;
-    let p = &scene.parameter;
-    let mut all: Vec<Vec<f64>> = p.train_points().into_iter().chain(p.test_points()).collect();
-    all.extend((1..=p.nested_levels).flat_map(|n| p.nested_points(n)));
-    snapshots::run(ctx, &mut physics, &mesh_key, &all)?;
+    for sweep in snapshots::sweeps(scene, &mesh_key) {
+        snapshots::run(ctx, &mut physics, &mesh_key, &sweep)?;
+    }
     Ok(())
+}
+
+/// Before a sharded sweep (under the exclusive lock): the mesh artifact, and the clean-up of
+/// what killed writers left in the scene's column family.
+pub fn prepare_sweeps(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
+    let scene = ctx.scene;
+    let mut physics = LazyPhysics { scene, built: None };
+    let mesh_key = mesh::run(ctx, &mut physics)?;
+    let family = snapshots::scene_family(scene, &mesh_key);
+    if let Some(f) = crate::store::columns::ColumnFamily::find(ctx.store.root(), &family)? {
+        f.clean_orphans()?;
+    }
+    Ok(())
+}
+
+/// Shard `k` of `n` of the scene's snapshot sweeps, as one of many concurrent workers under the
+/// store's shared lock (`crom work --shard K/N`): solve the missing points of the shard's chunks
+/// and append their blocks. The mesh artifact is not written (the planner writes it).
+pub fn work_shard(ctx: &mut Ctx<'_>, k: usize, n: usize) -> Result<PointCounts, CromError> {
+    let scene = ctx.scene;
+    let mut physics = LazyPhysics { scene, built: None };
+    let mesh_key = mesh::spec(scene).key();
+    let sweeps = snapshots::sweeps(scene, &mesh_key);
+    snapshots::work(ctx, &mut physics, &mesh_key, &sweeps, k, n)
 }
 
 /// Run every stage of the scene's study; with `online = false` stop before the online ROM
@@ -232,8 +258,9 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
     let mesh_key = mesh::run(ctx, &mut physics)?;
     let train_points = scene.parameter.train_points();
     let test_points = scene.parameter.test_points();
-    let all: Vec<Vec<f64>> = train_points.iter().chain(&test_points).cloned().collect();
-    let cols = snapshots::run(ctx, &mut physics, &mesh_key, &all)?;
+    let mut sweeps = snapshots::sweeps(scene, &mesh_key).into_iter();
+    let first = sweeps.next().expect("a study has its train+test sweep");
+    let cols = snapshots::run(ctx, &mut physics, &mesh_key, &first)?;
     let (train_rows, test_rows) = cols.rows.split_at(train_points.len());
     let train = trainset::run(ctx, "train", &train_points, train_rows, cols.shape)?;
     let test = trainset::run(ctx, "test", &test_points, test_rows, cols.shape)?;
@@ -249,8 +276,8 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
     let nested = if scene.parameter.nested_levels > 0 {
         let levels: Vec<Vec<Vec<f64>>> =
             (1..=scene.parameter.nested_levels).map(|n| scene.parameter.nested_points(n)).collect();
-        let flat: Vec<Vec<f64>> = levels.iter().flatten().cloned().collect();
-        let nested_cols = snapshots::run(ctx, &mut physics, &mesh_key, &flat)?;
+        let sweep = sweeps.next().expect("a study with nested levels has their sweep");
+        let nested_cols = snapshots::run(ctx, &mut physics, &mesh_key, &sweep)?;
         let mut sets = Vec::new();
         let mut at = 0;
         for (n, pts) in levels.iter().enumerate() {

@@ -49,8 +49,8 @@ pub struct ReportInputs {
     pub nested: Option<Key>,
 }
 
-/// Build (or find) the report; returns its key.
-pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
+/// The report's key spec: every artifact it shows.
+pub(crate) fn spec(inputs: &ReportInputs) -> KeySpec {
     let spec = KeySpec::of(&ReportKey {})
         .input("mesh", &inputs.mesh)
         .input("train", &inputs.train)
@@ -59,10 +59,15 @@ pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
         .input("rom", &inputs.rom)
         .input("generalization", &inputs.generalization)
         .input("specificity", &inputs.specificity);
-    let spec = match &inputs.nested {
+    match &inputs.nested {
         Some(k) => spec.input("nested", k),
         None => spec,
-    };
+    }
+}
+
+/// Build (or find) the report; returns its key.
+pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
+    let spec = spec(inputs);
     let scene = ctx.scene.clone();
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     ctx.single(ArtifactKind::Report, "report", &spec, |staging| {

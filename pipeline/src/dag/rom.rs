@@ -64,6 +64,16 @@ const REPEAT_BELOW: f64 = 2e-3;
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];
 
+/// The online stage's key spec. The timing constants are not in the key: they change the
+/// times, not the results.
+pub(crate) fn spec(train: &Key, test: &Key, basis: &Key) -> KeySpec {
+    let params = RomParams::default();
+    KeySpec::of(&RomKey { max_iter: params.max_iter, gap_tol: params.gap_tol, u_tol: params.u_tol })
+        .input("train", train)
+        .input("test", test)
+        .input("basis", basis)
+}
+
 pub(crate) fn run(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
@@ -72,11 +82,7 @@ pub(crate) fn run(
     basis: &Key,
 ) -> Result<Key, CromError> {
     let params = RomParams::default();
-    // The timing constants are not in the key: they change the times, not the results.
-    let spec = KeySpec::of(&RomKey { max_iter: params.max_iter, gap_tol: params.gap_tol, u_tol: params.u_tol })
-        .input("train", train)
-        .input("test", test)
-        .input("basis", basis);
+    let spec = spec(train, test, basis);
     let key = spec.key();
     if let Some(_m) = ctx.lookup(ArtifactKind::Rom, &key)? {
         ctx.progress.stage("online ROM", 1).finish("cached");

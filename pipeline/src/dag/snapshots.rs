@@ -3,18 +3,22 @@
 //! settings and its parameter value — not the set it belongs to — so training, test and nested
 //! sets share solves, a denser grid reuses every point it shares with a coarser one, and a killed
 //! sweep resumes with exactly the missing points. Missing points are solved in parallel (rayon);
-//! results are gathered on this thread into blocks, each committed atomically as soon as it is
-//! full (or a few seconds old), so a kill loses at most one block of work.
+//! results are gathered on this thread into the blocks of their chunks ([`Sweep`]), each
+//! committed atomically as soon as its last point is in, so a kill loses at most the chunks in
+//! flight. Many workers may share a sweep ([`work`], `crom work --shard K/N`): each solves the
+//! chunks of its shard and appends their blocks, and the blocks are the ones a single process
+//! would have written.
 //!
 //! Stores written before the columnar layout hold one `snapshot/<key>/` directory per point:
 //! such a point is imported into a block (verified against its manifest) instead of solved again.
 
 use std::collections::HashMap;
 use std::sync::mpsc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use crom_schemas::artifact::{snapshot as names, ArtifactKind};
 use crom_schemas::scene::SolverSpec;
+use crom_schemas::SceneConfig;
 use crom_stages::snapshot::{Snapshot, SolveStats};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -36,8 +40,6 @@ const ALGORITHM_VERSION: u32 = 2;
 
 /// A block is committed when it holds about this many bytes of snapshot data...
 const BLOCK_BYTES: usize = 32 << 20;
-/// ...or when its oldest column has waited this long.
-const BLOCK_AGE: Duration = Duration::from_secs(5);
 
 /// A scalar parameter keeps the key layout it always had (`parameter: f64`), so stores of 1-D
 /// studies stay valid; a vector parameter is keyed by all its components.
@@ -87,22 +89,73 @@ pub(crate) fn family_key(mesh: &Key, solver: &SolverSpec, parameter_names: &[&st
     spec.key()
 }
 
-/// Snapshots per block: about [`BLOCK_BYTES`] of data, or `CROM_BLOCK_COLUMNS` if set (a storage
-/// knob: it changes no key and no result, only how much work a kill can lose).
-fn block_columns(rows: (usize, usize)) -> usize {
-    std::env::var("CROM_BLOCK_COLUMNS")
-        .ok()
-        .and_then(|v| v.parse::<usize>().ok())
-        .filter(|&n| n > 0)
-        .unwrap_or_else(|| BLOCK_BYTES / (8 * (rows.0 + rows.1).max(1)))
-        .clamp(1, 4096)
+/// Snapshots per block: about [`BLOCK_BYTES`] of data and at most [`MAX_BLOCK_COLUMNS`], or
+/// `CROM_BLOCK_COLUMNS` if set (a storage knob: it changes no key and no result, only how
+/// much work a kill can lose and how finely a sweep can be sharded). Sized from the scene
+/// alone ([`crate::resources::snapshot_rows`]), so that a planner and every worker agree on the
+/// chunks without meshing.
+pub(crate) fn chunk_columns(scene: &SceneConfig) -> usize {
+    if let Some(n) = std::env::var("CROM_BLOCK_COLUMNS").ok().and_then(|v| v.parse::<usize>().ok()).filter(|&n| n > 0) {
+        return n.min(4096);
+    }
+    let (n, c) = crate::resources::snapshot_rows(scene);
+    let by_bytes = BLOCK_BYTES as f64 / (8.0 * (n + c).max(1.0));
+    (by_bytes.floor() as usize).clamp(1, MAX_BLOCK_COLUMNS)
 }
 
-type Solved = (usize, Result<Snapshot, String>, f64);
+/// At most this many snapshots per block: bounds the work a kill loses on fast meshes.
+const MAX_BLOCK_COLUMNS: usize = 128;
+
+type Solved = (usize, usize, Result<Snapshot, String>, f64);
 
 /// `name = value` of every component, for progress lines and error messages.
 pub(crate) fn point_label(names: &[String], mu: &[f64]) -> String {
     names.iter().zip(mu).map(|(n, v)| format!("{n} = {v}")).collect::<Vec<_>>().join(", ")
+}
+
+/// One sweep of the study: its points in the order their rows are handed on, their content
+/// keys, and its **chunks** — the points it is the first sweep to list, in order, cut into
+/// runs of [`chunk_columns`]. A chunk's missing points are solved together and committed as
+/// one block, so the blocks of a study are a function of the scene and of what the store
+/// already holds, never of thread timing or of which process solved them: a sweep run
+/// locally, killed and resumed, or sharded over many workers writes the same block files.
+#[derive(Debug, Clone)]
+pub(crate) struct Sweep {
+    /// `train+test` or `nested`.
+    pub name: &'static str,
+    /// Points, in order (a point may repeat).
+    pub points: Vec<Vec<f64>>,
+    /// Content key of each point.
+    pub keys: Vec<Key>,
+    /// Indices into `points` of each chunk.
+    pub chunks: Vec<Vec<usize>>,
+}
+
+/// The sweeps of a scene's study on the mesh `mesh`: the training and test points, then the
+/// points of the nested levels (if any) that the first sweep does not list.
+pub(crate) fn sweeps(scene: &SceneConfig, mesh: &Key) -> Vec<Sweep> {
+    let p = &scene.parameter;
+    let mut lists: Vec<(&'static str, Vec<Vec<f64>>)> =
+        vec![("train+test", p.train_points().into_iter().chain(p.test_points()).collect())];
+    if p.nested_levels > 0 {
+        lists.push(("nested", (1..=p.nested_levels).flat_map(|n| p.nested_points(n)).collect()));
+    }
+    let per_chunk = chunk_columns(scene);
+    let mut seen: std::collections::HashSet<Key> = std::collections::HashSet::new();
+    lists
+        .into_iter()
+        .map(|(name, points)| {
+            let keys: Vec<Key> = points.iter().map(|mu| spec(mesh, &scene.solver, mu).key()).collect();
+            let novel: Vec<usize> = (0..keys.len()).filter(|&i| seen.insert(keys[i].clone())).collect();
+            let chunks = novel.chunks(per_chunk).map(<[usize]>::to_vec).collect();
+            Sweep { name, points, keys, chunks }
+        })
+        .collect()
+}
+
+/// Shard `k` of `n` of a list of `total` chunks: the contiguous range `[k t / n, (k+1) t / n)`.
+pub(crate) fn shard_range(total: usize, k: usize, n: usize) -> std::ops::Range<usize> {
+    (k * total / n)..((k + 1) * total / n)
 }
 
 /// What the snapshot stage hands on: the index rows of the requested points, in order.
@@ -114,61 +167,162 @@ pub(crate) struct Columns {
     pub shape: (usize, usize),
 }
 
-/// Ensure a stored column exists for every point; their index rows in the order of `points`.
+/// The key of this scene's column family on the mesh `mesh`.
+pub(crate) fn scene_family(scene: &SceneConfig, mesh: &Key) -> Key {
+    let names = scene.parameter.names();
+    family_key(mesh, &scene.solver, &names.iter().map(|s| &**s).collect::<Vec<&str>>())
+}
+
+/// The family's index as it stands (empty when the family does not exist yet).
+pub(crate) fn load_index(root: &std::path::Path, family: &Key) -> Result<(Option<ColumnFamily>, Index), CromError> {
+    let family = ColumnFamily::find(root, family)?;
+    let index = match &family {
+        Some(f) => f.load_index()?,
+        None => Index::default(),
+    };
+    Ok((family, index))
+}
+
+/// Ensure a stored column exists for every point of `sweep`; their index rows in its order.
+/// Holds the store's exclusive lock: cleans up after killed writers and compacts the index.
 pub(crate) fn run(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
     mesh: &Key,
-    points: &[Vec<f64>],
+    sweep: &Sweep,
 ) -> Result<Columns, CromError> {
-    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
-    let fkey = family_key(mesh, &ctx.scene.solver, &names.iter().map(String::as_str).collect::<Vec<_>>());
-    let keys: Vec<Key> = points.iter().map(|p| spec(mesh, &ctx.scene.solver, p).key()).collect();
-    let mut family = ColumnFamily::find(ctx.store.root(), &fkey)?;
-    let mut index = match &family {
-        Some(f) => {
-            f.clean_orphans()?;
-            f.load_index()?
-        }
-        None => Index::default(),
-    };
+    let fkey = scene_family(ctx.scene, mesh);
+    if let Some(f) = ColumnFamily::find(ctx.store.root(), &fkey)? {
+        f.clean_orphans()?;
+    }
+    let (mut family, mut index) = load_index(ctx.store.root(), &fkey)?;
     if index.dropped > 0 {
         ctx.warnings.push(format!(
             "{} stored snapshots point at missing or damaged blocks and were solved again",
             index.dropped
         ));
     }
-    let mut first_of: HashMap<&Key, usize> = HashMap::new();
-    let mut missing = Vec::new();
-    let mut cached = 0;
-    for (i, k) in keys.iter().enumerate() {
-        if first_of.insert(k, i).is_some() {
-            continue; // the same point twice in the sweep: one solve
+    let uncompacted = index.fragments;
+    // Reused: distinct points of the sweep already stored (also those an earlier sweep listed).
+    let distinct: std::collections::HashSet<&Key> = sweep.keys.iter().collect();
+    let reused = distinct.iter().filter(|k| index.rows.contains_key(**k)).count();
+    let all: Vec<usize> = (0..sweep.chunks.len()).collect();
+    let done = solve_chunks(ctx, physics, &fkey, &mut family, &mut index, sweep, &all)?;
+    if let (Some(f), true) = (&family, done.committed + uncompacted > 0) {
+        f.compact(&index)?;
+    }
+    let dir = family.as_ref().map(|f| f.dir().to_path_buf()).unwrap_or_default();
+    ctx.record("snapshot", done.solved, reused, dir);
+    ctx.points.add(PointCounts { solved: done.solved, reused, failed: done.failures.len() });
+    if !done.failures.is_empty() {
+        return Err(failure_error(ctx, &done.failures, sweep)?);
+    }
+    let family = family.ok_or_else(|| {
+        CromError::artifact(ctx.store.root(), "no snapshot was stored for this scene", "rerun the scene")
+    })?;
+    let rows = sweep
+        .keys
+        .iter()
+        .map(|k| {
+            index.rows.get(k).cloned().ok_or_else(|| {
+                CromError::artifact(family.dir(), format!("snapshot {} is not in the index", k.short()), "rerun")
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Columns { rows, shape: (family.meta().n_dof, family.meta().n_contact) })
+}
+
+/// A shard of a study's sweeps, as one of many concurrent workers (`crom work --shard K/N`,
+/// under the store's shared lock): the chunks of every sweep, numbered in order, split into
+/// `n` contiguous ranges; solve the missing points of range `k`. Appends blocks and index
+/// fragments only. Returns what it did; failed points are an error naming them.
+pub(crate) fn work(
+    ctx: &mut Ctx<'_>,
+    physics: &mut LazyPhysics<'_>,
+    mesh: &Key,
+    sweeps: &[Sweep],
+    k: usize,
+    n: usize,
+) -> Result<PointCounts, CromError> {
+    let fkey = scene_family(ctx.scene, mesh);
+    let (mut family, mut index) = load_index(ctx.store.root(), &fkey)?;
+    let total: usize = sweeps.iter().map(|s| s.chunks.len()).sum();
+    let mine = shard_range(total, k, n);
+    let mut counts = PointCounts::default();
+    let mut first = 0;
+    for sweep in sweeps {
+        let ids: Vec<usize> = (0..sweep.chunks.len()).filter(|c| mine.contains(&(first + c))).collect();
+        first += sweep.chunks.len();
+        if ids.is_empty() {
+            continue;
         }
-        if index.rows.contains_key(k) {
-            cached += 1;
-        } else {
-            missing.push(i);
+        let done = solve_chunks(ctx, physics, &fkey, &mut family, &mut index, sweep, &ids)?;
+        counts.add(PointCounts { solved: done.solved, reused: done.cached, failed: done.failures.len() });
+        ctx.record(
+            "snapshot",
+            done.solved,
+            done.cached,
+            family.as_ref().map(|f| f.dir().to_path_buf()).unwrap_or_default(),
+        );
+        if !done.failures.is_empty() {
+            ctx.points.add(counts);
+            return Err(failure_error(ctx, &done.failures, sweep)?);
         }
     }
-    let mut pending: Vec<PendingColumn> = Vec::new();
-    let mut imported = 0;
-    missing.retain(|&i| match import_old_layout(ctx, &keys[i], &points[i]) {
-        Some(col) => {
-            pending.push(col);
-            imported += 1;
-            false
+    ctx.points.add(counts);
+    Ok(counts)
+}
+
+/// What [`solve_chunks`] did.
+struct Done {
+    solved: usize,
+    cached: usize,
+    committed: usize,
+    failures: Vec<(usize, String)>,
+}
+
+/// Solve the missing points of the chunks `ids` of `sweep` (in parallel), committing each
+/// chunk's block as soon as all its points are in.
+fn solve_chunks(
+    ctx: &mut Ctx<'_>,
+    physics: &mut LazyPhysics<'_>,
+    fkey: &Key,
+    family: &mut Option<ColumnFamily>,
+    index: &mut Index,
+    sweep: &Sweep,
+    ids: &[usize],
+) -> Result<Done, CromError> {
+    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+    let (points, keys) = (&sweep.points, &sweep.keys);
+    // Missing points per chunk (a point already in the index, or imported, is not solved).
+    let mut cached = 0;
+    let mut imported: Vec<PendingColumn> = Vec::new();
+    let mut todo: Vec<(usize, Vec<usize>)> = Vec::new();
+    for &c in ids {
+        let mut missing = Vec::new();
+        for &i in &sweep.chunks[c] {
+            if index.rows.contains_key(&keys[i]) {
+                cached += 1;
+            } else if let Some(col) = import_old_layout(ctx, &keys[i], &points[i]) {
+                imported.push(col);
+            } else {
+                missing.push(i);
+            }
         }
-        None => true,
-    });
-    let mut progress = ctx.progress.stage("snapshot", missing.len());
+        if !missing.is_empty() {
+            todo.push((c, missing));
+        }
+    }
+    // Repeated points of the sweep that no chunk lists count as reused, as before.
+    let n_missing: usize = todo.iter().map(|t| t.1.len()).sum();
+    let mut progress = ctx.progress.stage("snapshot", n_missing);
     let mut failures: Vec<(usize, String)> = Vec::new();
     let mut write_error: Option<CromError> = None;
-    let computed = missing.len();
     let mut committed = 0usize;
+    let n_imported = imported.len();
     let scene_name = ctx.scene.scene.name.clone();
     let root = ctx.store.root().to_path_buf();
-    if !missing.is_empty() || !pending.is_empty() {
+    if n_missing > 0 || !imported.is_empty() {
         let phys = physics.get()?;
         let units = phys.units();
         let mut commit = |family: &mut Option<ColumnFamily>,
@@ -199,95 +353,73 @@ pub(crate) fn run(
             pending.clear();
             Ok(())
         };
-        if !pending.is_empty() {
-            commit(&mut family, &mut index, &mut pending)?;
-        }
-        let n_rows = phys.mesh_rows();
-        let per_block = block_columns(n_rows);
-        let mut oldest: Option<Instant> = None;
+        commit(family, index, &mut imported)?;
+        // Per chunk: columns in, and points still to come.
+        let mut pending: HashMap<usize, (Vec<PendingColumn>, usize)> =
+            todo.iter().map(|(c, m)| (*c, (Vec::new(), m.len()))).collect();
         std::thread::scope(|s| {
             let (tx, rx) = mpsc::channel::<Solved>();
-            let work = std::mem::take(&mut missing);
+            let work: Vec<(usize, usize)> = todo.iter().flat_map(|(c, m)| m.iter().map(move |&i| (*c, i))).collect();
             s.spawn(move || {
-                work.par_iter().for_each_with(tx, |tx, &i| {
+                work.par_iter().for_each_with(tx, |tx, &(c, i)| {
                     let t = Instant::now();
                     let r = phys.solve(&points[i]);
-                    let _ = tx.send((i, r, t.elapsed().as_secs_f64()));
+                    let _ = tx.send((c, i, r, t.elapsed().as_secs_f64()));
                 });
             });
-            for (i, r, secs) in rx {
+            for (c, i, r, secs) in rx {
                 progress.inc(&point_label(&names, &points[i]));
+                let slot = pending.get_mut(&c).expect("a planned chunk");
+                slot.1 -= 1;
                 match r {
-                    Ok(snap) if write_error.is_none() => {
-                        pending.push(PendingColumn {
-                            key: keys[i].clone(),
-                            parameters: points[i].clone(),
-                            evidence: evidence(&snap.stats, secs),
-                            primal: snap.u,
-                            dual: snap.pressure,
-                        });
-                        let first = *oldest.get_or_insert_with(Instant::now);
-                        if pending.len() >= per_block || first.elapsed() >= BLOCK_AGE {
-                            if let Err(e) = commit(&mut family, &mut index, &mut pending) {
-                                write_error = Some(e);
-                            }
-                            oldest = None;
-                        }
-                    }
+                    Ok(snap) if write_error.is_none() => slot.0.push(PendingColumn {
+                        key: keys[i].clone(),
+                        parameters: points[i].clone(),
+                        evidence: evidence(&snap.stats, secs),
+                        primal: snap.u,
+                        dual: snap.pressure,
+                    }),
                     Ok(_) => {}
                     Err(msg) => failures.push((i, msg)),
                 }
+                if slot.1 == 0 && write_error.is_none() {
+                    if let Err(e) = commit(family, index, &mut slot.0) {
+                        write_error = Some(e);
+                    }
+                }
             }
         });
-        if write_error.is_none() {
-            if let Err(e) = commit(&mut family, &mut index, &mut pending) {
-                write_error = Some(e);
-            }
-        }
-        if let (Some(f), true) = (&family, committed > 0 && write_error.is_none()) {
-            f.compact(&index)?;
-        }
     }
-    let solved = computed - failures.len();
+    let solved = n_missing - failures.len();
     let mut outcome = format!("{solved} solved, {cached} reused, {} failed", failures.len());
-    if imported > 0 {
-        outcome.push_str(&format!(", {imported} imported from the old layout"));
+    if n_imported > 0 {
+        outcome.push_str(&format!(", {n_imported} imported from the old layout"));
     }
     progress.finish(&outcome);
     if let Some(e) = write_error {
         return Err(e);
     }
-    let dir = family.as_ref().map(|f| f.dir().to_path_buf()).unwrap_or_default();
-    ctx.record("snapshot", solved + imported, cached, dir);
-    ctx.points.add(PointCounts { solved: solved + imported, reused: cached, failed: failures.len() });
-    if !failures.is_empty() {
-        failures.sort_by_key(|f| f.0);
-        let table_path = write_failures(ctx, &failures, points, &keys)?;
-        let list = failures
-            .iter()
-            .map(|(i, m)| format!("  {}: {m}", point_label(&names, &points[*i])))
-            .collect::<Vec<_>>()
-            .join("\n");
-        return Err(CromError::SolveFailures {
-            scene: ctx.scene.scene.name.clone(),
-            failed: failures.len(),
-            total: computed,
-            list,
-            table: table_path,
-        });
-    }
-    let family = family.ok_or_else(|| {
-        CromError::artifact(ctx.store.root(), "no snapshot was stored for this scene", "rerun the scene")
-    })?;
-    let rows = keys
+    failures.sort_by_key(|f| f.0);
+    Ok(Done { solved: solved + n_imported, cached, committed, failures })
+}
+
+/// The error of a sweep with failed points, after writing them to the run's failure table.
+fn failure_error(ctx: &Ctx<'_>, failures: &[(usize, String)], sweep: &Sweep) -> Result<CromError, CromError> {
+    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+    let table_path = write_failures(ctx, failures, &sweep.points, &sweep.keys)?;
+    let list = failures
         .iter()
-        .map(|k| {
-            index.rows.get(k).cloned().ok_or_else(|| {
-                CromError::artifact(family.dir(), format!("snapshot {} is not in the index", k.short()), "rerun")
-            })
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(Columns { rows, shape: (family.meta().n_dof, family.meta().n_contact) })
+        .map(|(i, m)| format!("  {}: {m}", point_label(&names, &sweep.points[*i])))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let total: usize = sweep.chunks.iter().map(Vec::len).sum();
+    Ok(CromError::SolveFailures {
+        scene: ctx.scene.scene.name.clone(),
+        failed: failures.len(),
+        total,
+        list,
+        table: table_path,
+    })
 }
 
 fn evidence(s: &SolveStats, seconds: f64) -> Evidence {

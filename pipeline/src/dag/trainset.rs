@@ -51,15 +51,15 @@ pub(crate) use crate::io::snapshot_set::TrainingSet;
 
 /// The set's key spec: name, parameter values, snapshot keys. A scalar parameter keys its
 /// values as a flat list (as it always did).
-fn spec(set: &str, points: &[Vec<f64>], rows: &[IndexRow]) -> KeySpec {
+pub(crate) fn spec(set: &str, points: &[Vec<f64>], keys: &[&Key]) -> KeySpec {
     let values = if points.iter().all(|p| p.len() == 1) {
         Values::Scalar(points.iter().map(|p| p[0]).collect())
     } else {
         Values::Vector(points.to_vec())
     };
     let mut spec = KeySpec::of(&SetKey { set, parameters: values });
-    for (i, r) in rows.iter().enumerate() {
-        spec = spec.input(&format!("snapshot{i:05}"), &r.key);
+    for (i, k) in keys.iter().enumerate() {
+        spec = spec.input(&format!("snapshot{i:05}"), k);
     }
     spec
 }
@@ -71,7 +71,7 @@ pub(crate) fn run(
     rows: &[IndexRow],
     shape: (usize, usize),
 ) -> Result<Key, CromError> {
-    let spec = spec(set, points, rows);
+    let spec = spec(set, points, &rows.iter().map(|r| &r.key).collect::<Vec<_>>());
     let label = match set {
         "train" => "trainset",
         "test" => "testset",

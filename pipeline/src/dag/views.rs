@@ -262,9 +262,24 @@ fn write_series(
     Ok(BTreeMap::from([("steps".to_string(), json!(steps.len()))]))
 }
 
+/// Key spec of the views of the snapshot set `set` stored as `set_key`.
+pub(crate) fn set_spec(set: &str, set_key: &Key, mesh: &Key) -> KeySpec {
+    KeySpec::of(&ViewsKey { subject: "set", set: Some(set) }).input("set", set_key).input("mesh", mesh)
+}
+
+/// Key spec of the views of the basis artifact `basis`.
+pub(crate) fn basis_spec(basis: &Key, mesh: &Key) -> KeySpec {
+    KeySpec::of(&ViewsKey { subject: "basis", set: None }).input("basis", basis).input("mesh", mesh)
+}
+
+/// Key spec of the views of the online solutions.
+pub(crate) fn online_spec(rom: &Key, test: &Key, mesh: &Key) -> KeySpec {
+    KeySpec::of(&ViewsKey { subject: "online", set: None }).input("rom", rom).input("test", test).input("mesh", mesh)
+}
+
 /// The views of the snapshot set `set` (train, test, nested-k) stored as `set_key`.
 pub(crate) fn set(ctx: &mut Ctx<'_>, set: &str, set_key: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let spec = KeySpec::of(&ViewsKey { subject: "set", set: Some(set) }).input("set", set_key).input("mesh", mesh);
+    let spec = set_spec(set, set_key, mesh);
     let names_of: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
     let root = ctx.store.root().to_path_buf();
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::STATS);
@@ -285,7 +300,7 @@ pub(crate) const BASIS_VIEWS: [(&str, bool); 3] =
 
 /// The views of the basis artifact `basis`: one XDMF per group of [`BASIS_VIEWS`].
 pub(crate) fn basis(ctx: &mut Ctx<'_>, basis: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let spec = KeySpec::of(&ViewsKey { subject: "basis", set: None }).input("basis", basis).input("mesh", mesh);
+    let spec = basis_spec(basis, mesh);
     let mesh_facts = mesh_facts(ctx, mesh)?;
     let basis_file = ctx.store.dir(ArtifactKind::Basis, basis).join(basis_names::FILE);
     ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
@@ -334,10 +349,7 @@ pub(crate) fn basis(ctx: &mut Ctx<'_>, basis: &Key, mesh: &Key) -> Result<Key, C
 /// the test set `test`: per test point the online fields, their errors and the full-order
 /// fields (onto the snapshot columns), the parameter and whether the query converged.
 pub(crate) fn online(ctx: &mut Ctx<'_>, rom: &Key, test: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let spec = KeySpec::of(&ViewsKey { subject: "online", set: None })
-        .input("rom", rom)
-        .input("test", test)
-        .input("mesh", mesh);
+    let spec = online_spec(rom, test, mesh);
     let names_of: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
     let root = ctx.store.root().to_path_buf();
     let mesh_facts = mesh_facts(ctx, mesh)?;

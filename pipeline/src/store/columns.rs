@@ -121,6 +121,8 @@ pub struct Index {
     pub rows: HashMap<Key, IndexRow>,
     /// Rows dropped because their block file is missing or has the wrong size.
     pub dropped: usize,
+    /// Index fragments read that the compacted index does not cover yet.
+    pub fragments: usize,
 }
 
 /// An open column family.
@@ -264,6 +266,7 @@ impl ColumnFamily {
             }
             let covered: BTreeSet<String> = rows.iter().map(|r| r.block.clone()).collect();
             let mut vanished = false;
+            let mut uncovered = 0;
             for id in fragments {
                 if covered.contains(&self.block_rel(&id)) {
                     continue;
@@ -274,12 +277,13 @@ impl ColumnFamily {
                     break;
                 }
                 rows.extend(self.rows_of(&read_parquet(&p)?, &p)?);
+                uncovered += 1;
             }
             if vanished {
                 continue;
             }
             let mut sizes: HashMap<String, Option<u64>> = HashMap::new();
-            let mut index = Index::default();
+            let mut index = Index { fragments: uncovered, ..Index::default() };
             for r in rows {
                 let size = *sizes
                     .entry(r.block.clone())
@@ -384,7 +388,7 @@ impl ColumnFamily {
         let rows: Vec<&IndexRow> = index.rows.values().collect();
         let covered: BTreeSet<&str> = rows.iter().map(|r| r.block.as_str()).collect();
         let path = self.dir.join("index.parquet");
-        let tmp = self.dir.join(format!(".tmp-index-{}.parquet", std::process::id()));
+        let tmp = self.dir.join(format!(".tmp-index-{}.parquet", crate::store::writer_token()));
         self.table(&rows).write_parquet(&tmp)?;
         publish(&tmp, &path)?;
         for id in fragments {
@@ -412,7 +416,7 @@ impl ColumnFamily {
             let p = self.dir.join(sub);
             std::fs::create_dir_all(&p).map_err(|e| CromError::io(&p, "creating a column family", e))?;
         }
-        let tmp = self.dir.join("blocks").join(format!(".tmp-{id}-{}.h5", std::process::id()));
+        let tmp = self.dir.join("blocks").join(format!(".tmp-{id}-{}.h5", crate::store::writer_token()));
         write_block(&tmp, &self.meta, &sorted)?;
         publish(&tmp, &path)?;
         let (bytes, bhash) =
@@ -432,7 +436,7 @@ impl ColumnFamily {
             })
             .collect();
         let frag = self.dir.join("index").join(format!("{id}.parquet"));
-        let ftmp = self.dir.join("index").join(format!(".tmp-{id}-{}.parquet", std::process::id()));
+        let ftmp = self.dir.join("index").join(format!(".tmp-{id}-{}.parquet", crate::store::writer_token()));
         self.table(&rows.iter().collect::<Vec<_>>()).write_parquet(&ftmp)?;
         publish(&ftmp, &frag)?;
         Ok(rows)
@@ -633,7 +637,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CromError> {
     let tmp = dir.join(format!(
         ".tmp-{}-{}",
         path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
-        std::process::id()
+        crate::store::writer_token()
     ));
     let mut f = std::fs::File::create(&tmp).map_err(|e| CromError::io(&tmp, "creating", e))?;
     f.write_all(bytes).map_err(|e| CromError::io(&tmp, "writing", e))?;

@@ -86,6 +86,15 @@ impl Store {
         Ok(Self { root: root.to_path_buf(), _lock: Some(lock) })
     }
 
+    /// Open (creating if needed) the store at `root` as one of many concurrent workers
+    /// (`crom work`): a shared lock, which excludes `crom run` but not other workers. A worker
+    /// only appends snapshot blocks; it cleans nothing up (the exclusive writer does).
+    pub fn open_shared(root: &Path) -> Result<Self, CromError> {
+        std::fs::create_dir_all(root).map_err(|e| CromError::io(root, "creating the store", e))?;
+        let lock = lock::StoreLock::acquire_shared(root)?;
+        Ok(Self { root: root.to_path_buf(), _lock: Some(lock) })
+    }
+
     /// Open an existing store read-only, without the lock (for `crom ls`).
     pub fn open_read_only(root: &Path) -> Self {
         Self { root: root.to_path_buf(), _lock: None }
@@ -275,6 +284,21 @@ fn verify(dir: &Path, kind: ArtifactKind, key: &Key) -> Result<Manifest, String>
 
 pub(crate) fn unix_now() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
+}
+
+/// A suffix no other writer uses at the same time: time, a process-wide counter, this process
+/// and this host (workers on several nodes share the store's directories).
+pub(crate) fn writer_token() -> String {
+    format!("{}-{}-{}", host_name(), std::process::id(), unique_suffix())
+}
+
+/// This machine's host name (`/proc/sys/kernel/hostname`; `localhost` where unknown).
+pub(crate) fn host_name() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .ok()
+        .map(|s| s.trim().chars().filter(|c| c.is_ascii_alphanumeric() || *c == '-' || *c == '.').collect())
+        .filter(|s: &String| !s.is_empty())
+        .unwrap_or_else(|| "localhost".to_string())
 }
 
 fn unique_suffix() -> u128 {

@@ -1,0 +1,228 @@
+//! The study as data: every stage of a scene's run as a [`Node`] — its name, artifact kind,
+//! typed key and the nodes it reads — computed from the scene file alone. Keys are content
+//! hashes of a stage's parameters and its inputs' keys ([`crate::cache`]), so the key of every
+//! artifact downstream of a snapshot is known before anything is solved. Each node's key comes
+//! from the same `spec` function its stage computes with, so the plan and the run cannot
+//! disagree (the e2e test `e2e_cluster` checks that a finished run leaves nothing to run).
+//!
+//! `crom run --dry-run` prints the plan against the store (what is stored, what would run);
+//! `crom status` prints it for a run in progress or finished, with the sharded workers'
+//! records ([`crate::executor`]); the Slurm executor takes the snapshot chunks to solve from it.
+
+use std::path::Path;
+
+use crom_schemas::artifact::{ArtifactKind, MANIFEST};
+use crom_schemas::SceneConfig;
+
+use super::snapshots::{self, Sweep};
+use super::{basis, compactness, mesh, metrics, report, rom, trainset, views};
+use crate::cache::Key;
+use crate::error::CromError;
+
+/// One stage of the study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Node {
+    /// Stage and subject, e.g. `trainset train`, `views basis`.
+    pub name: String,
+    /// Artifact kind.
+    pub kind: ArtifactKind,
+    /// The artifact's key.
+    pub key: Key,
+    /// Names of the nodes it reads (`snapshots` for the snapshot sweeps).
+    pub inputs: Vec<String>,
+    /// Part of the online study (not run by `crom run --offline`).
+    pub online: bool,
+}
+
+/// A scene's study as data.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// The snapshot sweeps (their chunks are the units of sharded work).
+    pub(crate) sweeps: Vec<Sweep>,
+    /// The column family the snapshots go to.
+    pub family: Key,
+    /// The stages after the snapshots, in an order that respects their inputs.
+    pub nodes: Vec<Node>,
+}
+
+/// Where the snapshot sweeps stand in a store.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SnapshotState {
+    /// Distinct points of the study.
+    pub points: usize,
+    /// Of which stored.
+    pub stored: usize,
+    /// Chunks (blocks of work), numbered over all sweeps in order.
+    pub chunks: usize,
+    /// The chunks with at least one point missing.
+    pub missing_chunks: Vec<usize>,
+    /// Per sweep: its name, its new points, of which stored.
+    pub sweeps: Vec<(String, usize, usize)>,
+}
+
+impl Plan {
+    /// The plan of `scene`'s study.
+    pub fn of(scene: &SceneConfig) -> Self {
+        let mesh_key = mesh::spec(scene).key();
+        let sweeps = snapshots::sweeps(scene, &mesh_key);
+        let family = snapshots::scene_family(scene, &mesh_key);
+        let mut nodes = Vec::new();
+        let mut add = |name: &str, kind: ArtifactKind, key: Key, inputs: &[&str], online: bool| {
+            nodes.push(Node {
+                name: name.to_string(),
+                kind,
+                key: key.clone(),
+                inputs: inputs.iter().map(|s| s.to_string()).collect(),
+                online,
+            });
+            key
+        };
+        let mesh = add("mesh", ArtifactKind::Mesh, mesh_key.clone(), &[], false);
+        let p = &scene.parameter;
+        let (train_points, test_points) = (p.train_points(), p.test_points());
+        let first = &sweeps[0];
+        let keys: Vec<&Key> = first.keys.iter().collect();
+        let (train_keys, test_keys) = keys.split_at(train_points.len());
+        let train = add(
+            "trainset train",
+            ArtifactKind::TrainingSet,
+            trainset::spec("train", &train_points, train_keys).key(),
+            &["snapshots"],
+            false,
+        );
+        let test = add(
+            "trainset test",
+            ArtifactKind::TrainingSet,
+            trainset::spec("test", &test_points, test_keys).key(),
+            &["snapshots"],
+            false,
+        );
+        for (set, key) in [("train", &train), ("test", &test)] {
+            let inputs = [format!("trainset {set}"), "mesh".to_string()];
+            let inputs: Vec<&str> = inputs.iter().map(String::as_str).collect();
+            add(&format!("views {set}"), ArtifactKind::Views, views::set_spec(set, key, &mesh).key(), &inputs, false);
+        }
+        let basis = add("basis", ArtifactKind::Basis, basis::spec(scene, &train).key(), &["trainset train"], false);
+        add("views basis", ArtifactKind::Views, views::basis_spec(&basis, &mesh).key(), &["basis", "mesh"], false);
+        let compactness = add(
+            "compactness",
+            ArtifactKind::Compactness,
+            compactness::spec(&train, &basis).key(),
+            &["trainset train", "basis"],
+            false,
+        );
+        let generalization = add(
+            "generalization",
+            ArtifactKind::Generalization,
+            metrics::generalization_spec(scene, &train).key(),
+            &["trainset train"],
+            false,
+        );
+        let specificity = add(
+            "specificity",
+            ArtifactKind::Specificity,
+            metrics::specificity_spec(scene, &train, &basis).key(),
+            &["trainset train", "basis"],
+            false,
+        );
+        let nested = if p.nested_levels > 0 {
+            let sweep = &sweeps[1];
+            let mut at = 0;
+            let mut sets = Vec::new();
+            let mut names = Vec::new();
+            for n in 1..=p.nested_levels {
+                let pts = p.nested_points(n);
+                let keys: Vec<&Key> = sweep.keys[at..at + pts.len()].iter().collect();
+                at += pts.len();
+                let name = format!("nested-{n}");
+                let set = add(
+                    &format!("trainset {name}"),
+                    ArtifactKind::TrainingSet,
+                    trainset::spec(&name, &pts, &keys).key(),
+                    &["snapshots"],
+                    false,
+                );
+                let inputs = [format!("trainset {name}"), "mesh".to_string()];
+                let inputs: Vec<&str> = inputs.iter().map(String::as_str).collect();
+                add(
+                    &format!("views {name}"),
+                    ArtifactKind::Views,
+                    views::set_spec(&name, &set, &mesh).key(),
+                    &inputs,
+                    false,
+                );
+                names.push(format!("trainset {name}"));
+                sets.push(set);
+            }
+            let inputs: Vec<&str> = names.iter().map(String::as_str).collect();
+            Some(add("nested", ArtifactKind::Nested, metrics::nested_spec(&sets).key(), &inputs, false))
+        } else {
+            None
+        };
+        let rom = add(
+            "rom",
+            ArtifactKind::Rom,
+            rom::spec(&train, &test, &basis).key(),
+            &["trainset train", "trainset test", "basis"],
+            true,
+        );
+        add(
+            "views online",
+            ArtifactKind::Views,
+            views::online_spec(&rom, &test, &mesh).key(),
+            &["rom", "trainset test", "mesh"],
+            true,
+        );
+        let inputs = report::ReportInputs {
+            mesh,
+            train,
+            basis,
+            compactness,
+            rom,
+            generalization,
+            specificity,
+            nested: nested.clone(),
+        };
+        let mut report_inputs =
+            vec!["mesh", "trainset train", "basis", "compactness", "rom", "generalization", "specificity"];
+        if nested.is_some() {
+            report_inputs.push("nested");
+        }
+        add("report", ArtifactKind::Report, report::spec(&inputs).key(), &report_inputs, true);
+        Self { sweeps, family, nodes }
+    }
+
+    /// Total chunks over all sweeps.
+    pub fn chunks(&self) -> usize {
+        self.sweeps.iter().map(|s| s.chunks.len()).sum()
+    }
+
+    /// Where the snapshots stand in the store at `root` (read-only).
+    pub fn snapshot_state(&self, root: &Path) -> Result<SnapshotState, CromError> {
+        let (_, index) = snapshots::load_index(root, &self.family)?;
+        let mut state = SnapshotState { chunks: self.chunks(), ..SnapshotState::default() };
+        let mut first = 0;
+        for sweep in &self.sweeps {
+            let (mut points, mut stored_points) = (0, 0);
+            for (c, chunk) in sweep.chunks.iter().enumerate() {
+                let stored = chunk.iter().filter(|&&i| index.rows.contains_key(&sweep.keys[i])).count();
+                points += chunk.len();
+                stored_points += stored;
+                if stored < chunk.len() {
+                    state.missing_chunks.push(first + c);
+                }
+            }
+            state.points += points;
+            state.stored += stored_points;
+            state.sweeps.push((sweep.name.to_string(), points, stored_points));
+            first += sweep.chunks.len();
+        }
+        Ok(state)
+    }
+}
+
+/// Whether the artifact of `node` is in the store at `root` (its manifest exists; `crom run`
+/// verifies it when it reads it).
+pub fn stored(root: &Path, node: &Node) -> bool {
+    root.join(node.kind.name()).join(&node.key.0).join(MANIFEST).exists()
+}
