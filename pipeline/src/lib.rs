@@ -56,6 +56,13 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
             }
             if *executor == executor::Executor::Slurm {
                 slurm_sweep(cli, scene, slurm)?;
+            } else if slurm.spec() != Default::default() {
+                return Err(CromError::Usage {
+                    message: "--partition, --time, --mem, --account, --shard-size, --max-parallel and --cpus-per-task \
+                              are settings of the Slurm executor, and this run is local"
+                        .into(),
+                    fix: "add --executor slurm, or leave the Slurm settings out".into(),
+                });
             }
             run_scene(cli, scene, !offline).map(|_| ())
         }
@@ -191,6 +198,7 @@ fn work(cli: &Cli, scene_arg: &str, k: usize, n: usize) -> Result<(), CromError>
 fn slurm_sweep(cli: &Cli, scene_arg: &str, flags: &cli::SlurmFlags) -> Result<(), CromError> {
     let path = scenes::resolve(scene_arg, &cli.scenes)?;
     let scene = load_scene(cli, scene_arg)?;
+    executor::slurm::check_client()?;
     std::fs::create_dir_all(&cli.store).map_err(|e| CromError::io(&cli.store, "creating the store", e))?;
     let root = cli.store.canonicalize().map_err(|e| CromError::io(&cli.store, "resolving the store path", e))?;
     let scene_file = path.canonicalize().map_err(|e| CromError::io(&path, "resolving the scene path", e))?;

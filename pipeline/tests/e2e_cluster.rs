@@ -114,6 +114,41 @@ fn after_a_run_the_plan_has_nothing_left_to_run() {
     }
 }
 
+/// Bad requests are refused before anything is written, with the field or flag and the fix.
+#[test]
+fn bad_cluster_requests_are_refused_before_anything_is_written() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let zero =
+        variant(tmp.path(), "rope", "rope-zero.toml", &[("[study]", "[executor.slurm]\nshard_size = 0\n\n[study]")]);
+    let typo =
+        variant(tmp.path(), "rope", "rope-typo.toml", &[("[study]", "[executor.slurm]\npartitoin = \"x\"\n\n[study]")]);
+    let spaced =
+        variant(tmp.path(), "rope", "rope-space.toml", &[("[study]", "[executor.slurm]\ntime = \"1 h\"\n\n[study]")]);
+    let cases: Vec<(Vec<&str>, Option<&str>, i32, &str)> = vec![
+        (vec!["work", "rope", "--shard", "4/4"], None, 2, "give K/N with 0 <= K < N"),
+        (vec!["work", "rope", "--shard", "1"], None, 2, "give K/N with 0 <= K < N"),
+        (vec!["run", "rope", "--partition", "x"], None, 2, "add --executor slurm"),
+        (vec!["run", zero.to_str().expect("utf8"), "--executor", "slurm"], None, 2, "executor.slurm.shard_size"),
+        (vec!["run", typo.to_str().expect("utf8"), "--executor", "slurm"], None, 2, "partitoin"),
+        (vec!["run", spaced.to_str().expect("utf8"), "--executor", "slurm"], None, 2, "executor.slurm.time"),
+        // No Slurm client on PATH.
+        (vec!["run", "rope", "--executor", "slurm"], Some("/nonexistent"), 1, "`sbatch` is not on PATH"),
+    ];
+    for (args, path, code, says) in cases {
+        let mut c = crom_cmd(&store, &args);
+        if let Some(p) = path {
+            c.env("PATH", p);
+        }
+        let o = c.output().expect("crom runs");
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {}", text(&o));
+        // Every message says what to do: a `fix:` line, or (command-line syntax) "give …".
+        let t = text(&o);
+        assert!(t.contains(says) && (t.contains("fix") || t.contains("give ")), "{args:?} should say {says:?}: {t}");
+        assert!(!store.exists(), "{args:?} wrote into the store");
+    }
+}
+
 /// Stops the daemons `slurm-up.sh start` started, when the test ends (pass or fail).
 struct Daemons(PathBuf);
 

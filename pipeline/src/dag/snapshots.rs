@@ -215,7 +215,7 @@ pub(crate) fn run(
     ctx.record("snapshot", done.solved, reused, dir);
     ctx.points.add(PointCounts { solved: done.solved, reused, failed: done.failures.len() });
     if !done.failures.is_empty() {
-        return Err(failure_error(ctx, &done.failures, sweep)?);
+        return Err(failure_error(ctx, &done.failures, sweep, done.solved + done.failures.len())?);
     }
     let family = family.ok_or_else(|| {
         CromError::artifact(ctx.store.root(), "no snapshot was stored for this scene", "rerun the scene")
@@ -266,7 +266,7 @@ pub(crate) fn work(
         );
         if !done.failures.is_empty() {
             ctx.points.add(counts);
-            return Err(failure_error(ctx, &done.failures, sweep)?);
+            return Err(failure_error(ctx, &done.failures, sweep, done.solved + done.failures.len())?);
         }
     }
     ctx.points.add(counts);
@@ -403,8 +403,14 @@ fn solve_chunks(
     Ok(Done { solved: solved + n_imported, cached, committed, failures })
 }
 
-/// The error of a sweep with failed points, after writing them to the run's failure table.
-fn failure_error(ctx: &Ctx<'_>, failures: &[(usize, String)], sweep: &Sweep) -> Result<CromError, CromError> {
+/// The error of a sweep with failed points (of `attempted` solves), after writing them to the
+/// run's failure table.
+fn failure_error(
+    ctx: &Ctx<'_>,
+    failures: &[(usize, String)],
+    sweep: &Sweep,
+    attempted: usize,
+) -> Result<CromError, CromError> {
     let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
     let table_path = write_failures(ctx, failures, &sweep.points, &sweep.keys)?;
     let list = failures
@@ -412,11 +418,10 @@ fn failure_error(ctx: &Ctx<'_>, failures: &[(usize, String)], sweep: &Sweep) -> 
         .map(|(i, m)| format!("  {}: {m}", point_label(&names, &sweep.points[*i])))
         .collect::<Vec<_>>()
         .join("\n");
-    let total: usize = sweep.chunks.iter().map(Vec::len).sum();
     Ok(CromError::SolveFailures {
         scene: ctx.scene.scene.name.clone(),
         failed: failures.len(),
-        total,
+        total: attempted,
         list,
         table: table_path,
     })

@@ -87,6 +87,22 @@ pub fn shard_count(total: usize, chunk_columns: usize, shard_size: usize) -> usi
     total.div_ceil(per).max(1)
 }
 
+/// Refuse, before anything is written, when the Slurm client commands are not on `PATH`.
+pub fn check_client() -> Result<(), CromError> {
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    for cmd in ["sbatch", "squeue"] {
+        if !std::env::split_paths(&path).any(|d| d.join(cmd).is_file()) {
+            return Err(CromError::Executor {
+                message: format!("`{cmd}` is not on PATH: --executor slurm needs the Slurm client commands"),
+                fix: "run on a machine with Slurm (a login node; `scripts/slurm-up.sh start` makes this machine a \
+                      one-node cluster), or use --executor local (the default)"
+                    .into(),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Run a scheduler command; its standard output, or an [`CromError::Executor`].
 fn scheduler(cmd: &str, args: &[String], fix: &str) -> Result<String, CromError> {
     let out = Command::new(cmd).args(args).output().map_err(|e| CromError::Executor {
@@ -261,11 +277,16 @@ fn submit(s: &Submission<'_>, missing: &[usize]) -> Result<JobRecord, CromError>
 fn wait(s: &Submission<'_>, job: &JobRecord, stored: usize, points: usize) -> Result<(), CromError> {
     let mut bar = s.progress.stage("slurm", points - stored);
     let mut shown = stored;
+    // The index is read at most every 2 s, and never more than a tenth of the time: at 10^5
+    // and more snapshots a read takes seconds (design note 32).
     let mut last_index = Instant::now() - Duration::from_secs(60);
+    let mut read_time = Duration::ZERO;
     loop {
         let q = queued(&job.job_id)?;
-        if last_index.elapsed() >= Duration::from_secs(2) || q.is_empty() {
+        if last_index.elapsed() >= Duration::from_secs(2).max(read_time * 10) || q.is_empty() {
+            let t = Instant::now();
             let now = s.plan.snapshot_state(s.root)?.stored;
+            read_time = t.elapsed();
             let running = q.iter().filter(|t| t.1 == "RUNNING").count();
             let msg = format!("{running} running, {} queued", q.len() - running);
             while shown < now {
