@@ -19,7 +19,10 @@ CPUS=${CROM_SLURM_CPUS:-4}
 stop() {
   [ -f "$PIDS" ] || { echo "slurm-up: nothing to stop"; return 0; }
   while read -r pid name; do
-    if kill "$pid" 2>/dev/null; then echo "slurm-up: stopped $name ($pid)"; fi
+    if kill "$pid" 2>/dev/null; then
+      for _ in $(seq 100); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+      echo "slurm-up: stopped $name ($pid)"
+    fi
   done <"$PIDS"
   rm -f "$PIDS"
 }
@@ -43,9 +46,11 @@ start() {
   chown munge:munge /etc/munge/munge.key /run/munge 2>/dev/null || true
   chmod 400 /etc/munge/munge.key
   if ! pgrep -x munged >/dev/null; then
+    rm -f /run/munge/munged.pid
     munged --force
-    sleep 0.5
-    echo "$(pgrep -x munged | head -1) munged" >>"$PIDS"
+    # munged forks into the background: its PID is the one it writes.
+    for _ in $(seq 50); do [ -s /run/munge/munged.pid ] && break; sleep 0.1; done
+    echo "$(cat /run/munge/munged.pid) munged" >>"$PIDS"
   fi
 
   host=$(hostname -s)
