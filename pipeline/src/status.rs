@@ -45,7 +45,8 @@ pub(crate) fn render(root: &Path, scene: &crom_schemas::SceneConfig, view: View)
         let _ = writeln!(out, "  {:<20} {:<14} {done} of {points} points stored; {what}", "snapshots", sweep);
     }
     let mut missing = 0;
-    for node in &plan.nodes {
+    let stages: Vec<_> = plan.nodes.iter().filter(|n| !n.is_sweep()).collect();
+    for node in &stages {
         let skipped = node.online && matches!(view, View::DryRun { online: false });
         let state = if stored(root, node) {
             "stored"
@@ -64,7 +65,7 @@ pub(crate) fn render(root: &Path, scene: &crom_schemas::SceneConfig, view: View)
         state.points,
         state.chunks - state.missing_chunks.len(),
         state.chunks,
-        plan.nodes.len()
+        stages.len()
     );
     if view == View::Status {
         workers(&mut out, root, name)?;

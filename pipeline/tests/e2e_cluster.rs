@@ -93,6 +93,52 @@ fn workers_by_hand_share_a_store_and_write_what_one_process_writes() {
     assert_same_results(&reference(tmp.path(), scene), &store, "four workers, one killed, vs one local run");
 }
 
+/// Three workers on the same shard at once (all points solved three times, the same block names
+/// written concurrently) and readers polling the index meanwhile: every read sees a consistent
+/// index (no error, the stored count never falls), and the store ends with one row per point
+/// and the files of a single local run.
+#[test]
+fn duplicate_workers_and_concurrent_readers_leave_one_consistent_store() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("dup");
+    let scene = "ironing-coarse";
+    let mut workers: Vec<std::process::Child> = (0..3)
+        .map(|_| {
+            with_blocks(crom_cmd(&store, &["--quiet", "work", scene, "--shard", "0/1"]))
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("spawn a worker")
+        })
+        .collect();
+    let mut last = 0usize;
+    let mut reads = 0;
+    while workers.iter_mut().any(|w| w.try_wait().expect("poll").is_none()) {
+        let o = with_blocks(crom_cmd(&store, &["status", scene])).output().expect("status");
+        assert!(o.status.success(), "a read during the writes failed: {}", text(&o));
+        let t = text(&o);
+        let line = t.lines().find(|l| l.contains("snapshot points stored")).expect("points line");
+        let stored: usize = line.split_whitespace().next().and_then(|w| w.parse().ok()).expect("count");
+        assert!(stored >= last, "the stored count fell from {last} to {stored}");
+        last = stored;
+        reads += 1;
+    }
+    for w in &mut workers {
+        assert!(w.wait().expect("wait").success(), "a duplicate worker failed");
+    }
+    assert!(reads >= 2, "the readers never overlapped the writers");
+    let run = run_ok(with_blocks(crom_cmd(&store, &["run", scene, "--offline"])), "run");
+    assert!(run.contains("snapshots: 0 solved"), "{run}");
+    // One row per point in the compacted index, every fragment folded into it.
+    let st = crom_pipeline::store::Store::open_read_only(&store);
+    let fam = st.families().pop().expect("one family");
+    let index = crom_pipeline::io::table::read_parquet(&fam.dir().join("index.parquet")).expect("index");
+    assert_eq!(index.rows(), 381);
+    let fragments = std::fs::read_dir(fam.dir().join("index")).expect("fragments").count();
+    assert_eq!(fragments, 0, "every fragment compacted");
+    assert_same_results(&reference(tmp.path(), scene), &store, "three duplicate workers vs one local run");
+}
+
 /// The plan predicts every key a full run writes (online stages included), on a scene with
 /// nested levels and on hertz.
 #[test]

@@ -253,80 +253,126 @@ pub fn work_shard(ctx: &mut Ctx<'_>, k: usize, n: usize) -> Result<PointCounts, 
 /// Run every stage of the scene's study; with `online = false` stop before the online ROM
 /// and the report that shows it (`crom run --offline`).
 pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError> {
+    execute(ctx, &plan::Plan::of(ctx.scene), online)
+}
+
+/// The local executor: walk the plan's nodes in order (each node's inputs come before it),
+/// running each node's stage with its inputs' keys; a stage whose artifact is stored is a
+/// cache hit inside the stage. Every key a stage returns is checked against the plan's.
+pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Result<RunOutput, CromError> {
+    use plan::Stage;
     let scene = ctx.scene;
     let mut physics = LazyPhysics { scene, built: None };
-    let mesh_key = mesh::run(ctx, &mut physics)?;
-    let train_points = scene.parameter.train_points();
-    let test_points = scene.parameter.test_points();
-    let mut sweeps = snapshots::sweeps(scene, &mesh_key).into_iter();
-    let first = sweeps.next().expect("a study has its train+test sweep");
-    let cols = snapshots::run(ctx, &mut physics, &mesh_key, &first)?;
-    let (train_rows, test_rows) = cols.rows.split_at(train_points.len());
-    let train = trainset::run(ctx, "train", &train_points, train_rows, cols.shape)?;
-    let test = trainset::run(ctx, "test", &test_points, test_rows, cols.shape)?;
-    let mut views = BTreeMap::new();
-    views.insert("train".to_string(), views::set(ctx, "train", &train, &mesh_key)?);
-    views.insert("test".to_string(), views::set(ctx, "test", &test, &mesh_key)?);
-    let basis = basis::run(ctx, &train)?;
-    views.insert("basis".to_string(), views::basis(ctx, &basis, &mesh_key)?);
-    let compactness = compactness::run(ctx, &train, &basis)?;
-    let generalization = metrics::generalization(ctx, &train)?;
-    let specificity = metrics::specificity(ctx, &train, &basis)?;
-    let mut nested_sets = Vec::new();
-    let nested = if scene.parameter.nested_levels > 0 {
-        let levels: Vec<Vec<Vec<f64>>> =
-            (1..=scene.parameter.nested_levels).map(|n| scene.parameter.nested_points(n)).collect();
-        let sweep = sweeps.next().expect("a study with nested levels has their sweep");
-        let nested_cols = snapshots::run(ctx, &mut physics, &mesh_key, &sweep)?;
-        let mut sets = Vec::new();
-        let mut at = 0;
-        for (n, pts) in levels.iter().enumerate() {
-            let rows = &nested_cols.rows[at..at + pts.len()];
-            let name = format!("nested-{}", n + 1);
-            let set = trainset::run(ctx, &name, pts, rows, nested_cols.shape)?;
-            views.insert(name.clone(), views::set(ctx, &name, &set, &mesh_key)?);
-            sets.push(set);
-            at += pts.len();
+    let mut keys: BTreeMap<&str, Key> = BTreeMap::new();
+    let mut columns: BTreeMap<usize, snapshots::Columns> = BTreeMap::new();
+    for node in &plan.nodes {
+        if node.online && !online {
+            continue;
         }
-        let nested = metrics::nested(ctx, &sets)?;
-        nested_sets = sets;
-        Some(nested)
-    } else {
-        None
-    };
-    let mut out = RunOutput {
-        mesh: mesh_key,
-        train_snapshots: train_rows.iter().map(|r| r.key.clone()).collect(),
-        train,
-        test,
-        basis,
-        compactness,
-        generalization,
-        specificity,
-        nested_sets,
-        nested,
-        views,
-        rom: None,
-        report: None,
-    };
-    if !online {
-        return Ok(out);
+        let input = |i: usize| -> &Key { &keys[node.inputs[i].as_str()] };
+        let key = match &node.stage {
+            Stage::Mesh => mesh::run(ctx, &mut physics)?,
+            Stage::Sweep(i) => {
+                let mesh_key = keys["mesh"].clone();
+                columns.insert(*i, snapshots::run(ctx, &mut physics, &mesh_key, &plan.sweeps[*i])?);
+                plan.family.clone()
+            }
+            Stage::Set { set, points, sweep, start } => {
+                let cols = &columns[sweep];
+                let rows = &cols.rows[*start..*start + points.len()];
+                trainset::run(ctx, set, points, rows, cols.shape)?
+            }
+            Stage::SetViews { set } => {
+                let (set_key, mesh_key) = (input(0).clone(), input(1).clone());
+                views::set(ctx, set, &set_key, &mesh_key)?
+            }
+            Stage::Basis => {
+                let train = input(0).clone();
+                basis::run(ctx, &train)?
+            }
+            Stage::BasisViews => {
+                let (b, m) = (input(0).clone(), input(1).clone());
+                views::basis(ctx, &b, &m)?
+            }
+            Stage::Compactness => {
+                let (t, b) = (input(0).clone(), input(1).clone());
+                compactness::run(ctx, &t, &b)?
+            }
+            Stage::Generalization => {
+                let t = input(0).clone();
+                metrics::generalization(ctx, &t)?
+            }
+            Stage::Specificity => {
+                let (t, b) = (input(0).clone(), input(1).clone());
+                metrics::specificity(ctx, &t, &b)?
+            }
+            Stage::Nested => {
+                let sets: Vec<Key> = (0..node.inputs.len()).map(|i| input(i).clone()).collect();
+                metrics::nested(ctx, &sets)?
+            }
+            Stage::Rom => {
+                let (t, te, b) = (input(0).clone(), input(1).clone(), input(2).clone());
+                rom::run(ctx, &mut physics, &t, &te, &b)?
+            }
+            Stage::OnlineViews => {
+                let (r, te, m) = (input(0).clone(), input(1).clone(), input(2).clone());
+                views::online(ctx, &r, &te, &m)?
+            }
+            Stage::Report => {
+                let k = |name: &str| keys[name].clone();
+                let inputs = report::ReportInputs {
+                    mesh: k("mesh"),
+                    train: k("trainset train"),
+                    basis: k("basis"),
+                    compactness: k("compactness"),
+                    rom: k("rom"),
+                    generalization: k("generalization"),
+                    specificity: k("specificity"),
+                    nested: keys.get("nested").cloned(),
+                };
+                report::run(ctx, &inputs)?
+            }
+        };
+        if key != node.key {
+            return Err(CromError::artifact(
+                ctx.store.dir(node.kind, &key),
+                format!("stage `{}` wrote key {}, its plan says {}", node.name, key.short(), node.key.short()),
+                "report this as a bug in crom (the plan and the stage compute the key differently)",
+            ));
+        }
+        keys.insert(node.name.as_str(), key);
     }
-    let rom = rom::run(ctx, &mut physics, &out.train, &out.test, &out.basis)?;
-    out.views.insert("online".to_string(), views::online(ctx, &rom, &out.test, &out.mesh)?);
-    let inputs = report::ReportInputs {
-        mesh: out.mesh.clone(),
-        train: out.train.clone(),
-        basis: out.basis.clone(),
-        compactness: out.compactness.clone(),
-        rom: rom.clone(),
-        generalization: out.generalization.clone(),
-        specificity: out.specificity.clone(),
-        nested: out.nested.clone(),
-    };
-    out.report = Some(report::run(ctx, &inputs)?);
-    out.rom = Some(rom);
-    Ok(out)
+    let k = |name: &str| keys[name].clone();
+    let n_train = scene.parameter.train_points().len();
+    let mut views = BTreeMap::new();
+    for node in
+        plan.nodes.iter().filter(|n| matches!(n.stage, Stage::SetViews { .. } | Stage::BasisViews | Stage::OnlineViews))
+    {
+        if let Some(key) = keys.get(node.name.as_str()) {
+            views.insert(node.name.trim_start_matches("views ").to_string(), key.clone());
+        }
+    }
+    let nested_sets: Vec<Key> = plan
+        .nodes
+        .iter()
+        .filter(|n| n.name.starts_with("trainset nested-"))
+        .map(|n| keys[n.name.as_str()].clone())
+        .collect();
+    Ok(RunOutput {
+        mesh: k("mesh"),
+        train_snapshots: columns[&0].rows[..n_train].iter().map(|r| r.key.clone()).collect(),
+        train: k("trainset train"),
+        test: k("trainset test"),
+        basis: k("basis"),
+        compactness: k("compactness"),
+        generalization: k("generalization"),
+        specificity: k("specificity"),
+        nested_sets,
+        nested: keys.get("nested").cloned(),
+        views,
+        rom: keys.get("rom").cloned(),
+        report: keys.get("report").cloned(),
+    })
 }
 
 /// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.

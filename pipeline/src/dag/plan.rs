@@ -5,9 +5,11 @@
 //! from the same `spec` function its stage computes with, so the plan and the run cannot
 //! disagree (the e2e test `e2e_cluster` checks that a finished run leaves nothing to run).
 //!
-//! `crom run --dry-run` prints the plan against the store (what is stored, what would run);
-//! `crom status` prints it for a run in progress or finished, with the sharded workers'
-//! records ([`crate::executor`]); the Slurm executor takes the snapshot chunks to solve from it.
+//! The local executor ([`super::execute`]) walks the nodes in order and runs each node's
+//! [`Stage`] with its inputs' keys; `crom run --dry-run` prints the plan against the store
+//! (what is stored, what would run); `crom status` prints it for a run in progress or
+//! finished, with the sharded workers' records ([`crate::executor`]); the Slurm executor
+//! takes the snapshot chunks to solve from it.
 
 use std::path::Path;
 
@@ -19,19 +21,61 @@ use super::{basis, compactness, mesh, metrics, report, rom, trainset, views};
 use crate::cache::Key;
 use crate::error::CromError;
 
+/// What a node runs: the stage function and the subject it is called with (its input keys are
+/// the keys of the nodes it names as inputs).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Stage {
+    /// The mesh.
+    Mesh,
+    /// Snapshot sweep `i` of [`Plan::sweeps`] (key: the column family).
+    Sweep(usize),
+    /// A snapshot set named `set`: `points` are the rows `start..` of sweep `sweep`.
+    Set { set: String, points: Vec<Vec<f64>>, sweep: usize, start: usize },
+    /// The views of the set `set`.
+    SetViews { set: String },
+    /// POD and CPG bases.
+    Basis,
+    /// The views of the bases.
+    BasisViews,
+    /// C(m).
+    Compactness,
+    /// G(m).
+    Generalization,
+    /// S(m).
+    Specificity,
+    /// H(n) over the nested sets.
+    Nested,
+    /// The online reduced model.
+    Rom,
+    /// The views of the online solutions.
+    OnlineViews,
+    /// The report.
+    Report,
+}
+
 /// One stage of the study.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Node {
-    /// Stage and subject, e.g. `trainset train`, `views basis`.
+    /// Stage and subject, e.g. `trainset train`, `views basis`, `snapshots train+test`.
     pub name: String,
     /// Artifact kind.
     pub kind: ArtifactKind,
-    /// The artifact's key.
+    /// The artifact's key (for a sweep: its column family's).
     pub key: Key,
-    /// Names of the nodes it reads (`snapshots` for the snapshot sweeps).
+    /// Names of the nodes it reads, in the order its stage takes them.
     pub inputs: Vec<String>,
     /// Part of the online study (not run by `crom run --offline`).
     pub online: bool,
+    /// What runs.
+    pub(crate) stage: Stage,
+}
+
+impl Node {
+    /// A snapshot sweep (its points are counted by [`Plan::snapshot_state`], not stored as one
+    /// artifact).
+    pub fn is_sweep(&self) -> bool {
+        matches!(self.stage, Stage::Sweep(_))
+    }
 }
 
 /// A scene's study as data.
@@ -41,7 +85,7 @@ pub struct Plan {
     pub(crate) sweeps: Vec<Sweep>,
     /// The column family the snapshots go to.
     pub family: Key,
-    /// The stages after the snapshots, in an order that respects their inputs.
+    /// Every stage, in an order that respects their inputs.
     pub nodes: Vec<Node>,
 }
 
@@ -61,55 +105,86 @@ pub struct SnapshotState {
 }
 
 impl Plan {
-    /// The plan of `scene`'s study.
+    /// The plan of `scene`'s study, in an order that respects every node's inputs.
     pub fn of(scene: &SceneConfig) -> Self {
         let mesh_key = mesh::spec(scene).key();
         let sweeps = snapshots::sweeps(scene, &mesh_key);
         let family = snapshots::scene_family(scene, &mesh_key);
-        let mut nodes = Vec::new();
-        let mut add = |name: &str, kind: ArtifactKind, key: Key, inputs: &[&str], online: bool| {
+        let mut nodes: Vec<Node> = Vec::new();
+        let mut add = |name: &str, kind: ArtifactKind, key: Key, inputs: &[&str], online: bool, stage: Stage| {
             nodes.push(Node {
                 name: name.to_string(),
                 kind,
                 key: key.clone(),
                 inputs: inputs.iter().map(|s| s.to_string()).collect(),
                 online,
+                stage,
             });
             key
         };
-        let mesh = add("mesh", ArtifactKind::Mesh, mesh_key.clone(), &[], false);
+        let mesh = add("mesh", ArtifactKind::Mesh, mesh_key.clone(), &[], false, Stage::Mesh);
+        for (i, sweep) in sweeps.iter().enumerate() {
+            let name = format!("snapshots {}", sweep.name);
+            add(&name, ArtifactKind::Snapshot, family.clone(), &["mesh"], false, Stage::Sweep(i));
+        }
         let p = &scene.parameter;
         let (train_points, test_points) = (p.train_points(), p.test_points());
         let first = &sweeps[0];
         let keys: Vec<&Key> = first.keys.iter().collect();
         let (train_keys, test_keys) = keys.split_at(train_points.len());
+        let sweep0 = format!("snapshots {}", first.name);
+        let set_stage = |set: &str, points: &[Vec<f64>], sweep: usize, start: usize| Stage::Set {
+            set: set.to_string(),
+            points: points.to_vec(),
+            sweep,
+            start,
+        };
         let train = add(
             "trainset train",
             ArtifactKind::TrainingSet,
             trainset::spec("train", &train_points, train_keys).key(),
-            &["snapshots"],
+            &[&sweep0],
             false,
+            set_stage("train", &train_points, 0, 0),
         );
         let test = add(
             "trainset test",
             ArtifactKind::TrainingSet,
             trainset::spec("test", &test_points, test_keys).key(),
-            &["snapshots"],
+            &[&sweep0],
             false,
+            set_stage("test", &test_points, 0, train_points.len()),
         );
         for (set, key) in [("train", &train), ("test", &test)] {
             let inputs = [format!("trainset {set}"), "mesh".to_string()];
             let inputs: Vec<&str> = inputs.iter().map(String::as_str).collect();
-            add(&format!("views {set}"), ArtifactKind::Views, views::set_spec(set, key, &mesh).key(), &inputs, false);
+            let stage = Stage::SetViews { set: set.to_string() };
+            add(
+                &format!("views {set}"),
+                ArtifactKind::Views,
+                views::set_spec(set, key, &mesh).key(),
+                &inputs,
+                false,
+                stage,
+            );
         }
-        let basis = add("basis", ArtifactKind::Basis, basis::spec(scene, &train).key(), &["trainset train"], false);
-        add("views basis", ArtifactKind::Views, views::basis_spec(&basis, &mesh).key(), &["basis", "mesh"], false);
+        let basis = add(
+            "basis",
+            ArtifactKind::Basis,
+            basis::spec(scene, &train).key(),
+            &["trainset train"],
+            false,
+            Stage::Basis,
+        );
+        let key = views::basis_spec(&basis, &mesh).key();
+        add("views basis", ArtifactKind::Views, key, &["basis", "mesh"], false, Stage::BasisViews);
         let compactness = add(
             "compactness",
             ArtifactKind::Compactness,
             compactness::spec(&train, &basis).key(),
             &["trainset train", "basis"],
             false,
+            Stage::Compactness,
         );
         let generalization = add(
             "generalization",
@@ -117,6 +192,7 @@ impl Plan {
             metrics::generalization_spec(scene, &train).key(),
             &["trainset train"],
             false,
+            Stage::Generalization,
         );
         let specificity = add(
             "specificity",
@@ -124,24 +200,27 @@ impl Plan {
             metrics::specificity_spec(scene, &train, &basis).key(),
             &["trainset train", "basis"],
             false,
+            Stage::Specificity,
         );
         let nested = if p.nested_levels > 0 {
             let sweep = &sweeps[1];
+            let sweep_name = format!("snapshots {}", sweep.name);
             let mut at = 0;
             let mut sets = Vec::new();
             let mut names = Vec::new();
             for n in 1..=p.nested_levels {
                 let pts = p.nested_points(n);
                 let keys: Vec<&Key> = sweep.keys[at..at + pts.len()].iter().collect();
-                at += pts.len();
                 let name = format!("nested-{n}");
                 let set = add(
                     &format!("trainset {name}"),
                     ArtifactKind::TrainingSet,
                     trainset::spec(&name, &pts, &keys).key(),
-                    &["snapshots"],
+                    &[&sweep_name],
                     false,
+                    set_stage(&name, &pts, 1, at),
                 );
+                at += pts.len();
                 let inputs = [format!("trainset {name}"), "mesh".to_string()];
                 let inputs: Vec<&str> = inputs.iter().map(String::as_str).collect();
                 add(
@@ -150,12 +229,14 @@ impl Plan {
                     views::set_spec(&name, &set, &mesh).key(),
                     &inputs,
                     false,
+                    Stage::SetViews { set: name.clone() },
                 );
                 names.push(format!("trainset {name}"));
                 sets.push(set);
             }
             let inputs: Vec<&str> = names.iter().map(String::as_str).collect();
-            Some(add("nested", ArtifactKind::Nested, metrics::nested_spec(&sets).key(), &inputs, false))
+            let key = metrics::nested_spec(&sets).key();
+            Some(add("nested", ArtifactKind::Nested, key, &inputs, false, Stage::Nested))
         } else {
             None
         };
@@ -165,6 +246,7 @@ impl Plan {
             rom::spec(&train, &test, &basis).key(),
             &["trainset train", "trainset test", "basis"],
             true,
+            Stage::Rom,
         );
         add(
             "views online",
@@ -172,6 +254,7 @@ impl Plan {
             views::online_spec(&rom, &test, &mesh).key(),
             &["rom", "trainset test", "mesh"],
             true,
+            Stage::OnlineViews,
         );
         let inputs = report::ReportInputs {
             mesh,
@@ -188,8 +271,13 @@ impl Plan {
         if nested.is_some() {
             report_inputs.push("nested");
         }
-        add("report", ArtifactKind::Report, report::spec(&inputs).key(), &report_inputs, true);
+        add("report", ArtifactKind::Report, report::spec(&inputs).key(), &report_inputs, true, Stage::Report);
         Self { sweeps, family, nodes }
+    }
+
+    /// The node named `name`.
+    pub fn node(&self, name: &str) -> Option<&Node> {
+        self.nodes.iter().find(|n| n.name == name)
     }
 
     /// Total chunks over all sweeps.
