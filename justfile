@@ -72,3 +72,8 @@ slurm-up:
 
 slurm-down:
     bash scripts/slurm-up.sh stop
+
+# The stress matrix (issue 16): scenes pushed to the extremes, each answer verified or refused
+# with a reason; one row per case. `just stress --fast` is the subset CI runs.
+stress *ARGS:
+    {{python}} scripts/stress.py {{ARGS}}

@@ -109,7 +109,7 @@ fn new_ctx<'a>(cli: &Cli, store: &'a Store, scene: &'a SceneConfig) -> dag::Ctx<
         command: std::env::args().collect::<Vec<_>>().join(" "),
         progress: Progress::new(cli.quiet),
         records: Vec::new(),
-        warnings: Vec::new(),
+        warnings: scenes::warnings(scene),
         points: dag::PointCounts::default(),
         loaded: Default::default(),
     }
@@ -173,6 +173,9 @@ fn work(cli: &Cli, scene_arg: &str, k: usize, n: usize) -> Result<(), CromError>
     let mut record = executor::tasks::TaskRecord::start(k, n);
     record.write(store.root(), &name)?;
     let mut ctx = new_ctx(cli, &store, &scene);
+    for w in &ctx.warnings {
+        eprintln!("warning: {w}");
+    }
     let result = dag::work_shard(&mut ctx, k, n);
     let p = ctx.points;
     record.solved = p.solved;

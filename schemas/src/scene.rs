@@ -137,6 +137,29 @@ pub struct MaterialSpec {
     pub young: f64,
     /// Poisson ratio ν (in (-1, 0.5)).
     pub poisson: f64,
+    /// How the Q1 elements of this body integrate the stiffness: `"full"` (2x2 Gauss, the
+    /// default) or `"selective"` (the volumetric part with one point, the remedy for locking
+    /// as ν → ½). Left out of keys when full, so existing scenes keep their keys.
+    #[serde(default, skip_serializing_if = "Integration::is_full")]
+    pub integration: Integration,
+}
+
+/// Quadrature of a body's Q1 stiffness.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Integration {
+    /// 2x2 Gauss for the whole stiffness.
+    #[default]
+    Full,
+    /// Selective reduced integration: deviatoric part 2x2, volumetric part at the centre.
+    Selective,
+}
+
+impl Integration {
+    /// The default (serde's `skip_serializing_if`).
+    pub fn is_full(&self) -> bool {
+        *self == Integration::Full
+    }
 }
 
 /// Hertz: two identical half-disks; parameter d = imposed downward displacement of the top face.

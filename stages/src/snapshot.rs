@@ -14,7 +14,9 @@ pub struct SolveStats {
     pub min_lambda: f64,
     /// Relative complementarity residual `||min(lambda, gap)|| / scale`.
     pub complementarity: f64,
-    /// Relative residual of the equilibrium equation `||K u - f + C^T lambda|| / ||f_ref||`.
+    /// Backward error of the equilibrium equation, `||K u - f + C^T lambda||_inf` over the
+    /// largest of the contact forces and the row sums `|K| |u| + |f|` (`contact::solve` docs).
+    /// The rope's is `||K u - f + lambda|| / ||f_ref||`.
     pub kkt_residual: f64,
     /// Number of slave nodes that had to be tied to a master vertex (averaged normal) because the
     /// closest-point pairing kept flipping between two segments, or because it sits in a

@@ -78,4 +78,21 @@ mod tests {
         let before = KeySpec::new(ArtifactKind::Mesh, 1, crate::cache::params(&scene.model)).key();
         assert_eq!(KeySpec::of(&MeshKey(&scene.model)).key(), before);
     }
+
+    /// Full integration is the default and stays out of the key: a scene that says so has the
+    /// key it had before the setting existed; selective integration is a different mesh key.
+    #[test]
+    fn the_integration_setting_keys_only_when_it_changes_something() {
+        let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/scenes/hertz.toml"))
+            .expect("hertz.toml");
+        let parse =
+            |t: &str| crom_schemas::SceneConfig::from_toml_str(t, std::path::Path::new("h.toml")).expect("scene");
+        let key = |t: &str| KeySpec::of(&MeshKey(&parse(t).model)).key();
+        let shipped = "material = { young = 1.0, poisson = 0.3 }";
+        assert!(text.contains(shipped), "hertz.toml changed: update this test");
+        let full = text.replace(shipped, "material = { young = 1.0, poisson = 0.3, integration = \"full\" }");
+        let sri = text.replace(shipped, "material = { young = 1.0, poisson = 0.3, integration = \"selective\" }");
+        assert_eq!(key(&full), key(&text));
+        assert_ne!(key(&sri), key(&text));
+    }
 }

@@ -36,7 +36,8 @@ use crate::store::Lookup;
 /// Bump when the solvers change the numbers they produce.
 /// 2: the vertex-zone rule (design note 27) changes the snapshots near sole vertices, and the
 /// index gains the geometric check.
-const ALGORITHM_VERSION: u32 = 2;
+/// 3: the stored equilibrium residual of the 2-D scenes is a backward error (`contact::solve`).
+const ALGORITHM_VERSION: u32 = 3;
 
 /// A block is committed when it holds about this many bytes of snapshot data...
 const BLOCK_BYTES: usize = 32 << 20;

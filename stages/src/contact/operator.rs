@@ -176,8 +176,7 @@ mod tests {
     fn hertz() -> &'static FactoredModel {
         static M: OnceLock<FactoredModel> = OnceLock::new();
         M.get_or_init(|| {
-            let p =
-                HertzParams { radius: 1.0, material: Material { young: 1.0, poisson: 0.3 }, n_arc: 78, n_side: None };
+            let p = HertzParams { radius: 1.0, material: Material::new(1.0, 0.3), n_arc: 78, n_side: None };
             build_hertz(&p).expect("hertz").factor().expect("factor")
         })
     }
@@ -194,13 +193,13 @@ mod tests {
             slab_height: 1.0,
             slab_nx: 100,
             slab_ny: 20,
-            slab: Material { young: 1.0, poisson: 0.3 },
+            slab: Material::new(1.0, 0.3),
             iron_width: 1.0,
             iron_height: 1.0,
             sole_radius: 2.0,
             iron_nx: 30,
             iron_ny: 30,
-            iron: Material { young: 10.0, poisson: 0.3 },
+            iron: Material::new(10.0, 0.3),
             contact_x: 1.0,
             d_y: Some(0.04),
         }

@@ -7,7 +7,11 @@ use super::{HertzParams, IroningParams, Material};
 
 impl From<&MaterialSpec> for Material {
     fn from(m: &MaterialSpec) -> Self {
-        Material { young: m.young, poisson: m.poisson }
+        Material {
+            young: m.young,
+            poisson: m.poisson,
+            selective: m.integration == crom_schemas::scene::Integration::Selective,
+        }
     }
 }
 

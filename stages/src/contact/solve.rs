@@ -25,7 +25,15 @@
 //! because a rigid travel of a stiff body, e.g. the iron, lifts to large self-balanced forces
 //! that would make the test lenient). After convergence the full
 //! displacement is recovered with one sparse solve, `u_F = u^(0) + mu u^(1) + K_FF^{-1} E_c B^T
-//! lambda`, and the reported statistics are recomputed from it with the full sparse `K`.
+//! lambda`, and the reported statistics are recomputed from it with the full sparse `K`. The
+//! reported equilibrium residual is the recovered field's backward error (Higham, *Accuracy and
+//! Stability of Numerical Algorithms*, sec. 7.1, with the row sums of `|K| |u|` for `||K|| ||u||`):
+//! `||K u - f - B^T lambda||_inf / max(||B^T lambda||_inf, max_i (|K| |u| + |f|)_i)` over the free
+//! dofs — evaluating `K u` in floating point errs by about `eps (|K| |u|)_i`, so a residual
+//! measured against the contact forces alone grows with the stiffness contrast and shrinks
+//! with the load without the solution being any worse (the stress matrix found 1e-6 for a
+//! 10^6-times stiffer iron and 2e-8 at a grazing 1e-5 indentation). The stopping test above
+//! keeps the strict contact-force scale.
 //! Every buffer is allocated before the loop.
 
 use super::active_set::{solve_lcp, Lcp, LcpError, LcpWork};
@@ -552,12 +560,18 @@ impl FactoredModel {
             f_new[2 * self.cnodes[i / 2] + i % 2] += f;
         }
         let ku = m.k.matvec(&u);
-        let (mut res, mut f_inf) = (0.0f64, 0.0f64);
+        // Backward error of the recovered displacement: the residual against the forces it is
+        // made of, the contact forces and the row sums |K| |u| (the size of the round-off in
+        // evaluating K u at all; a stiff body's rigid travel makes it large, module docs).
+        let (mut res, mut f_inf, mut ku_abs) = (0.0f64, 0.0f64, 0.0f64);
         for &d in m.split.free() {
             res = res.max((ku[d] - f_new[d]).abs());
             f_inf = f_inf.max(f_new[d].abs());
+            let (cols, vals) = m.k.row(d);
+            let row: f64 = cols.iter().zip(vals).map(|(&c, &v)| (v * u[c]).abs()).sum();
+            ku_abs = ku_abs.max(row + f_new[d].abs());
         }
-        let kkt = res / residual_scale(f_inf, lift_inf);
+        let kkt = res / residual_scale(f_inf, lift_inf).max(ku_abs);
         let pressure: Vec<f64> = ws.lam_s.iter().zip(&m.tributary).map(|(l, t)| l / t).collect();
         let min_lambda = pressure.iter().copied().fold(f64::INFINITY, f64::min);
         let geo = self.check_geometry_with(&u, &ku, &pressure);

@@ -91,7 +91,7 @@ fn hertz_check(fm: &FactoredModel, d: f64) -> (f64, f64, f64, f64, f64, Snapshot
     assert_kkt(&s, "hertz");
     let m = fm.model();
     let p_load = contact_force_on_slaves(fm, &s);
-    let mat = Material { young: 1.0, poisson: 0.3 };
+    let mat = Material::new(1.0, 0.3);
     let e_star = 1.0 / (2.0 / mat.plane_strain_modulus());
     let r_star = 0.5;
     let a_th = (4.0 * p_load * r_star / (PI * e_star)).sqrt();

@@ -88,15 +88,18 @@ pub struct AssemblyError {
 /// `materials[mesh.element_body[e]]`.
 pub fn assemble_stiffness(mesh: &Mesh2d, materials: &[Material]) -> Result<CsrMatrix, AssemblyError> {
     let ds: Vec<[[f64; 3]; 3]> = materials.iter().map(Material::plane_strain).collect();
+    let split: Vec<_> = materials.iter().map(Material::plane_strain_split).collect();
     let mut t = Vec::with_capacity(64 * mesh.n_elements());
     for e in 0..mesh.n_elements() {
         let body = mesh.element_body[e];
         assert!(body < ds.len(), "no material for body {body}");
-        let ke = q1::stiffness(&mesh.element_coords(e), &ds[body]).map_err(|b| AssemblyError {
-            element: e,
-            gauss_point: b.gauss_point,
-            det: b.det,
-        })?;
+        let xe = mesh.element_coords(e);
+        let ke = if materials[body].selective {
+            q1::stiffness_selective(&xe, &split[body].0, &split[body].1)
+        } else {
+            q1::stiffness(&xe, &ds[body])
+        };
+        let ke = ke.map_err(|b| AssemblyError { element: e, gauss_point: b.gauss_point, det: b.det })?;
         let q = mesh.quads[e];
         let dofs = [2 * q[0], 2 * q[0] + 1, 2 * q[1], 2 * q[1] + 1, 2 * q[2], 2 * q[2] + 1, 2 * q[3], 2 * q[3] + 1];
         for (r, &dr) in dofs.iter().enumerate() {

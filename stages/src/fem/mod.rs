@@ -53,7 +53,7 @@ mod tests {
         }
         let (mesh, _) = Mesh2d::from_grids(&[&g]);
         mesh.check_jacobians().expect("distorted but valid");
-        let mat = Material { young: 7.0, poisson: 0.3 };
+        let mat = Material::new(7.0, 0.3);
         let k = assemble_stiffness(&mesh, &[mat]).expect("assembly");
         let field = |p: [f64; 2]| [0.1 + 0.02 * p[0] - 0.03 * p[1], -0.05 + 0.04 * p[0] + 0.01 * p[1]];
         let mut fixed = Vec::new();
