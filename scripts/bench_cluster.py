@@ -14,12 +14,14 @@ Usage: scripts/bench_cluster.py
 """
 import os
 import pathlib
-import re
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from scene_variant import variant  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 BIN = REPO / "target" / "release" / "crom"
@@ -36,17 +38,6 @@ def crom(store, *args, env=None, check=True):
     if check and p.returncode != 0:
         sys.exit(f"crom {' '.join(map(str, args))} failed:\n{p.stdout}\n{p.stderr}")
     return wall, p.stdout + p.stderr
-
-
-def variant(tmp, base, name, edits):
-    text = (REPO / "data" / "scenes" / f"{base}.toml").read_text()
-    for a, b in edits:
-        assert a in text, f"{base}.toml has no `{a}`"
-        text = text.replace(a, b)
-    text = re.sub(r'name = "[^"]+"', f'name = "{name}"', text, count=1)
-    path = pathlib.Path(tmp) / f"{name}.toml"
-    path.write_text(text)
-    return path
 
 
 def best(n, f):
