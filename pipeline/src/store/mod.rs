@@ -5,7 +5,8 @@
 //! file and the manifest are complete, so a killed run never leaves a half artifact under a valid
 //! key. Reads verify the manifest (stage, key, schema version, each file's size and blake3); an
 //! artifact that fails verification is moved to `<root>/.quarantine/` (never deleted) and
-//! recomputed. One `crom run` at a time holds `<root>/.lock`.
+//! recomputed. One `crom run` at a time holds `<root>/.lock` exclusively; sharded workers
+//! (`crom work`) hold it shared (`store::lock`).
 
 pub mod catalog;
 pub mod columns;
