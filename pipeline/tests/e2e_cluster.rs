@@ -285,7 +285,13 @@ fn a_slurm_array_with_a_cancelled_task_reruns_to_the_local_results() {
     let status = run_ok(crom_cmd(&store, &["status", scene]), "status");
     assert!(status.contains("shard 0/6: KILLED"), "{status}");
 
-    let rerun = run_ok(with_blocks(crom_cmd(&store, &args)), "rerun");
+    // The batch script pins the planner's chunk size (tasks need not inherit the environment).
+    let script = std::fs::read_to_string(store.join(format!("runs/{scene}/slurm/job.sh"))).expect("job.sh");
+    assert!(script.contains(&format!("export CROM_BLOCK_COLUMNS={BLOCK_COLUMNS}\n")), "{script}");
+    // Rerun as a site that exports no environment to its jobs: the tasks shard the same chunks.
+    let mut again = with_blocks(crom_cmd(&store, &args));
+    again.env("SBATCH_EXPORT", "NONE");
+    let rerun = run_ok(again, "rerun");
     assert!(rerun.contains("submitted: 1 of 6 shards"), "only the cancelled shard is submitted again: {rerun}");
     assert!(rerun.contains("snapshots: 0 solved"), "{rerun}");
     assert_same_results(&reference(tmp.path(), scene), &store, "slurm array with a cancelled task vs a local run");

@@ -222,8 +222,11 @@ fn submit(s: &Submission<'_>, missing: &[usize]) -> Result<JobRecord, CromError>
     let exe = std::env::current_exe().map_err(|e| CromError::io("crom", "finding the crom executable", e))?;
     let quote = |p: &Path| format!("'{}'", p.display().to_string().replace('\'', "'\\''"));
     let script = dir.join("job.sh");
+    // The chunk size the plan was made with, explicitly: a site that submits with
+    // `SBATCH_EXPORT=NONE` (no inherited environment) must still shard the same chunks.
     let text = format!(
-        "#!/bin/sh\n# crom: shard $SLURM_ARRAY_TASK_ID of {of} of the snapshot sweeps of {name}\nexec {} --store {} work {} --shard \"$SLURM_ARRAY_TASK_ID/{of}\"\n",
+        "#!/bin/sh\n# crom: shard $SLURM_ARRAY_TASK_ID of {of} of the snapshot sweeps of {name}\nexport CROM_BLOCK_COLUMNS={}\nexec {} --store {} work {} --shard \"$SLURM_ARRAY_TASK_ID/{of}\"\n",
+        s.chunk_columns,
         quote(&exe),
         quote(s.root),
         quote(s.scene_file)
