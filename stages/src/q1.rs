@@ -115,32 +115,30 @@ fn add_point(
     eta: f64,
     weight: f64,
 ) -> Result<(), f64> {
-    {
-        let jac = jacobian(xe, xi, eta);
-        if jac.det.is_nan() || jac.det <= 0.0 {
-            return Err(jac.det);
+    let jac = jacobian(xe, xi, eta);
+    if jac.det.is_nan() || jac.det <= 0.0 {
+        return Err(jac.det);
+    }
+    // B (3 x 8): strain = B u_e, rows xx, yy, xy (engineering).
+    let mut b = [[0.0; 8]; 3];
+    for a in 0..4 {
+        let [nx, ny] = jac.dn_dx[a];
+        b[0][2 * a] = nx;
+        b[1][2 * a + 1] = ny;
+        b[2][2 * a] = ny;
+        b[2][2 * a + 1] = nx;
+    }
+    // DB (3 x 8)
+    let mut db = [[0.0; 8]; 3];
+    for r in 0..3 {
+        for c in 0..8 {
+            db[r][c] = d[r][0] * b[0][c] + d[r][1] * b[1][c] + d[r][2] * b[2][c];
         }
-        // B (3 x 8): strain = B u_e, rows xx, yy, xy (engineering).
-        let mut b = [[0.0; 8]; 3];
-        for a in 0..4 {
-            let [nx, ny] = jac.dn_dx[a];
-            b[0][2 * a] = nx;
-            b[1][2 * a + 1] = ny;
-            b[2][2 * a] = ny;
-            b[2][2 * a + 1] = nx;
-        }
-        // DB (3 x 8)
-        let mut db = [[0.0; 8]; 3];
-        for r in 0..3 {
-            for c in 0..8 {
-                db[r][c] = d[r][0] * b[0][c] + d[r][1] * b[1][c] + d[r][2] * b[2][c];
-            }
-        }
-        let w = jac.det * weight;
-        for r in 0..8 {
-            for c in 0..8 {
-                k[r][c] += w * (b[0][r] * db[0][c] + b[1][r] * db[1][c] + b[2][r] * db[2][c]);
-            }
+    }
+    let w = jac.det * weight;
+    for r in 0..8 {
+        for c in 0..8 {
+            k[r][c] += w * (b[0][r] * db[0][c] + b[1][r] * db[1][c] + b[2][r] * db[2][c]);
         }
     }
     Ok(())

@@ -193,10 +193,12 @@ pub(crate) fn run(
     sweep: &Sweep,
 ) -> Result<Columns, CromError> {
     let fkey = scene_family(ctx.scene, mesh);
-    if let Some(f) = ColumnFamily::find(ctx.store.root(), &fkey)? {
+    let (mut family, mut index) = load_index(ctx.store.root(), &fkey)?;
+    // Orphans (blocks without a fragment, temporary files) are never in the index: removing them
+    // after reading it changes nothing it holds.
+    if let Some(f) = &family {
         f.clean_orphans()?;
     }
-    let (mut family, mut index) = load_index(ctx.store.root(), &fkey)?;
     if index.dropped > 0 {
         ctx.warnings.push(format!(
             "{} stored snapshots point at missing or damaged blocks and were solved again",
@@ -502,7 +504,8 @@ fn write_failures(
     let table = super::with_parameters(table, &names, &failed)
         .with("snapshot_key", Column::Str(failures.iter().map(|f| keys[f.0].0.clone()).collect()))
         .with("error", Column::Str(failures.iter().map(|f| f.1.clone()).collect()));
-    let tmp = dir.join(format!(".solver_failures.{}.tmp", std::process::id()));
+    // Workers on several hosts may write this at once: a name unique to host and process.
+    let tmp = dir.join(format!(".solver_failures.{}.tmp", crate::store::writer_token()));
     table.write_parquet(&tmp)?;
     let path = dir.join("solver_failures.parquet");
     std::fs::rename(&tmp, &path).map_err(|e| CromError::io(&path, "moving the failure table into place", e))?;
