@@ -6,6 +6,7 @@ pub mod approx;
 pub mod basis;
 pub mod cone;
 pub mod contact;
+pub mod dual;
 pub mod fem;
 pub mod mesh;
 pub mod metrics;

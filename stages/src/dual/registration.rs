@@ -1,0 +1,577 @@
+//! Registration: a change of variables of the contact surface that makes the pressure snapshots
+//! low rank (the paper's second *Perspective*).
+//!
+//! # The map
+//!
+//! A slave node at abscissa `x` (reference configuration) is sent to `xi = (x - c(mu)) / a(mu)`:
+//!
+//! * [`MapKind::Translate`] (ironing): `c(mu) = mu_1`, the iron's travel `d_x`, `a = 1` — known
+//!   from the parameter, exact.
+//! * [`MapKind::Moments`] (hertz): `c` and `a` from the pressure's moments. With the
+//!   piecewise-constant pressure of the discretisation (value `s_i` on the tributary cell of
+//!   width `w_i` around node i), `M0 = sum w_i s_i`, `c = sum w_i s_i x_i / M0` and
+//!   `a = 2 sqrt(sum w_i s_i ((x_i - c)^2 + w_i^2 / 12) / M0)` — for the Hertz profile
+//!   `p0 sqrt(1 - x^2 / b^2)` the variance is `b^2 / 4`, so `a` is the contact half-width `b`.
+//!   Online `(c, a)(mu)` is the piecewise-linear interpolation, in the one parameter, of the
+//!   training snapshots' values (clamped beyond the ends): predicted from `mu` alone, with no
+//!   full-order information. Scenes with more than one parameter component are refused.
+//!
+//! The rope has no natural map: its contact set is an interval whose both ends move with the
+//! load at rates that are not a translation or a dilation of a fixed profile (the free span's
+//! shape changes), so no map is offered for it.
+//!
+//! # Interpolation
+//!
+//! * [`Interpolation::Nodes`] (translation only, uniform node spacing `h`): the shift is
+//!   rounded to whole nodes, `k(mu) = round(c(mu) / h)`, and the reference grid is the node grid
+//!   extended by the training shifts. Pulling back and pushing forward only move values: exact
+//!   (round trip 0), non-negative, and the sub-node part of the travel is left to the modes.
+//! * [`Interpolation::Linear`]: a uniform reference grid `refine` times finer than the finest
+//!   node spacing seen in the reference frame; both directions interpolate linearly (pressure
+//!   zero beyond the surface's ends). Linear interpolation is monotone, so mapped pressures stay
+//!   non-negative. Pulled back, a snapshot is its nodal piecewise-linear interpolant sampled on
+//!   the reference grid; pushed forward again, each node's value is interpolated across the
+//!   interpolant's kink at that node, so the round trip errs by about `h_ref` times the kink:
+//!   `O(h h_ref |p''|)` where the profile is smooth, `O(h_ref / h)` of the jump at a steep
+//!   edge — first order in the reference spacing `h_ref` either way, and much smaller where the
+//!   profile is smooth. The round-trip error
+//!   `||push(pull(s_j)) - s_j|| / ||s_j||` of every training snapshot is measured and stored
+//!   (mean and max).
+//!
+//! # The basis and the projection
+//!
+//! POD or CPG is built from the registered snapshots. For a pressure `s` at `mu` the first m
+//! reference modes are pushed forward to `mu`'s frame (`m x n` values) and `s` is projected on
+//! their span (POD; the pushed modes are not orthonormal, so they are orthonormalised) or their
+//! cone (CPG): every error is in the physical frame, against the original snapshot.
+
+use faer::Mat;
+
+use super::{cpg_generators, pod_modes, ConePrefix, DualApprox, DualError, Fact, Inner, SpanPrefix, Training};
+use crate::cone::norm2;
+
+/// How mapped values are evaluated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Interpolation {
+    /// Whole-node shifts on the node grid (exact; translation on a uniform grid only).
+    Nodes,
+    /// Linear interpolation on a reference grid `refine` times finer than the nodes.
+    Linear {
+        /// Reference cells per (finest) node spacing, >= 1.
+        refine: usize,
+    },
+}
+
+/// The map of the contact surface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MapKind {
+    /// `xi = x - mu_1` (ironing: the iron's travel).
+    Translate {
+        /// Evaluation of the shifted values.
+        interpolation: Interpolation,
+    },
+    /// `xi = (x - c(mu)) / a(mu)` with centre and half-width from the pressure's moments,
+    /// interpolated in the parameter (hertz).
+    Moments {
+        /// Reference cells per finest node spacing.
+        refine: usize,
+    },
+}
+
+impl MapKind {
+    /// Name in tables (`translate-nodes`, `translate-linear`, `moments`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            MapKind::Translate { interpolation: Interpolation::Nodes } => "translate-nodes",
+            MapKind::Translate { interpolation: Interpolation::Linear { .. } } => "translate-linear",
+            MapKind::Moments { .. } => "moments",
+        }
+    }
+}
+
+/// Tolerance of the uniform-spacing check of [`Interpolation::Nodes`] (relative to `h`; node
+/// coordinates from a structured mesh agree to round-off).
+const UNIFORM_REL: f64 = 1e-9;
+
+/// The surface's nodes sorted by abscissa.
+#[derive(Debug, Clone)]
+struct Surface {
+    /// Node order by increasing x.
+    order: Vec<usize>,
+    /// Sorted abscissae.
+    x: Vec<f64>,
+    /// Tributary widths (sorted order).
+    w: Vec<f64>,
+}
+
+impl Surface {
+    fn new(x: &[f64]) -> Self {
+        let mut order: Vec<usize> = (0..x.len()).collect();
+        order.sort_by(|&a, &b| x[a].total_cmp(&x[b]));
+        let xs: Vec<f64> = order.iter().map(|&i| x[i]).collect();
+        let n = xs.len();
+        let w = (0..n)
+            .map(|i| {
+                let lo = if i > 0 { xs[i - 1] } else { xs[i] };
+                let hi = if i + 1 < n { xs[i + 1] } else { xs[i] };
+                0.5 * (hi - lo)
+            })
+            .collect();
+        Self { order, x: xs, w }
+    }
+
+    /// Smallest positive spacing.
+    fn min_spacing(&self) -> f64 {
+        self.x.windows(2).map(|p| p[1] - p[0]).filter(|d| *d > 0.0).fold(f64::INFINITY, f64::min)
+    }
+
+    /// Linear interpolation of the nodal values `v` (dual order) at `t` (0 beyond the ends).
+    fn eval(&self, v: &[f64], t: f64) -> f64 {
+        let n = self.x.len();
+        if n == 0 || t < self.x[0] || t > self.x[n - 1] {
+            return 0.0;
+        }
+        let k = self.x.partition_point(|&x| x <= t);
+        if k == 0 {
+            return v[self.order[0]];
+        }
+        if k >= n {
+            return v[self.order[n - 1]];
+        }
+        let (x0, x1) = (self.x[k - 1], self.x[k]);
+        let th = if x1 > x0 { (t - x0) / (x1 - x0) } else { 0.0 };
+        (1.0 - th) * v[self.order[k - 1]] + th * v[self.order[k]]
+    }
+
+    /// `(c, a)` of one snapshot by its moments (None for a zero snapshot).
+    fn moments(&self, s: &[f64]) -> Option<(f64, f64)> {
+        let m0: f64 = self.order.iter().zip(&self.w).map(|(&i, w)| w * s[i]).sum();
+        if m0 <= 0.0 {
+            return None;
+        }
+        let c = self.order.iter().zip(&self.w).zip(&self.x).map(|((&i, w), x)| w * s[i] * x).sum::<f64>() / m0;
+        let var = self
+            .order
+            .iter()
+            .zip(&self.w)
+            .zip(&self.x)
+            .map(|((&i, w), x)| w * s[i] * ((x - c).powi(2) + w * w / 12.0))
+            .sum::<f64>()
+            / m0;
+        Some((c, 2.0 * var.sqrt()))
+    }
+}
+
+/// The map fitted to a training set.
+#[derive(Debug, Clone)]
+pub struct Map {
+    kind: MapKind,
+    surface: Surface,
+    /// Training abscissae of the moments map (sorted) and their `(c, a)`.
+    table: Vec<(f64, f64, f64)>,
+    /// Nodes: spacing h and the shift offset; Linear: reference grid start and spacing.
+    grid_start: f64,
+    grid_step: f64,
+    /// Reference grid length.
+    len: usize,
+}
+
+impl Map {
+    /// Fit the map to the training snapshots.
+    pub fn fit(training: &Training<'_>, kind: MapKind) -> Result<Self, DualError> {
+        let s = training.snapshots;
+        let n = s.nrows();
+        if training.surface.len() != n {
+            return Err(DualError::NotApplicable(format!(
+                "registration needs the abscissa of each of the {n} slave nodes; {} given",
+                training.surface.len()
+            )));
+        }
+        let surface = Surface::new(training.surface);
+        let col = |j: usize| -> Vec<f64> { (0..n).map(|i| s[(i, j)]).collect() };
+        let mut map = Self { kind, surface, table: Vec::new(), grid_start: 0.0, grid_step: 1.0, len: 0 };
+        if let MapKind::Moments { .. } = kind {
+            if training.params.iter().any(|p| p.len() != 1) {
+                return Err(DualError::NotApplicable(
+                    "the moments map interpolates its centre and width in one parameter; this scene has several \
+                     (use map = \"translate\" or no registration)"
+                        .into(),
+                ));
+            }
+            for j in 0..s.ncols() {
+                if let Some((c, a)) = map.surface.moments(&col(j)) {
+                    map.table.push((training.params[j][0], c, a));
+                }
+            }
+            map.table.sort_by(|p, q| p.0.total_cmp(&q.0));
+            if map.table.is_empty() {
+                return Err(DualError::NotApplicable(
+                    "no training snapshot has contact: the moments map has nothing to fit".into(),
+                ));
+            }
+        }
+        let frames: Vec<(f64, f64)> = training.params.iter().map(|p| map.frame(p)).collect();
+        match kind {
+            MapKind::Translate { interpolation: Interpolation::Nodes } => {
+                let xs = &map.surface.x;
+                let h = if xs.len() > 1 { (xs[xs.len() - 1] - xs[0]) / (xs.len() - 1) as f64 } else { 1.0 };
+                if xs.iter().enumerate().any(|(i, x)| (x - (xs[0] + i as f64 * h)).abs() > UNIFORM_REL * h) {
+                    return Err(DualError::NotApplicable(
+                        "whole-node shifts need uniformly spaced slave nodes; use interpolation = \"linear\"".into(),
+                    ));
+                }
+                let shifts: Vec<i64> = frames.iter().map(|f| (f.0 / h).round() as i64).collect();
+                let (lo, hi) = (shifts.iter().copied().min().unwrap_or(0), shifts.iter().copied().max().unwrap_or(0));
+                map.grid_step = h;
+                // Reference index of sorted node k at shift t: k - t + hi.
+                map.grid_start = hi as f64;
+                map.len = xs.len() + (hi - lo) as usize;
+            }
+            MapKind::Translate { interpolation: Interpolation::Linear { refine } } | MapKind::Moments { refine } => {
+                let refine = refine.max(1);
+                let h = map.surface.min_spacing();
+                let mut lo = f64::INFINITY;
+                let mut hi = f64::NEG_INFINITY;
+                let mut step = f64::INFINITY;
+                for (j, &(c, a)) in frames.iter().enumerate() {
+                    step = step.min(h / a);
+                    let v = col(j);
+                    // The support of the snapshot (all nodes for a translation), padded by
+                    // two node spacings.
+                    let support: Vec<f64> = if matches!(kind, MapKind::Moments { .. }) {
+                        map.surface
+                            .order
+                            .iter()
+                            .zip(&map.surface.x)
+                            .filter(|(&i, _)| v[i] > 0.0)
+                            .map(|(_, &x)| x)
+                            .collect()
+                    } else {
+                        map.surface.x.clone()
+                    };
+                    if let (Some(&a0), Some(&a1)) = (support.first(), support.last()) {
+                        lo = lo.min((a0 - 2.0 * h - c) / a);
+                        hi = hi.max((a1 + 2.0 * h - c) / a);
+                    }
+                }
+                if !lo.is_finite() || !hi.is_finite() || !step.is_finite() {
+                    return Err(DualError::NotApplicable("no training snapshot to register".into()));
+                }
+                map.grid_step = step / refine as f64;
+                map.grid_start = lo;
+                map.len = ((hi - lo) / map.grid_step).ceil() as usize + 1;
+            }
+        }
+        Ok(map)
+    }
+
+    /// `(c, a)` at the parameter point `mu`.
+    pub fn frame(&self, mu: &[f64]) -> (f64, f64) {
+        match self.kind {
+            MapKind::Translate { .. } => (mu.first().copied().unwrap_or(0.0), 1.0),
+            MapKind::Moments { .. } => {
+                let t = mu.first().copied().unwrap_or(0.0);
+                let tab = &self.table;
+                let k = tab.partition_point(|p| p.0 <= t);
+                if k == 0 {
+                    (tab[0].1, tab[0].2)
+                } else if k >= tab.len() {
+                    (tab[tab.len() - 1].1, tab[tab.len() - 1].2)
+                } else {
+                    let (p, q) = (tab[k - 1], tab[k]);
+                    let th = if q.0 > p.0 { (t - p.0) / (q.0 - p.0) } else { 0.0 };
+                    ((1.0 - th) * p.1 + th * q.1, (1.0 - th) * p.2 + th * q.2)
+                }
+            }
+        }
+    }
+
+    /// Reference grid length.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True for an empty grid.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Whole-node shift at `mu` (Nodes only).
+    fn shift(&self, mu: &[f64]) -> i64 {
+        (self.frame(mu).0 / self.grid_step).round() as i64
+    }
+
+    /// Pull the pressure `s` (dual order) at `mu` back to the reference grid.
+    pub fn pull(&self, s: &[f64], mu: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        match self.kind {
+            MapKind::Translate { interpolation: Interpolation::Nodes } => {
+                let t = self.shift(mu);
+                for (k, &i) in self.surface.order.iter().enumerate() {
+                    let q = k as i64 - t + self.grid_start as i64;
+                    if q >= 0 && (q as usize) < self.len {
+                        out[q as usize] = s[i];
+                    }
+                }
+            }
+            _ => {
+                let (c, a) = self.frame(mu);
+                for (k, o) in out.iter_mut().enumerate() {
+                    *o = self.surface.eval(s, c + a * (self.grid_start + k as f64 * self.grid_step));
+                }
+            }
+        }
+    }
+
+    /// Push the reference vector `r` forward to the nodes (dual order) at `mu`.
+    pub fn push(&self, r: &[f64], mu: &[f64], out: &mut [f64]) {
+        match self.kind {
+            MapKind::Translate { interpolation: Interpolation::Nodes } => {
+                let t = self.shift(mu);
+                for (k, &i) in self.surface.order.iter().enumerate() {
+                    let q = k as i64 - t + self.grid_start as i64;
+                    out[i] = if q >= 0 && (q as usize) < self.len { r[q as usize] } else { 0.0 };
+                }
+            }
+            _ => {
+                let (c, a) = self.frame(mu);
+                for (k, &i) in self.surface.order.iter().enumerate() {
+                    let xi = (self.surface.x[k] - c) / a;
+                    let u = (xi - self.grid_start) / self.grid_step;
+                    out[i] = if u < 0.0 || u > (self.len - 1) as f64 {
+                        0.0
+                    } else {
+                        let k0 = (u.floor() as usize).min(self.len.saturating_sub(2));
+                        let th = u - k0 as f64;
+                        if k0 + 1 < self.len {
+                            (1.0 - th) * r[k0] + th * r[k0 + 1]
+                        } else {
+                            r[k0]
+                        }
+                    };
+                }
+            }
+        }
+    }
+
+    /// `||push(pull(s)) - s|| / ||s||` (None for a zero s).
+    pub fn round_trip_error(&self, s: &[f64], mu: &[f64]) -> Option<f64> {
+        let norm = norm2(s);
+        if norm == 0.0 {
+            return None;
+        }
+        let mut r = vec![0.0; self.len];
+        self.pull(s, mu, &mut r);
+        let mut back = vec![0.0; s.len()];
+        self.push(&r, mu, &mut back);
+        Some(back.iter().zip(s).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt() / norm)
+    }
+}
+
+/// POD or CPG in the reference frame of a [`Map`].
+#[derive(Debug)]
+pub struct Registered {
+    map: Map,
+    inner: Inner,
+    /// Reference modes, `len x k`.
+    modes: Mat<f64>,
+    round_trip: (f64, f64),
+}
+
+impl Registered {
+    /// Fit the map, pull every training snapshot back, build the inner basis.
+    pub fn build(training: &Training<'_>, kind: MapKind, inner: Inner) -> Result<Self, DualError> {
+        let map = Map::fit(training, kind)?;
+        let s = training.snapshots;
+        let (n, count) = (s.nrows(), s.ncols());
+        let mut reg = Mat::zeros(map.len(), count);
+        let mut col = vec![0.0; n];
+        let mut r = vec![0.0; map.len()];
+        let (mut sum, mut max, mut counted) = (0.0f64, 0.0f64, 0usize);
+        for j in 0..count {
+            (0..n).for_each(|i| col[i] = s[(i, j)]);
+            map.pull(&col, &training.params[j], &mut r);
+            (0..map.len()).for_each(|k| reg[(k, j)] = r[k]);
+            if let Some(e) = map.round_trip_error(&col, &training.params[j]) {
+                sum += e;
+                max = max.max(e);
+                counted += 1;
+            }
+        }
+        let modes = match inner {
+            Inner::Pod => pod_modes(reg.as_ref(), training.max_m())?,
+            Inner::Cpg => cpg_generators(reg.as_ref(), training.max_m())?,
+        };
+        let mean = if counted > 0 { sum / counted as f64 } else { 0.0 };
+        Ok(Self { map, inner, modes, round_trip: (mean, max) })
+    }
+
+    /// The reference modes pushed forward to `mu` (n x k).
+    pub fn modes_at(&self, mu: &[f64], n: usize) -> Mat<f64> {
+        let k = self.modes.ncols();
+        let mut out = Mat::zeros(n, k);
+        let mut v = vec![0.0; n];
+        for c in 0..k {
+            let r = self.modes.col(c).try_as_col_major().expect("contiguous column").as_slice();
+            self.map.push(r, mu, &mut v);
+            (0..n).for_each(|i| out[(i, c)] = v[i]);
+        }
+        out
+    }
+
+    /// The fitted map.
+    pub fn map(&self) -> &Map {
+        &self.map
+    }
+}
+
+impl DualApprox for Registered {
+    fn residuals(&self, s: &[f64], mu: &[f64], ms: &[usize], out: &mut [f64]) -> Result<(), DualError> {
+        let pushed = self.modes_at(mu, s.len());
+        match self.inner {
+            Inner::Pod => SpanPrefix::new(pushed.as_ref()).residuals_of(s, ms, out),
+            Inner::Cpg => ConePrefix::new(pushed.as_ref()).residuals_of(s, ms, out)?,
+        }
+        Ok(())
+    }
+
+    fn size(&self) -> usize {
+        self.modes.ncols()
+    }
+
+    fn facts(&self) -> Vec<Fact> {
+        vec![
+            Fact::new("reference_points", None, self.map.len() as f64),
+            Fact::new("round_trip_error_mean", None, self.round_trip.0),
+            Fact::new("round_trip_error_max", None, self.round_trip.1),
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dual::DualApprox;
+
+    fn grid(n: usize, h: f64) -> Vec<f64> {
+        (0..n).map(|i| i as f64 * h).collect()
+    }
+
+    /// A bump translated with the parameter, sampled at the nodes.
+    fn translated(x: &[f64], params: &[Vec<f64>], f: impl Fn(f64) -> f64) -> Mat<f64> {
+        Mat::from_fn(x.len(), params.len(), |i, j| f(x[i] - params[j][0]))
+    }
+
+    /// Whole-node shifts of a profile moving by whole nodes: the registered matrix has rank one
+    /// and one mode reproduces every snapshot, at training and at new shifts; the round trip
+    /// is exact.
+    #[test]
+    fn a_translated_bump_registers_to_rank_one() {
+        let h = 0.1;
+        let x = grid(60, h);
+        let params: Vec<Vec<f64>> = (0..12).map(|j| vec![j as f64 * 2.0 * h]).collect();
+        let bump = |t: f64| (1.0 - ((t - 1.0) / 0.5).powi(2)).max(0.0);
+        let s = translated(&x, &params, bump);
+        let ms = [1usize, 2];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+        let kind = MapKind::Translate { interpolation: Interpolation::Nodes };
+        let reg = Registered::build(&t, kind, Inner::Pod).expect("build");
+        assert_eq!(reg.size(), 1, "registered rank");
+        assert_eq!(reg.round_trip.1.to_bits(), 0.0f64.to_bits(), "exact round trip");
+        let mu = vec![7.0 * h];
+        let q: Vec<f64> = x.iter().map(|&xi| bump(xi - mu[0])).collect();
+        let mut out = [0.0; 2];
+        reg.residuals(&q, &mu, &ms, &mut out).expect("project");
+        assert!(out[0] <= 1e-12 * norm2(&q), "new shift: {out:?}");
+        // Without registration the same snapshots need many modes.
+        let pod = SpanPrefix::new(pod_modes(s.as_ref(), 12).expect("pod").as_ref());
+        assert!(pod.size() > 5);
+    }
+
+    /// Linear interpolation: the round trip is first order in the reference spacing (halving
+    /// it halves the error) for a smooth profile and for a jump, and the smooth profile's
+    /// error is far smaller (the orders of the module doc). The mapped values stay
+    /// non-negative.
+    #[test]
+    fn linear_round_trip_has_the_stated_orders() {
+        let h = 0.05;
+        let x = grid(121, h);
+        let params: Vec<Vec<f64>> = (0..9).map(|j| vec![0.137 * j as f64]).collect();
+        let smooth = |t: f64| (-((t - 2.0) / 0.6).powi(2)).exp();
+        let steep = |t: f64| if (1.5..2.5).contains(&t) { 1.0 } else { 0.0 };
+        let mut ratios = Vec::new();
+        for f in [&smooth as &dyn Fn(f64) -> f64, &steep] {
+            let s = translated(&x, &params, f);
+            let ms = [1usize];
+            let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+            // The node-to-reference-to-node round trip of one snapshot at a fractional shift,
+            // for reference grids 2 and 4 times finer than the nodes.
+            let err = |refine: usize| {
+                let map =
+                    Map::fit(&t, MapKind::Translate { interpolation: Interpolation::Linear { refine } }).expect("fit");
+                let mut worst = 0.0f64;
+                for j in 0..params.len() {
+                    let col: Vec<f64> = (0..x.len()).map(|i| s[(i, j)]).collect();
+                    worst = worst.max(map.round_trip_error(&col, &params[j]).expect("nonzero"));
+                    let mut r = vec![0.0; map.len()];
+                    map.pull(&col, &params[j], &mut r);
+                    assert!(r.iter().all(|&v| v >= 0.0));
+                }
+                worst
+            };
+            ratios.push((err(2) / err(4), err(4)));
+        }
+        // First order: ratio ~2 (1.6 to 2.6: the grids' offsets against the nodes vary with
+        // the shift); the smooth error is O(h^2 |p''|) relative to the jump's O(1): with
+        // h = 0.05 and a 0.6-wide Gaussian, over 20 times smaller.
+        for (what, (ratio, _)) in ["smooth", "steep"].iter().zip(&ratios) {
+            assert!((1.6..2.6).contains(ratio), "{what} ratio {ratio}");
+        }
+        assert!(ratios[0].1 * 20.0 < ratios[1].1, "smooth {} vs steep {}", ratios[0].1, ratios[1].1);
+    }
+
+    /// The moments map recovers the half-width of Hertz profiles `sqrt(1 - x^2 / b^2)` (to the
+    /// node spacing: the piecewise-constant moments of a sampled profile) and the registered
+    /// matrix of dilated Hertz profiles is nearly rank one.
+    #[test]
+    fn moments_recover_the_hertz_half_width() {
+        let x: Vec<f64> = (0..201).map(|i| -1.0 + i as f64 * 0.01).collect();
+        let widths: Vec<f64> = (0..10).map(|j| 0.1 + 0.05 * j as f64).collect();
+        let params: Vec<Vec<f64>> = widths.iter().map(|b| vec![b * b]).collect();
+        let s = Mat::from_fn(x.len(), widths.len(), |i, j| {
+            let b = widths[j];
+            b * (1.0 - (x[i] / b).powi(2)).max(0.0).sqrt()
+        });
+        let ms = [1usize, 2, 3];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+        let map = Map::fit(&t, MapKind::Moments { refine: 4 }).expect("fit");
+        for (j, b) in widths.iter().enumerate() {
+            let (c, a) = map.frame(&params[j]);
+            // 0.01 (one node spacing): the sampled profile's moments differ from the
+            // continuous ones by the quadrature error at the square-root edges.
+            // c: 1e-9, the asymmetry of the grid -1 + 0.01 i computed in floating point.
+            assert!(c.abs() < 1e-9 && (a - b).abs() < 0.01, "b = {b}: c = {c}, a = {a}");
+        }
+        let reg = Registered::build(&t, MapKind::Moments { refine: 4 }, Inner::Pod).expect("build");
+        let mid = vec![0.325f64.powi(2)];
+        let q: Vec<f64> = x.iter().map(|&xi| 0.325 * (1.0 - (xi / 0.325).powi(2)).max(0.0).sqrt()).collect();
+        let mut out = [0.0; 3];
+        reg.residuals(&q, &mid, &ms, &mut out).expect("project");
+        // Three registered modes reproduce an unseen width to 2 % (the edge cells of the
+        // square-root profile are not a dilation of each other on the discrete grid).
+        assert!(out[2] / norm2(&q) < 0.02, "{:?}", out.map(|e| e / norm2(&q)));
+    }
+
+    #[test]
+    fn whole_node_shifts_refuse_a_non_uniform_surface() {
+        let x = vec![0.0, 0.1, 0.25, 0.3];
+        let s = Mat::from_fn(4, 2, |i, j| (i + j) as f64);
+        let params = vec![vec![0.0], vec![0.1]];
+        let ms = [1usize];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+        let Err(e) = Map::fit(&t, MapKind::Translate { interpolation: Interpolation::Nodes }) else {
+            panic!("a non-uniform surface was accepted");
+        };
+        assert!(e.to_string().contains("linear"), "{e}");
+    }
+}
