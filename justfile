@@ -46,6 +46,7 @@ bench:
     {{python}} scripts/bench_scale.py
     {{python}} scripts/bench_rom.py
     {{python}} scripts/bench_cluster.py
+    {{python}} scripts/bench_comparison.py
 
 # Render one step of a scene's XDMF view with ParaView under Xvfb (installs Debian's paraview,
 # ~440 MB, on first use; not part of CI), e.g. `just paraview ironing-fine test 1`.
@@ -64,6 +65,10 @@ bench-scale *WHICH:
 # Only the sharded-sweep overheads (issue 11): sbatch, worker start, block commit, index.
 bench-cluster:
     {{python}} scripts/bench_cluster.py
+
+# Issue 15's targets: the dual approximations side by side.
+bench-comparison:
+    {{python}} scripts/bench_comparison.py
 
 # A single-node Slurm on this machine from Debian's packages (root; see scripts/slurm-up.sh),
 # for `crom run SCENE --executor slurm`; `just slurm-down` stops what it started.

@@ -42,6 +42,10 @@ pub enum ArtifactKind {
     Specificity,
     /// Nested-training-set error H(n) (eq. 19): `nested.parquet`.
     Nested,
+    /// Dual approximations side by side (issue 15): `comparison.parquet` and its tables.
+    Comparison,
+    /// The online solve with each dual approximation (issue 15): `online_comparison.parquet`.
+    OnlineComparison,
     /// ParaView time series (XDMF) of a snapshot set or a basis: `*.xdmf` + `views.h5`.
     Views,
     /// Online reduced solves: errors and timings (`rom_errors.parquet`, `tradeoff.parquet`).
@@ -52,7 +56,7 @@ pub enum ArtifactKind {
 
 impl ArtifactKind {
     /// Every kind, in DAG order.
-    pub const ALL: [ArtifactKind; 11] = [
+    pub const ALL: [ArtifactKind; 13] = [
         ArtifactKind::Mesh,
         ArtifactKind::Snapshot,
         ArtifactKind::TrainingSet,
@@ -61,6 +65,8 @@ impl ArtifactKind {
         ArtifactKind::Generalization,
         ArtifactKind::Specificity,
         ArtifactKind::Nested,
+        ArtifactKind::Comparison,
+        ArtifactKind::OnlineComparison,
         ArtifactKind::Views,
         ArtifactKind::Rom,
         ArtifactKind::Report,
@@ -77,6 +83,8 @@ impl ArtifactKind {
             ArtifactKind::Generalization => "generalization",
             ArtifactKind::Specificity => "specificity",
             ArtifactKind::Nested => "nested",
+            ArtifactKind::Comparison => "comparison",
+            ArtifactKind::OnlineComparison => "online-comparison",
             ArtifactKind::Views => "views",
             ArtifactKind::Rom => "rom",
             ArtifactKind::Report => "report",
@@ -99,6 +107,8 @@ impl ArtifactKind {
             ArtifactKind::Generalization => 1,
             ArtifactKind::Specificity => 1,
             ArtifactKind::Nested => 1,
+            ArtifactKind::Comparison => 1,
+            ArtifactKind::OnlineComparison => 1,
             ArtifactKind::Views => 1,
             ArtifactKind::Rom => 3,
             ArtifactKind::Report => 1,
@@ -111,8 +121,10 @@ impl ArtifactKind {
 /// the same build (tested), and so are the snapshot blocks. Store metadata — manifests, the
 /// columns' `index.parquet` (which records solve times), `catalog.parquet`, `study.json` —
 /// records when and how long, and is not a result.
-pub const TIMING_FILES: [(&str, &str); 8] = [
+pub const TIMING_FILES: [(&str, &str); 16] = [
     ("trainset", trainset::TIMINGS),
+    ("comparison", comparison::TIMINGS),
+    ("online-comparison", comparison::ONLINE_TIMINGS),
     ("rom", rom::TIMINGS),
     ("rom", rom::TRADEOFF_TIMINGS),
     ("report", "index.html"),
@@ -120,7 +132,46 @@ pub const TIMING_FILES: [(&str, &str); 8] = [
     ("report", "fig_tradeoff.svg"),
     ("report", "table_tradeoff.csv"),
     ("report", "table_tradeoff.md"),
+    ("report", "table_comparison_builds.csv"),
+    ("report", "table_comparison_builds.md"),
+    ("report", "table_comparison_online.csv"),
+    ("report", "table_comparison_online.md"),
+    ("report", "fig_comparison_online.png"),
+    ("report", "fig_comparison_online.svg"),
 ];
+
+/// The comparison of dual approximations (issue 15; `crom_stages::dual`). Every table has a
+/// `scene` and an `approximation` column (`pod`, `cpg`, `angle-greedy`, `nnmf`, `local-K`,
+/// `dictionary`, `registered-<map>-<basis>`), so a pandas user can rebuild any plot.
+pub mod comparison {
+    /// Curves: `scene, approximation, metric, m, mean, std, count, n_zero`, one row per
+    /// (approximation, metric, m). `metric` is `compactness` (C(m) over the training set;
+    /// `std` null), `generalization` (leave-one-out G(m) over `comparison.loo_folds` evenly
+    /// spaced folds) or `test` (mean relative error over the test set, each snapshot at its own
+    /// parameter, in the physical frame). `count` is the number of snapshots averaged,
+    /// `n_zero` the zero snapshots skipped (no relative error).
+    pub const CURVES: &str = "comparison.parquet";
+    /// Smallest m reaching each threshold: `scene, approximation, metric, threshold, m`
+    /// (`m` null: never within the curve).
+    pub const REACHED: &str = "comparison_reached.parquet";
+    /// Numbers describing each build: `scene, approximation, name, m, value` (`m` null where
+    /// the number is not per rank), e.g. NNMF's `iterations` and `relative_residual` per rank,
+    /// a registration's `round_trip_error_mean` / `_max`, a local basis' cell sizes.
+    pub const FACTS: &str = "comparison_facts.parquet";
+    /// Wall-clock seconds: `scene, approximation, build_seconds, metrics_seconds`.
+    pub const TIMINGS: &str = "comparison_timings.parquet";
+    /// The online solve with each approximation that has a non-negative dual basis (artifact
+    /// kind `online-comparison`), one row per (approximation, m) over the test points:
+    /// `scene, approximation, m, r_primal, points, converged, infeasible, failed,
+    /// median_primal_error, p95_primal_error, median_dual_error, p95_dual_error,
+    /// median_nonzero_dual` (errors over converged points; `m` = the dual basis size asked for,
+    /// for the dictionary its number of atoms; `median_nonzero_dual` = dual coefficients
+    /// above 1e-9 of the largest: the active atoms).
+    pub const ONLINE: &str = "online_comparison.parquet";
+    /// Its times (same rows): `scene, approximation, m, median_online_ms, p95_online_ms,
+    /// median_full_order_ms, speedup` (the full-order solve timed in the same process).
+    pub const ONLINE_TIMINGS: &str = "online_comparison_timings.parquet";
+}
 
 /// Name of the JSON manifest in every artifact directory.
 pub const MANIFEST: &str = "manifest.json";

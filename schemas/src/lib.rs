@@ -4,6 +4,7 @@
 //! Stages and the pipeline depend on this crate; it depends on nothing of theirs.
 
 pub mod artifact;
+pub mod comparison;
 pub mod error;
 pub mod parameter;
 pub mod scene;

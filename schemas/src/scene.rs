@@ -32,6 +32,9 @@ pub struct SceneConfig {
     pub solver: SolverSpec,
     /// Reduced-basis and metric settings.
     pub study: StudySpec,
+    /// The dual approximations compared side by side (`[comparison]`, optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub comparison: Option<crate::comparison::ComparisonSpec>,
     /// Where the work runs (`crom run --executor`); changes no key and no result.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub executor: Option<ExecutorSpec>,

@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use crate::comparison::{ApproximationSpec, ComparisonSpec, InterpolationSpec, MapSpec};
 use crate::scene::{HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec, SceneConfig, SolverSpec, StudySpec};
 use crate::SceneError;
 
@@ -142,6 +143,9 @@ impl SceneConfig {
         check_study(&c, &self.study)?;
         if let Some(e) = &self.executor {
             check_slurm(&c, &e.slurm)?;
+        }
+        if let Some(cmp) = &self.comparison {
+            check_comparison(&c, cmp, &self.model, self.parameter.axes.len().max(1))?;
         }
         match &self.model {
             Model::Rope(r) => check_rope(&c, r),
@@ -398,6 +402,83 @@ fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
         Some(d) => c.finite("model.ironing.d_y", d),
         None => Ok(()),
     }
+}
+
+fn check_comparison(c: &Checker<'_>, cmp: &ComparisonSpec, model: &Model, dims: usize) -> Result<(), SceneError> {
+    c.between("comparison.max_m", cmp.max_m, 1, 4096)?;
+    c.between("comparison.loo_folds", cmp.loo_folds, 1, MAX_COUNT)?;
+    if cmp.approximations.is_empty() {
+        return Err(c.fail(
+            "comparison.approximations",
+            "is empty: there is nothing to compare".into(),
+            "list approximations, e.g. [{ kind = \"pod\" }, { kind = \"cpg\" }], or remove [comparison]",
+        ));
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    for (i, a) in cmp.approximations.iter().enumerate() {
+        let field = format!("comparison.approximations[{i}]");
+        let key = format!("{a:?}");
+        if !seen.insert(key) {
+            return Err(c.fail(&field, "repeats an earlier entry".into(), "list each approximation once"));
+        }
+        match a {
+            ApproximationSpec::Nnmf { iterations } => {
+                c.between(&format!("{field}.iterations"), *iterations, 1, 1_000_000)?
+            }
+            ApproximationSpec::Local { cells, overlap } => {
+                if cells.is_empty() {
+                    return Err(c.fail(
+                        &format!("{field}.cells"),
+                        "is empty".into(),
+                        "give cell counts, e.g. [2, 4, 8]",
+                    ));
+                }
+                for (k, &n) in cells.iter().enumerate() {
+                    c.between(&format!("{field}.cells[{k}]"), n, 1, 4096)?;
+                }
+                c.finite(&format!("{field}.overlap"), *overlap)?;
+                if !(0.0..=10.0).contains(overlap) {
+                    return Err(c.fail(
+                        &format!("{field}.overlap"),
+                        format!("is {overlap}; it is a fraction of a cell's width on each side"),
+                        "give a value in [0, 10], e.g. 0.1",
+                    ));
+                }
+            }
+            ApproximationSpec::Registered { map, interpolation, refine, .. } => {
+                c.between(&format!("{field}.refine"), *refine, 1, 64)?;
+                if matches!(model, Model::Rope(_)) {
+                    return Err(c.fail(
+                        &format!("{field}.map"),
+                        "is set for the rope, which has no natural map: both ends of its contact set move with \
+                         the load in ways no translation or dilation of one profile follows"
+                            .into(),
+                        "remove the registered entry from the rope's comparison",
+                    ));
+                }
+                if *interpolation == InterpolationSpec::Nodes && *map != MapSpec::Translate {
+                    return Err(c.fail(
+                        &format!("{field}.interpolation"),
+                        "is \"nodes\", which only a translation can use (a dilation does not map nodes to nodes)"
+                            .into(),
+                        "use interpolation = \"linear\" with map = \"moments\"",
+                    ));
+                }
+                if *map == MapSpec::Moments && dims > 1 {
+                    return Err(c.fail(
+                        &format!("{field}.map"),
+                        format!("is \"moments\", which interpolates in one parameter; this scene has {dims}"),
+                        "use map = \"translate\"",
+                    ));
+                }
+            }
+            ApproximationSpec::Pod
+            | ApproximationSpec::Cpg
+            | ApproximationSpec::AngleGreedy
+            | ApproximationSpec::Dictionary => {}
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -205,3 +205,44 @@ fn scene_names_that_are_not_plain_directory_names_are_refused() {
     let ok = rope_text().replace("name = \"rope\"", "name = \"rope_v2.1-b\"");
     assert!(SceneConfig::from_toml_str(&ok, Path::new("ok.toml")).is_ok());
 }
+
+fn hertz_text() -> String {
+    let text = std::fs::read_to_string(scenes_dir().join("hertz.toml")).expect("hertz.toml is shipped");
+    let cut = text.find("[comparison]").unwrap_or(text.len());
+    text[..cut].to_string()
+}
+
+/// Every bad `[comparison]` setting is refused with the field and a fix.
+#[test]
+fn bad_comparison_settings_are_named() {
+    let cases: [(&str, &[&str]); 7] = [
+        ("[comparison]\napproximations = []\n", &["comparison.approximations", "nothing to compare"]),
+        ("[comparison]\nmax_m = 0\napproximations = [{ kind = \"pod\" }]\n", &["comparison.max_m"]),
+        (
+            "[comparison]\napproximations = [{ kind = \"pod\" }, { kind = \"pod\" }]\n",
+            &["comparison.approximations[1]", "once"],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"local\", cells = [] }]\n",
+            &["comparison.approximations[0].cells"],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"local\", cells = [4], overlap = -1.0 }]\n",
+            &["comparison.approximations[0].overlap"],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"registered\", map = \"moments\", interpolation = \"nodes\", basis = \"pod\" }]\n",
+            &["comparison.approximations[0].interpolation", "linear"],
+        ),
+        ("[comparison]\napproximations = [{ kind = \"svd\" }]\n", &["svd"]),
+    ];
+    for (section, needles) in cases {
+        let err = load_err(&format!("{}\n{section}", hertz_text()));
+        assert_names(&err, needles);
+    }
+    let rope = format!(
+        "{}\n[comparison]\napproximations = [{{ kind = \"registered\", map = \"translate\", basis = \"pod\" }}]\n",
+        rope_text()
+    );
+    assert_names(&load_err(&rope), &["comparison.approximations[0].map", "no natural map"]);
+}

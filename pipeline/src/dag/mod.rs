@@ -10,6 +10,8 @@
 
 pub(crate) mod basis;
 mod compactness;
+pub(crate) mod comparison;
+mod comparison_online;
 mod convert;
 mod loaded;
 mod mesh;
@@ -310,6 +312,14 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
                 let sets: Vec<Key> = (0..node.inputs.len()).map(|i| input(i).clone()).collect();
                 metrics::nested(ctx, &sets)?
             }
+            Stage::Comparison => {
+                let (t, te, m) = (input(0).clone(), input(1).clone(), input(2).clone());
+                comparison::run(ctx, &t, &te, &m)?
+            }
+            Stage::OnlineComparison => {
+                let (t, te, m) = (input(0).clone(), input(1).clone(), input(2).clone());
+                comparison_online::run(ctx, &mut physics, &t, &te, &m)?
+            }
             Stage::Rom => {
                 let (t, te, b) = (input(0).clone(), input(1).clone(), input(2).clone());
                 rom::run(ctx, &mut physics, &t, &te, &b)?
@@ -329,6 +339,8 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
                     generalization: k("generalization"),
                     specificity: k("specificity"),
                     nested: keys.get("nested").cloned(),
+                    comparison: keys.get("comparison").cloned(),
+                    online_comparison: keys.get("online-comparison").cloned(),
                 };
                 report::run(ctx, &inputs)?
             }

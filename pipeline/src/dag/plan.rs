@@ -17,7 +17,7 @@ use crom_schemas::artifact::{ArtifactKind, MANIFEST};
 use crom_schemas::SceneConfig;
 
 use super::snapshots::{self, Sweep};
-use super::{basis, compactness, mesh, metrics, report, rom, trainset, views};
+use super::{basis, compactness, comparison, comparison_online, mesh, metrics, report, rom, trainset, views};
 use crate::cache::Key;
 use crate::error::CromError;
 
@@ -45,6 +45,10 @@ pub(crate) enum Stage {
     Specificity,
     /// H(n) over the nested sets.
     Nested,
+    /// The dual approximations side by side.
+    Comparison,
+    /// The online solve with each dual approximation.
+    OnlineComparison,
     /// The online reduced model.
     Rom,
     /// The views of the online solutions.
@@ -240,6 +244,10 @@ impl Plan {
         } else {
             None
         };
+        let comparison = comparison::spec(scene, &train, &test, &mesh).map(|spec| {
+            let inputs = ["trainset train", "trainset test", "mesh"];
+            add("comparison", ArtifactKind::Comparison, spec.key(), &inputs, false, Stage::Comparison)
+        });
         let rom = add(
             "rom",
             ArtifactKind::Rom,
@@ -248,6 +256,10 @@ impl Plan {
             true,
             Stage::Rom,
         );
+        let online_comparison = comparison_online::spec(scene, &train, &test, &mesh).map(|spec| {
+            let inputs = ["trainset train", "trainset test", "mesh"];
+            add("online-comparison", ArtifactKind::OnlineComparison, spec.key(), &inputs, true, Stage::OnlineComparison)
+        });
         add(
             "views online",
             ArtifactKind::Views,
@@ -265,11 +277,19 @@ impl Plan {
             generalization,
             specificity,
             nested: nested.clone(),
+            comparison: comparison.clone(),
+            online_comparison: online_comparison.clone(),
         };
         let mut report_inputs =
             vec!["mesh", "trainset train", "basis", "compactness", "rom", "generalization", "specificity"];
         if nested.is_some() {
             report_inputs.push("nested");
+        }
+        if comparison.is_some() {
+            report_inputs.push("comparison");
+        }
+        if online_comparison.is_some() {
+            report_inputs.push("online-comparison");
         }
         add("report", ArtifactKind::Report, report::spec(&inputs).key(), &report_inputs, true, Stage::Report);
         Self { sweeps, family, nodes }

@@ -5,7 +5,8 @@
 use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{
-    compactness as cnames, mesh as mnames, metrics as metric_names, rom as rnames, ArtifactKind,
+    compactness as cnames, comparison as cmp_names, mesh as mnames, metrics as metric_names, rom as rnames,
+    ArtifactKind,
 };
 use serde_json::json;
 
@@ -15,7 +16,7 @@ use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
 use crate::io::table::{read_parquet, Table};
-use crate::report::{bodies, render, ReportData};
+use crate::report::{bodies, render, ComparisonData, ReportData};
 use crate::store::Store;
 
 /// The report is determined by its inputs alone.
@@ -25,7 +26,7 @@ struct ReportKey {}
 impl StageKey for ReportKey {
     const KIND: ArtifactKind = ArtifactKind::Report;
     /// Bump when the report's content changes.
-    const ALGORITHM_VERSION: u32 = 3;
+    const ALGORITHM_VERSION: u32 = 5;
 }
 
 /// The artifacts a report shows.
@@ -47,6 +48,10 @@ pub struct ReportInputs {
     pub specificity: Key,
     /// H(n) table, for scenes with nested levels.
     pub nested: Option<Key>,
+    /// The dual approximations compared, for scenes with `[comparison]`.
+    pub comparison: Option<Key>,
+    /// Their online solves, for scenes with `[comparison]`.
+    pub online_comparison: Option<Key>,
 }
 
 /// The report's key spec: every artifact it shows.
@@ -59,8 +64,16 @@ pub(crate) fn spec(inputs: &ReportInputs) -> KeySpec {
         .input("rom", &inputs.rom)
         .input("generalization", &inputs.generalization)
         .input("specificity", &inputs.specificity);
-    match &inputs.nested {
+    let spec = match &inputs.nested {
         Some(k) => spec.input("nested", k),
+        None => spec,
+    };
+    let spec = match &inputs.comparison {
+        Some(k) => spec.input("comparison", k),
+        None => spec,
+    };
+    match &inputs.online_comparison {
+        Some(k) => spec.input("online-comparison", k),
         None => spec,
     }
 }
@@ -126,6 +139,30 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
         )?,
         nested: match &inputs.nested {
             Some(k) => Some(read_parquet(&store.dir(ArtifactKind::Nested, k).join(metric_names::NESTED))?),
+            None => None,
+        },
+        comparison: match &inputs.comparison {
+            Some(k) => {
+                let dir = store.dir(ArtifactKind::Comparison, k);
+                Some(ComparisonData {
+                    curves: read_parquet(&dir.join(cmp_names::CURVES))?,
+                    reached: read_parquet(&dir.join(cmp_names::REACHED))?,
+                    facts: read_parquet(&dir.join(cmp_names::FACTS))?,
+                    timings: read_parquet(&dir.join(cmp_names::TIMINGS))?,
+                    online: match &inputs.online_comparison {
+                        Some(k) => {
+                            let dir = store.dir(ArtifactKind::OnlineComparison, k);
+                            Some(joined(
+                                &dir,
+                                cmp_names::ONLINE,
+                                cmp_names::ONLINE_TIMINGS,
+                                &["scene", "approximation", "m"],
+                            )?)
+                        }
+                        None => None,
+                    },
+                })
+            }
             None => None,
         },
     })

@@ -58,9 +58,9 @@ impl StageKey for RomKey {
 
 /// Timing repetitions of an online query whose first solve took less than [`REPEAT_BELOW`]
 /// seconds (the minimum is kept: sub-millisecond solves are otherwise dominated by noise).
-const TIMING_REPEATS: usize = 3;
+pub(crate) const TIMING_REPEATS: usize = 3;
 /// Queries slower than this are timed once.
-const REPEAT_BELOW: f64 = 2e-3;
+pub(crate) const REPEAT_BELOW: f64 = 2e-3;
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];
 
@@ -247,7 +247,7 @@ fn write_online(
 /// parallel load as the online solves — rather than read from the snapshot artifacts, which may
 /// have been computed by another build. Timed like the online queries (minimum of up to
 /// [`TIMING_REPEATS`] when faster than [`REPEAT_BELOW`]); a failed solve is timed all the same.
-fn fom_seconds(phys: &Physics, parameters: &[Vec<f64>]) -> Vec<f64> {
+pub(crate) fn fom_seconds(phys: &Physics, parameters: &[Vec<f64>]) -> Vec<f64> {
     parameters
         .par_iter()
         .map(|mu| {
@@ -266,7 +266,7 @@ fn fom_seconds(phys: &Physics, parameters: &[Vec<f64>]) -> Vec<f64> {
 }
 
 /// POD (numerical rank) of the training contact responses `u_k - u0(mu_k)`.
-fn response_basis(op: &dyn ContactOperator, train: &trainset::TrainingSet) -> Result<ColMatrix, String> {
+pub(crate) fn response_basis(op: &dyn ContactOperator, train: &trainset::TrainingSet) -> Result<ColMatrix, String> {
     let n = train.primal.rows;
     let mut data = Vec::with_capacity(n * train.primal.cols);
     for (j, mu) in train.parameters.iter().enumerate() {
@@ -312,7 +312,7 @@ fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -
 }
 
 /// Relative dual error (tributary-weighted L2) against column `j` of the set.
-fn dual_error(
+pub(crate) fn dual_error(
     op: &dyn ContactOperator,
     model: &ReducedModel,
     sol: &ReducedSolution,

@@ -50,7 +50,125 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
         figs.push(rom_errors(scene, d, dir, basis)?);
     }
     figs.push(tradeoff(scene, d, dir)?);
+    if let Some(c) = &d.comparison {
+        for (metric, stem, ylabel, caption) in COMPARISON_FIGURES {
+            figs.push(comparison(scene, &c.curves, dir, metric, stem, ylabel, caption)?);
+        }
+        if let Some(t) = &c.online {
+            figs.push(comparison_online(scene, t, dir)?);
+        }
+    }
     Ok(figs)
+}
+
+/// The comparison's figures: (metric, stem, y label, caption).
+const COMPARISON_FIGURES: [(&str, &str, &str, &str); 3] = [
+    (
+        "test",
+        "fig_comparison_test",
+        "mean relative dual error, test set",
+        "Beyond the paper: every dual approximation's mean relative error over the test points (each snapshot at its own parameter, in the physical frame) against the number m of modes, generators or active atoms.",
+    ),
+    (
+        "generalization",
+        "fig_comparison_generalization",
+        "G(m), leave-one-out",
+        "Beyond the paper: leave-one-out generalization G(m) (eq. 17) of every dual approximation, each fold rebuilt without its snapshot, over comparison.loo_folds evenly spaced folds.",
+    ),
+    (
+        "compactness",
+        "fig_comparison_compactness",
+        "C(m), training set",
+        "Beyond the paper: compactness C(m) (eq. 16) of every dual approximation on its own training set (the dictionary holds every snapshot, so its C is 0 from m = 1).",
+    ),
+];
+
+/// The online trade of every approximation: median dual error (converged queries) against
+/// median online time, one point per dual size m, joined per approximation.
+fn comparison_online(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figure, CromError> {
+    let (Some(a), Some(x), Some(y), Some(conv)) =
+        (t.strs("approximation"), t.f64s("median_online_ms"), t.f64s("median_dual_error"), t.u64s("converged"))
+    else {
+        return Err(CromError::artifact(
+            "online_comparison.parquet",
+            "lacks a column of approximation, median_online_ms, median_dual_error, converged",
+            "delete the online-comparison artifact and rerun",
+        ));
+    };
+    let mut names: Vec<&String> = Vec::new();
+    for name in a {
+        if !names.contains(&name) {
+            names.push(name);
+        }
+    }
+    let series = names
+        .iter()
+        .map(|name| {
+            let rows = (0..a.len()).filter(|&i| &a[i] == *name && conv[i] > 0 && x[i].is_finite() && y[i].is_finite());
+            let (xs, ys): (Vec<f64>, Vec<f64>) = rows.map(|i| (x[i], y[i])).unzip();
+            Series::line(name, xs, ys)
+        })
+        .collect();
+    let chart = Chart {
+        title: format!("{}: online solve with each dual approximation", scene.scene.name),
+        x_label: "median online time per query (ms)".into(),
+        y_label: "median relative dual error, converged test points".into(),
+        log_y: true,
+        log_x: true,
+        series,
+        legend: Legend::LowerLeft,
+    };
+    let stem = "fig_comparison_online";
+    render(&chart, dir, stem)?;
+    Ok(Figure {
+        stem: stem.into(),
+        caption: "Beyond the paper: the online reduced solve (exact algorithm, full primal basis) with each non-negative dual approximation, one point per dual size m (the dictionary: all atoms); errors over converged test points, times over all. Failures per row are in table_comparison_online.".into(),
+    })
+}
+
+/// One curve per approximation of the comparison table `t` for `metric`.
+fn comparison(
+    scene: &SceneConfig,
+    t: &Table,
+    dir: &Path,
+    metric: &str,
+    stem: &str,
+    ylabel: &str,
+    caption: &str,
+) -> Result<Figure, CromError> {
+    let (Some(a), Some(k), Some(m), Some(y)) = (t.strs("approximation"), t.strs("metric"), t.u64s("m"), t.f64s("mean"))
+    else {
+        return Err(CromError::artifact(
+            "comparison.parquet",
+            "lacks a column of approximation, metric, m, mean",
+            "delete the comparison artifact and rerun",
+        ));
+    };
+    let mut names: Vec<&String> = Vec::new();
+    for name in a {
+        if !names.contains(&name) {
+            names.push(name);
+        }
+    }
+    let series = names
+        .iter()
+        .map(|name| {
+            let rows = (0..a.len()).filter(|&i| &a[i] == *name && k[i] == metric && y[i].is_finite());
+            let (x, v): (Vec<f64>, Vec<f64>) = rows.map(|i| (m[i] as f64, y[i])).unzip();
+            Series::line(name, x, v)
+        })
+        .collect();
+    let chart = Chart {
+        title: format!("{}: dual approximations, {metric}", scene.scene.name),
+        x_label: "modes / generators / active atoms m".into(),
+        y_label: ylabel.into(),
+        log_y: true,
+        log_x: true,
+        series,
+        legend: Legend::LowerLeft,
+    };
+    render(&chart, dir, stem)?;
+    Ok(Figure { stem: stem.into(), caption: caption.into() })
 }
 
 fn every(n: usize) -> usize {

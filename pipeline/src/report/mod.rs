@@ -63,4 +63,21 @@ pub(crate) struct ReportData {
     pub specificity: Table,
     /// H(n), if the scene has nested levels.
     pub nested: Option<Table>,
+    /// The dual approximations compared, if the scene has `[comparison]`.
+    pub comparison: Option<ComparisonData>,
+}
+
+/// The comparison artifact's tables (`crom_schemas::artifact::comparison`).
+#[derive(Debug)]
+pub(crate) struct ComparisonData {
+    /// C(m), G(m), T(m) per approximation.
+    pub curves: Table,
+    /// Smallest m reaching each threshold.
+    pub reached: Table,
+    /// Build facts.
+    pub facts: Table,
+    /// Build and metric times.
+    pub timings: Table,
+    /// The online solve with each approximation (results and times joined), if run.
+    pub online: Option<Table>,
 }

@@ -98,5 +98,124 @@ pub(crate) fn write_all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Resu
         "table_tradeoff",
         "Speed/accuracy trade over the test points: errors over converged points, times over all (ms), speed-up = median full-order time / median online time in the same process, ρ = Spearman rank correlation of the indicator with the true error",
     )?);
+    if let Some(c) = &d.comparison {
+        out.push(save(
+            &comparison_view(c),
+            dir,
+            "table_comparison",
+            "What breaks the low-rank limit: smallest m (modes, generators or active atoms) at which each dual approximation's mean relative error reaches 5 %, 1 % and 0.1 %, on the test set (T) and by leave-one-out (G); \"never\" = not within the curve; T at m = 5 beside them",
+        )?);
+        if let Some(t) = &c.online {
+            out.push(save(
+                &online_view(t),
+                dir,
+                "table_comparison_online",
+                "The online solve with each non-negative dual approximation (exact algorithm, full primal basis) over the test points: converged / refused / failed, median errors over converged points, median online time (ms), speed-up against the full-order solve timed in the same process, and the median number of non-zero dual coefficients (active atoms)",
+            )?);
+        }
+        out.push(save(
+            &facts_view(&c.facts),
+            dir,
+            "table_comparison_facts",
+            "How each dual approximation was built: a registration's reference grid and round-trip error ||push(pull(s)) - s|| / ||s|| over the training snapshots, NNMF's HALS sweeps and relative residual per rank (m <= 8 shown; all in comparison_facts.parquet), local bases' snapshots and generators per cell",
+        )?);
+        out.push(save(
+            &c.timings,
+            dir,
+            "table_comparison_builds",
+            "Offline cost of each dual approximation (seconds): one build from the whole training set, and the metrics (a rebuild per leave-one-out fold)",
+        )?);
+    }
     Ok(out)
+}
+
+/// The columns of the online comparison a reader compares.
+fn online_view(t: &Table) -> Table {
+    let mut v = Table::default();
+    for name in [
+        "approximation",
+        "m",
+        "points",
+        "converged",
+        "infeasible",
+        "failed",
+        "median_primal_error",
+        "median_dual_error",
+        "median_online_ms",
+        "speedup",
+        "median_nonzero_dual",
+    ] {
+        if let Some((_, c)) = t.columns.iter().find(|(n, _)| n == name) {
+            v = v.with(name, c.clone());
+        }
+    }
+    v
+}
+
+/// The build facts without a rank, and those of ranks up to 8.
+fn facts_view(f: &Table) -> Table {
+    let (Some(a), Some(n), Some(m), Some(v)) = (f.strs("approximation"), f.strs("name"), f.f64s("m"), f.f64s("value"))
+    else {
+        return Table::default();
+    };
+    let keep: Vec<usize> = (0..a.len()).filter(|&i| !m[i].is_finite() || m[i] <= 8.0).collect();
+    Table::default()
+        .with("approximation", Column::Str(keep.iter().map(|&i| a[i].clone()).collect()))
+        .with("name", Column::Str(keep.iter().map(|&i| n[i].clone()).collect()))
+        .with(
+            "m",
+            Column::Str(
+                keep.iter()
+                    .map(|&i| if m[i].is_finite() { format!("{}", m[i] as u64) } else { String::new() })
+                    .collect(),
+            ),
+        )
+        .with("value", Column::F64(keep.iter().map(|&i| v[i]).collect()))
+}
+
+/// One row per approximation: the m reaching each threshold (test and leave-one-out) and the
+/// test error at m = 5.
+fn comparison_view(c: &super::ComparisonData) -> Table {
+    let r = &c.reached;
+    let (Some(a), Some(metric), Some(th), Some(m)) =
+        (r.strs("approximation"), r.strs("metric"), r.f64s("threshold"), r.f64s("m"))
+    else {
+        return Table::default();
+    };
+    let mut names: Vec<String> = Vec::new();
+    for n in a {
+        if !names.contains(n) {
+            names.push(n.clone());
+        }
+    }
+    let mut t = Table::default().with("approximation", Column::Str(names.clone()));
+    for (which, label) in [("test", "T"), ("generalization", "G")] {
+        for level in crate::dag::comparison::THRESHOLDS {
+            let col = names
+                .iter()
+                .map(|n| {
+                    (0..a.len())
+                        .find(|&i| {
+                            &a[i] == n
+                                && metric[i] == which
+                                && crom_stages::approx::close(th[i], level, crom_stages::approx::Tol::rel(1e-12))
+                        })
+                        .map(|i| if m[i].is_finite() { format!("{}", m[i] as u64) } else { "never".into() })
+                        .unwrap_or_default()
+                })
+                .collect();
+            t = t.with(&format!("{label} <= {}%", level * 100.0), Column::Str(col));
+        }
+    }
+    let curves = &c.curves;
+    if let (Some(ca), Some(ck), Some(cm), Some(cv)) =
+        (curves.strs("approximation"), curves.strs("metric"), curves.u64s("m"), curves.f64s("mean"))
+    {
+        let at5 = names
+            .iter()
+            .map(|n| (0..ca.len()).find(|&i| &ca[i] == n && ck[i] == "test" && cm[i] == 5).map_or(f64::NAN, |i| cv[i]))
+            .collect();
+        t = t.with("T(5)", Column::F64(at5));
+    }
+    t
 }

@@ -486,6 +486,37 @@ mod tests {
     /// elsewhere: the tied slaves' normals differ by at most half a vertex angle, pi/156,
     /// giving relative errors measured 4e-6 .. 3.3e-4, bound 5e-4 — and the indicator sees it:
     /// its equilibrium residual is at least the primal error at every point.
+    /// `set_dual` with another dual basis answers exactly like a model built with it from
+    /// scratch (hertz, Type-2; the same arithmetic on the same rows, so bit for bit).
+    #[test]
+    fn set_dual_equals_a_fresh_model_on_hertz() {
+        let fm = hertz();
+        let mus = [0.05, 0.1, 0.15, 0.2, 0.25];
+        let (rom, phi, _) = full_rom(fm, &mus);
+        let (ru, rl) = rom.ranks();
+        let nc = fm.n_contact();
+        // The generators in reverse order, the last one dropped.
+        let mut cols: Vec<f64> = Vec::new();
+        for a in (1..rl).rev() {
+            let mut unit = vec![0.0; rl];
+            unit[a] = 1.0;
+            cols.extend(rom.pressure(&unit));
+        }
+        let fresh = ReducedModel::new(fm, &phi, ru, &cols, rl - 1).expect("fresh");
+        let mut swapped = rom.clone();
+        swapped.set_dual(&cols, rl - 1);
+        assert_eq!(swapped.ranks(), (ru, rl - 1));
+        assert_eq!(cols.len(), nc * (rl - 1));
+        let mut w = RomWork::default();
+        for d in [0.07, 0.18, 0.3] {
+            let (a, b) =
+                (swapped.solve(&[d], &RomParams::default(), &mut w), fresh.solve(&[d], &RomParams::default(), &mut w));
+            assert_eq!(a.outcome, b.outcome, "d {d}");
+            assert_eq!(a.u_hat, b.u_hat, "d {d}");
+            assert_eq!(a.lambda_hat, b.lambda_hat, "d {d}");
+        }
+    }
+
     #[test]
     fn full_bases_reproduce_hertz_training_snapshots() {
         let fm = hertz();

@@ -121,6 +121,10 @@ impl DualApprox for Dictionary {
     fn facts(&self) -> Vec<Fact> {
         vec![Fact::new("atoms", None, self.len() as f64)]
     }
+
+    fn cone_basis(&self, _mu: &[f64], _m: usize) -> Option<Mat<f64>> {
+        Some(self.atoms.clone())
+    }
 }
 
 #[cfg(test)]

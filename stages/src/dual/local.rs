@@ -68,6 +68,14 @@ impl DualApprox for LocalBases {
         self.cells.iter().map(DualApprox::size).max().unwrap_or(0)
     }
 
+    fn cone_basis(&self, mu: &[f64], m: usize) -> Option<Mat<f64>> {
+        self.cells[self.cell_of(mu)].cone_basis(mu, m)
+    }
+
+    fn depends_on_mu(&self) -> bool {
+        true
+    }
+
     fn facts(&self) -> Vec<Fact> {
         let mut f = Vec::new();
         for (c, (cone, &n)) in self.cells.iter().zip(&self.members).enumerate() {

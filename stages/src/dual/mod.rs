@@ -189,6 +189,27 @@ pub trait DualApprox: Send + Sync {
     fn facts(&self) -> Vec<Fact> {
         Vec::new()
     }
+
+    /// The non-negative dual basis of at most `m` columns the online solve uses at `mu`
+    /// (`n x k`, no zero column), or `None` where the approximation's modes are signed (POD, a
+    /// registered POD): the online solve keeps the dual coefficients non-negative, which keeps
+    /// the pressure non-negative only on a non-negative basis. The dictionary gives all its
+    /// atoms whatever `m` (the online active-set method chooses among them).
+    fn cone_basis(&self, _mu: &[f64], _m: usize) -> Option<Mat<f64>> {
+        None
+    }
+
+    /// Whether [`cone_basis`](Self::cone_basis) depends on the parameter (then the online
+    /// solve sets it per query, inside the timed region).
+    fn depends_on_mu(&self) -> bool {
+        false
+    }
+}
+
+/// The first `m` columns of `b` that are not zero.
+pub(crate) fn nonzero_prefix(b: MatRef<'_, f64>, m: usize) -> Mat<f64> {
+    let keep: Vec<usize> = (0..b.ncols()).filter(|&j| b.col(j).iter().any(|&v| v != 0.0)).take(m).collect();
+    Mat::from_fn(b.nrows(), keep.len(), |i, c| b[(i, keep[c])])
 }
 
 /// Build `approach` from `training`.

@@ -193,6 +193,11 @@ impl DualApprox for NnmfFamily {
         self.ranks.last().copied().unwrap_or(0)
     }
 
+    fn cone_basis(&self, mu: &[f64], m: usize) -> Option<Mat<f64>> {
+        let k = self.ranks.iter().rposition(|&r| r <= m)?;
+        self.cones[k].cone_basis(mu, m)
+    }
+
     fn facts(&self) -> Vec<Fact> {
         let mut f = Vec::new();
         for (&m, &(it, res)) in self.ranks.iter().zip(&self.runs) {

@@ -139,6 +139,10 @@ impl DualApprox for ConePrefix {
     fn size(&self) -> usize {
         self.full.ncols()
     }
+
+    fn cone_basis(&self, _mu: &[f64], m: usize) -> Option<Mat<f64>> {
+        Some(super::nonzero_prefix(self.full.basis(), m))
+    }
 }
 
 #[cfg(test)]

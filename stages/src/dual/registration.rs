@@ -439,6 +439,20 @@ impl DualApprox for Registered {
         self.modes.ncols()
     }
 
+    fn cone_basis(&self, mu: &[f64], m: usize) -> Option<Mat<f64>> {
+        match self.inner {
+            Inner::Pod => None,
+            Inner::Cpg => {
+                let n = self.map.surface.x.len();
+                Some(super::nonzero_prefix(self.modes_at(mu, n).as_ref(), m))
+            }
+        }
+    }
+
+    fn depends_on_mu(&self) -> bool {
+        true
+    }
+
     fn facts(&self) -> Vec<Fact> {
         vec![
             Fact::new("reference_points", None, self.map.len() as f64),

@@ -81,11 +81,12 @@ pub fn compactness(model: &dyn DualApprox, training: &Training<'_>) -> Result<Ve
 }
 
 /// Leave-one-out errors of `approach` for the folds `folds` (each fold rebuilds it without
-/// that snapshot), per fold (`None`: a zero snapshot).
+/// that snapshot), per fold (`None`: a zero snapshot); `tick` is called once per fold.
 pub fn leave_one_out(
     approach: &Approach,
     training: &Training<'_>,
     folds: &[usize],
+    tick: &(dyn Fn() + Sync),
 ) -> Result<Vec<Option<Vec<f64>>>, DualError> {
     let n = training.snapshots.nrows();
     folds
@@ -93,6 +94,7 @@ pub fn leave_one_out(
         .map(|&i| {
             let col: Vec<f64> = (0..n).map(|r| training.snapshots[(r, i)]).collect();
             let norm = norm2(&col);
+            tick();
             if norm == 0.0 {
                 return Ok(None);
             }
@@ -143,11 +145,11 @@ mod tests {
         let reference = compactness_orth(s.as_ref(), crate::dual::pod_modes(s.as_ref(), 14).expect("modes").as_ref());
         // 1e-10 absolute: both are square roots of sums of squared projections of O(1) data.
         assert_all_close!(c, reference[1..14], Tol { abs: 1e-10, rel: 1e-10 });
-        let (g, _) = stats(&leave_one_out(&Approach::Pod, &t, &folds).expect("loo"), &ms);
+        let (g, _) = stats(&leave_one_out(&Approach::Pod, &t, &folds, &|| {}).expect("loo"), &ms);
         let reference = generalization_orth(s.as_ref(), 13).expect("g");
         let means: Vec<f64> = g.iter().map(RunningStats::mean).collect();
         assert_all_close!(means, reference.mean, Tol { abs: 1e-10, rel: 1e-9 });
-        let (g, _) = stats(&leave_one_out(&Approach::Cpg, &t, &folds).expect("loo"), &ms);
+        let (g, _) = stats(&leave_one_out(&Approach::Cpg, &t, &folds, &|| {}).expect("loo"), &ms);
         let reference = generalization_cone(s.as_ref(), 13, NnlsParams::default()).expect("g");
         let means: Vec<f64> = g.iter().map(RunningStats::mean).collect();
         // 1e-8: NNLS solutions warm-started along different chains (shared path vs fresh
@@ -179,6 +181,21 @@ mod tests {
         ];
         for a in &approaches {
             let model = build(a, &t).unwrap_or_else(|e| panic!("{}: {e}", a.name()));
+            // The online basis: none for signed modes, else non-negative, no zero column, at
+            // most m columns (the dictionary: all its atoms).
+            let signed = matches!(a, Approach::Pod | Approach::Registered { inner: Inner::Pod, .. });
+            match model.cone_basis(&params[3], 3) {
+                None => assert!(signed, "{} has no online basis", a.name()),
+                Some(b) => {
+                    assert!(!signed, "{} has signed modes", a.name());
+                    let cap = if matches!(a, Approach::Dictionary) { 16 } else { 3 };
+                    assert!(b.ncols() >= 1 && b.ncols() <= cap, "{}: {} columns", a.name(), b.ncols());
+                    for j in 0..b.ncols() {
+                        assert!(b.col(j).iter().all(|&v| v >= 0.0), "{}: negative entry", a.name());
+                        assert!(b.col(j).iter().any(|&v| v > 0.0), "{}: zero column", a.name());
+                    }
+                }
+            }
             let errs = relative_errors(model.as_ref(), s.as_ref(), &params, &ms).expect("errors");
             for e in errs.iter().flatten() {
                 assert!(e.iter().all(|v| (0.0..=1.0 + 1e-12).contains(v)), "{}: {e:?}", a.name());

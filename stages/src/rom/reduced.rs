@@ -443,6 +443,43 @@ impl ReducedModel {
         }
     }
 
+    /// Replace the dual basis by `theta` (`n_contact x r_l`, column-major, non-negative) and
+    /// keep the primal part: what a dual basis that depends on the parameter (a registered or a
+    /// local one, `crom_stages::dual`) needs per query. Costs `O(n_contact r_l)` for a Type-2
+    /// problem (the sparse layouts and the supported slaves), `O(nnz(theta) r_u)` for Type-1
+    /// (`Ĉ` and `ĝ0`'s terms); no `n_dof` work.
+    pub fn set_dual(&mut self, theta: &[f64], r_l: usize) {
+        let nc = self.n_contact;
+        assert_eq!(theta.len(), nc * r_l, "theta shape");
+        let (by_node, by_col) = csr(theta, nc, r_l);
+        let r_u = self.r_u;
+        match &mut self.surf {
+            SurfaceData::Fixed { cphi, cu0, chat, ghat, .. } => {
+                chat.clear();
+                chat.resize(r_l * r_u, 0.0);
+                *ghat = vec![vec![0.0; r_l]; cu0.len()];
+                for i in 0..nc {
+                    for e in by_node.0[i]..by_node.0[i + 1] {
+                        let (a, tw) = (by_node.1[e], by_node.2[e] * self.weights[i]);
+                        for j in 0..r_u {
+                            chat[a * r_u + j] += tw * cphi[i * r_u + j];
+                        }
+                        for (g, c) in ghat.iter_mut().zip(cu0.iter()) {
+                            g[a] += tw * c[i];
+                        }
+                    }
+                }
+            }
+            SurfaceData::Nts { ns, slave_fixed, supp, .. } => {
+                supp.clear();
+                supp.extend((0..*ns).filter(|&s| !slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]));
+            }
+        }
+        self.by_node = by_node;
+        self.by_col = by_col;
+        self.r_l = r_l;
+    }
+
     /// Lengths of every array the online solve can read (name, length): none of them depends
     /// on the number of dofs of the full-order model, only on the ranks and the contact surface.
     pub fn storage(&self) -> Vec<(&'static str, usize)> {

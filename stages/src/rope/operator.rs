@@ -208,6 +208,29 @@ mod tests {
         }
     }
 
+    /// `set_dual` on a Type-1 model rebuilds `Ĉ` and `ĝ0` as a fresh model does (1e-12: the
+    /// same sums in the same order up to the factor's leading block).
+    #[test]
+    fn set_dual_equals_a_fresh_model_on_the_rope() {
+        let rope = paper_rope();
+        let (phi, theta) = full_bases(&rope);
+        let (ru, rl) = (phi.ncols(), theta.ncols());
+        let full = ReducedModel::new(&rope, &columns(&phi, ru), ru, &columns(&theta, rl), rl).expect("SPD");
+        let sub = theta.subcols(2, rl - 3).to_owned();
+        let fresh = ReducedModel::new(&rope, &columns(&phi, ru), ru, &columns(&sub, rl - 3), rl - 3).expect("SPD");
+        let mut swapped = full.clone();
+        swapped.set_dual(&columns(&sub, rl - 3), rl - 3);
+        let mut w = RomWork::default();
+        for g in [-0.45, 0.05, 0.4] {
+            let (a, b) =
+                (swapped.solve(&[g], &RomParams::default(), &mut w), fresh.solve(&[g], &RomParams::default(), &mut w));
+            assert_eq!(a.outcome, b.outcome);
+            for (x, y) in a.u_hat.iter().zip(&b.u_hat).chain(a.lambda_hat.iter().zip(&b.lambda_hat)) {
+                assert!((x - y).abs() <= 1e-12 * (1.0 + y.abs()), "gamma {g}: {x} vs {y}");
+            }
+        }
+    }
+
     /// A query whose obstacle is far below is answered with û = 0, λ̂ = 0 (the lift), without
     /// iterating.
     #[test]

@@ -1,0 +1,240 @@
+//! Comparison stage (issue 15): every dual approximation of the scene's `[comparison]` built
+//! from the training pressures and measured by the same metrics — compactness C(m),
+//! leave-one-out G(m), the test-set error T(m) — through `crom_stages::dual`. One artifact per
+//! scene: its key holds the comparison's settings and the training set, test set and mesh
+//! (whose slave-node abscissae the registration maps use).
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use crom_schemas::artifact::{comparison as names, mesh as mnames, ArtifactKind};
+use crom_schemas::comparison::{ApproximationSpec, BasisSpec, ComparisonSpec, InterpolationSpec, MapSpec};
+use crom_schemas::SceneConfig;
+use crom_stages::dual::{self, study, Approach, Inner, Interpolation, MapKind, Training};
+use crom_stages::running_stats::RunningStats;
+use serde::Serialize;
+use serde_json::json;
+
+use super::basis::Ticker;
+use super::convert::view;
+use super::Ctx;
+use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
+use crate::error::CromError;
+use crate::io::h5::H5In;
+use crate::io::table::{Column, Table};
+use crate::store::{Staging, Store};
+
+/// What determines the comparison besides its inputs.
+#[derive(Debug, Serialize)]
+struct ComparisonKey<'a> {
+    spec: &'a ComparisonSpec,
+    nnls: NnlsKey,
+}
+
+impl StageKey for ComparisonKey<'_> {
+    const KIND: ArtifactKind = ArtifactKind::Comparison;
+    /// Bump when a number of the comparison changes.
+    const ALGORITHM_VERSION: u32 = 1;
+}
+
+/// Error thresholds of the "smallest m reaching" table (mean relative error).
+pub(crate) const THRESHOLDS: [f64; 3] = [0.05, 0.01, 0.001];
+
+/// The comparison artifact's key spec (None without `[comparison]`).
+pub(crate) fn spec(scene: &SceneConfig, train: &Key, test: &Key, mesh: &Key) -> Option<KeySpec> {
+    let cmp = scene.comparison.as_ref()?;
+    Some(
+        KeySpec::of(&ComparisonKey { spec: cmp, nnls: NnlsKey::used() })
+            .input("train", train)
+            .input("test", test)
+            .input("mesh", mesh),
+    )
+}
+
+/// The approaches of a comparison, in table order (a `local` entry gives one per cell count).
+pub(crate) fn approaches(cmp: &ComparisonSpec) -> Vec<Approach> {
+    let mut out = Vec::new();
+    for a in &cmp.approximations {
+        match a {
+            ApproximationSpec::Pod => out.push(Approach::Pod),
+            ApproximationSpec::Cpg => out.push(Approach::Cpg),
+            ApproximationSpec::AngleGreedy => out.push(Approach::AngleGreedy),
+            ApproximationSpec::Nnmf { iterations } => out.push(Approach::Nnmf { iterations: *iterations }),
+            ApproximationSpec::Local { cells, overlap } => {
+                out.extend(cells.iter().map(|&k| Approach::Local { cells: k, overlap: *overlap }))
+            }
+            ApproximationSpec::Dictionary => out.push(Approach::Dictionary),
+            ApproximationSpec::Registered { map, interpolation, refine, basis } => {
+                let map = match (map, interpolation) {
+                    (MapSpec::Translate, InterpolationSpec::Nodes) => {
+                        MapKind::Translate { interpolation: Interpolation::Nodes }
+                    }
+                    (MapSpec::Translate, InterpolationSpec::Linear) => {
+                        MapKind::Translate { interpolation: Interpolation::Linear { refine: *refine } }
+                    }
+                    (MapSpec::Moments, _) => MapKind::Moments { refine: *refine },
+                };
+                let inner = match basis {
+                    BasisSpec::Pod => Inner::Pod,
+                    BasisSpec::Cpg => Inner::Cpg,
+                };
+                out.push(Approach::Registered { map, inner });
+            }
+        }
+    }
+    out
+}
+
+/// The abscissa of each potential-contact node, in dual-field order, from the mesh artifact.
+pub(crate) fn contact_x(store: &Store, mesh: &Key) -> Result<Vec<f64>, CromError> {
+    let h5 = H5In::open(&store.dir(ArtifactKind::Mesh, mesh).join(mnames::FILE))?;
+    let nodes = h5.matrix(mnames::NODES)?;
+    let contact = h5.vec_u64(mnames::CONTACT_NODES)?;
+    Ok(contact.iter().map(|&i| nodes.data[i as usize]).collect())
+}
+
+/// Build and measure every approximation; returns the artifact's key.
+pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, test: &Key, mesh: &Key) -> Result<Key, CromError> {
+    let scene_cfg = ctx.scene;
+    let (Some(cmp), Some(spec)) = (scene_cfg.comparison.clone(), spec(scene_cfg, train, test, mesh)) else {
+        return Err(CromError::artifact(
+            "comparison",
+            "the scene has no [comparison] section".to_string(),
+            "add one or do not run the comparison stage",
+        ));
+    };
+    let scene = scene_cfg.scene.name.clone();
+    let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
+    ctx.single(ArtifactKind::Comparison, "comparison", &spec, |staging| {
+        let set = loaded.set(store, train)?;
+        let tset = loaded.set(store, test)?;
+        let surface = contact_x(store, mesh)?;
+        let n_train = set.parameters.len();
+        let ms = dual::m_grid(cmp.max_m.min(n_train));
+        let f = cmp.loo_folds.min(n_train);
+        let folds: Vec<usize> = (0..f).map(|k| k * n_train / f).collect();
+        let training = Training { snapshots: view(&set.dual), params: &set.parameters, surface: &surface, ms: &ms };
+        let list = approaches(&cmp);
+        let bar = Ticker::new(progress, "dual approximations", list.len() * (folds.len() + 1));
+        let mut out = Rows { scene: scene.clone(), ..Rows::default() };
+        for a in &list {
+            let name = a.name();
+            let fail = |e: dual::DualError| CromError::Numerical {
+                stage: "comparison",
+                scene: scene.clone(),
+                message: format!("{name}: {e}"),
+            };
+            let t0 = Instant::now();
+            let model = dual::build(a, &training).map_err(fail)?;
+            let build_seconds = t0.elapsed().as_secs_f64();
+            bar.tick(&name);
+            let t1 = Instant::now();
+            let c = study::compactness(model.as_ref(), &training).map_err(fail)?;
+            let loo = study::leave_one_out(a, &training, &folds, &|| bar.tick(&name)).map_err(fail)?;
+            let (g, g_zero) = study::stats(&loo, &ms);
+            let errs = study::relative_errors(model.as_ref(), view(&tset.dual), &tset.parameters, &ms).map_err(fail)?;
+            let (t, t_zero) = study::stats(&errs, &ms);
+            let metrics_seconds = t1.elapsed().as_secs_f64();
+            out.curve(&name, "compactness", &ms, &c, n_train);
+            out.stats(&name, "generalization", &ms, &g, g_zero);
+            out.stats(&name, "test", &ms, &t, t_zero);
+            for (metric, st) in [("generalization", &g), ("test", &t)] {
+                for th in THRESHOLDS {
+                    let m = ms.iter().zip(st.iter()).find(|(_, s)| s.count() > 0 && s.mean() <= th).map(|(&m, _)| m);
+                    out.reached.push((name.clone(), metric, th, m));
+                }
+            }
+            for fact in model.facts() {
+                out.facts.push((name.clone(), fact.name, fact.m, fact.value));
+            }
+            out.times.push((name.clone(), build_seconds, metrics_seconds));
+        }
+        bar.finish(&format!("{} approximations, m <= {}", list.len(), ms.last().copied().unwrap_or(0)));
+        out.write(staging)?;
+        Ok(BTreeMap::from([
+            ("approximations".to_string(), json!(list.len())),
+            ("folds".to_string(), json!(folds.len())),
+            ("max_m".to_string(), json!(ms.last().copied().unwrap_or(0))),
+        ]))
+    })
+}
+
+/// One point of a curve.
+struct CurveRow {
+    name: String,
+    metric: &'static str,
+    m: usize,
+    mean: f64,
+    std: f64,
+    count: usize,
+    zero: usize,
+}
+
+/// The tables' rows, collected per approximation and written at the end.
+#[derive(Default)]
+struct Rows {
+    scene: String,
+    curves: Vec<CurveRow>,
+    /// (approximation, metric, threshold, m reaching it).
+    reached: Vec<(String, &'static str, f64, Option<usize>)>,
+    /// (approximation, fact, rank, value).
+    facts: Vec<(String, String, Option<usize>, f64)>,
+    /// (approximation, build seconds, metrics seconds).
+    times: Vec<(String, f64, f64)>,
+}
+
+impl Rows {
+    fn curve(&mut self, name: &str, metric: &'static str, ms: &[usize], values: &[f64], count: usize) {
+        for (&m, &mean) in ms.iter().zip(values) {
+            self.curves.push(CurveRow { name: name.into(), metric, m, mean, std: f64::NAN, count, zero: 0 });
+        }
+    }
+
+    fn stats(&mut self, name: &str, metric: &'static str, ms: &[usize], st: &[RunningStats], zero: usize) {
+        for (&m, s) in ms.iter().zip(st) {
+            let (mean, std, count) = (s.mean(), s.std(), s.count());
+            self.curves.push(CurveRow { name: name.into(), metric, m, mean, std, count, zero });
+        }
+    }
+
+    fn write(self, staging: &Staging) -> Result<(), CromError> {
+        let scene = |n: usize| Column::Str(vec![self.scene.clone(); n]);
+        let c = &self.curves;
+        let strs = |f: &dyn Fn(&CurveRow) -> String| Column::Str(c.iter().map(f).collect());
+        Table::default()
+            .with("scene", scene(c.len()))
+            .with("approximation", strs(&|r| r.name.clone()))
+            .with("metric", strs(&|r| r.metric.to_string()))
+            .with("m", Column::U64(c.iter().map(|r| r.m as u64).collect()))
+            .with("mean", Column::F64(c.iter().map(|r| r.mean).collect()))
+            .with("std", Column::F64(c.iter().map(|r| r.std).collect()))
+            .with("count", Column::U64(c.iter().map(|r| r.count as u64).collect()))
+            .with("n_zero", Column::U64(c.iter().map(|r| r.zero as u64).collect()))
+            .write_parquet(&staging.path(names::CURVES))?;
+        // A null m ("never within the curve", "not per rank") is written for a non-finite value.
+        let opt = |m: &Option<usize>| m.map_or(f64::NAN, |m| m as f64);
+        let r = &self.reached;
+        Table::default()
+            .with("scene", scene(r.len()))
+            .with("approximation", Column::Str(r.iter().map(|x| x.0.clone()).collect()))
+            .with("metric", Column::Str(r.iter().map(|x| x.1.to_string()).collect()))
+            .with("threshold", Column::F64(r.iter().map(|x| x.2).collect()))
+            .with("m", Column::F64(r.iter().map(|x| opt(&x.3)).collect()))
+            .write_parquet(&staging.path(names::REACHED))?;
+        let f = &self.facts;
+        Table::default()
+            .with("scene", scene(f.len()))
+            .with("approximation", Column::Str(f.iter().map(|x| x.0.clone()).collect()))
+            .with("name", Column::Str(f.iter().map(|x| x.1.clone()).collect()))
+            .with("m", Column::F64(f.iter().map(|x| opt(&x.2)).collect()))
+            .with("value", Column::F64(f.iter().map(|x| x.3).collect()))
+            .write_parquet(&staging.path(names::FACTS))?;
+        let t = &self.times;
+        Table::default()
+            .with("scene", scene(t.len()))
+            .with("approximation", Column::Str(t.iter().map(|x| x.0.clone()).collect()))
+            .with("build_seconds", Column::F64(t.iter().map(|x| x.1).collect()))
+            .with("metrics_seconds", Column::F64(t.iter().map(|x| x.2).collect()))
+            .write_parquet(&staging.path(names::TIMINGS))
+    }
+}

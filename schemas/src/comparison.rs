@@ -1,0 +1,119 @@
+//! `[comparison]`: the dual approximations a scene compares side by side (issue 15).
+//!
+//! ```toml
+//! [comparison]
+//! max_m = 32          # largest basis size m (or active atoms) of the curves
+//! loo_folds = 32      # leave-one-out folds, evenly spaced over the training points
+//! approximations = [
+//!   { kind = "pod" }, { kind = "cpg" }, { kind = "angle-greedy" },
+//!   { kind = "nnmf", iterations = 300 },
+//!   { kind = "local", cells = [2, 4, 8], overlap = 0.1 },
+//!   { kind = "dictionary" },
+//!   { kind = "registered", map = "translate", interpolation = "nodes", basis = "pod" },
+//! ]
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+/// The comparison's settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ComparisonSpec {
+    /// Largest m of the curves (>= 1).
+    #[serde(default = "default_max_m")]
+    pub max_m: usize,
+    /// Leave-one-out folds of G(m) (>= 1; capped at the training set's size).
+    #[serde(default = "default_loo_folds")]
+    pub loo_folds: usize,
+    /// The approximations, in the order the tables list them.
+    pub approximations: Vec<ApproximationSpec>,
+}
+
+fn default_max_m() -> usize {
+    32
+}
+
+fn default_loo_folds() -> usize {
+    32
+}
+
+/// One approximation (a `local` entry with several cell counts is one approximation per count).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ApproximationSpec {
+    /// Proper orthogonal decomposition.
+    Pod,
+    /// Cone-Projected Greedy basis (tolerance 0).
+    Cpg,
+    /// Angle-Greedy selection, cone projection.
+    AngleGreedy,
+    /// Non-negative matrix factorisation per rank.
+    Nnmf {
+        /// Largest number of HALS sweeps per rank.
+        #[serde(default = "default_iterations")]
+        iterations: usize,
+    },
+    /// One CPG per cell of the first parameter's range.
+    Local {
+        /// Cell counts K to study.
+        cells: Vec<usize>,
+        /// Overlap in cell widths (>= 0).
+        #[serde(default)]
+        overlap: f64,
+    },
+    /// Every training snapshot an atom.
+    Dictionary,
+    /// A change of variables of the contact surface, then POD or CPG.
+    Registered {
+        /// `translate` (by the first parameter, the iron's travel) or `moments` (centre and
+        /// half-width of the pressure, interpolated in the parameter).
+        map: MapSpec,
+        /// `nodes` (whole-node shifts, translate only) or `linear`.
+        #[serde(default)]
+        interpolation: InterpolationSpec,
+        /// Reference cells per finest node spacing (linear only).
+        #[serde(default = "default_refine")]
+        refine: usize,
+        /// Basis built in the reference frame.
+        basis: BasisSpec,
+    },
+}
+
+fn default_iterations() -> usize {
+    300
+}
+
+fn default_refine() -> usize {
+    4
+}
+
+/// The registration map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MapSpec {
+    /// `xi = x - mu_1`.
+    Translate,
+    /// `xi = (x - c(mu)) / a(mu)` from the pressure's moments.
+    Moments,
+}
+
+/// How mapped values are evaluated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum InterpolationSpec {
+    /// Linear interpolation on a finer reference grid.
+    #[default]
+    Linear,
+    /// Whole-node shifts.
+    Nodes,
+}
+
+/// The basis of a registered approximation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BasisSpec {
+    /// POD.
+    Pod,
+    /// CPG.
+    Cpg,
+}

@@ -1,0 +1,124 @@
+//! Benchmark of the dictionary-sparse dual approximation online (issue 15): the online reduced
+//! solve on ironing-fine with every training snapshot of a dictionary as a dual basis vector,
+//! for the 128-snapshot training set and the 4 097-snapshot nested level 12
+//! (`d_x = 3 k / 4096`), at the 127 test midpoints of the 128-point set.
+//!
+//! `cargo run --release -p crom-stages --example bench_dictionary [atoms] [repetitions]`
+//!
+//! Solves the snapshots (in parallel), takes the POD of the 128 training points' contact
+//! responses as the primal basis (as the online stage does), builds the reduced model once and
+//! replaces its dual basis by each dictionary's atoms (`ReducedModel::set_dual`); each query is
+//! the exact online solve, single-threaded, the fastest of `repetitions` (default 3). Prints a
+//! markdown table: atoms, median online time, its ratio to the 128-atom dictionary (target
+//! <= 2x), median number of active atoms, converged points and the median relative dual error
+//! (tributary-weighted) of converged points.
+
+use crom_stages::basis::pod_full;
+use crom_stages::contact::{build_ironing, ContactSolveParams, FactoredModel, IroningParams, Material};
+use crom_stages::dual::dictionary::Dictionary;
+use crom_stages::dual::DualApprox;
+use crom_stages::rom::{ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};
+use faer::MatRef;
+use rayon::prelude::*;
+use std::time::Instant;
+
+fn ironing_fine() -> FactoredModel {
+    let p = IroningParams {
+        slab_length: 5.0,
+        slab_height: 1.0,
+        slab_nx: 200,
+        slab_ny: 40,
+        slab: Material::new(1.0, 0.3),
+        iron_width: 1.0,
+        iron_height: 1.0,
+        sole_radius: 2.0,
+        iron_nx: 60,
+        iron_ny: 60,
+        iron: Material::new(10.0, 0.3),
+        contact_x: 1.0,
+        d_y: Some(0.04),
+    };
+    build_ironing(&p).expect("ironing").factor().expect("factor")
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let big: usize = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(4097).max(2);
+    let reps: usize = std::env::args().nth(2).and_then(|a| a.parse().ok()).unwrap_or(3).max(1);
+    let tol = ContactSolveParams { rel_tol: 1e-10, max_iter: 500 };
+    let fm = ironing_fine();
+    let (n, nc) = (fm.n_dof(), fm.n_contact());
+    let grid = |count: usize| -> Vec<f64> { (0..count).map(|k| 3.0 * k as f64 / (count - 1) as f64).collect() };
+    let train = grid(128);
+    let test: Vec<f64> = (0..127).map(|k| 3.0 * (k as f64 + 0.5) / 127.0).collect();
+    let t = Instant::now();
+    let snaps: Vec<_> = train.par_iter().map(|&d| fm.solve(&[d], &tol).expect("training solve")).collect();
+    let responses: Vec<f64> = train
+        .iter()
+        .zip(&snaps)
+        .flat_map(|(&d, s)| s.u.iter().zip(fm.lift(&[d])).map(|(a, b)| a - b).collect::<Vec<_>>())
+        .collect();
+    let phi = pod_full(MatRef::from_column_major_slice(&responses, n, train.len())).expect("pod");
+    let ru = phi.modes.ncols();
+    let phi_c: Vec<f64> = (0..ru).flat_map(|j| phi.modes.col(j).iter().copied().collect::<Vec<_>>()).collect();
+    let base = ReducedModel::new(&fm, &phi_c, ru, &[], 0).expect("K̂ SPD");
+    let truth: Vec<Vec<f64>> = test.par_iter().map(|&d| fm.solve(&[d], &tol).expect("test solve").pressure).collect();
+    let pressures = |points: &[f64]| -> Vec<f64> {
+        points.par_iter().flat_map_iter(|&d| fm.solve(&[d], &tol).expect("dictionary solve").pressure).collect()
+    };
+    let small = snaps.iter().flat_map(|s| s.pressure.iter().copied()).collect::<Vec<f64>>();
+    let large = pressures(&grid(big));
+    eprintln!("snapshots solved in {:.1} s", t.elapsed().as_secs_f64());
+    let w8 = fm.weights().to_vec();
+    println!("| dictionary | atoms | median online (ms) | vs 128 atoms | target | median active atoms | converged | median dual error |");
+    println!("|---|---|---|---|---|---|---|---|");
+    let mut first = None;
+    for (name, data, count) in [("training set (128)", &small, 128), ("nested level (d_x = 3k/(N-1))", &large, big)] {
+        let dict = Dictionary::new(MatRef::from_column_major_slice(data, nc, count));
+        let atoms = dict.cone_basis(&[0.0], 0).expect("atoms");
+        let k = atoms.ncols();
+        let theta: Vec<f64> = (0..k).flat_map(|j| atoms.col(j).iter().copied().collect::<Vec<_>>()).collect();
+        let mut rom = base.clone();
+        rom.set_dual(&theta, k);
+        let mut w = RomWork::default();
+        let (mut times, mut active, mut errs, mut conv) = (Vec::new(), Vec::new(), Vec::new(), 0);
+        for (j, &d) in test.iter().enumerate() {
+            let mut best = f64::INFINITY;
+            let mut info = None;
+            for _ in 0..reps {
+                let t = Instant::now();
+                let i = rom.solve_in(&[d], &RomParams::default(), &mut w);
+                best = best.min(t.elapsed().as_secs_f64());
+                info = Some(i);
+            }
+            let s = w.solution(&info.expect("at least one repetition"));
+            times.push(best);
+            if s.outcome == RomOutcome::Converged {
+                conv += 1;
+                active.push(s.nonzero_dual as f64);
+                let p = rom.pressure(&s.lambda_hat);
+                let num: f64 = p.iter().zip(&truth[j]).zip(&w8).map(|((a, b), w)| w * (a - b) * (a - b)).sum();
+                let den: f64 = truth[j].iter().zip(&w8).map(|(b, w)| w * b * b).sum();
+                errs.push((num / den).sqrt());
+            }
+        }
+        let on = median(times);
+        let ratio = on / *first.get_or_insert(on);
+        let target = if count == 128 { "" } else { "<= 2" };
+        println!(
+            "| {name} | {k} | {:.4} | {ratio:.2} | {target} | {:.0} | {conv}/{} | {:.2e} |",
+            on * 1e3,
+            median(active),
+            test.len(),
+            median(errs)
+        );
+    }
+}
