@@ -42,14 +42,19 @@ fn hertz_comparison_tables_and_the_registered_advantage() {
         "registered-moments-cpg",
     ];
     for name in expected {
-        for which in ["compactness", "generalization", "test"] {
+        for which in ["compactness", "generalization", "test", "specificity"] {
             let rows = (0..a.len()).filter(|&i| a[i] == name && metric[i] == which).count();
-            // hertz: 12 training points, comparison.max_m = 11, every m up to 11 on the grid.
-            assert_eq!(rows, 11, "{name} {which}");
+            // hertz: 12 training points, comparison.max_m = 11, every m up to 11 on the grid;
+            // the dictionary has no modes, so no specificity.
+            let want = if name == "dictionary" && which == "specificity" { 0 } else { 11 };
+            assert_eq!(rows, want, "{name} {which}");
         }
     }
     assert!(mean.iter().all(|v| v.is_finite()), "a mean is null");
     assert!((0..a.len()).all(|i| metric[i] != "test" || count[i] == 11), "11 test snapshots, all with contact");
+    // hertz has no nested levels: the H(n) table exists and is empty.
+    let nested = read_parquet(&art.join(names::NESTED)).expect("nested table");
+    assert_eq!(nested.rows(), 0);
     let at = |name: &str, mm: u64| {
         (0..a.len()).find(|&i| a[i] == name && metric[i] == "test" && m[i] == mm).map(|i| mean[i]).expect("row")
     };

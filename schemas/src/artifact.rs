@@ -147,10 +147,15 @@ pub mod comparison {
     /// Curves: `scene, approximation, metric, m, mean, std, count, n_zero`, one row per
     /// (approximation, metric, m). `metric` is `compactness` (C(m) over the training set;
     /// `std` null), `generalization` (leave-one-out G(m) over `comparison.loo_folds` evenly
-    /// spaced folds) or `test` (mean relative error over the test set, each snapshot at its own
-    /// parameter, in the physical frame). `count` is the number of snapshots averaged,
+    /// spaced folds), `test` (mean relative error over the test set, each snapshot at its own
+    /// parameter, in the physical frame) or `specificity` (S(m), eq. 18, `study.specificity_samples`
+    /// members; none for the dictionary, which has no modes). `count` is the number of snapshots averaged,
     /// `n_zero` the zero snapshots skipped (no relative error).
     pub const CURVES: &str = "comparison.parquet";
+    /// Nested error H(n) (eq. 19) per approximation: `scene, approximation, n, m, value`,
+    /// built from level n with at most `m` modes (the largest of the grid), level n + 1
+    /// projected (empty without nested levels).
+    pub const NESTED: &str = "comparison_nested.parquet";
     /// Smallest m reaching each threshold: `scene, approximation, metric, threshold, m`
     /// (`m` null: never within the curve).
     pub const REACHED: &str = "comparison_reached.parquet";

@@ -1,6 +1,7 @@
 //! Comparison stage (issue 15): every dual approximation of the scene's `[comparison]` built
 //! from the training pressures and measured by the same metrics — compactness C(m),
-//! leave-one-out G(m), the test-set error T(m) — through `crom_stages::dual`. One artifact per
+//! leave-one-out G(m), the test-set error T(m), specificity S(m) and the nested error H(n) —
+//! through `crom_stages::dual`. One artifact per
 //! scene: its key holds the comparison's settings and the training set, test set and mesh
 //! (whose slave-node abscissae the registration maps use).
 
@@ -29,6 +30,9 @@ use crate::store::{Staging, Store};
 struct ComparisonKey<'a> {
     spec: &'a ComparisonSpec,
     nnls: NnlsKey,
+    /// Specificity's samples and seed (the scene's `study` settings).
+    specificity_samples: usize,
+    seed: u64,
 }
 
 impl StageKey for ComparisonKey<'_> {
@@ -40,15 +44,21 @@ impl StageKey for ComparisonKey<'_> {
 /// Error thresholds of the "smallest m reaching" table (mean relative error).
 pub(crate) const THRESHOLDS: [f64; 3] = [0.05, 0.01, 0.001];
 
-/// The comparison artifact's key spec (None without `[comparison]`).
-pub(crate) fn spec(scene: &SceneConfig, train: &Key, test: &Key, mesh: &Key) -> Option<KeySpec> {
+/// The comparison artifact's key spec (None without `[comparison]`); `nested` are the nested
+/// levels' sets (level n at index n - 1), for H(n).
+pub(crate) fn spec(scene: &SceneConfig, train: &Key, test: &Key, mesh: &Key, nested: &[Key]) -> Option<KeySpec> {
     let cmp = scene.comparison.as_ref()?;
-    Some(
-        KeySpec::of(&ComparisonKey { spec: cmp, nnls: NnlsKey::used() })
-            .input("train", train)
-            .input("test", test)
-            .input("mesh", mesh),
-    )
+    let key = ComparisonKey {
+        spec: cmp,
+        nnls: NnlsKey::used(),
+        specificity_samples: scene.study.specificity_samples,
+        seed: scene.study.seed,
+    };
+    let mut spec = KeySpec::of(&key).input("train", train).input("test", test).input("mesh", mesh);
+    for (i, k) in nested.iter().enumerate() {
+        spec = spec.input(&format!("level{}", i + 1), k);
+    }
+    Some(spec)
 }
 
 /// The approaches of a comparison, in table order (a `local` entry gives one per cell count).
@@ -94,9 +104,9 @@ pub(crate) fn contact_x(store: &Store, mesh: &Key) -> Result<Vec<f64>, CromError
 }
 
 /// Build and measure every approximation; returns the artifact's key.
-pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, test: &Key, mesh: &Key) -> Result<Key, CromError> {
+pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, test: &Key, mesh: &Key, nested: &[Key]) -> Result<Key, CromError> {
     let scene_cfg = ctx.scene;
-    let (Some(cmp), Some(spec)) = (scene_cfg.comparison.clone(), spec(scene_cfg, train, test, mesh)) else {
+    let (Some(cmp), Some(spec)) = (scene_cfg.comparison.clone(), spec(scene_cfg, train, test, mesh, nested)) else {
         return Err(CromError::artifact(
             "comparison",
             "the scene has no [comparison] section".to_string(),
@@ -104,6 +114,7 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, test: &Key, mesh: &Key) -> Res
         ));
     };
     let scene = scene_cfg.scene.name.clone();
+    let (samples, seed) = (scene_cfg.study.specificity_samples, scene_cfg.study.seed);
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
     ctx.single(ArtifactKind::Comparison, "comparison", &spec, |staging| {
         let set = loaded.set(store, train)?;
@@ -115,7 +126,13 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, test: &Key, mesh: &Key) -> Res
         let folds: Vec<usize> = (0..f).map(|k| k * n_train / f).collect();
         let training = Training { snapshots: view(&set.dual), params: &set.parameters, surface: &surface, ms: &ms };
         let list = approaches(&cmp);
-        let bar = Ticker::new(progress, "dual approximations", list.len() * (folds.len() + 1));
+        // The nested levels' pressures and parameters (small: n_contact x (2^n + 1) each).
+        let mut levels = Vec::new();
+        for k in nested {
+            let set = super::trainset::load_from(store, k)?;
+            levels.push((set.dual, set.parameters));
+        }
+        let bar = Ticker::new(progress, "dual approximations", list.len() * (folds.len() + 2));
         let mut out = Rows { scene: scene.clone(), ..Rows::default() };
         for a in &list {
             let name = a.name();
@@ -134,6 +151,24 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, test: &Key, mesh: &Key) -> Res
             let (g, g_zero) = study::stats(&loo, &ms);
             let errs = study::relative_errors(model.as_ref(), view(&tset.dual), &tset.parameters, &ms).map_err(fail)?;
             let (t, t_zero) = study::stats(&errs, &ms);
+            if let Some(sp) = study::specificity(model.as_ref(), &training, samples, seed).map_err(fail)? {
+                out.stats(&name, "specificity", &ms, &sp, 0);
+            }
+            for (n, pair) in levels.windows(2).enumerate() {
+                let (lo, hi) = (&pair[0], &pair[1]);
+                let lo_ms = dual::m_grid(cmp.max_m.min(lo.1.len()));
+                let lower = Training { snapshots: view(&lo.0), params: &lo.1, surface: &surface, ms: &lo_ms };
+                // A level too small for the approach (a local basis with more cells than the
+                // level has points) has no H(n): no row, counted in the facts.
+                match study::nested_error(a, &lower, view(&hi.0), &hi.1) {
+                    Ok(h) => out.nested.push((name.clone(), n + 1, lo_ms.last().copied().unwrap_or(0), h)),
+                    Err(dual::DualError::NotApplicable(_)) => {
+                        out.facts.push((name.clone(), "nested_level_skipped".into(), None, (n + 1) as f64))
+                    }
+                    Err(e) => return Err(fail(e)),
+                }
+            }
+            bar.tick(&name);
             let metrics_seconds = t1.elapsed().as_secs_f64();
             out.curve(&name, "compactness", &ms, &c, n_train);
             out.stats(&name, "generalization", &ms, &g, g_zero);
@@ -181,6 +216,8 @@ struct Rows {
     facts: Vec<(String, String, Option<usize>, f64)>,
     /// (approximation, build seconds, metrics seconds).
     times: Vec<(String, f64, f64)>,
+    /// (approximation, level n, modes used, H(n)).
+    nested: Vec<(String, usize, usize, f64)>,
 }
 
 impl Rows {
@@ -229,6 +266,14 @@ impl Rows {
             .with("m", Column::F64(f.iter().map(|x| opt(&x.2)).collect()))
             .with("value", Column::F64(f.iter().map(|x| x.3).collect()))
             .write_parquet(&staging.path(names::FACTS))?;
+        let h = &self.nested;
+        Table::default()
+            .with("scene", scene(h.len()))
+            .with("approximation", Column::Str(h.iter().map(|x| x.0.clone()).collect()))
+            .with("n", Column::U64(h.iter().map(|x| x.1 as u64).collect()))
+            .with("m", Column::U64(h.iter().map(|x| x.2 as u64).collect()))
+            .with("value", Column::F64(h.iter().map(|x| x.3).collect()))
+            .write_parquet(&staging.path(names::NESTED))?;
         let t = &self.times;
         Table::default()
             .with("scene", scene(t.len()))

@@ -314,7 +314,8 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
             }
             Stage::Comparison => {
                 let (t, te, m) = (input(0).clone(), input(1).clone(), input(2).clone());
-                comparison::run(ctx, &t, &te, &m)?
+                let nested: Vec<Key> = (3..node.inputs.len()).map(|i| input(i).clone()).collect();
+                comparison::run(ctx, &t, &te, &m, &nested)?
             }
             Stage::OnlineComparison => {
                 let (t, te, m) = (input(0).clone(), input(1).clone(), input(2).clone());

@@ -206,6 +206,7 @@ impl Plan {
             false,
             Stage::Specificity,
         );
+        let mut nested_sets: Vec<Key> = Vec::new();
         let nested = if p.nested_levels > 0 {
             let sweep = &sweeps[1];
             let sweep_name = format!("snapshots {}", sweep.name);
@@ -239,13 +240,16 @@ impl Plan {
                 sets.push(set);
             }
             let inputs: Vec<&str> = names.iter().map(String::as_str).collect();
+            nested_sets.clone_from(&sets);
             let key = metrics::nested_spec(&sets).key();
             Some(add("nested", ArtifactKind::Nested, key, &inputs, false, Stage::Nested))
         } else {
             None
         };
-        let comparison = comparison::spec(scene, &train, &test, &mesh).map(|spec| {
-            let inputs = ["trainset train", "trainset test", "mesh"];
+        let comparison = comparison::spec(scene, &train, &test, &mesh, &nested_sets).map(|spec| {
+            let mut inputs = vec!["trainset train".to_string(), "trainset test".to_string(), "mesh".to_string()];
+            inputs.extend((1..=nested_sets.len()).map(|n| format!("trainset nested-{n}")));
+            let inputs: Vec<&str> = inputs.iter().map(String::as_str).collect();
             add("comparison", ArtifactKind::Comparison, spec.key(), &inputs, false, Stage::Comparison)
         });
         let rom = add(

@@ -54,6 +54,9 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
         for (metric, stem, ylabel, caption) in COMPARISON_FIGURES {
             figs.push(comparison(scene, &c.curves, dir, metric, stem, ylabel, caption)?);
         }
+        if c.nested.rows() > 0 {
+            figs.push(comparison_nested(scene, &c.nested, dir)?);
+        }
         if let Some(t) = &c.online {
             figs.push(comparison_online(scene, t, dir)?);
         }
@@ -62,7 +65,7 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
 }
 
 /// The comparison's figures: (metric, stem, y label, caption).
-const COMPARISON_FIGURES: [(&str, &str, &str, &str); 3] = [
+const COMPARISON_FIGURES: [(&str, &str, &str, &str); 4] = [
     (
         "test",
         "fig_comparison_test",
@@ -81,7 +84,53 @@ const COMPARISON_FIGURES: [(&str, &str, &str, &str); 3] = [
         "C(m), training set",
         "Beyond the paper: compactness C(m) (eq. 16) of every dual approximation on its own training set (the dictionary holds every snapshot, so its C is 0 from m = 1).",
     ),
+    (
+        "specificity",
+        "fig_comparison_specificity",
+        "S(m), random members",
+        "Beyond the paper: specificity S(m) (eq. 18) of every dual approximation with modes: random members (coefficients uniform in mean ± std of the training snapshots' own, at a random training parameter) against the closest training snapshot. The dictionary has no modes.",
+    ),
 ];
+
+/// H(n) of every approximation against the level n.
+fn comparison_nested(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figure, CromError> {
+    let (Some(a), Some(n), Some(v)) = (t.strs("approximation"), t.u64s("n"), t.f64s("value")) else {
+        return Err(CromError::artifact(
+            "comparison_nested.parquet",
+            "lacks a column of approximation, n, value",
+            "delete the comparison artifact and rerun",
+        ));
+    };
+    let mut names: Vec<&String> = Vec::new();
+    for name in a {
+        if !names.contains(&name) {
+            names.push(name);
+        }
+    }
+    let series = names
+        .iter()
+        .map(|name| {
+            let (x, y): (Vec<f64>, Vec<f64>) =
+                (0..a.len()).filter(|&i| &a[i] == *name).map(|i| (n[i] as f64, v[i])).unzip();
+            Series::line(name, x, y)
+        })
+        .collect();
+    let chart = Chart {
+        title: format!("{}: nested error of each dual approximation", scene.scene.name),
+        x_label: "level n (2^n + 1 points)".into(),
+        y_label: "H(n) (eq. 19)".into(),
+        log_y: true,
+        log_x: false,
+        series,
+        legend: Legend::LowerLeft,
+    };
+    let stem = "fig_comparison_nested";
+    render(&chart, dir, stem)?;
+    Ok(Figure {
+        stem: stem.into(),
+        caption: "Beyond the paper: nested error H(n) (eq. 19) of every dual approximation, built from level n with at most comparison.max_m modes and projecting level n + 1's snapshots, each at its own parameter.".into(),
+    })
+}
 
 /// The online trade of every approximation: median dual error (converged queries) against
 /// median online time, one point per dual size m, joined per approximation.

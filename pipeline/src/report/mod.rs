@@ -78,6 +78,8 @@ pub(crate) struct ComparisonData {
     pub facts: Table,
     /// Build and metric times.
     pub timings: Table,
+    /// H(n) per approximation.
+    pub nested: Table,
     /// The online solve with each approximation (results and times joined), if run.
     pub online: Option<Table>,
 }

@@ -486,6 +486,49 @@ mod tests {
     /// elsewhere: the tied slaves' normals differ by at most half a vertex angle, pi/156,
     /// giving relative errors measured 4e-6 .. 3.3e-4, bound 5e-4 — and the indicator sees it:
     /// its equilibrium residual is at least the primal error at every point.
+    /// The dictionary's working set reaches the solution of the reduced problem over all atoms
+    /// (ironing-coarse, 17 training pressures as atoms, a working set starting from 1): the
+    /// same û at every test point to 1e-8 relative (both stop at the re-linearisation's
+    /// tolerance, 1e-10, and û is unique: the reduced QP is strictly convex in û), and the
+    /// check adds atoms at some point (it is exercised, not vacuous).
+    #[test]
+    fn dictionary_working_set_equals_all_atoms() {
+        use crate::dual::dictionary::{WorkingSet, WorkingSetScratch};
+        let fm = ironing_coarse();
+        let mus: Vec<f64> = (0..17).map(|k| 3.0 * k as f64 / 16.0).collect();
+        let (all, phi, snaps) = full_rom(fm, &mus);
+        let nc = fm.n_contact();
+        let ru = all.ranks().0;
+        let duals: Vec<f64> = snaps.iter().flat_map(|s| s.pressure.iter().copied()).collect();
+        let params: Vec<Vec<f64>> = mus.iter().map(|&d| vec![d]).collect();
+        let ws = WorkingSet::new(MatRef::from_column_major_slice(&duals, nc, mus.len()), &params, fm.weights(), 1);
+        let atoms: Vec<f64> = snaps
+            .iter()
+            .flat_map(|s| {
+                let n = s.pressure.iter().map(|v| v * v).sum::<f64>().sqrt();
+                s.pressure.iter().map(move |v| v / n).collect::<Vec<_>>()
+            })
+            .collect();
+        let mut every = ReducedModel::new(fm, &phi, ru, &atoms, mus.len()).expect("all atoms");
+        let mut small = every.clone();
+        every.set_dual(&atoms, mus.len());
+        let (mut w, mut sc) = (RomWork::default(), WorkingSetScratch::default());
+        let mut grew = 0;
+        for k in 0..16 {
+            let d = 3.0 * (k as f64 + 0.5) / 16.0;
+            let full = every.solve(&[d], &RomParams::default(), &mut w);
+            let out = ws.solve(&mut small, &[d], &RomParams::default(), &mut w, &mut sc);
+            assert_eq!(out.info.outcome, RomOutcome::Converged, "d {d}");
+            let got = w.solution(&out.info);
+            let norm = full.u_hat.iter().map(|v| v * v).sum::<f64>().sqrt();
+            for (a, b) in got.u_hat.iter().zip(&full.u_hat) {
+                assert!((a - b).abs() <= 1e-8 * norm, "d {d}: {a} vs {b}");
+            }
+            grew += usize::from(out.rounds > 1);
+        }
+        assert!(grew > 0, "the check never added an atom");
+    }
+
     /// `set_dual` with another dual basis answers exactly like a model built with it from
     /// scratch (hertz, Type-2; the same arithmetic on the same rows, so bit for bit).
     #[test]

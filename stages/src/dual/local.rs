@@ -72,6 +72,16 @@ impl DualApprox for LocalBases {
         self.cells[self.cell_of(mu)].cone_basis(mu, m)
     }
 
+    /// The group is the cell of `mu`.
+    fn coefficients(&self, s: &[f64], mu: &[f64], m: usize) -> Result<Option<(usize, Vec<f64>)>, DualError> {
+        let c = self.cell_of(mu);
+        Ok(Some((c, self.cells[c].coords(s, m)?)))
+    }
+
+    fn member(&self, group: usize, alpha: &[f64], _mu: &[f64], _m: usize, out: &mut [f64]) {
+        self.cells[group].combine(alpha, out);
+    }
+
     fn depends_on_mu(&self) -> bool {
         true
     }

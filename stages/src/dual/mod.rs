@@ -204,6 +204,26 @@ pub trait DualApprox: Send + Sync {
     fn depends_on_mu(&self) -> bool {
         false
     }
+
+    /// Specificity's coordinates (eq. 18) of `s` at `mu` on the first `m` modes: the group
+    /// whose modes they refer to (a local basis' cell; 0 elsewhere) and the coefficients in the
+    /// approximation's own coordinates (POD: orthogonal; cone bases: the NNLS coefficients; a
+    /// registered basis: those of the pulled-back snapshot on the reference modes). `None`
+    /// where there are no modes (the dictionary).
+    fn coefficients(&self, _s: &[f64], _mu: &[f64], _m: usize) -> Result<Option<(usize, Vec<f64>)>, DualError> {
+        Ok(None)
+    }
+
+    /// The member with coefficients `alpha` (of group `group`'s first `m` modes) at `mu`, in
+    /// the physical frame, into `out`.
+    fn member(&self, _group: usize, _alpha: &[f64], _mu: &[f64], _m: usize, out: &mut [f64]) {
+        out.fill(0.0);
+    }
+
+    /// Whether the coefficients are non-negative (their sampling interval is clipped at 0).
+    fn nonnegative(&self) -> bool {
+        true
+    }
 }
 
 /// The first `m` columns of `b` that are not zero.

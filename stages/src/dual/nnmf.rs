@@ -198,6 +198,16 @@ impl DualApprox for NnmfFamily {
         self.cones[k].cone_basis(mu, m)
     }
 
+    /// The group is the factorisation (rank index) used for m.
+    fn coefficients(&self, s: &[f64], _mu: &[f64], m: usize) -> Result<Option<(usize, Vec<f64>)>, DualError> {
+        let Some(k) = self.ranks.iter().rposition(|&r| r <= m) else { return Ok(None) };
+        Ok(Some((k, self.cones[k].coords(s, self.ranks[k])?)))
+    }
+
+    fn member(&self, group: usize, alpha: &[f64], _mu: &[f64], _m: usize, out: &mut [f64]) {
+        self.cones[group].combine(alpha, out);
+    }
+
     fn facts(&self) -> Vec<Fact> {
         let mut f = Vec::new();
         for (&m, &(it, res)) in self.ranks.iter().zip(&self.runs) {

@@ -56,6 +56,20 @@ impl SpanPrefix {
         Self { q, kept }
     }
 
+    /// Coordinates `Q[:, :r(m)]^T s` of `s` on the orthonormal basis of the first m vectors.
+    pub fn coords(&self, s: &[f64], m: usize) -> Vec<f64> {
+        let r = self.kept[m.min(self.kept.len() - 1)];
+        (0..r).map(|l| self.q.col(l).iter().zip(s).map(|(a, b)| a * b).sum()).collect()
+    }
+
+    /// `Q[:, :len(alpha)] alpha` into `out`.
+    pub fn combine(&self, alpha: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        for (l, &a) in alpha.iter().enumerate() {
+            out.iter_mut().zip(self.q.col(l).iter()).for_each(|(o, q)| *o += a * q);
+        }
+    }
+
     /// Residual norms of `s` on the spans of the first `ms[k]` basis vectors.
     pub fn residuals_of(&self, s: &[f64], ms: &[usize], out: &mut [f64]) {
         let r = self.q.ncols();
@@ -88,6 +102,18 @@ impl DualApprox for SpanPrefix {
     fn size(&self) -> usize {
         self.kept.len() - 1
     }
+
+    fn coefficients(&self, s: &[f64], _mu: &[f64], m: usize) -> Result<Option<(usize, Vec<f64>)>, DualError> {
+        Ok(Some((0, self.coords(s, m))))
+    }
+
+    fn member(&self, _group: usize, alpha: &[f64], _mu: &[f64], _m: usize, out: &mut [f64]) {
+        self.combine(alpha, out);
+    }
+
+    fn nonnegative(&self) -> bool {
+        false
+    }
 }
 
 /// Cone projections onto the prefixes of an ordered set of generators.
@@ -111,6 +137,24 @@ impl ConePrefix {
     /// The generators.
     pub fn basis(&self) -> MatRef<'_, f64> {
         self.full.basis()
+    }
+
+    /// NNLS coefficients of `s` on the first `m` generators.
+    pub fn coords(&self, s: &[f64], m: usize) -> Result<Vec<f64>, DualError> {
+        let m = m.min(self.full.ncols());
+        if m == 0 {
+            return Ok(Vec::new());
+        }
+        Ok(self.full.prefix(m).project(s)?.coeffs)
+    }
+
+    /// `B[:, :len(alpha)] alpha` into `out`.
+    pub fn combine(&self, alpha: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        let b = self.full.basis();
+        for (l, &a) in alpha.iter().enumerate() {
+            out.iter_mut().zip(b.col(l).iter()).for_each(|(o, q)| *o += a * q);
+        }
     }
 
     /// Residual norms of `s` on the cones of the first `ms[k]` generators.
@@ -142,6 +186,14 @@ impl DualApprox for ConePrefix {
 
     fn cone_basis(&self, _mu: &[f64], m: usize) -> Option<Mat<f64>> {
         Some(super::nonzero_prefix(self.full.basis(), m))
+    }
+
+    fn coefficients(&self, s: &[f64], _mu: &[f64], m: usize) -> Result<Option<(usize, Vec<f64>)>, DualError> {
+        Ok(Some((0, self.coords(s, m)?)))
+    }
+
+    fn member(&self, _group: usize, alpha: &[f64], _mu: &[f64], _m: usize, out: &mut [f64]) {
+        self.combine(alpha, out);
     }
 }
 

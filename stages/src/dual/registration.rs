@@ -453,6 +453,36 @@ impl DualApprox for Registered {
         true
     }
 
+    /// In the reference frame: the pulled-back snapshot's coordinates on the reference modes.
+    fn coefficients(&self, s: &[f64], mu: &[f64], m: usize) -> Result<Option<(usize, Vec<f64>)>, DualError> {
+        let mut r = vec![0.0; self.map.len()];
+        self.map.pull(s, mu, &mut r);
+        let k = m.min(self.modes.ncols());
+        let coords = match self.inner {
+            Inner::Pod => (0..k).map(|l| self.modes.col(l).iter().zip(&r).map(|(a, b)| a * b).sum()).collect(),
+            Inner::Cpg if k == 0 => Vec::new(),
+            Inner::Cpg => {
+                let mut p =
+                    crate::cone::ConeProjector::new(self.modes.subcols(0, k), crate::cone::NnlsParams::default());
+                p.project(&r)?.coeffs
+            }
+        };
+        Ok(Some((0, coords)))
+    }
+
+    /// The reference member `modes alpha`, pushed forward to `mu`.
+    fn member(&self, _group: usize, alpha: &[f64], mu: &[f64], _m: usize, out: &mut [f64]) {
+        let mut r = vec![0.0; self.map.len()];
+        for (l, &a) in alpha.iter().enumerate() {
+            r.iter_mut().zip(self.modes.col(l).iter()).for_each(|(o, q)| *o += a * q);
+        }
+        self.map.push(&r, mu, out);
+    }
+
+    fn nonnegative(&self) -> bool {
+        self.inner == Inner::Cpg
+    }
+
     fn facts(&self) -> Vec<Fact> {
         vec![
             Fact::new("reference_points", None, self.map.len() as f64),

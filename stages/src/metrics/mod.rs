@@ -36,4 +36,5 @@ pub use specificity::{
     cone_ranges_reference, specificity_cone, specificity_cone_path, specificity_orth, SpecificityParams,
 };
 
+pub use specificity::stream as specificity_stream;
 pub use stats::{MetricCurve, RunningStats};

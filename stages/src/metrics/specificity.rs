@@ -267,7 +267,7 @@ pub fn cone_ranges_reference(
 }
 
 /// The random stream of basis size m: a SplitMix64 hash of m mixed into the seed.
-pub(crate) fn stream(seed: u64, m: usize) -> Rng {
+pub fn stream(seed: u64, m: usize) -> Rng {
     let mut z = (m as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);

@@ -999,6 +999,40 @@ impl ReducedModel {
         }
     }
 
+    /// The gap of every paired potential-contact node at the solution in `w` (after
+    /// [`Self::solve_in`] with the same `w` and `mu`), as `(node, gap)`, over every node of the
+    /// surface — not only the support of the dual basis: Type-2 positions and pairs every
+    /// non-fixed slave with the solver's rule (as [`Self::indicator`] does). Unpaired nodes carry
+    /// no constraint and are left out. What a dual basis that grows (the dictionary's working
+    /// set, `crom_stages::dual::dictionary`) checks its candidates against.
+    pub fn node_gaps(&self, mu: &[f64], w: &mut RomWork, out: &mut Vec<(usize, f64)>) {
+        out.clear();
+        let ru = self.r_u;
+        match &self.surf {
+            SurfaceData::Fixed { cphi, cu0, paired, .. } => {
+                for (i, &p) in paired.iter().enumerate() {
+                    if p {
+                        out.push((i, dot(&cphi[i * ru..(i + 1) * ru], &w.u_hat) + affine(&cu0[0], &cu0[1..], mu, i)));
+                    }
+                }
+            }
+            SurfaceData::Nts { ns, nm, slave_fixed, phi_c, .. } => {
+                let (ns, nm) = (*ns, *nm);
+                let l = &mut w.lin;
+                let slaves = || (0..ns).filter(|&s| !slave_fixed[s]);
+                set_positions(phi_c, ru, &w.u_hat, &l.base, &mut l.xc, slaves().chain(ns..ns + nm));
+                l.index_masters(ns, nm);
+                for s in slaves() {
+                    let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
+                    let pr = l.ties.pair_peek(s, xs, &l.xm, &l.index);
+                    if pr.kind.is_paired() {
+                        out.push((s, GapRow::new(s, ns, &pr).apply(&l.xc)));
+                    }
+                }
+            }
+        }
+    }
+
     fn pressure_at(&self, i: usize, lam: &[f64]) -> f64 {
         (self.by_node.0[i]..self.by_node.0[i + 1]).map(|e| self.by_node.2[e] * lam[self.by_node.1[e]]).sum()
     }
