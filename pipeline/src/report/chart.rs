@@ -43,17 +43,26 @@ pub struct Series {
     pub band: Option<(Vec<f64>, Vec<f64>)>,
     /// How to draw it.
     pub mark: Mark,
+    /// Palette index (default: the series' position), so that one name keeps its colour
+    /// across figures that show different subsets.
+    pub color: Option<usize>,
 }
 
 impl Series {
     /// A line series.
     pub fn line(name: &str, x: Vec<f64>, y: Vec<f64>) -> Self {
-        Self { name: name.to_string(), x, y, band: None, mark: Mark::LinePoints }
+        Self { name: name.to_string(), x, y, band: None, mark: Mark::LinePoints, color: None }
     }
 
     /// Change the mark.
     pub fn mark(mut self, mark: Mark) -> Self {
         self.mark = mark;
+        self
+    }
+
+    /// Fix the palette index.
+    pub fn color(mut self, index: usize) -> Self {
+        self.color = Some(index);
         self
     }
 
@@ -229,7 +238,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) -> Res
                 .draw()
                 .map_err(|e| e.to_string())?;
             for (i, s) in chart.series.iter().enumerate() {
-                let color = PALETTE[i % PALETTE.len()];
+                let color = PALETTE[s.color.unwrap_or(i) % PALETTE.len()];
                 if let Some((lo, hi)) = &s.band {
                     let mut poly: Vec<(f64, f64)> = s.x.iter().zip(hi).map(|(x, y)| (*x, clamp(*y))).collect();
                     poly.extend(s.x.iter().zip(lo).rev().map(|(x, y)| (*x, clamp(*y))));

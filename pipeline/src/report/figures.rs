@@ -55,10 +55,10 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
             figs.push(comparison(scene, &c.curves, dir, metric, stem, ylabel, caption)?);
         }
         if c.nested.rows() > 0 {
-            figs.push(comparison_nested(scene, &c.nested, dir)?);
+            figs.push(comparison_nested(scene, &c.nested, &names_of(&c.curves), dir)?);
         }
         if let Some(t) = &c.online {
-            figs.push(comparison_online(scene, t, dir)?);
+            figs.push(comparison_online(scene, t, &names_of(&c.curves), dir)?);
         }
     }
     Ok(figs)
@@ -92,8 +92,19 @@ const COMPARISON_FIGURES: [(&str, &str, &str, &str); 4] = [
     ),
 ];
 
+/// The approximations of a comparison table, in table order.
+fn names_of(t: &Table) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for n in t.strs("approximation").unwrap_or_default() {
+        if !names.contains(n) {
+            names.push(n.clone());
+        }
+    }
+    names
+}
+
 /// H(n) of every approximation against the level n.
-fn comparison_nested(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figure, CromError> {
+fn comparison_nested(scene: &SceneConfig, t: &Table, all: &[String], dir: &Path) -> Result<Figure, CromError> {
     let (Some(a), Some(n), Some(v)) = (t.strs("approximation"), t.u64s("n"), t.f64s("value")) else {
         return Err(CromError::artifact(
             "comparison_nested.parquet",
@@ -112,7 +123,7 @@ fn comparison_nested(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figur
         .map(|name| {
             let (x, y): (Vec<f64>, Vec<f64>) =
                 (0..a.len()).filter(|&i| &a[i] == *name).map(|i| (n[i] as f64, v[i])).unzip();
-            Series::line(name, x, y)
+            Series::line(name, x, y).color(all.iter().position(|m| m == *name).unwrap_or(0))
         })
         .collect();
     let chart = Chart {
@@ -134,7 +145,7 @@ fn comparison_nested(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figur
 
 /// The online trade of every approximation: median dual error (converged queries) against
 /// median online time, one point per dual size m, joined per approximation.
-fn comparison_online(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figure, CromError> {
+fn comparison_online(scene: &SceneConfig, t: &Table, all: &[String], dir: &Path) -> Result<Figure, CromError> {
     let (Some(a), Some(x), Some(y), Some(conv)) =
         (t.strs("approximation"), t.f64s("median_online_ms"), t.f64s("median_dual_error"), t.u64s("converged"))
     else {
@@ -155,7 +166,9 @@ fn comparison_online(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figur
         .map(|name| {
             let rows = (0..a.len()).filter(|&i| &a[i] == *name && conv[i] > 0 && x[i].is_finite() && y[i].is_finite());
             let (xs, ys): (Vec<f64>, Vec<f64>) = rows.map(|i| (x[i], y[i])).unzip();
-            Series::line(name, xs, ys)
+            // The colour the approximation has in the other comparison figures.
+            let color = all.iter().position(|n| n == *name).unwrap_or(0);
+            Series::line(name, xs, ys).color(color)
         })
         .collect();
     let chart = Chart {
