@@ -67,20 +67,26 @@ def main():
         else:
             measured = "none"
         row(f"{scene}: mean test error <= 1 % with <= {max_m} modes", f"<= {max_m} modes", measured, best is not None)
-        # The best approximation that the online solve can use (a non-negative basis), and its
-        # convergence at that size.
-        cone = curves[curves.approximation.isin(set(online.approximation))]
-        best_cone = best_within(cone, "test", max_m, 0.01)
-        if best_cone:
-            name, m, err = best_cone
-            o = online[(online.approximation == name) & (online.m >= m)].sort_values("m").iloc[0]
-            measured = (f"{name}, test error {100 * err:.2f} % at m = {m}; online at m = {int(o.m)}: "
+        # An approximation the online solve can use (a non-negative basis) that reaches 1 % with
+        # at most max_m modes and whose online solve converges at every test point at that m.
+        cone = curves[(curves.metric == "test") & curves.approximation.isin(set(online.approximation))
+                      & (curves.m <= max_m) & (curves["mean"] <= 0.01)].sort_values(["m", "mean"])
+        found = None
+        for _, c in cone.iterrows():
+            o = online[(online.approximation == c.approximation) & (online.m == c.m)]
+            if len(o) and int(o.converged.iloc[0]) == int(o.points.iloc[0]):
+                found = (c, o.iloc[0])
+                break
+        if found:
+            c, o = found
+            measured = (f"{c.approximation}, test error {100 * c['mean']:.2f} % at m = {int(c.m)}; online: "
                         f"{int(o.converged)}/{int(o.points)} converged, median dual error "
                         f"{100 * o.median_dual_error:.2f} %, {o.median_online_ms:.3f} ms ({o.speedup:.0f}x)")
-            met = int(o.converged) == int(o.points)
         else:
-            measured, met = "no non-negative approximation reaches it", False
-        row(f"{scene}: its online solve converges at every test point", "all points", measured, met)
+            measured = "no non-negative approximation reaches 1 % and converges everywhere"
+        goal = "all points" if scene == "ironing-fine" else "all points (not an issue target)"
+        row(f"{scene}: ... with a non-negative basis whose online solve converges everywhere", goal, measured,
+            found is not None)
         if scene == "ironing-fine":
             worst = builds.sort_values("build_seconds").iloc[-1]
             row("ironing-fine: every approach's offline build at N = 128", "<= 2 s",
@@ -89,11 +95,12 @@ def main():
     # level 12 of ironing-fine, ~20 s, and times the online solve with both dictionaries).
     out = subprocess.run(["cargo", "run", "--release", "--quiet", "-p", "crom-stages", "--example",
                           "bench_dictionary"], cwd=REPO, check=True, capture_output=True, text=True).stdout
-    lines = [l for l in out.splitlines() if l.startswith("| ") and "atoms |" not in l]
-    big = lines[-1].split("|")
+    # Columns: method, dictionary, atoms, median ms, ratio, target, active, converged, error, rounds.
+    lines = [l.split("|")[1:-1] for l in out.splitlines() if l.startswith("| working set |")]
+    big = [c.strip() for c in lines[-1]]
     ratio = float(big[4])
-    row("dictionary online, 4 097 atoms vs 128 (median time)", "<= 2x",
-        f"{ratio:.2f}x ({big[3].strip()} ms; {big[7].strip()} converged, median dual error {big[8].strip()})",
+    row("dictionary online (working set), 4 097 atoms vs 128 (median time)", "<= 2x",
+        f"{ratio:.2f}x ({big[3]} ms; {big[7]} converged, median dual error {big[8]}, rounds / atoms {big[9]})",
         ratio <= 2.0)
     print()
     print(out)
