@@ -6,10 +6,27 @@ import re
 REPO = pathlib.Path(__file__).resolve().parents[1]
 
 
-def variant(tmp, base, name, edits):
+def drop_section(text, section):
+    """`text` without the TOML table `[section]` (its header line to the next top-level table
+    header or the end)."""
+    out, skipping = [], False
+    for line in text.splitlines(keepends=True):
+        head = line.strip()
+        if head.startswith("["):
+            skipping = head == f"[{section}]" or head.startswith(f"[{section}.") or head.startswith(f"[[{section}")
+        if not skipping:
+            out.append(line)
+    return "".join(out)
+
+
+def variant(tmp, base, name, edits, drop=()):
     """`data/scenes/<base>.toml` with every `(old, new)` of `edits` applied (each `old` must be
-    present; every occurrence is replaced) and the scene renamed `name`; its path in `tmp`."""
+    present; every occurrence is replaced), the tables in `drop` removed (e.g. `comparison`, for
+    the paper's study alone) and the scene renamed `name`; its path in `tmp`."""
     text = (REPO / "data" / "scenes" / f"{base}.toml").read_text()
+    for section in drop:
+        assert f"[{section}]" in text, f"{base}.toml has no [{section}]: update the script's drops"
+        text = drop_section(text, section)
     for a, b in edits:
         assert a in text, f"{base}.toml has no `{a}`: update the script's edits"
         text = text.replace(a, b)

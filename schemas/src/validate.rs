@@ -145,7 +145,7 @@ impl SceneConfig {
             check_slurm(&c, &e.slurm)?;
         }
         if let Some(cmp) = &self.comparison {
-            check_comparison(&c, cmp, &self.model, self.parameter.axes.len().max(1))?;
+            check_comparison(&c, cmp, &self.model, self.parameter.dim(), self.parameter.train_count())?;
         }
         match &self.model {
             Model::Rope(r) => check_rope(&c, r),
@@ -404,7 +404,13 @@ fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
     }
 }
 
-fn check_comparison(c: &Checker<'_>, cmp: &ComparisonSpec, model: &Model, dims: usize) -> Result<(), SceneError> {
+fn check_comparison(
+    c: &Checker<'_>,
+    cmp: &ComparisonSpec,
+    model: &Model,
+    dims: usize,
+    first_axis: usize,
+) -> Result<(), SceneError> {
     c.between("comparison.max_m", cmp.max_m, 1, 4096)?;
     c.between("comparison.loo_folds", cmp.loo_folds, 1, MAX_COUNT)?;
     if cmp.approximations.is_empty() {
@@ -435,6 +441,16 @@ fn check_comparison(c: &Checker<'_>, cmp: &ComparisonSpec, model: &Model, dims: 
                 }
                 for (k, &n) in cells.iter().enumerate() {
                     c.between(&format!("{field}.cells[{k}]"), n, 1, 4096)?;
+                    // Evenly spaced training points fill every one of K cells iff K <= N - 1.
+                    if n + 1 > first_axis {
+                        return Err(c.fail(
+                            &format!("{field}.cells[{k}]"),
+                            format!(
+                                "is {n}, but the training set has {first_axis} points along its first axis, so a cell would hold none"
+                            ),
+                            &format!("use at most {} cells", first_axis.saturating_sub(1).max(1)),
+                        ));
+                    }
                 }
                 c.finite(&format!("{field}.overlap"), *overlap)?;
                 if !(0.0..=10.0).contains(overlap) {

@@ -215,7 +215,11 @@ fn hertz_text() -> String {
 /// Every bad `[comparison]` setting is refused with the field and a fix.
 #[test]
 fn bad_comparison_settings_are_named() {
-    let cases: [(&str, &[&str]); 7] = [
+    let cases: [(&str, &[&str]); 8] = [
+        (
+            "[comparison]\napproximations = [{ kind = \"local\", cells = [12] }]\n",
+            &["comparison.approximations[0].cells[0]", "12 points", "at most 11 cells"],
+        ),
         ("[comparison]\napproximations = []\n", &["comparison.approximations", "nothing to compare"]),
         ("[comparison]\nmax_m = 0\napproximations = [{ kind = \"pod\" }]\n", &["comparison.max_m"]),
         (
