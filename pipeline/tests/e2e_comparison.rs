@@ -60,6 +60,19 @@ fn hertz_comparison_tables_and_the_registered_advantage() {
     };
     let (pod, reg) = (at("pod", 3), at("registered-moments-pod", 3));
     assert!(reg * 10.0 < pod, "registered {reg} vs plain POD {pod} at m = 3");
+    // Local bases per cell: only local approximations, and their cells split the 11 test points.
+    let cells = read_parquet(&art.join(names::CELLS)).expect("cells table");
+    let (Some(ca), Some(cm), Some(cmm), Some(cc)) =
+        (cells.strs("approximation"), cells.strs("metric"), cells.u64s("m"), cells.u64s("count"))
+    else {
+        panic!("comparison_cells.parquet lacks a documented column");
+    };
+    assert!(ca.iter().all(|n| n.starts_with("local-")), "per-cell rows of a global approximation");
+    for name in ["local-2", "local-3"] {
+        let points: u64 =
+            (0..ca.len()).filter(|&i| ca[i] == name && cm[i] == "test" && cmm[i] == 1).map(|i| cc[i]).sum();
+        assert_eq!(points, 11, "{name}: the cells' test points");
+    }
     for file in [names::REACHED, names::FACTS, names::TIMINGS] {
         let t = read_parquet(&art.join(file)).expect("table");
         assert!(t.rows() > 0, "{file} is empty");

@@ -156,6 +156,10 @@ pub mod comparison {
     /// built from level n with at most `m` modes (the largest of the grid), level n + 1
     /// projected (empty without nested levels).
     pub const NESTED: &str = "comparison_nested.parquet";
+    /// Local bases per cell: `scene, approximation, cell, metric, m, mean, count` — the test
+    /// error (`test`, the test points of that cell) and leave-one-out (`generalization`, the
+    /// folds whose snapshot lies in that cell) per cell; the cells' sizes are in [`FACTS`].
+    pub const CELLS: &str = "comparison_cells.parquet";
     /// Smallest m reaching each threshold: `scene, approximation, metric, threshold, m`
     /// (`m` null: never within the curve).
     pub const REACHED: &str = "comparison_reached.parquet";

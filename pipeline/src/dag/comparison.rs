@@ -38,7 +38,7 @@ struct ComparisonKey<'a> {
 impl StageKey for ComparisonKey<'_> {
     const KIND: ArtifactKind = ArtifactKind::Comparison;
     /// Bump when a number of the comparison changes.
-    const ALGORITHM_VERSION: u32 = 1;
+    const ALGORITHM_VERSION: u32 = 2;
 }
 
 /// Error thresholds of the "smallest m reaching" table (mean relative error).
@@ -151,6 +151,24 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, test: &Key, mesh: &Key, nested
             let (g, g_zero) = study::stats(&loo, &ms);
             let errs = study::relative_errors(model.as_ref(), view(&tset.dual), &tset.parameters, &ms).map_err(fail)?;
             let (t, t_zero) = study::stats(&errs, &ms);
+            // Local bases: the test error and G(m) per cell as well.
+            if model.cell_of(&set.parameters[0]).is_some() {
+                let mut by_cell: BTreeMap<(usize, &'static str), Vec<Option<Vec<f64>>>> = BTreeMap::new();
+                for (j, e) in errs.iter().enumerate() {
+                    let c = model.cell_of(&tset.parameters[j]).unwrap_or(0);
+                    by_cell.entry((c, "test")).or_default().push(e.clone());
+                }
+                for (k, e) in folds.iter().zip(&loo) {
+                    let c = model.cell_of(&set.parameters[*k]).unwrap_or(0);
+                    by_cell.entry((c, "generalization")).or_default().push(e.clone());
+                }
+                for ((c, metric), errors) in by_cell {
+                    let (st, _) = study::stats(&errors, &ms);
+                    for (&m, s) in ms.iter().zip(&st) {
+                        out.cells.push((name.clone(), c, metric, m, s.mean(), s.count()));
+                    }
+                }
+            }
             if let Some(sp) = study::specificity(model.as_ref(), &training, samples, seed).map_err(fail)? {
                 out.stats(&name, "specificity", &ms, &sp, 0);
             }
@@ -218,6 +236,8 @@ struct Rows {
     times: Vec<(String, f64, f64)>,
     /// (approximation, level n, modes used, H(n)).
     nested: Vec<(String, usize, usize, f64)>,
+    /// (approximation, cell, metric, m, mean, count): local bases per cell.
+    cells: Vec<(String, usize, &'static str, usize, f64, usize)>,
 }
 
 impl Rows {
@@ -274,6 +294,16 @@ impl Rows {
             .with("m", Column::U64(h.iter().map(|x| x.2 as u64).collect()))
             .with("value", Column::F64(h.iter().map(|x| x.3).collect()))
             .write_parquet(&staging.path(names::NESTED))?;
+        let c = &self.cells;
+        Table::default()
+            .with("scene", scene(c.len()))
+            .with("approximation", Column::Str(c.iter().map(|x| x.0.clone()).collect()))
+            .with("cell", Column::U64(c.iter().map(|x| x.1 as u64).collect()))
+            .with("metric", Column::Str(c.iter().map(|x| x.2.to_string()).collect()))
+            .with("m", Column::U64(c.iter().map(|x| x.3 as u64).collect()))
+            .with("mean", Column::F64(c.iter().map(|x| x.4).collect()))
+            .with("count", Column::U64(c.iter().map(|x| x.5 as u64).collect()))
+            .write_parquet(&staging.path(names::CELLS))?;
         let t = &self.times;
         Table::default()
             .with("scene", scene(t.len()))

@@ -26,7 +26,7 @@ struct ReportKey {}
 impl StageKey for ReportKey {
     const KIND: ArtifactKind = ArtifactKind::Report;
     /// Bump when the report's content changes.
-    const ALGORITHM_VERSION: u32 = 7;
+    const ALGORITHM_VERSION: u32 = 8;
 }
 
 /// The artifacts a report shows.
@@ -150,6 +150,7 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
                     facts: read_parquet(&dir.join(cmp_names::FACTS))?,
                     timings: read_parquet(&dir.join(cmp_names::TIMINGS))?,
                     nested: read_parquet(&dir.join(cmp_names::NESTED))?,
+                    cells: read_parquet(&dir.join(cmp_names::CELLS))?,
                     online: match &inputs.online_comparison {
                         Some(k) => {
                             let dir = store.dir(ArtifactKind::OnlineComparison, k);

@@ -80,6 +80,8 @@ pub(crate) struct ComparisonData {
     pub timings: Table,
     /// H(n) per approximation.
     pub nested: Table,
+    /// Local bases' metrics per cell.
+    pub cells: Table,
     /// The online solve with each approximation (results and times joined), if run.
     pub online: Option<Table>,
 }

@@ -113,6 +113,14 @@ pub(crate) fn write_all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Resu
                 "The online solve with each non-negative dual approximation (exact algorithm, full primal basis) over the test points: converged / refused / failed, median errors over converged points, median online time (ms), speed-up against the full-order solve timed in the same process, and the median number of non-zero dual coefficients (active atoms)",
             )?);
         }
+        if c.cells.rows() > 0 {
+            out.push(save(
+                &cells_view(&c.cells),
+                dir,
+                "table_comparison_cells",
+                "Local bases per cell: the test points and the mean relative test error of the points in each cell, at 1 and 5 generators and at the largest m (all rows, and leave-one-out per cell, in comparison_cells.parquet)",
+            )?);
+        }
         out.push(save(
             &facts_view(&c.facts),
             dir,
@@ -150,6 +158,45 @@ fn online_view(t: &Table) -> Table {
         }
     }
     v
+}
+
+/// Per (local approximation, cell): test points and T at m = 1, 5 and the largest m.
+fn cells_view(t: &Table) -> Table {
+    let (Some(a), Some(cell), Some(metric), Some(m), Some(mean), Some(count)) =
+        (t.strs("approximation"), t.u64s("cell"), t.strs("metric"), t.u64s("m"), t.f64s("mean"), t.u64s("count"))
+    else {
+        return Table::default();
+    };
+    let test: Vec<usize> = (0..a.len()).filter(|&i| metric[i] == "test").collect();
+    let mut keys: Vec<(String, u64)> = Vec::new();
+    for &i in &test {
+        if !keys.contains(&(a[i].clone(), cell[i])) {
+            keys.push((a[i].clone(), cell[i]));
+        }
+    }
+    let at = |k: &(String, u64), pick: &dyn Fn(&[usize]) -> Option<usize>| -> Option<usize> {
+        let rows: Vec<usize> = test.iter().copied().filter(|&i| a[i] == k.0 && cell[i] == k.1).collect();
+        pick(&rows)
+    };
+    let value = |k: &(String, u64), mm: Option<u64>| -> f64 {
+        at(k, &|rows: &[usize]| match mm {
+            Some(mm) => rows.iter().copied().find(|&i| m[i] == mm),
+            None => rows.iter().copied().max_by_key(|&i| m[i]),
+        })
+        .map_or(f64::NAN, |i| mean[i])
+    };
+    Table::default()
+        .with("approximation", Column::Str(keys.iter().map(|k| k.0.clone()).collect()))
+        .with("cell", Column::U64(keys.iter().map(|k| k.1).collect()))
+        .with(
+            "test_points",
+            Column::U64(
+                keys.iter().map(|k| at(k, &|r: &[usize]| r.first().copied()).map_or(0, |i| count[i])).collect(),
+            ),
+        )
+        .with("T(1)", Column::F64(keys.iter().map(|k| value(k, Some(1))).collect()))
+        .with("T(5)", Column::F64(keys.iter().map(|k| value(k, Some(5))).collect()))
+        .with("T(max m)", Column::F64(keys.iter().map(|k| value(k, None)).collect()))
 }
 
 /// The build facts without a rank, and those of ranks up to 8.

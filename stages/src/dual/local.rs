@@ -86,6 +86,10 @@ impl DualApprox for LocalBases {
         true
     }
 
+    fn cell_of(&self, mu: &[f64]) -> Option<usize> {
+        Some(LocalBases::cell_of(self, mu))
+    }
+
     fn facts(&self) -> Vec<Fact> {
         let mut f = Vec::new();
         for (c, (cone, &n)) in self.cells.iter().zip(&self.members).enumerate() {

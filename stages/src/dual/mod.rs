@@ -224,6 +224,12 @@ pub trait DualApprox: Send + Sync {
     fn nonnegative(&self) -> bool {
         true
     }
+
+    /// The cell of `mu` for an approximation made of local parts (local bases), `None`
+    /// otherwise: the metrics are then also reported per cell.
+    fn cell_of(&self, _mu: &[f64]) -> Option<usize> {
+        None
+    }
 }
 
 /// The first `m` columns of `b` that are not zero.
