@@ -93,7 +93,7 @@ const COMPARISON_FIGURES: [(&str, &str, &str, &str); 4] = [
 ];
 
 /// The approximations of a comparison table, in table order.
-fn names_of(t: &Table) -> Vec<String> {
+pub(super) fn names_of(t: &Table) -> Vec<String> {
     let mut names: Vec<String> = Vec::new();
     for n in t.strs("approximation").unwrap_or_default() {
         if !names.contains(n) {
@@ -112,18 +112,13 @@ fn comparison_nested(scene: &SceneConfig, t: &Table, all: &[String], dir: &Path)
             "delete the comparison artifact and rerun",
         ));
     };
-    let mut names: Vec<&String> = Vec::new();
-    for name in a {
-        if !names.contains(&name) {
-            names.push(name);
-        }
-    }
+    let names = names_of(t);
     let series = names
         .iter()
         .map(|name| {
             let (x, y): (Vec<f64>, Vec<f64>) =
-                (0..a.len()).filter(|&i| &a[i] == *name).map(|i| (n[i] as f64, v[i])).unzip();
-            Series::line(name, x, y).color(all.iter().position(|m| m == *name).unwrap_or(0))
+                (0..a.len()).filter(|&i| a[i] == **name).map(|i| (n[i] as f64, v[i])).unzip();
+            Series::line(name, x, y).color(all.iter().position(|m| m == name).unwrap_or(0))
         })
         .collect();
     let chart = Chart {
@@ -155,19 +150,14 @@ fn comparison_online(scene: &SceneConfig, t: &Table, all: &[String], dir: &Path)
             "delete the online-comparison artifact and rerun",
         ));
     };
-    let mut names: Vec<&String> = Vec::new();
-    for name in a {
-        if !names.contains(&name) {
-            names.push(name);
-        }
-    }
+    let names = names_of(t);
     let series = names
         .iter()
         .map(|name| {
-            let rows = (0..a.len()).filter(|&i| &a[i] == *name && conv[i] > 0 && x[i].is_finite() && y[i].is_finite());
+            let rows = (0..a.len()).filter(|&i| a[i] == **name && conv[i] > 0 && x[i].is_finite() && y[i].is_finite());
             let (xs, ys): (Vec<f64>, Vec<f64>) = rows.map(|i| (x[i], y[i])).unzip();
             // The colour the approximation has in the other comparison figures.
-            let color = all.iter().position(|n| n == *name).unwrap_or(0);
+            let color = all.iter().position(|n| n == name).unwrap_or(0);
             Series::line(name, xs, ys).color(color)
         })
         .collect();
@@ -206,16 +196,11 @@ fn comparison(
             "delete the comparison artifact and rerun",
         ));
     };
-    let mut names: Vec<&String> = Vec::new();
-    for name in a {
-        if !names.contains(&name) {
-            names.push(name);
-        }
-    }
+    let names = names_of(t);
     let series = names
         .iter()
         .map(|name| {
-            let rows = (0..a.len()).filter(|&i| &a[i] == *name && k[i] == metric && y[i].is_finite());
+            let rows = (0..a.len()).filter(|&i| a[i] == **name && k[i] == metric && y[i].is_finite());
             let (x, v): (Vec<f64>, Vec<f64>) = rows.map(|i| (m[i] as f64, y[i])).unzip();
             Series::line(name, x, v)
         })

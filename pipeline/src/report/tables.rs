@@ -229,12 +229,7 @@ fn comparison_view(c: &super::ComparisonData) -> Table {
     else {
         return Table::default();
     };
-    let mut names: Vec<String> = Vec::new();
-    for n in a {
-        if !names.contains(n) {
-            names.push(n.clone());
-        }
-    }
+    let names = super::figures::names_of(r);
     let mut t = Table::default().with("approximation", Column::Str(names.clone()));
     for (which, label) in [("test", "T"), ("generalization", "G")] {
         for level in crate::dag::comparison::THRESHOLDS {
