@@ -15,9 +15,9 @@ pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool, report: Option<&s
     let mut out = std::io::stdout().lock();
     let name = &ctx.scene.scene.name;
     let _ = writeln!(out, "crom run {name}: {} in {seconds:.2} s", if ok { "done" } else { "stopped" });
-    let _ = writeln!(out, "  {:<15} {:>9} {:>7}  artifact", "stage", "computed", "cached");
+    let _ = writeln!(out, "  {:<21} {:>9} {:>7}  artifact", "stage", "computed", "cached");
     for r in &ctx.records {
-        let _ = writeln!(out, "  {:<15} {:>9} {:>7}  {}", r.stage, r.computed, r.cached, r.dir.display());
+        let _ = writeln!(out, "  {:<21} {:>9} {:>7}  {}", r.stage, r.computed, r.cached, r.dir.display());
     }
     let p = ctx.points;
     if p.solved + p.reused + p.failed > 0 {

@@ -3,7 +3,9 @@
 //! non-finite except the documented nulls, a cached rerun recomputes nothing, and the Hertz
 //! contact registered by its half-width is nearly one-dimensional (Hertz theory: the pressure is
 //! `p0 sqrt(1 - x^2 / b^2)`, one profile dilated by b), so three registered POD modes beat three
-//! plain POD modes by more than an order of magnitude.
+//! plain POD modes by more than an order of magnitude. Each approximation is its own cached
+//! stage: changing one approximation's settings recomputes it and the side-by-side artifact,
+//! nothing else, and a parameter-independent basis is stored for the online stage.
 
 mod common;
 
@@ -20,6 +22,8 @@ fn hertz_comparison_tables_and_the_registered_advantage() {
     let arts: Vec<_> = std::fs::read_dir(store.join("comparison")).expect("comparison artifacts").flatten().collect();
     assert_eq!(arts.len(), 1);
     let art = arts[0].path();
+    // One artifact per approximation (local gives one per cell count): 9.
+    assert_eq!(artifacts(&store, "approximation").len(), 9);
     let curves = read_parquet(&art.join(names::CURVES)).expect("curves");
     let (Some(a), Some(metric), Some(m), Some(mean), Some(count)) = (
         curves.strs("approximation"),
@@ -81,8 +85,66 @@ fn hertz_comparison_tables_and_the_registered_advantage() {
     let again = crom(&store, &["run", "data/scenes/hertz.toml", "--offline"]);
     assert!(again.status.success(), "{}", text(&again));
     let out = text(&again);
-    let line = out.lines().find(|l| l.trim_start().starts_with("comparison ")).expect("comparison line");
-    assert!(line.split_whitespace().nth(1) == Some("0"), "a cached run recomputed: {line}");
+    for stage in ["approximation", "comparison"] {
+        assert_eq!(
+            counts(&out, stage),
+            (0, if stage == "comparison" { 1 } else { 9 }),
+            "a cached run recomputed:\n{out}"
+        );
+    }
+}
+
+/// The artifact directories of one kind in a store.
+fn artifacts(store: &std::path::Path, kind: &str) -> Vec<std::path::PathBuf> {
+    std::fs::read_dir(store.join(kind)).map(|d| d.flatten().map(|e| e.path()).collect()).unwrap_or_default()
+}
+
+/// (computed, cached) of a stage's line in the run summary (`<stage> <computed> <cached> ..`).
+fn counts(out: &str, stage: &str) -> (u64, u64) {
+    let line = out
+        .lines()
+        .find(|l| l.split_whitespace().next() == Some(stage))
+        .unwrap_or_else(|| panic!("no `{stage}` line in:\n{out}"));
+    let mut w = line.split_whitespace().skip(1).map(|x| x.parse::<u64>().unwrap_or(u64::MAX));
+    (w.next().unwrap_or(u64::MAX), w.next().unwrap_or(u64::MAX))
+}
+
+/// Changing NNMF's iteration count in the scene file recomputes the NNMF approximation and the
+/// side-by-side table, and nothing else of the comparison; the parameter-independent bases
+/// (CPG, Angle-Greedy, NNMF) are stored with one dataset per online size, `n_contact` rows and
+/// non-negative entries, and the others (POD: signed; local and registered: parameter-dependent;
+/// the dictionary: its atoms are the training set) store none.
+#[test]
+fn one_changed_approximation_recomputes_only_itself() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let store = dir.path().join("store");
+    let first = crom(&store, &["run", "data/scenes/hertz.toml", "--offline"]);
+    assert!(first.status.success(), "{}", text(&first));
+    let with_bases: Vec<_> =
+        artifacts(&store, "approximation").into_iter().filter(|d| d.join(names::BASES).exists()).collect();
+    assert_eq!(with_bases.len(), 3, "cpg, angle-greedy and nnmf store their bases");
+    for d in &with_bases {
+        let f = hdf5::File::open(d.join(names::BASES)).expect("bases.h5");
+        for m in [1usize, 2, 3, 5, 8] {
+            let ds = f.dataset(&format!("m{m}")).expect("one dataset per online size up to max_m = 11");
+            let shape = ds.shape();
+            assert!(shape.len() == 2 && shape.contains(&m), "m{m}: shape {shape:?}");
+            let v = ds.read_raw::<f64>().expect("read");
+            assert!(v.iter().all(|x| x.is_finite() && *x >= 0.0), "m{m}: a negative or non-finite generator");
+        }
+        assert!(f.dataset("m16").is_err(), "m = 16 exceeds max_m = 11");
+    }
+    let text_of = std::fs::read_to_string(common::repo().join("data/scenes/hertz.toml")).expect("hertz.toml");
+    let changed = text_of.replace("{ kind = \"nnmf\", iterations = 300 }", "{ kind = \"nnmf\", iterations = 299 }");
+    assert_ne!(changed, text_of, "the shipped hertz scene lists nnmf with 300 iterations");
+    let scene = dir.path().join("hertz.toml");
+    std::fs::write(&scene, changed).expect("write scene");
+    let second = crom(&store, &["run", scene.to_str().expect("utf-8 path"), "--offline"]);
+    assert!(second.status.success(), "{}", text(&second));
+    let out = text(&second);
+    assert_eq!(counts(&out, "approximation"), (1, 8), "{out}");
+    assert_eq!(counts(&out, "comparison"), (1, 0), "{out}");
+    assert_eq!(counts(&out, "generalization"), (0, 1), "{out}");
 }
 
 /// The online solve with every non-negative approximation on hertz: one row per (approximation,
@@ -97,6 +159,8 @@ fn hertz_online_comparison() {
     assert!(o.status.success(), "{}", text(&o));
     let arts: Vec<_> = std::fs::read_dir(store.join("online-comparison")).expect("artifacts").flatten().collect();
     assert_eq!(arts.len(), 1);
+    // One online artifact per approximation with a non-negative basis: all but the two POD.
+    assert_eq!(artifacts(&store, "online-approximation").len(), 7);
     let t = read_parquet(&arts[0].path().join(names::ONLINE)).expect("online table");
     let (Some(a), Some(m), Some(points), Some(conv), Some(inf), Some(failed), Some(err)) = (
         t.strs("approximation"),

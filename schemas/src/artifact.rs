@@ -42,9 +42,17 @@ pub enum ArtifactKind {
     Specificity,
     /// Nested-training-set error H(n) (eq. 19): `nested.parquet`.
     Nested,
-    /// Dual approximations side by side (issue 15): `comparison.parquet` and its tables.
+    /// One dual approximation built and measured (issue 15): the [`comparison`] tables of that
+    /// approximation alone, and `bases.h5` where its basis does not depend on the parameter.
+    Approximation,
+    /// Dual approximations side by side (issue 15): the `approximation` artifacts' tables
+    /// concatenated, `comparison.parquet` and the rest of [`comparison`].
     Comparison,
-    /// The online solve with each dual approximation (issue 15): `online_comparison.parquet`.
+    /// The online solve with one dual approximation (issue 15): [`comparison::ONLINE`] and
+    /// [`comparison::ONLINE_TIMINGS`] of that approximation alone.
+    OnlineApproximation,
+    /// The online solve with each dual approximation (issue 15): the `online-approximation`
+    /// artifacts' tables concatenated, `online_comparison.parquet`.
     OnlineComparison,
     /// ParaView time series (XDMF) of a snapshot set or a basis: `*.xdmf` + `views.h5`.
     Views,
@@ -56,7 +64,7 @@ pub enum ArtifactKind {
 
 impl ArtifactKind {
     /// Every kind, in DAG order.
-    pub const ALL: [ArtifactKind; 13] = [
+    pub const ALL: [ArtifactKind; 15] = [
         ArtifactKind::Mesh,
         ArtifactKind::Snapshot,
         ArtifactKind::TrainingSet,
@@ -65,7 +73,9 @@ impl ArtifactKind {
         ArtifactKind::Generalization,
         ArtifactKind::Specificity,
         ArtifactKind::Nested,
+        ArtifactKind::Approximation,
         ArtifactKind::Comparison,
+        ArtifactKind::OnlineApproximation,
         ArtifactKind::OnlineComparison,
         ArtifactKind::Views,
         ArtifactKind::Rom,
@@ -83,7 +93,9 @@ impl ArtifactKind {
             ArtifactKind::Generalization => "generalization",
             ArtifactKind::Specificity => "specificity",
             ArtifactKind::Nested => "nested",
+            ArtifactKind::Approximation => "approximation",
             ArtifactKind::Comparison => "comparison",
+            ArtifactKind::OnlineApproximation => "online-approximation",
             ArtifactKind::OnlineComparison => "online-comparison",
             ArtifactKind::Views => "views",
             ArtifactKind::Rom => "rom",
@@ -107,7 +119,9 @@ impl ArtifactKind {
             ArtifactKind::Generalization => 1,
             ArtifactKind::Specificity => 1,
             ArtifactKind::Nested => 1,
+            ArtifactKind::Approximation => 1,
             ArtifactKind::Comparison => 1,
+            ArtifactKind::OnlineApproximation => 1,
             ArtifactKind::OnlineComparison => 1,
             ArtifactKind::Views => 1,
             ArtifactKind::Rom => 3,
@@ -121,9 +135,11 @@ impl ArtifactKind {
 /// the same build (tested), and so are the snapshot blocks. Store metadata — manifests, the
 /// columns' `index.parquet` (which records solve times), `catalog.parquet`, `study.json` —
 /// records when and how long, and is not a result.
-pub const TIMING_FILES: [(&str, &str); 16] = [
+pub const TIMING_FILES: [(&str, &str); 18] = [
     ("trainset", trainset::TIMINGS),
+    ("approximation", comparison::TIMINGS),
     ("comparison", comparison::TIMINGS),
+    ("online-approximation", comparison::ONLINE_TIMINGS),
     ("online-comparison", comparison::ONLINE_TIMINGS),
     ("rom", rom::TIMINGS),
     ("rom", rom::TRADEOFF_TIMINGS),
@@ -142,7 +158,12 @@ pub const TIMING_FILES: [(&str, &str); 16] = [
 
 /// The comparison of dual approximations (issue 15; `crom_stages::dual`). Every table has a
 /// `scene` and an `approximation` column (`pod`, `cpg`, `angle-greedy`, `nnmf`, `local-K`,
-/// `dictionary`, `registered-<map>-<basis>`), so a pandas user can rebuild any plot.
+/// `dictionary`, `registered-<map>-<basis>`), so a pandas user can rebuild any plot. Each
+/// approximation is its own artifact (kind `approximation`, and `online-approximation` for its
+/// online solve) holding these tables for that approximation alone, so changing one
+/// approximation's settings recomputes only it; the `comparison` and `online-comparison`
+/// artifacts hold the same tables of every approximation of the scene, concatenated in the
+/// scene file's order.
 pub mod comparison {
     /// Curves: `scene, approximation, metric, m, mean, std, count, n_zero`, one row per
     /// (approximation, metric, m). `metric` is `compactness` (C(m) over the training set;
@@ -169,6 +190,12 @@ pub mod comparison {
     pub const FACTS: &str = "comparison_facts.parquet";
     /// Wall-clock seconds: `scene, approximation, build_seconds, metrics_seconds`.
     pub const TIMINGS: &str = "comparison_timings.parquet";
+    /// In an `approximation` artifact whose non-negative basis does not depend on the parameter
+    /// (CPG, Angle-Greedy, NNMF): the basis of each dual size the online solve uses, dataset
+    /// `m<k>` (`n_contact x k`, columns the generators, rows the potential-contact nodes in
+    /// dual-field order); the online stage reads them instead of building the approximation
+    /// again.
+    pub const BASES: &str = "bases.h5";
     /// The online solve with each approximation that has a non-negative dual basis (artifact
     /// kind `online-comparison`), one row per (approximation, m) over the test points:
     /// `scene, approximation, m, r_primal, points, converged, infeasible, failed,

@@ -117,3 +117,42 @@ pub enum BasisSpec {
     /// CPG.
     Cpg,
 }
+
+impl ApproximationSpec {
+    /// The approximations this entry stands for, each its own stage: a `local` entry gives one
+    /// per cell count (with that count alone), every other entry itself.
+    pub fn expand(&self) -> Vec<ApproximationSpec> {
+        match self {
+            ApproximationSpec::Local { cells, overlap } => {
+                cells.iter().map(|&k| ApproximationSpec::Local { cells: vec![k], overlap: *overlap }).collect()
+            }
+            other => vec![other.clone()],
+        }
+    }
+
+    /// The name of an expanded approximation in the tables and the plan (`pod`, `cpg`,
+    /// `angle-greedy`, `nnmf`, `local-K`, `dictionary`, `registered-<map>-<basis>`; a `local`
+    /// entry with several cell counts is named by its first).
+    pub fn name(&self) -> String {
+        let basis = |b: &BasisSpec| match b {
+            BasisSpec::Pod => "pod",
+            BasisSpec::Cpg => "cpg",
+        };
+        match self {
+            ApproximationSpec::Pod => "pod".into(),
+            ApproximationSpec::Cpg => "cpg".into(),
+            ApproximationSpec::AngleGreedy => "angle-greedy".into(),
+            ApproximationSpec::Nnmf { .. } => "nnmf".into(),
+            ApproximationSpec::Local { cells, .. } => format!("local-{}", cells.first().copied().unwrap_or(0)),
+            ApproximationSpec::Dictionary => "dictionary".into(),
+            ApproximationSpec::Registered { map, interpolation, basis: b, .. } => {
+                let map = match (map, interpolation) {
+                    (MapSpec::Translate, InterpolationSpec::Nodes) => "translate-nodes",
+                    (MapSpec::Translate, InterpolationSpec::Linear) => "translate-linear",
+                    (MapSpec::Moments, _) => "moments",
+                };
+                format!("registered-{map}-{}", basis(b))
+            }
+        }
+    }
+}

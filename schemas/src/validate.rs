@@ -494,6 +494,30 @@ fn check_comparison(
             | ApproximationSpec::Dictionary => {}
         }
     }
+    // Every approximation is a stage and a row label: two entries may not share a name.
+    let mut names: std::collections::BTreeMap<String, usize> = std::collections::BTreeMap::new();
+    for (i, a) in cmp.approximations.iter().enumerate() {
+        for e in a.expand() {
+            if let Some(first) = names.insert(e.name(), i) {
+                if first == i {
+                    return Err(c.fail(
+                        &format!("comparison.approximations[{i}].cells"),
+                        format!("lists a cell count twice (`{}`)", e.name()),
+                        "list each cell count once",
+                    ));
+                }
+                return Err(c.fail(
+                    &format!("comparison.approximations[{i}]"),
+                    format!(
+                        "is named `{}` in the tables, as entry [{first}] is (entries differing only in iterations, \
+                         refine or overlap share a name)",
+                        e.name()
+                    ),
+                    "keep one of the two entries (run the other setting in a copy of the scene file)",
+                ));
+            }
+        }
+    }
     Ok(())
 }
 

@@ -215,7 +215,7 @@ fn hertz_text() -> String {
 /// Every bad `[comparison]` setting is refused with the field and a fix.
 #[test]
 fn bad_comparison_settings_are_named() {
-    let cases: [(&str, &[&str]); 8] = [
+    let cases: [(&str, &[&str]); 10] = [
         (
             "[comparison]\napproximations = [{ kind = \"local\", cells = [12] }]\n",
             &["comparison.approximations[0].cells[0]", "12 points", "at most 11 cells"],
@@ -239,6 +239,14 @@ fn bad_comparison_settings_are_named() {
             &["comparison.approximations[0].interpolation", "linear"],
         ),
         ("[comparison]\napproximations = [{ kind = \"svd\" }]\n", &["svd"]),
+        (
+            "[comparison]\napproximations = [{ kind = \"nnmf\", iterations = 10 }, { kind = \"nnmf\" }]\n",
+            &["comparison.approximations[1]", "`nnmf`", "entry [0]", "keep one"],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"local\", cells = [2, 2] }]\n",
+            &["comparison.approximations[0].cells", "twice"],
+        ),
     ];
     for (section, needles) in cases {
         let err = load_err(&format!("{}\n{section}", hertz_text()));

@@ -1,98 +1,78 @@
-//! Comparison stage (issue 15): every dual approximation of the scene's `[comparison]` built
-//! from the training pressures and measured by the same metrics — compactness C(m),
-//! leave-one-out G(m), the test-set error T(m), specificity S(m) and the nested error H(n) —
-//! through `crom_stages::dual`. One artifact per
-//! scene: its key holds the comparison's settings and the training set, test set and mesh
-//! (whose slave-node abscissae the registration maps use).
+//! The comparison (issue 15): the scene's `[comparison]` as a list of dual approximations,
+//! each its own stage ([`super::approximation`] offline, [`super::approximation_online`]
+//! online), and the two stages that put them side by side. A side-by-side artifact
+//! (`comparison`, `online-comparison`) holds every approximation's tables concatenated in the
+//! scene file's order, so a pandas user opens one file with an `approximation` column; its key
+//! is the keys of the approximations it gathers, so changing one approximation's settings
+//! recomputes that approximation and this cheap concatenation, nothing else.
 
 use std::collections::BTreeMap;
-use std::time::Instant;
 
 use crom_schemas::artifact::{comparison as names, mesh as mnames, ArtifactKind};
 use crom_schemas::comparison::{ApproximationSpec, BasisSpec, ComparisonSpec, InterpolationSpec, MapSpec};
-use crom_schemas::SceneConfig;
-use crom_stages::dual::{self, study, Approach, Inner, Interpolation, MapKind, Training};
-use crom_stages::running_stats::RunningStats;
+use crom_stages::dual::{Approach, Inner, Interpolation, MapKind};
 use serde::Serialize;
 use serde_json::json;
 
-use super::basis::Ticker;
-use super::convert::view;
 use super::Ctx;
-use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
+use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
-use crate::io::table::{Column, Table};
-use crate::store::{Staging, Store};
-
-/// What determines the comparison besides its inputs.
-#[derive(Debug, Serialize)]
-struct ComparisonKey<'a> {
-    spec: &'a ComparisonSpec,
-    nnls: NnlsKey,
-    /// Specificity's samples and seed (the scene's `study` settings).
-    specificity_samples: usize,
-    seed: u64,
-}
-
-impl StageKey for ComparisonKey<'_> {
-    const KIND: ArtifactKind = ArtifactKind::Comparison;
-    /// Bump when a number of the comparison changes.
-    const ALGORITHM_VERSION: u32 = 2;
-}
+use crate::io::table::{read_parquet, Table};
+use crate::store::Store;
 
 /// Error thresholds of the "smallest m reaching" table (mean relative error).
 pub(crate) const THRESHOLDS: [f64; 3] = [0.05, 0.01, 0.001];
 
-/// The comparison artifact's key spec (None without `[comparison]`); `nested` are the nested
-/// levels' sets (level n at index n - 1), for H(n).
-pub(crate) fn spec(scene: &SceneConfig, train: &Key, test: &Key, mesh: &Key, nested: &[Key]) -> Option<KeySpec> {
-    let cmp = scene.comparison.as_ref()?;
-    let key = ComparisonKey {
-        spec: cmp,
-        nnls: NnlsKey::used(),
-        specificity_samples: scene.study.specificity_samples,
-        seed: scene.study.seed,
-    };
-    let mut spec = KeySpec::of(&key).input("train", train).input("test", test).input("mesh", mesh);
-    for (i, k) in nested.iter().enumerate() {
-        spec = spec.input(&format!("level{}", i + 1), k);
-    }
-    Some(spec)
+/// One approximation of a comparison.
+#[derive(Debug, Clone)]
+pub(crate) struct Item {
+    /// Its settings (a `local` entry with one cell count), part of its stage's key.
+    pub spec: ApproximationSpec,
+    /// What `crom_stages::dual` builds.
+    pub approach: Approach,
+    /// Its name in the tables and the plan.
+    pub name: String,
 }
 
-/// The approaches of a comparison, in table order (a `local` entry gives one per cell count).
-pub(crate) fn approaches(cmp: &ComparisonSpec) -> Vec<Approach> {
-    let mut out = Vec::new();
-    for a in &cmp.approximations {
-        match a {
-            ApproximationSpec::Pod => out.push(Approach::Pod),
-            ApproximationSpec::Cpg => out.push(Approach::Cpg),
-            ApproximationSpec::AngleGreedy => out.push(Approach::AngleGreedy),
-            ApproximationSpec::Nnmf { iterations } => out.push(Approach::Nnmf { iterations: *iterations }),
-            ApproximationSpec::Local { cells, overlap } => {
-                out.extend(cells.iter().map(|&k| Approach::Local { cells: k, overlap: *overlap }))
-            }
-            ApproximationSpec::Dictionary => out.push(Approach::Dictionary),
-            ApproximationSpec::Registered { map, interpolation, refine, basis } => {
-                let map = match (map, interpolation) {
-                    (MapSpec::Translate, InterpolationSpec::Nodes) => {
-                        MapKind::Translate { interpolation: Interpolation::Nodes }
-                    }
-                    (MapSpec::Translate, InterpolationSpec::Linear) => {
-                        MapKind::Translate { interpolation: Interpolation::Linear { refine: *refine } }
-                    }
-                    (MapSpec::Moments, _) => MapKind::Moments { refine: *refine },
-                };
-                let inner = match basis {
-                    BasisSpec::Pod => Inner::Pod,
-                    BasisSpec::Cpg => Inner::Cpg,
-                };
-                out.push(Approach::Registered { map, inner });
-            }
+/// The approximations of a comparison, in table order (a `local` entry gives one per cell
+/// count).
+pub(crate) fn items(cmp: &ComparisonSpec) -> Vec<Item> {
+    cmp.approximations
+        .iter()
+        .flat_map(ApproximationSpec::expand)
+        .map(|spec| Item { approach: approach_of(&spec), name: spec.name(), spec })
+        .collect()
+}
+
+/// The approach an expanded entry stands for.
+fn approach_of(spec: &ApproximationSpec) -> Approach {
+    match spec {
+        ApproximationSpec::Pod => Approach::Pod,
+        ApproximationSpec::Cpg => Approach::Cpg,
+        ApproximationSpec::AngleGreedy => Approach::AngleGreedy,
+        ApproximationSpec::Nnmf { iterations } => Approach::Nnmf { iterations: *iterations },
+        ApproximationSpec::Local { cells, overlap } => {
+            Approach::Local { cells: cells.first().copied().unwrap_or(1), overlap: *overlap }
+        }
+        ApproximationSpec::Dictionary => Approach::Dictionary,
+        ApproximationSpec::Registered { map, interpolation, refine, basis } => {
+            let map = match (map, interpolation) {
+                (MapSpec::Translate, InterpolationSpec::Nodes) => {
+                    MapKind::Translate { interpolation: Interpolation::Nodes }
+                }
+                (MapSpec::Translate, InterpolationSpec::Linear) => {
+                    MapKind::Translate { interpolation: Interpolation::Linear { refine: *refine } }
+                }
+                (MapSpec::Moments, _) => MapKind::Moments { refine: *refine },
+            };
+            let inner = match basis {
+                BasisSpec::Pod => Inner::Pod,
+                BasisSpec::Cpg => Inner::Cpg,
+            };
+            Approach::Registered { map, inner }
         }
     }
-    out
 }
 
 /// The abscissa of each potential-contact node, in dual-field order, from the mesh artifact.
@@ -103,213 +83,117 @@ pub(crate) fn contact_x(store: &Store, mesh: &Key) -> Result<Vec<f64>, CromError
     Ok(contact.iter().map(|&i| nodes.data[i as usize]).collect())
 }
 
-/// Build and measure every approximation; returns the artifact's key.
-pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, test: &Key, mesh: &Key, nested: &[Key]) -> Result<Key, CromError> {
-    let scene_cfg = ctx.scene;
-    let (Some(cmp), Some(spec)) = (scene_cfg.comparison.clone(), spec(scene_cfg, train, test, mesh, nested)) else {
-        return Err(CromError::artifact(
-            "comparison",
-            "the scene has no [comparison] section".to_string(),
-            "add one or do not run the comparison stage",
-        ));
+/// What determines a side-by-side artifact besides the approximations it gathers.
+#[derive(Debug, Serialize)]
+struct GatherKey {
+    /// `comparison` or `online-comparison`.
+    kind: &'static str,
+}
+
+/// The offline side-by-side artifact's key.
+#[derive(Debug, Serialize)]
+struct ComparisonKey(GatherKey);
+
+impl StageKey for ComparisonKey {
+    const KIND: ArtifactKind = ArtifactKind::Comparison;
+    /// Bump when the concatenation changes.
+    const ALGORITHM_VERSION: u32 = 3;
+}
+
+/// The online side-by-side artifact's key.
+#[derive(Debug, Serialize)]
+struct OnlineComparisonKey(GatherKey);
+
+impl StageKey for OnlineComparisonKey {
+    const KIND: ArtifactKind = ArtifactKind::OnlineComparison;
+    /// Bump when the concatenation changes.
+    const ALGORITHM_VERSION: u32 = 4;
+}
+
+/// The tables a side-by-side artifact concatenates.
+fn files(kind: ArtifactKind) -> &'static [&'static str] {
+    match kind {
+        ArtifactKind::Comparison => {
+            &[names::CURVES, names::NESTED, names::CELLS, names::REACHED, names::FACTS, names::TIMINGS]
+        }
+        _ => &[names::ONLINE, names::ONLINE_TIMINGS],
+    }
+}
+
+/// The key spec of a side-by-side artifact of `kind` over `parts`: (approximation name, key of
+/// its `approximation` or `online-approximation` artifact), in table order.
+pub(crate) fn gather_spec(kind: ArtifactKind, parts: &[(String, Key)]) -> KeySpec {
+    let mut spec = if kind == ArtifactKind::Comparison {
+        KeySpec::of(&ComparisonKey(GatherKey { kind: "comparison" }))
+    } else {
+        KeySpec::of(&OnlineComparisonKey(GatherKey { kind: "online-comparison" }))
     };
-    let scene = scene_cfg.scene.name.clone();
-    let (samples, seed) = (scene_cfg.study.specificity_samples, scene_cfg.study.seed);
-    let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
-    ctx.single(ArtifactKind::Comparison, "comparison", &spec, |staging| {
-        let set = loaded.set(store, train)?;
-        let tset = loaded.set(store, test)?;
-        let surface = contact_x(store, mesh)?;
-        let n_train = set.parameters.len();
-        let ms = dual::m_grid(cmp.max_m.min(n_train));
-        let f = cmp.loo_folds.min(n_train);
-        let folds: Vec<usize> = (0..f).map(|k| k * n_train / f).collect();
-        let training = Training { snapshots: view(&set.dual), params: &set.parameters, surface: &surface, ms: &ms };
-        let list = approaches(&cmp);
-        // The nested levels' pressures and parameters (small: n_contact x (2^n + 1) each).
-        let mut levels = Vec::new();
-        for k in nested {
-            let set = super::trainset::load_from(store, k)?;
-            levels.push((set.dual, set.parameters));
+    for (name, key) in parts {
+        spec = spec.input(name, key);
+    }
+    spec
+}
+
+/// Concatenate the tables of `parts` (artifacts of kind `part_kind`) into one artifact of
+/// `kind`; returns its key.
+pub(crate) fn gather(
+    ctx: &mut Ctx<'_>,
+    kind: ArtifactKind,
+    part_kind: ArtifactKind,
+    parts: &[(String, Key)],
+) -> Result<Key, CromError> {
+    let spec = gather_spec(kind, parts);
+    let store = ctx.store;
+    let label = if kind == ArtifactKind::Comparison { "comparison" } else { "online-comparison" };
+    ctx.single(kind, label, &spec, |staging| {
+        for file in files(kind) {
+            let mut all = Table::default();
+            for (name, key) in parts {
+                let path = store.dir(part_kind, key).join(file);
+                all.append(read_parquet(&path)?).map_err(|why| {
+                    CromError::artifact(
+                        &path,
+                        format!("its table does not match the other approximations' ({why}; `{name}`)"),
+                        "delete the artifact directory and rerun to recompute it",
+                    )
+                })?;
+            }
+            all.write_parquet(&staging.path(file))?;
         }
-        let bar = Ticker::new(progress, "dual approximations", list.len() * (folds.len() + 2));
-        let mut out = Rows { scene: scene.clone(), ..Rows::default() };
-        for a in &list {
-            let name = a.name();
-            let fail = |e: dual::DualError| CromError::Numerical {
-                stage: "comparison",
-                scene: scene.clone(),
-                message: format!("{name}: {e}"),
-            };
-            let t0 = Instant::now();
-            let model = dual::build(a, &training).map_err(fail)?;
-            let build_seconds = t0.elapsed().as_secs_f64();
-            bar.tick(&name);
-            let t1 = Instant::now();
-            let c = study::compactness(model.as_ref(), &training).map_err(fail)?;
-            let loo = study::leave_one_out(a, &training, &folds, &|| bar.tick(&name)).map_err(fail)?;
-            let (g, g_zero) = study::stats(&loo, &ms);
-            let errs = study::relative_errors(model.as_ref(), view(&tset.dual), &tset.parameters, &ms).map_err(fail)?;
-            let (t, t_zero) = study::stats(&errs, &ms);
-            // Local bases: the test error and G(m) per cell as well.
-            if model.cell_of(&set.parameters[0]).is_some() {
-                let mut by_cell: BTreeMap<(usize, &'static str), Vec<Option<Vec<f64>>>> = BTreeMap::new();
-                for (j, e) in errs.iter().enumerate() {
-                    let c = model.cell_of(&tset.parameters[j]).unwrap_or(0);
-                    by_cell.entry((c, "test")).or_default().push(e.clone());
-                }
-                for (k, e) in folds.iter().zip(&loo) {
-                    let c = model.cell_of(&set.parameters[*k]).unwrap_or(0);
-                    by_cell.entry((c, "generalization")).or_default().push(e.clone());
-                }
-                for ((c, metric), errors) in by_cell {
-                    let (st, _) = study::stats(&errors, &ms);
-                    for (&m, s) in ms.iter().zip(&st) {
-                        out.cells.push((name.clone(), c, metric, m, s.mean(), s.count()));
-                    }
-                }
-            }
-            if let Some(sp) = study::specificity(model.as_ref(), &training, samples, seed).map_err(fail)? {
-                out.stats(&name, "specificity", &ms, &sp, 0);
-            }
-            for (n, pair) in levels.windows(2).enumerate() {
-                let (lo, hi) = (&pair[0], &pair[1]);
-                let lo_ms = dual::m_grid(cmp.max_m.min(lo.1.len()));
-                let lower = Training { snapshots: view(&lo.0), params: &lo.1, surface: &surface, ms: &lo_ms };
-                // A level too small for the approach (a local basis with more cells than the
-                // level has points) has no H(n): no row, counted in the facts.
-                match study::nested_error(a, &lower, view(&hi.0), &hi.1) {
-                    Ok(h) => out.nested.push((name.clone(), n + 1, lo_ms.last().copied().unwrap_or(0), h)),
-                    Err(dual::DualError::NotApplicable(_)) => {
-                        out.facts.push((name.clone(), "nested_level_skipped".into(), None, (n + 1) as f64))
-                    }
-                    Err(e) => return Err(fail(e)),
-                }
-            }
-            bar.tick(&name);
-            let metrics_seconds = t1.elapsed().as_secs_f64();
-            out.curve(&name, "compactness", &ms, &c, n_train);
-            out.stats(&name, "generalization", &ms, &g, g_zero);
-            out.stats(&name, "test", &ms, &t, t_zero);
-            for (metric, st) in [("generalization", &g), ("test", &t)] {
-                for th in THRESHOLDS {
-                    let m = ms.iter().zip(st.iter()).find(|(_, s)| s.count() > 0 && s.mean() <= th).map(|(&m, _)| m);
-                    out.reached.push((name.clone(), metric, th, m));
-                }
-            }
-            for fact in model.facts() {
-                out.facts.push((name.clone(), fact.name, fact.m, fact.value));
-            }
-            out.times.push((name.clone(), build_seconds, metrics_seconds));
-        }
-        bar.finish(&format!("{} approximations, m <= {}", list.len(), ms.last().copied().unwrap_or(0)));
-        out.write(staging)?;
-        Ok(BTreeMap::from([
-            ("approximations".to_string(), json!(list.len())),
-            ("folds".to_string(), json!(folds.len())),
-            ("max_m".to_string(), json!(ms.last().copied().unwrap_or(0))),
-        ]))
+        Ok(BTreeMap::from([("approximations".to_string(), json!(parts.len()))]))
     })
 }
 
-/// One point of a curve.
-struct CurveRow {
-    name: String,
-    metric: &'static str,
-    m: usize,
-    mean: f64,
-    std: f64,
-    count: usize,
-    zero: usize,
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// The tables' rows, collected per approximation and written at the end.
-#[derive(Default)]
-struct Rows {
-    scene: String,
-    curves: Vec<CurveRow>,
-    /// (approximation, metric, threshold, m reaching it).
-    reached: Vec<(String, &'static str, f64, Option<usize>)>,
-    /// (approximation, fact, rank, value).
-    facts: Vec<(String, String, Option<usize>, f64)>,
-    /// (approximation, build seconds, metrics seconds).
-    times: Vec<(String, f64, f64)>,
-    /// (approximation, level n, modes used, H(n)).
-    nested: Vec<(String, usize, usize, f64)>,
-    /// (approximation, cell, metric, m, mean, count): local bases per cell.
-    cells: Vec<(String, usize, &'static str, usize, f64, usize)>,
-}
-
-impl Rows {
-    fn curve(&mut self, name: &str, metric: &'static str, ms: &[usize], values: &[f64], count: usize) {
-        for (&m, &mean) in ms.iter().zip(values) {
-            self.curves.push(CurveRow { name: name.into(), metric, m, mean, std: f64::NAN, count, zero: 0 });
+    /// The schema's names (the plan's and the tables') are the names `crom_stages::dual`
+    /// gives the approaches they build.
+    #[test]
+    fn item_names_are_the_approaches_names() {
+        let reg = |map, interpolation, basis| ApproximationSpec::Registered { map, interpolation, refine: 4, basis };
+        let cmp = ComparisonSpec {
+            max_m: 8,
+            loo_folds: 4,
+            approximations: vec![
+                ApproximationSpec::Pod,
+                ApproximationSpec::Cpg,
+                ApproximationSpec::AngleGreedy,
+                ApproximationSpec::Nnmf { iterations: 7 },
+                ApproximationSpec::Local { cells: vec![2, 5], overlap: 0.1 },
+                ApproximationSpec::Dictionary,
+                reg(MapSpec::Translate, InterpolationSpec::Nodes, BasisSpec::Pod),
+                reg(MapSpec::Translate, InterpolationSpec::Linear, BasisSpec::Cpg),
+                reg(MapSpec::Moments, InterpolationSpec::Linear, BasisSpec::Cpg),
+            ],
+        };
+        let list = items(&cmp);
+        assert_eq!(list.len(), 10);
+        for item in &list {
+            assert_eq!(item.name, item.approach.name());
         }
-    }
-
-    fn stats(&mut self, name: &str, metric: &'static str, ms: &[usize], st: &[RunningStats], zero: usize) {
-        for (&m, s) in ms.iter().zip(st) {
-            let (mean, std, count) = (s.mean(), s.std(), s.count());
-            self.curves.push(CurveRow { name: name.into(), metric, m, mean, std, count, zero });
-        }
-    }
-
-    fn write(self, staging: &Staging) -> Result<(), CromError> {
-        let scene = |n: usize| Column::Str(vec![self.scene.clone(); n]);
-        let c = &self.curves;
-        let strs = |f: &dyn Fn(&CurveRow) -> String| Column::Str(c.iter().map(f).collect());
-        Table::default()
-            .with("scene", scene(c.len()))
-            .with("approximation", strs(&|r| r.name.clone()))
-            .with("metric", strs(&|r| r.metric.to_string()))
-            .with("m", Column::U64(c.iter().map(|r| r.m as u64).collect()))
-            .with("mean", Column::F64(c.iter().map(|r| r.mean).collect()))
-            .with("std", Column::F64(c.iter().map(|r| r.std).collect()))
-            .with("count", Column::U64(c.iter().map(|r| r.count as u64).collect()))
-            .with("n_zero", Column::U64(c.iter().map(|r| r.zero as u64).collect()))
-            .write_parquet(&staging.path(names::CURVES))?;
-        // A null m ("never within the curve", "not per rank") is written for a non-finite value.
-        let opt = |m: &Option<usize>| m.map_or(f64::NAN, |m| m as f64);
-        let r = &self.reached;
-        Table::default()
-            .with("scene", scene(r.len()))
-            .with("approximation", Column::Str(r.iter().map(|x| x.0.clone()).collect()))
-            .with("metric", Column::Str(r.iter().map(|x| x.1.to_string()).collect()))
-            .with("threshold", Column::F64(r.iter().map(|x| x.2).collect()))
-            .with("m", Column::F64(r.iter().map(|x| opt(&x.3)).collect()))
-            .write_parquet(&staging.path(names::REACHED))?;
-        let f = &self.facts;
-        Table::default()
-            .with("scene", scene(f.len()))
-            .with("approximation", Column::Str(f.iter().map(|x| x.0.clone()).collect()))
-            .with("name", Column::Str(f.iter().map(|x| x.1.clone()).collect()))
-            .with("m", Column::F64(f.iter().map(|x| opt(&x.2)).collect()))
-            .with("value", Column::F64(f.iter().map(|x| x.3).collect()))
-            .write_parquet(&staging.path(names::FACTS))?;
-        let h = &self.nested;
-        Table::default()
-            .with("scene", scene(h.len()))
-            .with("approximation", Column::Str(h.iter().map(|x| x.0.clone()).collect()))
-            .with("n", Column::U64(h.iter().map(|x| x.1 as u64).collect()))
-            .with("m", Column::U64(h.iter().map(|x| x.2 as u64).collect()))
-            .with("value", Column::F64(h.iter().map(|x| x.3).collect()))
-            .write_parquet(&staging.path(names::NESTED))?;
-        let c = &self.cells;
-        Table::default()
-            .with("scene", scene(c.len()))
-            .with("approximation", Column::Str(c.iter().map(|x| x.0.clone()).collect()))
-            .with("cell", Column::U64(c.iter().map(|x| x.1 as u64).collect()))
-            .with("metric", Column::Str(c.iter().map(|x| x.2.to_string()).collect()))
-            .with("m", Column::U64(c.iter().map(|x| x.3 as u64).collect()))
-            .with("mean", Column::F64(c.iter().map(|x| x.4).collect()))
-            .with("count", Column::U64(c.iter().map(|x| x.5 as u64).collect()))
-            .write_parquet(&staging.path(names::CELLS))?;
-        let t = &self.times;
-        Table::default()
-            .with("scene", scene(t.len()))
-            .with("approximation", Column::Str(t.iter().map(|x| x.0.clone()).collect()))
-            .with("build_seconds", Column::F64(t.iter().map(|x| x.1).collect()))
-            .with("metrics_seconds", Column::F64(t.iter().map(|x| x.2).collect()))
-            .write_parquet(&staging.path(names::TIMINGS))
+        assert_eq!(list[4].approach, Approach::Local { cells: 2, overlap: 0.1 });
+        assert_eq!(list[5].spec, ApproximationSpec::Local { cells: vec![5], overlap: 0.1 });
     }
 }

@@ -8,10 +8,11 @@
 //! Each stage is named by the content hash of its parameters and inputs ([`crate::cache`]); a
 //! stage whose artifact is in the store and verifies is not run again.
 
+mod approximation;
+mod approximation_online;
 pub(crate) mod basis;
 mod compactness;
 pub(crate) mod comparison;
-mod comparison_online;
 mod convert;
 mod loaded;
 mod mesh;
@@ -265,6 +266,7 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
     use plan::Stage;
     let scene = ctx.scene;
     let mut physics = LazyPhysics { scene, built: None };
+    let mut online_base: Option<approximation_online::OnlineBase> = None;
     let mut keys: BTreeMap<&str, Key> = BTreeMap::new();
     let mut columns: BTreeMap<usize, snapshots::Columns> = BTreeMap::new();
     for node in &plan.nodes {
@@ -312,14 +314,23 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
                 let sets: Vec<Key> = (0..node.inputs.len()).map(|i| input(i).clone()).collect();
                 metrics::nested(ctx, &sets)?
             }
-            Stage::Comparison => {
+            Stage::Approximation(i) => {
                 let (t, te, m) = (input(0).clone(), input(1).clone(), input(2).clone());
                 let nested: Vec<Key> = (3..node.inputs.len()).map(|i| input(i).clone()).collect();
-                comparison::run(ctx, &t, &te, &m, &nested)?
+                approximation::run(ctx, *i, &t, &te, &m, &nested)?
+            }
+            Stage::Comparison => {
+                let parts = gathered(node, "approximation ", &keys);
+                comparison::gather(ctx, ArtifactKind::Comparison, ArtifactKind::Approximation, &parts)?
+            }
+            Stage::OnlineApproximation(i) => {
+                let (t, te, m, a) = (input(0).clone(), input(1).clone(), input(2).clone(), input(3).clone());
+                approximation_online::run(ctx, &mut physics, &mut online_base, *i, &t, &te, &m, &a)?
             }
             Stage::OnlineComparison => {
-                let (t, te, m) = (input(0).clone(), input(1).clone(), input(2).clone());
-                comparison_online::run(ctx, &mut physics, &t, &te, &m)?
+                let parts = gathered(node, "online-approximation ", &keys);
+                let part = ArtifactKind::OnlineApproximation;
+                comparison::gather(ctx, ArtifactKind::OnlineComparison, part, &parts)?
             }
             Stage::Rom => {
                 let (t, te, b) = (input(0).clone(), input(1).clone(), input(2).clone());
@@ -386,6 +397,12 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
         rom: keys.get("rom").cloned(),
         report: keys.get("report").cloned(),
     })
+}
+
+/// The (approximation name, key) of each input of a side-by-side node, whose inputs are the
+/// nodes `<prefix><name>`.
+fn gathered(node: &plan::Node, prefix: &str, keys: &BTreeMap<&str, Key>) -> Vec<(String, Key)> {
+    node.inputs.iter().map(|n| (n.trim_start_matches(prefix).to_string(), keys[n.as_str()].clone())).collect()
 }
 
 /// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.

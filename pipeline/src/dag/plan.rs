@@ -17,7 +17,9 @@ use crom_schemas::artifact::{ArtifactKind, MANIFEST};
 use crom_schemas::SceneConfig;
 
 use super::snapshots::{self, Sweep};
-use super::{basis, compactness, comparison, comparison_online, mesh, metrics, report, rom, trainset, views};
+use super::{
+    approximation, approximation_online, basis, compactness, comparison, mesh, metrics, report, rom, trainset, views,
+};
 use crate::cache::Key;
 use crate::error::CromError;
 
@@ -45,9 +47,13 @@ pub(crate) enum Stage {
     Specificity,
     /// H(n) over the nested sets.
     Nested,
+    /// Dual approximation `i` of the comparison (in `comparison::items` order).
+    Approximation(usize),
     /// The dual approximations side by side.
     Comparison,
-    /// The online solve with each dual approximation.
+    /// The online solve with dual approximation `i`.
+    OnlineApproximation(usize),
+    /// The online solves side by side.
     OnlineComparison,
     /// The online reduced model.
     Rom,
@@ -246,11 +252,23 @@ impl Plan {
         } else {
             None
         };
-        let comparison = comparison::spec(scene, &train, &test, &mesh, &nested_sets).map(|spec| {
+        // The comparison: one node per approximation, then the side-by-side artifact.
+        let items = scene.comparison.as_ref().map(comparison::items).unwrap_or_default();
+        let mut parts: Vec<(String, Key)> = Vec::new();
+        for (i, item) in items.iter().enumerate() {
+            let Some(spec) = approximation::spec(scene, i, &train, &test, &mesh, &nested_sets) else { continue };
             let mut inputs = vec!["trainset train".to_string(), "trainset test".to_string(), "mesh".to_string()];
             inputs.extend((1..=nested_sets.len()).map(|n| format!("trainset nested-{n}")));
             let inputs: Vec<&str> = inputs.iter().map(String::as_str).collect();
-            add("comparison", ArtifactKind::Comparison, spec.key(), &inputs, false, Stage::Comparison)
+            let name = format!("approximation {}", item.name);
+            let key = add(&name, ArtifactKind::Approximation, spec.key(), &inputs, false, Stage::Approximation(i));
+            parts.push((item.name.clone(), key));
+        }
+        let comparison = (!parts.is_empty()).then(|| {
+            let names: Vec<String> = parts.iter().map(|(n, _)| format!("approximation {n}")).collect();
+            let inputs: Vec<&str> = names.iter().map(String::as_str).collect();
+            let key = comparison::gather_spec(ArtifactKind::Comparison, &parts).key();
+            add("comparison", ArtifactKind::Comparison, key, &inputs, false, Stage::Comparison)
         });
         let rom = add(
             "rom",
@@ -260,9 +278,22 @@ impl Plan {
             true,
             Stage::Rom,
         );
-        let online_comparison = comparison_online::spec(scene, &train, &test, &mesh).map(|spec| {
-            let inputs = ["trainset train", "trainset test", "mesh"];
-            add("online-comparison", ArtifactKind::OnlineComparison, spec.key(), &inputs, true, Stage::OnlineComparison)
+        let mut online_parts: Vec<(String, Key)> = Vec::new();
+        for (i, item) in items.iter().enumerate() {
+            let Some((_, offline)) = parts.iter().find(|(n, _)| *n == item.name) else { continue };
+            let Some(spec) = approximation_online::spec(scene, i, &train, &test, &mesh, offline) else { continue };
+            let offline_node = format!("approximation {}", item.name);
+            let inputs = ["trainset train", "trainset test", "mesh", offline_node.as_str()];
+            let name = format!("online-approximation {}", item.name);
+            let kind = ArtifactKind::OnlineApproximation;
+            let key = add(&name, kind, spec.key(), &inputs, true, Stage::OnlineApproximation(i));
+            online_parts.push((item.name.clone(), key));
+        }
+        let online_comparison = (!online_parts.is_empty()).then(|| {
+            let names: Vec<String> = online_parts.iter().map(|(n, _)| format!("online-approximation {n}")).collect();
+            let inputs: Vec<&str> = names.iter().map(String::as_str).collect();
+            let key = comparison::gather_spec(ArtifactKind::OnlineComparison, &online_parts).key();
+            add("online-comparison", ArtifactKind::OnlineComparison, key, &inputs, true, Stage::OnlineComparison)
         });
         add(
             "views online",

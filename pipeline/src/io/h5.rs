@@ -302,6 +302,11 @@ impl H5In {
         self.file.dataset(name).map_err(|e| rerr(&self.path, name, e))
     }
 
+    /// Whether a dataset or group `name` exists.
+    pub fn contains(&self, name: &str) -> bool {
+        self.file.link_exists(name)
+    }
+
     /// A 1-D float dataset.
     pub fn vec_f64(&self, name: &str) -> Result<Vec<f64>, CromError> {
         self.ds(name)?.read_raw::<f64>().map_err(|e| rerr(&self.path, name, e))

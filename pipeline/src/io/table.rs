@@ -64,6 +64,38 @@ impl Table {
         Some(self)
     }
 
+    /// The rows of `other` appended below this table's, for tables of the same layout written
+    /// apart (one per approximation): `Err` naming the first column whose name or type
+    /// differs. An empty table (no columns) takes `other`'s layout.
+    pub fn append(&mut self, other: Table) -> Result<(), String> {
+        if self.columns.is_empty() {
+            *self = other;
+            return Ok(());
+        }
+        if self.columns.len() != other.columns.len() {
+            return Err(format!("{} columns against {}", other.columns.len(), self.columns.len()));
+        }
+        // Check every column before changing any, so a refused table leaves this one whole.
+        for ((name, col), (other_name, other_col)) in self.columns.iter().zip(&other.columns) {
+            let same = matches!(
+                (col, other_col),
+                (Column::Str(_), Column::Str(_)) | (Column::U64(_), Column::U64(_)) | (Column::F64(_), Column::F64(_))
+            );
+            if name != other_name || !same {
+                return Err(format!("column `{other_name}` does not match `{name}` (name or type)"));
+            }
+        }
+        for ((_, col), (_, other_col)) in self.columns.iter_mut().zip(other.columns) {
+            match (col, other_col) {
+                (Column::Str(a), Column::Str(b)) => a.extend(b),
+                (Column::U64(a), Column::U64(b)) => a.extend(b),
+                (Column::F64(a), Column::F64(b)) => a.extend(b),
+                _ => {} // types checked above
+            }
+        }
+        Ok(())
+    }
+
     /// Number of rows (0 for no columns).
     pub fn rows(&self) -> usize {
         self.columns.first().map_or(0, |(_, c)| c.len())
@@ -274,6 +306,25 @@ impl Table {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn append_stacks_rows_and_refuses_another_layout() {
+        let t = |name: &str, v: Vec<f64>| {
+            Table::default()
+                .with("approximation", Column::Str(vec![name.to_string(); v.len()]))
+                .with("m", Column::F64(v))
+        };
+        let mut all = Table::default();
+        all.append(t("pod", vec![1.0, 2.0])).expect("first");
+        all.append(t("cpg", vec![3.0])).expect("same layout");
+        assert_eq!(all.rows(), 3);
+        assert_eq!(all.strs("approximation").expect("column"), ["pod", "pod", "cpg"]);
+        assert_eq!(all.f64s("m").expect("column"), [1.0, 2.0, 3.0]);
+        let other =
+            Table::default().with("approximation", Column::Str(vec!["x".into()])).with("m", Column::U64(vec![1]));
+        assert!(all.append(other).expect_err("a u64 m").contains("`m`"));
+        assert_eq!(all.rows(), 3);
+    }
+
     use super::*;
     use arrow_array::Array;
 

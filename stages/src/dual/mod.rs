@@ -93,6 +93,12 @@ pub enum Approach {
 }
 
 impl Approach {
+    /// Whether it has a non-negative dual basis for the online solve
+    /// ([`DualApprox::cone_basis`] is `Some`): all but POD and registered POD.
+    pub fn has_cone_basis(&self) -> bool {
+        !matches!(self, Approach::Pod | Approach::Registered { inner: Inner::Pod, .. })
+    }
+
     /// The approximation's name in tables and figures (`pod`, `cpg`, `angle-greedy`, `nnmf`,
     /// `local-K`, `dictionary`, `registered-<map>-<basis>`).
     pub fn name(&self) -> String {
@@ -298,6 +304,36 @@ mod tests {
         assert_eq!(&g[..16], &(1..=16).collect::<Vec<_>>()[..]);
         assert_eq!(&g[16..], &[20, 24, 28, 32, 48, 64, 70]);
         assert!(m_grid(0).is_empty());
+    }
+
+    /// The plan's `has_cone_basis` agrees with what the built approximation answers, on a
+    /// small translated-bump training set every approach can be built from.
+    #[test]
+    fn has_cone_basis_matches_the_built_approximation() {
+        let (n, count) = (40, 12);
+        let surface: Vec<f64> = (0..n).map(|i| i as f64).collect();
+        let params: Vec<Vec<f64>> = (0..count).map(|j| vec![j as f64]).collect();
+        let s = Mat::from_fn(n, count, |i, j| (4.0 - (i as f64 - 10.0 - j as f64).powi(2)).max(0.0));
+        let ms = [1, 2, 3];
+        let training = Training { snapshots: s.as_ref(), params: &params, surface: &surface, ms: &ms };
+        for a in all_approaches() {
+            let built = build(&a, &training).expect("build");
+            assert_eq!(a.has_cone_basis(), built.cone_basis(&params[3], 2).is_some(), "{}", a.name());
+        }
+    }
+
+    fn all_approaches() -> Vec<Approach> {
+        let nodes = MapKind::Translate { interpolation: Interpolation::Nodes };
+        vec![
+            Approach::Pod,
+            Approach::Cpg,
+            Approach::AngleGreedy,
+            Approach::Nnmf { iterations: 10 },
+            Approach::Local { cells: 2, overlap: 0.0 },
+            Approach::Dictionary,
+            Approach::Registered { map: nodes, inner: Inner::Pod },
+            Approach::Registered { map: nodes, inner: Inner::Cpg },
+        ]
     }
 
     #[test]

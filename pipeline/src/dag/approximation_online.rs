@@ -1,0 +1,395 @@
+//! Online approximation stage (issue 15): the reduced solve of the online stage
+//! ([`crom_stages::rom`], exact algorithm) with the dual basis of one approximation of the
+//! scene's `[comparison]` that has a non-negative one (CPG, Angle-Greedy, NNMF, local bases,
+//! the dictionary, registered CPG), at the full primal rank, for a few dual sizes m, at every
+//! test point. One artifact per approximation; [`super::comparison::gather`] puts them side by
+//! side.
+//!
+//! A basis that does not depend on the parameter is read from the approximation's artifact
+//! (`bases.h5`), not built again; a local or registered one is built from the training set
+//! (cheap: the dearest, NNMF, is parameter-independent). The dictionary is solved by a working
+//! set of atoms (`crom_stages::dual::dictionary::WorkingSet`: the nearest atoms first, then
+//! the violated ones), the whole loop timed.
+//!
+//! The reduced model is built once per run (`K̂`, the contact-dof rows of the primal basis;
+//! [`OnlineBase`], shared by every approximation's stage in the process) and only its dual part
+//! is replaced per approximation ([`ReducedModel::set_dual`], `O(n_contact m)`). A fixed basis
+//! is set before the timer starts; a basis that depends on the parameter (a registered one is
+//! pushed forward to the query's frame, a local one is its cell's) is evaluated and set inside
+//! the timed query, so its online time includes that work — which reads only contact-surface
+//! data. The full-order solve is timed in the same process at the same points, as in the
+//! online stage (once per process, in [`OnlineBase`]).
+
+use std::time::Instant;
+
+use crom_schemas::artifact::{comparison as names, ArtifactKind};
+use crom_schemas::comparison::ApproximationSpec;
+use crom_schemas::SceneConfig;
+use crom_stages::dual::dictionary::{WorkingSet, WorkingSetScratch, WS_START};
+use crom_stages::dual::{self, Approach, DualApprox, Training};
+use crom_stages::metrics::order::quantile;
+use crom_stages::rom::{Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork};
+use rayon::prelude::*;
+use serde::Serialize;
+use serde_json::json;
+
+use super::approximation::ONLINE_MS;
+use super::comparison::{contact_x, items};
+use super::convert::view;
+use super::rom::{dual_error, fom_seconds, response_basis, REPEAT_BELOW, TIMING_REPEATS};
+use super::{Ctx, LazyPhysics};
+use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
+use crate::error::CromError;
+use crate::io::h5::H5In;
+use crate::io::table::{Column, Table};
+
+/// What determines one approximation's online artifact besides its inputs.
+#[derive(Debug, Serialize)]
+struct OnlineApproximationKey<'a> {
+    approximation: &'a ApproximationSpec,
+    max_m: usize,
+    nnls: NnlsKey,
+    max_iter: usize,
+    gap_tol: f64,
+    u_tol: f64,
+    /// The dictionary's first working set.
+    ws_start: usize,
+}
+
+impl StageKey for OnlineApproximationKey<'_> {
+    const KIND: ArtifactKind = ArtifactKind::OnlineApproximation;
+    /// Bump when a number of the online solve changes.
+    const ALGORITHM_VERSION: u32 = 1;
+}
+
+/// The key spec of approximation `index`'s online stage (None without `[comparison]`, past
+/// its end, or for an approximation without a non-negative basis); `approximation` is the key
+/// of its offline artifact.
+pub(crate) fn spec(
+    scene: &SceneConfig,
+    index: usize,
+    train: &Key,
+    test: &Key,
+    mesh: &Key,
+    approximation: &Key,
+) -> Option<KeySpec> {
+    let cmp = scene.comparison.as_ref()?;
+    let item = items(cmp).into_iter().nth(index)?;
+    if !item.approach.has_cone_basis() {
+        return None;
+    }
+    let p = RomParams::default();
+    let key = OnlineApproximationKey {
+        approximation: &item.spec,
+        max_m: cmp.max_m,
+        nnls: NnlsKey::used(),
+        max_iter: p.max_iter,
+        gap_tol: p.gap_tol,
+        u_tol: p.u_tol,
+        ws_start: WS_START,
+    };
+    Some(
+        KeySpec::of(&key)
+            .input("train", train)
+            .input("test", test)
+            .input("mesh", mesh)
+            .input("approximation", approximation),
+    )
+}
+
+/// What every approximation's online stage shares in one process: the primal basis and the
+/// reduced model on it, the test points' primal references and the full-order solve's median
+/// time at the test points.
+pub(crate) struct OnlineBase {
+    /// (train, test) keys it was built for.
+    of: (Key, Key),
+    r_primal: usize,
+    model: ReducedModel,
+    errors: PrimalErrors,
+    fom_median: f64,
+}
+
+impl std::fmt::Debug for OnlineBase {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OnlineBase").field("of", &self.of).field("r_primal", &self.r_primal).finish_non_exhaustive()
+    }
+}
+
+/// One query's outcome.
+struct Query {
+    outcome: RomOutcome,
+    seconds: f64,
+    primal: f64,
+    dual: f64,
+    nonzero: usize,
+}
+
+/// Run the online solve with approximation `index`; returns the artifact's key. `shared` is
+/// the process's [`OnlineBase`] (built here on first use).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn run(
+    ctx: &mut Ctx<'_>,
+    physics: &mut LazyPhysics<'_>,
+    shared: &mut Option<OnlineBase>,
+    index: usize,
+    train: &Key,
+    test: &Key,
+    mesh: &Key,
+    approximation: &Key,
+) -> Result<Key, CromError> {
+    let scene_cfg = ctx.scene;
+    let found = scene_cfg.comparison.as_ref().and_then(|c| items(c).into_iter().nth(index).map(|i| (c.clone(), i)));
+    let (Some((cmp, item)), Some(spec)) = (found, spec(scene_cfg, index, train, test, mesh, approximation)) else {
+        return Err(CromError::artifact(
+            "online-approximation",
+            format!("the scene's [comparison] has no approximation number {index} with a non-negative basis"),
+            "run the scene's own plan (`crom run`), which lists its approximations",
+        ));
+    };
+    let key = spec.key();
+    let label = format!("online {}", item.name);
+    if ctx.lookup(ArtifactKind::OnlineApproximation, &key)?.is_some() {
+        ctx.progress.stage(&label, 1).finish("cached");
+        ctx.record("online-approximation", 0, 1, ctx.store.dir(ArtifactKind::OnlineApproximation, &key));
+        return Ok(key);
+    }
+    let scene = scene_cfg.scene.name.clone();
+    let name = item.name.clone();
+    let fail = |m: String| CromError::Numerical {
+        stage: "online-approximation",
+        scene: scene.clone(),
+        message: format!("{name}: {m}"),
+    };
+    let phys = physics.get()?;
+    let op = phys.operator();
+    let (train_set, test_set) = (ctx.loaded.set(ctx.store, train)?, ctx.loaded.set(ctx.store, test)?);
+    let start = Instant::now();
+    let of = (train.clone(), test.clone());
+    if shared.as_ref().is_none_or(|b| b.of != of) {
+        let phi = response_basis(op, &train_set).map_err(&fail)?;
+        let model = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
+        let refs: Vec<(&[f64], &[f64])> =
+            test_set.parameters.iter().enumerate().map(|(j, mu)| (mu.as_slice(), test_set.primal.col(j))).collect();
+        let errors = PrimalErrors::new(op, &phi.data, phi.cols, &refs)
+            .ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
+        let fom_median = quantile(&fom_seconds(phys, &test_set.parameters), 0.5);
+        *shared = Some(OnlineBase { of, r_primal: phi.cols, model, errors, fom_median });
+    }
+    let Some(b) = shared.as_ref() else { return Err(fail("the shared reduced model was not built".into())) };
+    let nc = test_set.dual.rows;
+    let params = RomParams { algorithm: Algorithm::Exact, ..RomParams::default() };
+    let mut progress = ctx.progress.stage(&label, 1);
+    let errors = |j: usize, rm: &ReducedModel, sol: &crom_stages::rom::ReducedSolution| {
+        (b.errors.relative(j, &sol.u_hat), dual_error(op, rm, sol, &test_set, j))
+    };
+    let mut rows = Rows::default();
+    let bases_path = ctx.store.dir(ArtifactKind::Approximation, approximation).join(names::BASES);
+    if matches!(item.approach, Approach::Dictionary) {
+        // Every training snapshot an atom, solved by a working set (column generation).
+        let ws = WorkingSet::new(view(&train_set.dual), &train_set.parameters, op.weights(), WS_START);
+        let queries = solve_dictionary(&ws, &b.model, &test_set.parameters, &params, errors);
+        rows.push(&name, ws.len(), b.r_primal, &queries, b.fom_median);
+    } else if bases_path.exists() {
+        // A parameter-independent basis, as the approximation stage stored it.
+        let h5 = H5In::open(&bases_path)?;
+        for m in ONLINE_MS {
+            if !h5.contains(&format!("m{m}")) {
+                continue;
+            }
+            let basis = h5.matrix(&format!("m{m}"))?;
+            let source = Source::Fixed(&basis.data, basis.cols);
+            let queries = solve_all(&source, &b.model, nc, &test_set.parameters, &params, errors);
+            rows.push(&name, m, b.r_primal, &queries, b.fom_median);
+        }
+    } else {
+        let surface = contact_x(ctx.store, mesh)?;
+        let ms = dual::m_grid(cmp.max_m.min(train_set.parameters.len()));
+        let training =
+            Training { snapshots: view(&train_set.dual), params: &train_set.parameters, surface: &surface, ms: &ms };
+        let model = dual::build(&item.approach, &training).map_err(|e| fail(e.to_string()))?;
+        for m in ONLINE_MS.into_iter().filter(|&m| m <= model.size()) {
+            let source = if model.depends_on_mu() {
+                Source::PerQuery(model.as_ref(), m)
+            } else {
+                let (theta, k) = basis_at(model.as_ref(), &test_set.parameters[0], m);
+                Source::Owned(theta, k)
+            };
+            let queries = solve_all(&source, &b.model, nc, &test_set.parameters, &params, errors);
+            rows.push(&name, m, b.r_primal, &queries, b.fom_median);
+        }
+    }
+    let staging = ctx.store.stage(&spec)?;
+    let (results, times) = rows.tables(&scene);
+    results.write_parquet(&staging.path(names::ONLINE))?;
+    times.write_parquet(&staging.path(names::ONLINE_TIMINGS))?;
+    let summary = std::collections::BTreeMap::from([
+        ("approximation".to_string(), json!(name)),
+        ("r_primal".to_string(), json!(b.r_primal)),
+        ("test_points".to_string(), json!(test_set.parameters.len())),
+    ]);
+    ctx.commit(staging, start.elapsed().as_secs_f64(), summary)?;
+    progress.inc(&name);
+    progress.finish("computed");
+    ctx.record("online-approximation", 1, 0, ctx.store.dir(ArtifactKind::OnlineApproximation, &key));
+    Ok(key)
+}
+
+/// Every test point with the dictionary's working-set solve (in parallel, one reduced model,
+/// work buffer and scratch per thread); the whole working-set loop is timed.
+fn solve_dictionary(
+    ws: &WorkingSet,
+    base: &ReducedModel,
+    points: &[Vec<f64>],
+    params: &RomParams,
+    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64) + Sync,
+) -> Vec<Query> {
+    (0..points.len())
+        .into_par_iter()
+        .map_init(
+            || (base.clone(), RomWork::default(), WorkingSetScratch::default()),
+            |(rm, w, sc), j| {
+                let mu = &points[j];
+                let mut best = f64::INFINITY;
+                let mut info = None;
+                for _ in 0..TIMING_REPEATS {
+                    let t = Instant::now();
+                    let i = ws.solve(rm, mu, params, w, sc);
+                    best = best.min(t.elapsed().as_secs_f64());
+                    info = Some(i);
+                    if best >= REPEAT_BELOW {
+                        break;
+                    }
+                }
+                let sol = w.solution(&info.expect("TIMING_REPEATS >= 1").info);
+                let (primal, dual) = errors(j, rm, &sol);
+                Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
+            },
+        )
+        .collect()
+}
+
+/// The dual basis of `model` at `mu` with at most `m` columns, column-major.
+fn basis_at(model: &dyn DualApprox, mu: &[f64], m: usize) -> (Vec<f64>, usize) {
+    let b = model.cone_basis(mu, m).unwrap_or_else(|| faer::Mat::zeros(0, 0));
+    let k = b.ncols();
+    ((0..k).flat_map(|j| b.col(j).iter().copied().collect::<Vec<_>>()).collect(), k)
+}
+
+/// Where a query's dual basis comes from.
+enum Source<'a> {
+    /// Fixed, column-major with this many columns (read from `bases.h5`).
+    Fixed(&'a [f64], usize),
+    /// Fixed, built here.
+    Owned(Vec<f64>, usize),
+    /// Evaluated at each query's parameter, with at most this many columns (inside the timer).
+    PerQuery(&'a dyn DualApprox, usize),
+}
+
+/// Every test point with the dual basis from `source` (in parallel, one reduced model and
+/// work buffer per thread).
+fn solve_all(
+    source: &Source<'_>,
+    base: &ReducedModel,
+    nc: usize,
+    points: &[Vec<f64>],
+    params: &RomParams,
+    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64) + Sync,
+) -> Vec<Query> {
+    let prepared = |rm: &mut ReducedModel| match source {
+        Source::Fixed(theta, k) => rm.set_dual(theta, *k),
+        Source::Owned(theta, k) => rm.set_dual(theta, *k),
+        Source::PerQuery(..) => {}
+    };
+    (0..points.len())
+        .into_par_iter()
+        .map_init(
+            || {
+                let mut rm = base.clone();
+                prepared(&mut rm);
+                (rm, RomWork::default())
+            },
+            |(rm, w), j| {
+                let mu = &points[j];
+                let mut best = f64::INFINITY;
+                let mut info = None;
+                for _ in 0..TIMING_REPEATS {
+                    let t = Instant::now();
+                    if let Source::PerQuery(model, m) = source {
+                        let (theta, k) = basis_at(*model, mu, *m);
+                        debug_assert_eq!(theta.len(), nc * k);
+                        rm.set_dual(&theta, k);
+                    }
+                    let i = rm.solve_in(mu, params, w);
+                    best = best.min(t.elapsed().as_secs_f64());
+                    info = Some(i);
+                    if best >= REPEAT_BELOW {
+                        break;
+                    }
+                }
+                let sol = w.solution(&info.expect("TIMING_REPEATS >= 1"));
+                let (primal, dual) = errors(j, rm, &sol);
+                Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
+            },
+        )
+        .collect()
+}
+
+/// One (approximation, m) row: name, m, primal rank, counts (points, converged, infeasible,
+/// failed), errors (median and p95, primal then dual), median non-zero dual coefficients.
+type ResultRow = (String, usize, usize, [usize; 4], [f64; 4], f64);
+
+#[derive(Default)]
+struct Rows {
+    results: Vec<ResultRow>,
+    times: Vec<(String, usize, [f64; 4])>,
+}
+
+impl Rows {
+    fn push(&mut self, name: &str, m: usize, r_primal: usize, q: &[Query], fom_median: f64) {
+        let conv: Vec<&Query> = q.iter().filter(|x| x.outcome == RomOutcome::Converged).collect();
+        let infeasible = q.iter().filter(|x| x.outcome == RomOutcome::Infeasible).count();
+        let counts = [q.len(), conv.len(), infeasible, q.len() - conv.len() - infeasible];
+        let pe: Vec<f64> = conv.iter().map(|x| x.primal).collect();
+        let de: Vec<f64> = conv.iter().map(|x| x.dual).collect();
+        let errs = [quantile(&pe, 0.5), quantile(&pe, 0.95), quantile(&de, 0.5), quantile(&de, 0.95)];
+        let nz: Vec<f64> = conv.iter().map(|x| x.nonzero as f64).collect();
+        self.results.push((name.to_string(), m, r_primal, counts, errs, quantile(&nz, 0.5)));
+        let secs: Vec<f64> = q.iter().map(|x| x.seconds).collect();
+        let med = quantile(&secs, 0.5);
+        self.times.push((
+            name.to_string(),
+            m,
+            [1e3 * med, 1e3 * quantile(&secs, 0.95), 1e3 * fom_median, fom_median / med],
+        ));
+    }
+
+    fn tables(self, scene: &str) -> (Table, Table) {
+        let r = &self.results;
+        let n = r.len();
+        let u = |f: &dyn Fn(&ResultRow) -> u64| Column::U64(r.iter().map(f).collect());
+        let results = Table::default()
+            .with("scene", Column::Str(vec![scene.to_string(); n]))
+            .with("approximation", Column::Str(r.iter().map(|x| x.0.clone()).collect()))
+            .with("m", u(&|x| x.1 as u64))
+            .with("r_primal", u(&|x| x.2 as u64))
+            .with("points", u(&|x| x.3[0] as u64))
+            .with("converged", u(&|x| x.3[1] as u64))
+            .with("infeasible", u(&|x| x.3[2] as u64))
+            .with("failed", u(&|x| x.3[3] as u64))
+            .with("median_primal_error", Column::F64(r.iter().map(|x| x.4[0]).collect()))
+            .with("p95_primal_error", Column::F64(r.iter().map(|x| x.4[1]).collect()))
+            .with("median_dual_error", Column::F64(r.iter().map(|x| x.4[2]).collect()))
+            .with("p95_dual_error", Column::F64(r.iter().map(|x| x.4[3]).collect()))
+            .with("median_nonzero_dual", Column::F64(r.iter().map(|x| x.5).collect()));
+        let t = &self.times;
+        let times = Table::default()
+            .with("scene", Column::Str(vec![scene.to_string(); t.len()]))
+            .with("approximation", Column::Str(t.iter().map(|x| x.0.clone()).collect()))
+            .with("m", Column::U64(t.iter().map(|x| x.1 as u64).collect()))
+            .with("median_online_ms", Column::F64(t.iter().map(|x| x.2[0]).collect()))
+            .with("p95_online_ms", Column::F64(t.iter().map(|x| x.2[1]).collect()))
+            .with("median_full_order_ms", Column::F64(t.iter().map(|x| x.2[2]).collect()))
+            .with("speedup", Column::F64(t.iter().map(|x| x.2[3]).collect()));
+        (results, times)
+    }
+}
