@@ -16,6 +16,7 @@
 //! | `tradeoff.parquet` | `median_primal_error`, `p95_primal_error`, `mean_primal_error`, `max_primal_error`, `median_dual_error` | `converged == 0` (errors are taken over converged points only), or no converged point has a defined dual error |
 //! | `tradeoff.parquet` | `indicator_spearman` | fewer than three converged points with finite indicator and error, or either side constant |
 //! | `tradeoff.parquet` | `indicator_effectivity` | no converged point with a non-zero error |
+//! | `tradeoff.parquet` | `min_inf_sup`, `median_inf_sup` | no converged point among the sampled ones (8 evenly spaced test points), or none has a dual basis vector that constrains at its pairing |
 //! | `tradeoff_timings.parquet` | `speedup` | no test point (no full-order time) |
 //! | `solver_stats.parquet`, the column index | `min_gap` | no slave has the master under it (no signed distance to take the minimum of) |
 //!
@@ -124,7 +125,7 @@ impl ArtifactKind {
             ArtifactKind::OnlineApproximation => 1,
             ArtifactKind::OnlineComparison => 1,
             ArtifactKind::Views => 1,
-            ArtifactKind::Rom => 3,
+            ArtifactKind::Rom => 4,
             ArtifactKind::Report => 1,
         }
     }
@@ -384,8 +385,12 @@ pub mod rom {
     ];
     /// Accuracy over rank pairs (the results half of the speed/accuracy trade).
     pub const TRADEOFF: &str = "tradeoff.parquet";
-    /// Columns of [`TRADEOFF`].
-    pub const TRADEOFF_COLUMNS: [&str; 16] = [
+    /// Columns of [`TRADEOFF`]. `min_inf_sup` and `median_inf_sup`: the reduced inf-sup
+    /// constant `sigma_min(Â L^{-T})` of the saddle-point system at each query's final
+    /// linearisation (`crom_stages::rom::ReducedModel::inf_sup`; 0: more constraining dual
+    /// vectors than primal modes, or nearly parallel ones), over the converged ones among 8
+    /// evenly spaced test points.
+    pub const TRADEOFF_COLUMNS: [&str; 18] = [
         "scene",
         "algorithm",
         "dual_basis",
@@ -402,6 +407,8 @@ pub mod rom {
         "median_dual_error",
         "indicator_spearman",
         "indicator_effectivity",
+        "min_inf_sup",
+        "median_inf_sup",
     ];
     /// Speed over rank pairs (same rows as [`TRADEOFF`]): online and full-order times measured
     /// in the same process, the speed-up.

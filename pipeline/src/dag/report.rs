@@ -26,7 +26,7 @@ struct ReportKey {}
 impl StageKey for ReportKey {
     const KIND: ArtifactKind = ArtifactKind::Report;
     /// Bump when the report's content changes.
-    const ALGORITHM_VERSION: u32 = 8;
+    const ALGORITHM_VERSION: u32 = 9;
 }
 
 /// The artifacts a report shows.

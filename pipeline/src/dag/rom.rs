@@ -283,14 +283,24 @@ struct Query {
     seconds: f64,
     indicator: Indicator,
     indicator_seconds: f64,
+    /// The reduced inf-sup constant at the query's final linearisation
+    /// ([`ReducedModel::inf_sup`]), at the sampled points only (see [`INF_SUP_SAMPLES`]).
+    inf_sup: Option<f64>,
 }
+
+/// Points of a set at which the reduced inf-sup constant is evaluated, evenly spaced (an SVD of
+/// up to `r_dual x r_primal` per point: sampled so that the diagnostic stays a small part of
+/// the stage's time).
+const INF_SUP_SAMPLES: usize = 8;
 
 /// Solve every point of the set (in parallel, one work buffer per thread), timing the solve
 /// and the indicator separately.
 fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -> Vec<Query> {
+    let stride = set.parameters.len().div_ceil(INF_SUP_SAMPLES).max(1);
     set.parameters
         .par_iter()
-        .map_init(RomWork::default, |w, mu| {
+        .enumerate()
+        .map_init(RomWork::default, |w, (j, mu)| {
             let mut best = f64::INFINITY;
             let mut info = None;
             for _ in 0..TIMING_REPEATS {
@@ -303,10 +313,12 @@ fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -
                 }
             }
             let sol = w.solution(&info.expect("TIMING_REPEATS >= 1"));
+            // at the solve's own linearisation, before the indicator re-pairs
+            let inf_sup = if j % stride == 0 { model.inf_sup(w) } else { None };
             let t = Instant::now();
             let indicator = model.indicator(mu, w);
             let indicator_seconds = t.elapsed().as_secs_f64();
-            Query { sol, seconds: best, indicator, indicator_seconds }
+            Query { sol, seconds: best, indicator, indicator_seconds, inf_sup }
         })
         .collect()
 }
@@ -374,7 +386,7 @@ fn sweep_pairs(ru: usize, rl: usize, rt: usize) -> Vec<(usize, usize, &'static s
 struct TradeRows {
     s: [Vec<String>; 3],
     ints: [Vec<u64>; 6],
-    vals: [Vec<f64>; 12],
+    vals: [Vec<f64>; 14],
 }
 
 impl TradeRows {
@@ -402,6 +414,8 @@ impl TradeRows {
         let mean = if finite.is_empty() { f64::NAN } else { finite.iter().sum::<f64>() / finite.len() as f64 };
         let max = finite.iter().fold(f64::NAN, |m, x| if m.is_nan() { *x } else { m.max(*x) });
         let (on_med, fom_med) = (quantile(&online, 0.5), quantile(fom, 0.5));
+        let beta: Vec<f64> = conv.iter().filter_map(|&j| rows[j].inf_sup).collect();
+        let beta_min = beta.iter().copied().fold(f64::NAN, |m, x| if m.is_nan() { x } else { m.min(x) });
         for (v, x) in self.s.iter_mut().zip([scene, alg.name(), dual_basis]) {
             v.push(x.to_string());
         }
@@ -422,6 +436,8 @@ impl TradeRows {
             spearman(&ind, &perr),
             quantile(&eff, 0.5),
             quantile(&rows.iter().map(|q| q.indicator_seconds).collect::<Vec<_>>(), 0.5),
+            beta_min,
+            quantile(&beta, 0.5),
         ];
         for (v, x) in self.vals.iter_mut().zip(vals) {
             v.push(x);
@@ -432,7 +448,7 @@ impl TradeRows {
     fn tables(self) -> (Table, Table) {
         let [scene, alg, basis] = self.s;
         let [ru, rl, points, conv, inf, failed] = self.ints;
-        let [pm, p95, mean, max, dm, om, o95, fm, sp, rho, eff, ind_s] = self.vals;
+        let [pm, p95, mean, max, dm, om, o95, fm, sp, rho, eff, ind_s, bmin, bmed] = self.vals;
         let keys = Table::default()
             .with("scene", Column::Str(scene))
             .with("algorithm", Column::Str(alg))
@@ -451,7 +467,9 @@ impl TradeRows {
             .with("max_primal_error", Column::F64(max))
             .with("median_dual_error", Column::F64(dm))
             .with("indicator_spearman", Column::F64(rho))
-            .with("indicator_effectivity", Column::F64(eff));
+            .with("indicator_effectivity", Column::F64(eff))
+            .with("min_inf_sup", Column::F64(bmin))
+            .with("median_inf_sup", Column::F64(bmed));
         let timings = keys
             .with("median_online_seconds", Column::F64(om))
             .with("p95_online_seconds", Column::F64(o95))

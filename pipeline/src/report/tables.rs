@@ -74,6 +74,19 @@ fn tradeoff_view(t: &Table) -> Table {
     v
 }
 
+/// The columns of the trade-off table that say how stable each rank pair's reduced system is.
+fn stability_view(t: &Table) -> Table {
+    let mut v = Table::default();
+    for name in
+        ["algorithm", "dual_basis", "r_primal", "r_dual", "points", "converged", "min_inf_sup", "median_inf_sup"]
+    {
+        if let Some((_, c)) = t.columns.iter().find(|(n, _)| n == name) {
+            v = v.with(name, c.clone());
+        }
+    }
+    v
+}
+
 /// Write every table; returns them for the index.
 pub(crate) fn write_all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec<ReportTable>, CromError> {
     let [pr, _, cr, ctr] = d.ranks;
@@ -97,6 +110,12 @@ pub(crate) fn write_all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Resu
         dir,
         "table_tradeoff",
         "Speed/accuracy trade over the test points: errors over converged points, times over all (ms), speed-up = median full-order time / median online time in the same process, ρ = Spearman rank correlation of the indicator with the true error",
+    )?);
+    out.push(save(
+        &stability_view(&d.tradeoff),
+        dir,
+        "table_stability",
+        "Stability of the reduced saddle-point system per rank pair: the reduced inf-sup constant beta = sigma_min(Â L^-T) (Â the reduced constraint rows of the dual vectors that constrain at the query's pairing, K̂ = L Lᵀ) at 8 evenly spaced test points, min and median over the converged ones; 0 = more constraining dual vectors than primal modes (r_dual > r_primal) or nearly parallel dual vectors, multipliers not unique",
     )?);
     if let Some(c) = &d.comparison {
         out.push(save(

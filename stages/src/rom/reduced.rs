@@ -889,6 +889,47 @@ impl ReducedModel {
         }
     }
 
+    /// The reduced inf-sup constant of the saddle-point system at the last solve's
+    /// linearisation (after [`Self::solve_in`] with the same `w`):
+    ///
+    /// ```text
+    /// beta = min_{λ̂ != 0} max_{û != 0} λ̂ᵀ Â û / (|λ̂| ||û||_K̂) = sigma_min(Â L^{-T}),   K̂ = L Lᵀ,
+    /// ```
+    ///
+    /// `Â` the reduced constraint rows (`ĝ(û) = Â û + ĝ0`) of the dual basis vectors whose row
+    /// is non-zero at this pairing (a vector supported only on unpaired nodes constrains
+    /// nothing), `|λ̂|` the Euclidean norm of the coefficients. `beta > 0` iff the reduced
+    /// multipliers are unique when every such constraint is active (the saddle-point system of
+    /// the paper's Algorithm 1 is then non-singular); it is 0 when more dual vectors constrain
+    /// than there are primal modes (`r_dual > r_primal`: too small a primal basis for the dual
+    /// one) or when two dual vectors constrain alike (nearly parallel dual bases). `None`
+    /// without a constraining row. Costs one `k x r_primal` SVD, `k <= r_dual`: an offline
+    /// diagnostic, not part of the online solve.
+    pub fn inf_sup(&self, w: &mut RomWork) -> Option<f64> {
+        let ru = self.r_u;
+        let mut oracle = Oracle { m: self, lin: &mut w.lin };
+        let mut rows: Vec<f64> = Vec::new();
+        let mut row = vec![0.0; ru];
+        for a in 0..self.r_l {
+            oracle.row(a, &mut row);
+            if row.iter().any(|v| *v != 0.0) {
+                rows.extend_from_slice(&row);
+            }
+        }
+        let k = rows.len() / ru.max(1);
+        if k == 0 || ru == 0 {
+            return None;
+        }
+        if k > ru {
+            return Some(0.0);
+        }
+        // sigma_min of M = Â L^{-T} (k x r_u, row-major in `rows`) by its SVD: accurate to
+        // eps |M|, where lambda_min(M Mᵀ) would floor beta at sqrt(eps) |M|.
+        let m = faer::MatRef::from_row_major_slice(&rows, k, ru);
+        let sv = m.singular_values().ok()?;
+        Some(sv.iter().copied().fold(f64::INFINITY, f64::min))
+    }
+
     /// The indicator of the solution in `w` (after [`Self::solve`] with the same `w` and `mu`).
     pub fn indicator(&self, mu: &[f64], w: &mut RomWork) -> Indicator {
         let ru = self.r_u;
