@@ -112,10 +112,10 @@ impl ArtifactKind {
     /// Layout version of this kind's files.
     pub fn schema_version(self) -> u32 {
         match self {
-            ArtifactKind::Mesh => 1,
+            ArtifactKind::Mesh => 2,
             ArtifactKind::Snapshot => 1,
             ArtifactKind::TrainingSet => 4,
-            ArtifactKind::Basis => 1,
+            ArtifactKind::Basis => 2,
             ArtifactKind::Compactness => 1,
             ArtifactKind::Generalization => 1,
             ArtifactKind::Specificity => 1,
@@ -232,6 +232,15 @@ pub mod mesh {
     pub const NODE_BODY: &str = "node_body";
     /// Body id of each cell.
     pub const CELL_BODY: &str = "cell_body";
+    /// Root attributes (issue 16: conditioning in the artifacts): estimates of the largest and
+    /// smallest eigenvalue of the stiffness on the free dofs and their ratio, a lower bound on
+    /// its 2-norm condition number, by power and inverse iteration with the solver's own factor
+    /// (`crom_stages::condition`).
+    pub const STIFFNESS_LAMBDA_MAX: &str = "stiffness_lambda_max";
+    /// See [`STIFFNESS_LAMBDA_MAX`].
+    pub const STIFFNESS_LAMBDA_MIN: &str = "stiffness_lambda_min";
+    /// See [`STIFFNESS_LAMBDA_MAX`].
+    pub const STIFFNESS_CONDITION: &str = "stiffness_condition";
 }
 
 /// `snapshot.h5`: `/u` (n_dof), `/pressure` (n_contact), attribute `parameter` and the solver
@@ -311,6 +320,13 @@ pub mod basis {
     pub const SELECTED: &str = "selected";
     /// Greedy compactness trace (CPG groups).
     pub const COMPACTNESS: &str = "compactness";
+    /// CPG groups (issue 16): after each selection t, the reciprocal of the estimated 1-norm
+    /// condition number of the Gram `G_t = B_tᵀ B_t` of the first t generators
+    /// (`crom_stages::basis::gram_condition_path`; Hager's estimator on the MGS-twice factor).
+    /// It bounds the conditioning of every NNLS Gram of that step (each is a principal
+    /// submatrix of `G_t`). The LAPACK `rcond` convention keeps it finite: 0 means a generator
+    /// lies in the span of the earlier ones.
+    pub const GRAM_RCOND: &str = "gram_rcond";
 }
 
 /// `compactness.parquet`: columns scene, field, basis, m, value (eq. 16).

@@ -4,6 +4,7 @@
 
 pub mod approx;
 pub mod basis;
+pub mod condition;
 pub mod cone;
 pub mod contact;
 pub mod dual;

@@ -125,4 +125,10 @@ pub trait ContactOperator: Sync {
     fn surface(&self) -> Surface;
     /// The compliance on the dofs that contact forces act on (for the error indicator).
     fn contact_compliance(&self) -> Compliance;
+
+    /// Estimate of the extreme eigenvalues of the stiffness on the free dofs
+    /// ([`crate::condition`]); `None` where the operator has none to offer.
+    fn stiffness_condition(&self) -> Option<crate::condition::Condition> {
+        None
+    }
 }

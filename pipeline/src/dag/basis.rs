@@ -206,5 +206,12 @@ fn write_cpg(f: &H5Out, group: &str, c: &Cpg, tol: f64) -> Result<(), CromError>
     g.matrix(names::MODES, &to_col(c.basis.as_ref()), "unit-norm non-negative generators, selection order")?;
     let sel: Vec<u64> = c.selected.iter().map(|&i| i as u64).collect();
     g.vec_u64(names::SELECTED, &sel)?;
-    g.vec_f64(names::COMPACTNESS, &c.compactness, "C(m) of eq. 16 after each selection")
+    g.vec_f64(names::COMPACTNESS, &c.compactness, "C(m) of eq. 16 after each selection")?;
+    // 1 / kappa: finite always (0 = a generator in the span of the earlier ones).
+    let rcond: Vec<f64> = crom_stages::basis::gram_condition_path(c.basis.as_ref()).iter().map(|k| 1.0 / k).collect();
+    g.vec_f64(
+        names::GRAM_RCOND,
+        &rcond,
+        "1 / estimated 1-norm condition number of the Gram of the first t generators, t = 1..rank",
+    )
 }

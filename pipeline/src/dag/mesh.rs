@@ -34,7 +34,9 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Ke
     let key = spec.key();
     let scene = ctx.scene.scene.name.clone();
     ctx.single(ArtifactKind::Mesh, "mesh", &spec, |staging| {
-        let m = physics.get()?.mesh();
+        let phys = physics.get()?;
+        let m = phys.mesh();
+        let condition = phys.operator().stiffness_condition();
         let path = staging.path(names::FILE);
         let f = H5Out::create(&path)?;
         f.attr_str("scene", &scene)?;
@@ -42,6 +44,11 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Ke
         f.attr_u64("schema_version", u64::from(ArtifactKind::Mesh.schema_version()))?;
         f.attr_str("cache_key", &key.0)?;
         f.attr_u64("dofs_per_node", m.dofs_per_node as u64)?;
+        if let Some(c) = condition {
+            f.attr_f64(names::STIFFNESS_LAMBDA_MAX, c.lambda_max)?;
+            f.attr_f64(names::STIFFNESS_LAMBDA_MIN, c.lambda_min)?;
+            f.attr_f64(names::STIFFNESS_CONDITION, c.ratio())?;
+        }
         let flat: Vec<f64> = m.nodes.iter().flat_map(|p| p.iter().copied()).collect();
         f.table_f64(names::NODES, m.nodes.len(), 2, &flat, "length")?;
         let cells: Vec<u64> = m.cells.iter().flatten().copied().collect();

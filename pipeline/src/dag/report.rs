@@ -5,8 +5,8 @@
 use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{
-    compactness as cnames, comparison as cmp_names, mesh as mnames, metrics as metric_names, rom as rnames,
-    ArtifactKind,
+    basis as bnames, compactness as cnames, comparison as cmp_names, mesh as mnames, metrics as metric_names,
+    rom as rnames, ArtifactKind,
 };
 use serde_json::json;
 
@@ -15,7 +15,7 @@ use super::{basis, Ctx};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
-use crate::io::table::{read_parquet, Table};
+use crate::io::table::{read_parquet, Column, Table};
 use crate::report::{bodies, render, ComparisonData, ReportData};
 use crate::store::Store;
 
@@ -110,6 +110,7 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
     } else {
         None
     };
+    let conditioning = conditioning(&mesh, store, &inputs.basis)?;
     let train = loaded.set(store, &inputs.train)?;
     let b = basis::load_full(store, &inputs.basis)?;
     let table = read_parquet(&store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
@@ -167,7 +168,40 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
             }
             None => None,
         },
+        conditioning,
     })
+}
+
+/// The conditioning table: the stiffness estimate from the mesh artifact and, per CPG basis,
+/// the Gram's condition estimate after the last selection and its largest over the steps.
+fn conditioning(mesh: &H5In, store: &Store, basis: &Key) -> Result<Table, CromError> {
+    let mut rows: Vec<(String, String, f64)> = Vec::new();
+    for (name, what) in [
+        (mnames::STIFFNESS_CONDITION, "condition estimate lambda_max / lambda_min (a lower bound on kappa_2)"),
+        (mnames::STIFFNESS_LAMBDA_MAX, "largest eigenvalue estimate"),
+        (mnames::STIFFNESS_LAMBDA_MIN, "smallest eigenvalue estimate"),
+    ] {
+        if mesh.contains_attr(name) {
+            rows.push(("stiffness K_FF".into(), what.into(), mesh.attr_f64(name)?));
+        }
+    }
+    let h5 = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
+    for group in [bnames::DUAL_CPG, bnames::DUAL_CPG_TRUNCATED] {
+        let path = format!("{group}/{}", bnames::GRAM_RCOND);
+        let rcond = h5.vec_f64(&path)?;
+        // kappa = 1 / rcond; a zero rcond (a dependent generator) is reported as such, not as inf.
+        let kappa = |r: f64| if r > 0.0 { 1.0 / r } else { f64::NAN };
+        if let Some(&last) = rcond.last() {
+            let subject = format!("CPG Gram, {group} ({} generators)", rcond.len());
+            rows.push((subject.clone(), "kappa_1 estimate after the last selection".into(), kappa(last)));
+            let worst = rcond.iter().copied().fold(f64::INFINITY, f64::min);
+            rows.push((subject, "largest kappa_1 estimate over the selections".into(), kappa(worst)));
+        }
+    }
+    Ok(Table::default()
+        .with("subject", Column::Str(rows.iter().map(|r| r.0.clone()).collect()))
+        .with("quantity", Column::Str(rows.iter().map(|r| r.1.clone()).collect()))
+        .with("value", Column::F64(rows.iter().map(|r| r.2).collect())))
 }
 
 /// Columns that identify a row of the rom stage's query tables (with the parameter columns).

@@ -302,6 +302,11 @@ impl H5In {
         self.file.dataset(name).map_err(|e| rerr(&self.path, name, e))
     }
 
+    /// Whether the root group has an attribute `name`.
+    pub fn contains_attr(&self, name: &str) -> bool {
+        self.file.attr_names().is_ok_and(|names| names.iter().any(|n| n == name))
+    }
+
     /// Whether a dataset or group `name` exists.
     pub fn contains(&self, name: &str) -> bool {
         self.file.link_exists(name)

@@ -65,6 +65,8 @@ pub(crate) struct ReportData {
     pub nested: Option<Table>,
     /// The dual approximations compared, if the scene has `[comparison]`.
     pub comparison: Option<ComparisonData>,
+    /// Conditioning of the stiffness and of the CPG Gram (`quantity, subject, value`).
+    pub conditioning: Table,
 }
 
 /// The comparison artifact's tables (`crom_schemas::artifact::comparison`).

@@ -117,6 +117,12 @@ pub(crate) fn write_all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Resu
         "table_stability",
         "Stability of the reduced saddle-point system per rank pair: the reduced inf-sup constant beta = sigma_min(Â L^-T) (Â the reduced constraint rows of the dual vectors that constrain at the query's pairing, K̂ = L Lᵀ) at 8 evenly spaced test points, min and median over the converged ones; 0 = more constraining dual vectors than primal modes (r_dual > r_primal) or nearly parallel dual vectors, multipliers not unique",
     )?);
+    out.push(save(
+        &d.conditioning,
+        dir,
+        "table_conditioning",
+        "Stability: conditioning of the stiffness on the free dofs (power and inverse iteration with the solver's factor; the ratio is a lower bound on kappa_2) and of the CPG generators' Gram after each selection (Hager's 1-norm estimate; it bounds every NNLS Gram of that step, each a principal submatrix; per step in basis.h5, gram_rcond)",
+    )?);
     if let Some(c) = &d.comparison {
         out.push(save(
             &comparison_view(c),

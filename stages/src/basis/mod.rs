@@ -10,10 +10,12 @@
 
 mod cpg;
 mod cpg_reference;
+mod gram_condition;
 mod pod;
 
 pub use cpg::{cpg, cpg_path, Cpg, CpgParams, CpgPath, CpgPathParams};
 pub use cpg_reference::cpg_reference;
+pub use gram_condition::gram_condition_path;
 
 pub(crate) use cpg::LazyGreedy;
 pub use pod::{numerical_rank, pod, pod_full, tail_energies, truncation_rank, Pod, PodError, PodParams};

@@ -32,6 +32,26 @@ impl ContactOperator for Rope {
         }
     }
 
+    /// The interior block `(nu / h) tridiag(-1, 2, -1)`, solved by the Thomas algorithm.
+    fn stiffness_condition(&self) -> Option<crate::condition::Condition> {
+        let m = self.n_nodes().saturating_sub(2);
+        let k = self.params.nu / self.h;
+        let mul = |x: &[f64], y: &mut [f64]| {
+            for i in 0..m {
+                let left = if i > 0 { x[i - 1] } else { 0.0 };
+                let right = if i + 1 < m { x[i + 1] } else { 0.0 };
+                y[i] = k * (2.0 * x[i] - left - right);
+            }
+        };
+        let solve = |x: &mut [f64]| {
+            let (sub, sup) = (vec![-k; m], vec![-k; m]);
+            let mut diag = vec![2.0 * k; m];
+            let mut rhs = x.to_vec();
+            super::solve::thomas(&sub, &mut diag, &sup, &mut rhs, x);
+        };
+        crate::condition::estimate(m, crate::condition::ITERATIONS, &mul, &solve)
+    }
+
     fn linearize(&self, mu: &[f64], _u: &[f64], out: &mut Linearized) {
         let n = self.n_nodes();
         out.clear();
@@ -92,6 +112,9 @@ impl ContactOperator for Rope {
 #[cfg(test)]
 mod tests {
     use faer::{Mat, MatRef};
+
+    use crate::approx::Tol;
+    use crate::assert_close;
 
     use crate::basis::{cpg, pod, CpgParams, PodParams};
     use crate::rom::{Algorithm, ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};
@@ -290,5 +313,31 @@ mod tests {
                 assert!((fast - direct).abs() <= 1e-12 + 1e-7 * direct, "k {k} gamma {g}: {fast:e} vs {direct:e}");
             }
         }
+    }
+
+    /// The rope's stiffness `(nu / h) tridiag(-1, 2, -1)` on its `n - 1` interior nodes has the
+    /// closed-form spectrum `lambda_k = (4 nu / h) sin^2(k pi / (2 n))`, `k = 1..n-1` (`n`
+    /// elements): the estimate's smallest eigenvalue to 1e-10 (inverse iteration, bottom ratio
+    /// 1/4), its largest within 1 % (the top of the spectrum clusters, so the quotient sits just
+    /// below it), both inside the spectrum.
+    #[test]
+    fn stiffness_condition_matches_the_closed_form() {
+        let n = 200;
+        let rope = Rope::new(RopeParams {
+            length: 1.0,
+            n_elements: n,
+            nu: 30.0,
+            f: 250.0,
+            modes: vec![1.0],
+            amplitudes: vec![0.1],
+            offset: 0.0,
+        });
+        let h = 1.0 / n as f64;
+        let lambda = |k: usize| 4.0 * 30.0 / h * (k as f64 * std::f64::consts::PI / (2.0 * n as f64)).sin().powi(2);
+        let c = rope.stiffness_condition().expect("SPD");
+        let (lo, hi) = (lambda(1), lambda(n - 1));
+        assert_close!(c.lambda_min, lo, Tol::rel(1e-10));
+        assert!(c.lambda_min >= lo * (1.0 - 1e-12) && c.lambda_max <= hi * (1.0 + 1e-12));
+        assert!(c.lambda_max >= 0.99 * hi, "{} vs {hi}", c.lambda_max);
     }
 }

@@ -169,7 +169,7 @@ fn finish(
 
 /// Thomas algorithm for a tridiagonal system; overwrites `diag` and `rhs`, writes `x`.
 /// Stable here: every row is diagonally dominant (identity rows or `2ν/h` against `ν/h`).
-fn thomas(sub: &[f64], diag: &mut [f64], sup: &[f64], rhs: &mut [f64], x: &mut [f64]) {
+pub(super) fn thomas(sub: &[f64], diag: &mut [f64], sup: &[f64], rhs: &mut [f64], x: &mut [f64]) {
     let n = diag.len();
     for i in 1..n {
         let w = sub[i] / diag[i - 1];

@@ -1,0 +1,143 @@
+//! Conditioning of a greedy cone basis as it grows (issue 16): at each step t, an estimate of
+//! the 1-norm condition number of the Gram matrix `G_t = B_tᵀ B_t` of the first t generators.
+//! Every NNLS of a CPG step factors the Gram of a subset of these generators (its passive set),
+//! a principal submatrix of `G_t`, whose 2-norm condition is at most `kappa_2(G_t)` (Cauchy
+//! interlacing), so this one number per step bounds the conditioning every cone projection of
+//! that step saw (up to the factor `t` between the 1- and 2-norm condition numbers).
+//!
+//! ```text
+//! B_t = Q_t R_t  (modified Gram-Schmidt, twice: one column per step, O(n t)),  G_t = R_tᵀ R_t
+//! kappa_1(G_t) ~ ||G_t||_1 est(||G_t^{-1}||_1)
+//! ```
+//!
+//! `est` is Hager's estimator (Higham 1988, LAPACK `xLACON`): at most five pairs of solves with
+//! `R_tᵀ R_t` (`O(t^2)` each), a lower bound on `||G_t^{-1}||_1` that is rarely below a third
+//! of it. Total cost `O(n N^2 + N^3)` for N generators, so the 1 025-generator stress case
+//! stays cheap. A generator in the span of the earlier ones (`R_tt = 0`) gives an infinite
+//! estimate, which is returned as `f64::INFINITY` (the caller stores it as a null with that
+//! reason).
+
+use faer::MatRef;
+
+/// The estimate of `kappa_1(G_t)` for t = 1..=k, k = `b.ncols()`.
+pub fn gram_condition_path(b: MatRef<'_, f64>) -> Vec<f64> {
+    let (n, k) = (b.nrows(), b.ncols());
+    let mut q: Vec<f64> = Vec::with_capacity(n * k);
+    // R column-major, k x k upper triangular.
+    let mut r = vec![0.0; k * k];
+    let mut out = Vec::with_capacity(k);
+    let mut singular = false;
+    for t in 0..k {
+        let mut v: Vec<f64> = b.col(t).iter().copied().collect();
+        for _ in 0..2 {
+            for i in 0..t {
+                let qi = &q[i * n..(i + 1) * n];
+                let c: f64 = qi.iter().zip(&v).map(|(a, b)| a * b).sum();
+                r[i + t * k] += c;
+                v.iter_mut().zip(qi).for_each(|(x, a)| *x -= c * a);
+            }
+        }
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        r[t + t * k] = norm;
+        if norm > 0.0 {
+            q.extend(v.iter().map(|x| x / norm));
+        } else {
+            singular = true;
+            q.extend(std::iter::repeat_n(0.0, n));
+        }
+        if singular {
+            out.push(f64::INFINITY);
+            continue;
+        }
+        let m = t + 1;
+        // ||G||_1 from G = Rᵀ R on the leading m x m block.
+        let g = |i: usize, j: usize| (0..=i.min(j)).map(|l| r[l + i * k] * r[l + j * k]).sum::<f64>();
+        let g_norm = (0..m).map(|j| (0..m).map(|i| g(i, j).abs()).sum::<f64>()).fold(0.0, f64::max);
+        let inv_norm = hager(m, &|x: &mut [f64]| solve_gram(&r, k, m, x));
+        out.push(g_norm * inv_norm);
+    }
+    out
+}
+
+/// `x <- (Rᵀ R)^{-1} x` on the leading `m x m` block of `r` (column-major, leading dimension `k`).
+fn solve_gram(r: &[f64], k: usize, m: usize, x: &mut [f64]) {
+    // Rᵀ y = x (forward), then R z = y (backward).
+    for i in 0..m {
+        let s: f64 = (0..i).map(|l| r[l + i * k] * x[l]).sum();
+        x[i] = (x[i] - s) / r[i + i * k];
+    }
+    for i in (0..m).rev() {
+        let s: f64 = (i + 1..m).map(|l| r[i + l * k] * x[l]).sum();
+        x[i] = (x[i] - s) / r[i + i * k];
+    }
+}
+
+/// Hager's lower estimate of `||A^{-1}||_1` for a symmetric A given by its solve.
+fn hager(m: usize, solve: &dyn Fn(&mut [f64])) -> f64 {
+    let mut x = vec![1.0 / m as f64; m];
+    let mut est = 0.0;
+    for _ in 0..5 {
+        let mut y = x.clone();
+        solve(&mut y);
+        est = y.iter().map(|v| v.abs()).sum::<f64>();
+        let mut z: Vec<f64> = y.iter().map(|v| if *v >= 0.0 { 1.0 } else { -1.0 }).collect();
+        solve(&mut z);
+        let (j, zmax) = z
+            .iter()
+            .enumerate()
+            .fold((0, 0.0f64), |(bj, bv), (j, v)| if v.abs() > bv { (j, v.abs()) } else { (bj, bv) });
+        let ztx: f64 = z.iter().zip(&x).map(|(a, b)| a * b).sum();
+        if zmax <= ztx {
+            break;
+        }
+        x.iter_mut().for_each(|v| *v = 0.0);
+        x[j] = 1.0;
+    }
+    est
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+    use faer::Mat;
+
+    /// Against the exact `kappa_1(G_t)` of every prefix (G and its inverse formed densely with
+    /// faer's LU): never above it (a lower bound, to round-off 1e-8 relative on inverses of
+    /// condition up to ~1e8), never below a third of it (Higham's observed bound; the test
+    /// family, unit bumps drifting apart, is the CPG's own kind of basis), and infinite once a
+    /// generator repeats.
+    #[test]
+    fn estimate_brackets_the_exact_condition_of_every_prefix() {
+        let mut rng = Rng::new(16);
+        let (n, k) = (60, 14);
+        let mut b = Mat::from_fn(n, k, |i, j| {
+            let c = 10.0 + 2.5 * j as f64 + rng.uniform();
+            (-((i as f64 - c) / 4.0).powi(2)).exp()
+        });
+        for j in 0..k {
+            let norm = b.col(j).norm_l2();
+            for i in 0..n {
+                b[(i, j)] /= norm;
+            }
+        }
+        let est = gram_condition_path(b.as_ref());
+        assert_eq!(est.len(), k);
+        for t in 1..=k {
+            let bt = b.subcols(0, t);
+            let g = bt.transpose() * bt;
+            let inv = faer::linalg::solvers::Solve::solve(&g.as_ref().partial_piv_lu(), Mat::<f64>::identity(t, t));
+            let one = |a: &Mat<f64>| (0..t).map(|j| (0..t).map(|i| a[(i, j)].abs()).sum::<f64>()).fold(0.0, f64::max);
+            let exact = one(&g) * one(&inv);
+            let e = est[t - 1];
+            assert!(e <= exact * (1.0 + 1e-8), "t {t}: estimate {e} above {exact}");
+            assert!(e >= exact / 3.0, "t {t}: estimate {e} below a third of {exact}");
+        }
+        let mut dup = b.clone();
+        for i in 0..n {
+            dup[(i, 3)] = b[(i, 2)];
+        }
+        let d = gram_condition_path(dup.as_ref());
+        assert!(d[2].is_finite() && d[3..].iter().all(|v| v.is_infinite() || *v > 1e12), "{d:?}");
+    }
+}
