@@ -404,7 +404,7 @@ pub mod rom {
     /// Columns of [`TRADEOFF`]. `min_inf_sup` and `median_inf_sup`: the reduced inf-sup
     /// constant `sigma_min(Â L^{-T})` of the saddle-point system at each query's final
     /// linearisation (`crom_stages::rom::ReducedModel::inf_sup`; 0: more constraining dual
-    /// vectors than primal modes, or nearly parallel ones), over the converged ones among 8
+    /// vectors than primal modes or paired nodes, or nearly parallel ones), over the converged ones among 8
     /// evenly spaced test points.
     pub const TRADEOFF_COLUMNS: [&str; 18] = [
         "scene",

@@ -115,7 +115,7 @@ pub(crate) fn write_all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Resu
         &stability_view(&d.tradeoff),
         dir,
         "table_stability",
-        "Stability of the reduced saddle-point system per rank pair: the reduced inf-sup constant beta = sigma_min(Â L^-T) (Â the reduced constraint rows of the dual vectors that constrain at the query's pairing, K̂ = L Lᵀ) at 8 evenly spaced test points, min and median over the converged ones; 0 = more constraining dual vectors than primal modes (r_dual > r_primal) or nearly parallel dual vectors, multipliers not unique",
+        "Stability of the reduced saddle-point system per rank pair: the reduced inf-sup constant beta = sigma_min(Â L^-T) (Â the reduced constraint rows of the dual vectors that constrain at the query's pairing, K̂ = L Lᵀ) at 8 evenly spaced test points, min and median over the converged ones; 0 = more constraining dual vectors than primal modes (r_dual > r_primal) or than paired contact nodes under them, or nearly parallel dual vectors: the multipliers are not unique",
     )?);
     out.push(save(
         &d.conditioning,

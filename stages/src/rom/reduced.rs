@@ -902,7 +902,8 @@ impl ReducedModel {
     /// multipliers are unique when every such constraint is active (the saddle-point system of
     /// the paper's Algorithm 1 is then non-singular); it is 0 when more dual vectors constrain
     /// than there are primal modes (`r_dual > r_primal`: too small a primal basis for the dual
-    /// one) or when two dual vectors constrain alike (nearly parallel dual bases). `None`
+    /// one) or paired contact nodes under them (the rows live on those nodes), or when two dual
+    /// vectors constrain alike (nearly parallel dual bases). `None`
     /// without a constraining row. Costs one `k x r_primal` SVD, `k <= r_dual`: an offline
     /// diagnostic, not part of the online solve.
     pub fn inf_sup(&self, w: &mut RomWork) -> Option<f64> {
@@ -920,7 +921,13 @@ impl ReducedModel {
         if k == 0 || ru == 0 {
             return None;
         }
-        if k > ru {
+        // Â = Thetaᵀ W (C Phi) on the paired nodes: its rank is at most the number of paired
+        // nodes as well as r_u, so more constraining rows than either is exactly singular.
+        let paired = match &self.surf {
+            SurfaceData::Fixed { paired, .. } => paired.iter().filter(|p| **p).count(),
+            SurfaceData::Nts { .. } => w.lin.ps.len(),
+        };
+        if k > ru.min(paired) {
             return Some(0.0);
         }
         // sigma_min of M = Â L^{-T} (k x r_u, row-major in `rows`) by its SVD: accurate to
