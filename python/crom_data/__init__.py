@@ -30,6 +30,9 @@ The store (written by the Rust binary `crom`, see the repository README, "The st
         generalization.parquet, specificity.parquet, nested.parquet, rom_errors.parquet,
         tradeoff.parquet, report/       (links to the artifacts' files; rom and report only when
                                         the run was online, nested only for scenes with nested levels)
+        comparison/comparison.parquet, comparison/comparison_{nested,cells,reached,facts,timings}.parquet,
+        comparison/online_comparison{,_timings}.parquet
+                                        (scenes with [comparison]; the online tables after online runs)
 
 The reader follows `study.json`'s `target`s (relative to the store root), so a copy of the store
 without symbolic links still reads, and verifies every artifact it opens against its manifest

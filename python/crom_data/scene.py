@@ -43,7 +43,8 @@ except ImportError:  # pragma: no cover - depends on the environment
 
 #: Layout version of each stage's files this reader reads (crom-schemas `schema_version`).
 SCHEMA_VERSIONS = {"mesh": 2, "trainset": 4, "basis": 2, "compactness": 1, "generalization": 1,
-                   "specificity": 1, "nested": 1, "views": 1, "rom": 4, "report": 1}
+                   "specificity": 1, "nested": 1, "views": 1, "rom": 4, "report": 1, "comparison": 1,
+                   "online-comparison": 1}
 #: Layout version of `study.json` this reader reads.
 LAYOUT_VERSION = 1
 BASIS_GROUPS = ("primal_pod", "dual_pod", "dual_cpg", "dual_cpg_truncated")
@@ -321,6 +322,14 @@ class Scene:
         the speed columns of `tradeoff_timings.parquet` (same rows: median online and
         full-order seconds, speed-up) beside the accuracy."""
         return self._with_timings("tradeoff", "tradeoff_timings", timings)
+
+    def comparison(self, table: str = "comparison") -> pd.DataFrame:
+        """The dual approximations side by side (scenes with `[comparison]`; issue 15): `comparison`
+        (C, G, T and S curves), `comparison_nested`, `comparison_cells`, `comparison_reached`,
+        `comparison_facts`, `comparison_timings`, and after an online run `online_comparison` and
+        `online_comparison_timings`. Every table has an `approximation` column, in the scene
+        file's order."""
+        return self.table(f"comparison/{table}")
 
     def _with_timings(self, results: str, timings: str, join: bool) -> pd.DataFrame:
         a = self.table(results)

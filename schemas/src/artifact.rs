@@ -509,10 +509,15 @@ pub mod published {
     pub const VERSIONS: &str = ".versions";
     /// Description of the link set: scene, entries (stage, key, target, schema version).
     pub const STUDY: &str = "study.json";
-    /// Layout version of [`STUDY`] and the names; bump when either changes.
+    /// Layout version of [`STUDY`] and the names; bump when either changes in a way a reader
+    /// of the previous version would misread (a renamed or removed name, a new field meaning).
+    /// New names are not such a change: a reader lists and opens the names it knows.
     pub const LAYOUT_VERSION: u32 = 1;
     /// Directory of the nested levels' names.
     pub const NESTED_DIR: &str = "nested";
+    /// Directory of the comparison's tables (issue 15): `comparison/comparison.parquet` and the
+    /// rest of [`super::comparison`], `comparison/online_comparison.parquet` and its timings.
+    pub const COMPARISON_DIR: &str = "comparison";
     /// Name of the report directory link.
     pub const REPORT: &str = "report";
 }

@@ -159,6 +159,31 @@ def test_tables_equal_the_catalog_artifacts(ironing_fine_store, table):
         pd.testing.assert_frame_equal(joined[extra], times[extra])
 
 
+def test_comparison_tables_are_published(ironing_fine_store):
+    """Issue 15: the comparison's tables are published names, equal to the artifact read directly,
+    with one block of rows per approximation in the scene file's order (a `local` entry gives
+    one per cell count)."""
+    sc = crom_data.open_store(ironing_fine_store).scene(SCENE)
+    for stage, table in [("comparison", "comparison"), ("online-comparison", "online_comparison")]:
+        row = catalog_row(ironing_fine_store, stage, SCENE)
+        expected = pd.read_parquet(ironing_fine_store / row["path"] / f"{table}.parquet")
+        pd.testing.assert_frame_equal(sc.comparison(table), expected)
+    names = []
+    for a in scene_file(SCENE)["comparison"]["approximations"]:
+        kind = a["kind"]
+        if kind == "local":
+            names += [f"local-{k}" for k in a["cells"]]
+        elif kind == "registered":
+            interp = a.get("interpolation", "linear") if a["map"] == "translate" else None
+            names.append(f"registered-{a['map']}{'-' + interp if interp else ''}-{a['basis']}")
+        else:
+            names.append(kind)
+    curves = sc.comparison()
+    assert list(dict.fromkeys(curves["approximation"])) == names
+    online = sc.comparison("online_comparison")
+    assert set(online["approximation"]) == {n for n in names if n != "pod" and not n.endswith("-pod")}
+
+
 def test_report_dir_is_the_report_artifact(ironing_fine_store):
     sc = crom_data.open_store(ironing_fine_store).scene(SCENE)
     row = catalog_row(ironing_fine_store, "report", SCENE)

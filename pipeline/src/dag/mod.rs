@@ -134,6 +134,10 @@ pub struct RunOutput {
     pub views: BTreeMap<String, Key>,
     /// Online ROM artifact.
     pub rom: Option<Key>,
+    /// The dual approximations side by side (scenes with `[comparison]`).
+    pub comparison: Option<Key>,
+    /// Their online solves side by side (online runs of such scenes).
+    pub online_comparison: Option<Key>,
     /// Report artifact.
     pub report: Option<Key>,
 }
@@ -395,6 +399,8 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
         nested: keys.get("nested").cloned(),
         views,
         rom: keys.get("rom").cloned(),
+        comparison: keys.get("comparison").cloned(),
+        online_comparison: keys.get("online-comparison").cloned(),
         report: keys.get("report").cloned(),
     })
 }

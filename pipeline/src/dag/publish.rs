@@ -3,7 +3,9 @@
 
 use std::collections::BTreeMap;
 
-use crom_schemas::artifact::{self as a, published::NESTED_DIR, published::REPORT, ArtifactKind};
+use crom_schemas::artifact::{
+    self as a, published::COMPARISON_DIR, published::NESTED_DIR, published::REPORT, ArtifactKind,
+};
 use crom_schemas::SceneConfig;
 
 use super::RunOutput;
@@ -45,6 +47,18 @@ pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
         put("rom_timings.parquet".into(), K::Rom, k, Some(a::rom::TIMINGS));
         put("tradeoff_timings.parquet".into(), K::Rom, k, Some(a::rom::TRADEOFF_TIMINGS));
         put("online.h5".into(), K::Rom, k, Some(a::rom::ONLINE));
+    }
+    let cmp = |file: &str| format!("{COMPARISON_DIR}/{file}");
+    if let Some(k) = &out.comparison {
+        use a::comparison as c;
+        for file in [c::CURVES, c::NESTED, c::CELLS, c::REACHED, c::FACTS, c::TIMINGS] {
+            put(cmp(file), K::Comparison, k, Some(file));
+        }
+    }
+    if let Some(k) = &out.online_comparison {
+        for file in [a::comparison::ONLINE, a::comparison::ONLINE_TIMINGS] {
+            put(cmp(file), K::OnlineComparison, k, Some(file));
+        }
     }
     if let Some(k) = &out.report {
         put(REPORT.into(), K::Report, k, None);
