@@ -145,8 +145,14 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
         f.attr_str("cache_key", &staging.key().0)?;
         write_pod(&f, names::PRIMAL_POD, &primal, st.primal_tol)?;
         write_pod(&f, names::DUAL_POD, &dual, st.dual_orth_tol)?;
-        write_cpg(&f, names::DUAL_CPG, &full, st.dual_cone_tol)?;
-        write_cpg(&f, names::DUAL_CPG_TRUNCATED, &trunc, st.dual_cone_tol_truncated)?;
+        // Both are prefixes of one path, so one condition path (of the longer) serves both;
+        // 1 / kappa is finite always (0 = a generator in the span of the earlier ones).
+        let longer = if full.basis.ncols() >= trunc.basis.ncols() { &full } else { &trunc };
+        let rcond: Vec<f64> =
+            crom_stages::basis::gram_condition_path(longer.basis.as_ref()).iter().map(|k| 1.0 / k).collect();
+        write_cpg(&f, names::DUAL_CPG, &full, st.dual_cone_tol, &rcond[..full.basis.ncols()])?;
+        let t = trunc.basis.ncols();
+        write_cpg(&f, names::DUAL_CPG_TRUNCATED, &trunc, st.dual_cone_tol_truncated, &rcond[..t])?;
         drop(f);
         Ok(BTreeMap::from([
             ("primal_rank".to_string(), json!(primal.modes.ncols())),
@@ -199,7 +205,8 @@ fn write_pod(f: &H5Out, group: &str, p: &Pod, tol: f64) -> Result<(), CromError>
     g.vec_f64(names::SINGULAR_VALUES, &p.singular_values, "singular values, descending")
 }
 
-fn write_cpg(f: &H5Out, group: &str, c: &Cpg, tol: f64) -> Result<(), CromError> {
+/// A CPG group; `rcond` is the reciprocal Gram condition after each of its selections.
+fn write_cpg(f: &H5Out, group: &str, c: &Cpg, tol: f64, rcond: &[f64]) -> Result<(), CromError> {
     let g = f.group(group)?;
     g.attr_f64("tolerance", tol)?;
     g.attr_u64("rank", c.basis.ncols() as u64)?;
@@ -207,11 +214,9 @@ fn write_cpg(f: &H5Out, group: &str, c: &Cpg, tol: f64) -> Result<(), CromError>
     let sel: Vec<u64> = c.selected.iter().map(|&i| i as u64).collect();
     g.vec_u64(names::SELECTED, &sel)?;
     g.vec_f64(names::COMPACTNESS, &c.compactness, "C(m) of eq. 16 after each selection")?;
-    // 1 / kappa: finite always (0 = a generator in the span of the earlier ones).
-    let rcond: Vec<f64> = crom_stages::basis::gram_condition_path(c.basis.as_ref()).iter().map(|k| 1.0 / k).collect();
     g.vec_f64(
         names::GRAM_RCOND,
-        &rcond,
+        rcond,
         "1 / estimated 1-norm condition number of the Gram of the first t generators, t = 1..rank",
     )
 }

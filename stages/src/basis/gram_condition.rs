@@ -7,7 +7,8 @@
 //!
 //! ```text
 //! B_t = Q_t R_t  (modified Gram-Schmidt, twice: one column per step, O(n t)),  G_t = R_tᵀ R_t
-//! kappa_1(G_t) ~ ||G_t||_1 est(||G_t^{-1}||_1)
+//! kappa_1(G_t) ~ ||G_t||_1 est(||G_t^{-1}||_1)   (||G_t||_1 from column sums grown by one
+//!                                                  Gram column per step, O(n t))
 //! ```
 //!
 //! `est` is Hager's estimator (Higham 1988, LAPACK `xLACON`): at most five pairs of solves with
@@ -27,7 +28,17 @@ pub fn gram_condition_path(b: MatRef<'_, f64>) -> Vec<f64> {
     let mut r = vec![0.0; k * k];
     let mut out = Vec::with_capacity(k);
     let mut singular = false;
+    // Column sums of |G_t|, grown by one Gram column per step: ||G_t||_1 in O(n t).
+    let mut col_sums: Vec<f64> = Vec::with_capacity(k);
     for t in 0..k {
+        let bt = b.col(t);
+        let mut own = 0.0;
+        for (i, sum) in col_sums.iter_mut().enumerate() {
+            let g = b.col(i).iter().zip(bt.iter()).map(|(x, y)| x * y).sum::<f64>().abs();
+            *sum += g;
+            own += g;
+        }
+        col_sums.push(own + bt.iter().map(|x| x * x).sum::<f64>());
         let mut v: Vec<f64> = b.col(t).iter().copied().collect();
         for _ in 0..2 {
             for i in 0..t {
@@ -50,9 +61,7 @@ pub fn gram_condition_path(b: MatRef<'_, f64>) -> Vec<f64> {
             continue;
         }
         let m = t + 1;
-        // ||G||_1 from G = Rᵀ R on the leading m x m block.
-        let g = |i: usize, j: usize| (0..=i.min(j)).map(|l| r[l + i * k] * r[l + j * k]).sum::<f64>();
-        let g_norm = (0..m).map(|j| (0..m).map(|i| g(i, j).abs()).sum::<f64>()).fold(0.0, f64::max);
+        let g_norm = col_sums.iter().copied().fold(0.0, f64::max);
         let inv_norm = hager(m, &|x: &mut [f64]| solve_gram(&r, k, m, x));
         out.push(g_norm * inv_norm);
     }
