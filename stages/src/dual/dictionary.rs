@@ -30,6 +30,20 @@ pub struct Dictionary {
     atoms: Mat<f64>,
 }
 
+/// The non-zero columns of `s` scaled to unit norm: their indices, and the atoms column-major.
+fn unit_atoms(s: MatRef<'_, f64>) -> (Vec<usize>, Vec<f64>) {
+    let mut kept = Vec::new();
+    let mut atoms = Vec::new();
+    for j in 0..s.ncols() {
+        let norm = s.col(j).iter().map(|v| v * v).sum::<f64>().sqrt();
+        if norm > 0.0 {
+            kept.push(j);
+            atoms.extend(s.col(j).iter().map(|v| v / norm));
+        }
+    }
+    (kept, atoms)
+}
+
 /// One greedy approximation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Sparse {
@@ -44,12 +58,8 @@ pub struct Sparse {
 impl Dictionary {
     /// Atoms from the non-zero columns of `s` (n x N), each scaled to unit norm.
     pub fn new(s: MatRef<'_, f64>) -> Self {
-        let n = s.nrows();
-        let cols: Vec<(usize, f64)> = (0..s.ncols())
-            .map(|j| (j, (0..n).map(|i| s[(i, j)] * s[(i, j)]).sum::<f64>().sqrt()))
-            .filter(|&(_, norm)| norm > 0.0)
-            .collect();
-        Self { atoms: Mat::from_fn(n, cols.len(), |i, k| s[(i, cols[k].0)] / cols[k].1) }
+        let (kept, atoms) = unit_atoms(s);
+        Self { atoms: MatRef::from_column_major_slice(&atoms, s.nrows(), kept.len()).to_owned() }
     }
 
     /// Number of atoms.
@@ -260,16 +270,7 @@ impl WorkingSet {
     /// nodes' tributary weights and the size of the first working set.
     pub fn new(s: MatRef<'_, f64>, params: &[Vec<f64>], weights: &[f64], start: usize) -> Self {
         let n = s.nrows();
-        // The unit atoms straight from the columns (as `Dictionary::new`, without its copy).
-        let mut kept = Vec::new();
-        let mut atoms = Vec::new();
-        for j in 0..s.ncols() {
-            let norm = s.col(j).iter().map(|v| v * v).sum::<f64>().sqrt();
-            if norm > 0.0 {
-                kept.push(j);
-                atoms.extend(s.col(j).iter().map(|v| v / norm));
-            }
-        }
+        let (kept, atoms) = unit_atoms(s);
         let count = kept.len();
         let mut by_atom = (vec![0], Vec::new(), Vec::new());
         let mut node_atoms: Vec<Vec<usize>> = vec![Vec::new(); n];

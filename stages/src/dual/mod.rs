@@ -338,19 +338,11 @@ mod tests {
 
     #[test]
     fn names_are_distinct() {
-        let all = [
-            Approach::Pod,
-            Approach::Cpg,
-            Approach::AngleGreedy,
-            Approach::Nnmf { iterations: 10 },
-            Approach::Local { cells: 4, overlap: 0.0 },
-            Approach::Dictionary,
-            Approach::Registered { map: MapKind::Translate { interpolation: Interpolation::Nodes }, inner: Inner::Pod },
-            Approach::Registered {
-                map: MapKind::Translate { interpolation: Interpolation::Linear { refine: 2 } },
-                inner: Inner::Cpg,
-            },
-        ];
+        let mut all = all_approaches();
+        all.push(Approach::Registered {
+            map: MapKind::Translate { interpolation: Interpolation::Linear { refine: 2 } },
+            inner: Inner::Cpg,
+        });
         let names: std::collections::BTreeSet<String> = all.iter().map(Approach::name).collect();
         assert_eq!(names.len(), all.len());
     }
