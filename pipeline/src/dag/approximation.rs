@@ -20,7 +20,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::basis::Ticker;
-use super::comparison::{contact_x, items, THRESHOLDS};
+use super::comparison::{contact_x, item, THRESHOLDS};
 use super::convert::view;
 use super::Ctx;
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
@@ -63,8 +63,7 @@ pub(crate) fn spec(
     mesh: &Key,
     nested: &[Key],
 ) -> Option<KeySpec> {
-    let cmp = scene.comparison.as_ref()?;
-    let item = items(cmp).into_iter().nth(index)?;
+    let (cmp, item) = item(scene, index)?;
     let key = ApproximationKey {
         approximation: &item.spec,
         max_m: cmp.max_m,
@@ -90,7 +89,7 @@ pub(crate) fn run(
     nested: &[Key],
 ) -> Result<Key, CromError> {
     let scene_cfg = ctx.scene;
-    let found = scene_cfg.comparison.as_ref().and_then(|c| items(c).into_iter().nth(index).map(|i| (c.clone(), i)));
+    let found = item(scene_cfg, index).map(|(c, i)| (c.clone(), i));
     let (Some((cmp, item)), Some(spec)) = (found, spec(scene_cfg, index, train, test, mesh, nested)) else {
         return Err(CromError::artifact(
             "comparison",

@@ -34,9 +34,9 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::approximation::ONLINE_MS;
-use super::comparison::{contact_x, items};
+use super::comparison::{contact_x, item};
 use super::convert::view;
-use super::rom::{dual_error, fom_seconds, response_basis, REPEAT_BELOW, TIMING_REPEATS};
+use super::rom::{dual_error, fastest, fom_seconds, response_basis};
 use super::{Ctx, LazyPhysics};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -73,8 +73,7 @@ pub(crate) fn spec(
     mesh: &Key,
     approximation: &Key,
 ) -> Option<KeySpec> {
-    let cmp = scene.comparison.as_ref()?;
-    let item = items(cmp).into_iter().nth(index)?;
+    let (cmp, item) = item(scene, index)?;
     if !item.approach.has_cone_basis() {
         return None;
     }
@@ -138,7 +137,7 @@ pub(crate) fn run(
     approximation: &Key,
 ) -> Result<Key, CromError> {
     let scene_cfg = ctx.scene;
-    let found = scene_cfg.comparison.as_ref().and_then(|c| items(c).into_iter().nth(index).map(|i| (c.clone(), i)));
+    let found = item(scene_cfg, index).map(|(c, i)| (c.clone(), i));
     let (Some((cmp, item)), Some(spec)) = (found, spec(scene_cfg, index, train, test, mesh, approximation)) else {
         return Err(CromError::artifact(
             "online-approximation",
@@ -197,7 +196,7 @@ pub(crate) fn run(
                 continue;
             }
             let basis = h5.matrix(&format!("m{m}"))?;
-            let source = Source::Fixed(&basis.data, basis.cols);
+            let source = Source::Fixed(basis.data.as_slice().into(), basis.cols);
             let queries = solve_all(&source, &b.model, nc, &test_set.parameters, &params, errors);
             rows.push(&name, m, b.r_primal, &queries, b.fom_median);
         }
@@ -212,7 +211,7 @@ pub(crate) fn run(
                 Source::PerQuery(model.as_ref(), m)
             } else {
                 let (theta, k) = basis_at(model.as_ref(), &test_set.parameters[0], m);
-                Source::Owned(theta, k)
+                Source::Fixed(theta.into(), k)
             };
             let queries = solve_all(&source, &b.model, nc, &test_set.parameters, &params, errors);
             rows.push(&name, m, b.r_primal, &queries, b.fom_median);
@@ -249,18 +248,8 @@ fn solve_dictionary(
             || (base.clone(), RomWork::default(), WorkingSetScratch::default()),
             |(rm, w, sc), j| {
                 let mu = &points[j];
-                let mut best = f64::INFINITY;
-                let mut info = None;
-                for _ in 0..TIMING_REPEATS {
-                    let t = Instant::now();
-                    let i = ws.solve(rm, mu, params, w, sc);
-                    best = best.min(t.elapsed().as_secs_f64());
-                    info = Some(i);
-                    if best >= REPEAT_BELOW {
-                        break;
-                    }
-                }
-                let sol = w.solution(&info.expect("TIMING_REPEATS >= 1").info);
+                let (info, best) = fastest(|| ws.solve(rm, mu, params, w, sc));
+                let sol = w.solution(&info.info);
                 let (primal, dual) = errors(j, rm, &sol);
                 Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
             },
@@ -277,10 +266,8 @@ fn basis_at(model: &dyn DualApprox, mu: &[f64], m: usize) -> (Vec<f64>, usize) {
 
 /// Where a query's dual basis comes from.
 enum Source<'a> {
-    /// Fixed, column-major with this many columns (read from `bases.h5`).
-    Fixed(&'a [f64], usize),
-    /// Fixed, built here.
-    Owned(Vec<f64>, usize),
+    /// Fixed, column-major with this many columns (read from `bases.h5`, or built here).
+    Fixed(std::borrow::Cow<'a, [f64]>, usize),
     /// Evaluated at each query's parameter, with at most this many columns (inside the timer).
     PerQuery(&'a dyn DualApprox, usize),
 }
@@ -297,7 +284,6 @@ fn solve_all(
 ) -> Vec<Query> {
     let prepared = |rm: &mut ReducedModel| match source {
         Source::Fixed(theta, k) => rm.set_dual(theta, *k),
-        Source::Owned(theta, k) => rm.set_dual(theta, *k),
         Source::PerQuery(..) => {}
     };
     (0..points.len())
@@ -310,23 +296,15 @@ fn solve_all(
             },
             |(rm, w), j| {
                 let mu = &points[j];
-                let mut best = f64::INFINITY;
-                let mut info = None;
-                for _ in 0..TIMING_REPEATS {
-                    let t = Instant::now();
+                let (info, best) = fastest(|| {
                     if let Source::PerQuery(model, m) = source {
                         let (theta, k) = basis_at(*model, mu, *m);
                         debug_assert_eq!(theta.len(), nc * k);
                         rm.set_dual(&theta, k);
                     }
-                    let i = rm.solve_in(mu, params, w);
-                    best = best.min(t.elapsed().as_secs_f64());
-                    info = Some(i);
-                    if best >= REPEAT_BELOW {
-                        break;
-                    }
-                }
-                let sol = w.solution(&info.expect("TIMING_REPEATS >= 1"));
+                    rm.solve_in(mu, params, w)
+                });
+                let sol = w.solution(&info);
                 let (primal, dual) = errors(j, rm, &sol);
                 Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
             },

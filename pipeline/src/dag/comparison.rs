@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{comparison as names, mesh as mnames, ArtifactKind};
 use crom_schemas::comparison::{ApproximationSpec, BasisSpec, ComparisonSpec, InterpolationSpec, MapSpec};
+use crom_schemas::SceneConfig;
 use crom_stages::dual::{Approach, Inner, Interpolation, MapKind};
 use serde::Serialize;
 use serde_json::json;
@@ -43,6 +44,19 @@ pub(crate) fn items(cmp: &ComparisonSpec) -> Vec<Item> {
         .flat_map(ApproximationSpec::expand)
         .map(|spec| Item { approach: approach_of(&spec), name: spec.name(), spec })
         .collect()
+}
+
+/// Plan-node name prefixes of an approximation's offline and online stages (`<prefix><name>`);
+/// the side-by-side nodes read their parts' names back from them.
+pub(crate) const OFFLINE_NODE: &str = "approximation ";
+/// See [`OFFLINE_NODE`].
+pub(crate) const ONLINE_NODE: &str = "online-approximation ";
+
+/// The scene's comparison settings and its approximation `index` (in [`items`] order); None
+/// without `[comparison]` or past its end.
+pub(crate) fn item(scene: &SceneConfig, index: usize) -> Option<(&ComparisonSpec, Item)> {
+    let cmp = scene.comparison.as_ref()?;
+    Some((cmp, items(cmp).into_iter().nth(index)?))
 }
 
 /// The approach an expanded entry stands for.

@@ -324,7 +324,7 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
                 approximation::run(ctx, *i, &t, &te, &m, &nested)?
             }
             Stage::Comparison => {
-                let parts = gathered(node, "approximation ", &keys);
+                let parts = gathered(node, comparison::OFFLINE_NODE, &keys);
                 comparison::gather(ctx, ArtifactKind::Comparison, ArtifactKind::Approximation, &parts)?
             }
             Stage::OnlineApproximation(i) => {
@@ -332,7 +332,7 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
                 approximation_online::run(ctx, &mut physics, &mut online_base, *i, &t, &te, &m, &a)?
             }
             Stage::OnlineComparison => {
-                let parts = gathered(node, "online-approximation ", &keys);
+                let parts = gathered(node, comparison::ONLINE_NODE, &keys);
                 let part = ArtifactKind::OnlineApproximation;
                 comparison::gather(ctx, ArtifactKind::OnlineComparison, part, &parts)?
             }

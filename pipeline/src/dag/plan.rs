@@ -260,12 +260,12 @@ impl Plan {
             let mut inputs = vec!["trainset train".to_string(), "trainset test".to_string(), "mesh".to_string()];
             inputs.extend((1..=nested_sets.len()).map(|n| format!("trainset nested-{n}")));
             let inputs: Vec<&str> = inputs.iter().map(String::as_str).collect();
-            let name = format!("approximation {}", item.name);
+            let name = format!("{}{}", comparison::OFFLINE_NODE, item.name);
             let key = add(&name, ArtifactKind::Approximation, spec.key(), &inputs, false, Stage::Approximation(i));
             parts.push((item.name.clone(), key));
         }
         let comparison = (!parts.is_empty()).then(|| {
-            let names: Vec<String> = parts.iter().map(|(n, _)| format!("approximation {n}")).collect();
+            let names: Vec<String> = parts.iter().map(|(n, _)| format!("{}{n}", comparison::OFFLINE_NODE)).collect();
             let inputs: Vec<&str> = names.iter().map(String::as_str).collect();
             let key = comparison::gather_spec(ArtifactKind::Comparison, &parts).key();
             add("comparison", ArtifactKind::Comparison, key, &inputs, false, Stage::Comparison)
@@ -282,15 +282,16 @@ impl Plan {
         for (i, item) in items.iter().enumerate() {
             let Some((_, offline)) = parts.iter().find(|(n, _)| *n == item.name) else { continue };
             let Some(spec) = approximation_online::spec(scene, i, &train, &test, &mesh, offline) else { continue };
-            let offline_node = format!("approximation {}", item.name);
+            let offline_node = format!("{}{}", comparison::OFFLINE_NODE, item.name);
             let inputs = ["trainset train", "trainset test", "mesh", offline_node.as_str()];
-            let name = format!("online-approximation {}", item.name);
+            let name = format!("{}{}", comparison::ONLINE_NODE, item.name);
             let kind = ArtifactKind::OnlineApproximation;
             let key = add(&name, kind, spec.key(), &inputs, true, Stage::OnlineApproximation(i));
             online_parts.push((item.name.clone(), key));
         }
         let online_comparison = (!online_parts.is_empty()).then(|| {
-            let names: Vec<String> = online_parts.iter().map(|(n, _)| format!("online-approximation {n}")).collect();
+            let names: Vec<String> =
+                online_parts.iter().map(|(n, _)| format!("{}{n}", comparison::ONLINE_NODE)).collect();
             let inputs: Vec<&str> = names.iter().map(String::as_str).collect();
             let key = comparison::gather_spec(ArtifactKind::OnlineComparison, &online_parts).key();
             add("online-comparison", ArtifactKind::OnlineComparison, key, &inputs, true, Stage::OnlineComparison)

@@ -62,6 +62,23 @@ pub(crate) const TIMING_REPEATS: usize = 3;
 /// Queries slower than this are timed once.
 pub(crate) const REPEAT_BELOW: f64 = 2e-3;
 
+/// Run `query` up to [`TIMING_REPEATS`] times (once if it takes [`REPEAT_BELOW`] or more);
+/// returns the last run's result and the fastest time in seconds.
+pub(crate) fn fastest<T>(mut query: impl FnMut() -> T) -> (T, f64) {
+    let mut best = f64::INFINITY;
+    let mut result;
+    let mut runs = 0;
+    loop {
+        let t = Instant::now();
+        result = query();
+        best = best.min(t.elapsed().as_secs_f64());
+        runs += 1;
+        if runs >= TIMING_REPEATS || best >= REPEAT_BELOW {
+            return (result, best);
+        }
+    }
+}
+
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];
 
 /// The online stage's key spec. The timing constants are not in the key: they change the
@@ -248,21 +265,7 @@ fn write_online(
 /// have been computed by another build. Timed like the online queries (minimum of up to
 /// [`TIMING_REPEATS`] when faster than [`REPEAT_BELOW`]); a failed solve is timed all the same.
 pub(crate) fn fom_seconds(phys: &Physics, parameters: &[Vec<f64>]) -> Vec<f64> {
-    parameters
-        .par_iter()
-        .map(|mu| {
-            let mut best = f64::INFINITY;
-            for _ in 0..TIMING_REPEATS {
-                let t = Instant::now();
-                let _ = phys.solve(mu);
-                best = best.min(t.elapsed().as_secs_f64());
-                if best >= REPEAT_BELOW {
-                    break;
-                }
-            }
-            best
-        })
-        .collect()
+    parameters.par_iter().map(|mu| fastest(|| phys.solve(mu)).1).collect()
 }
 
 /// POD (numerical rank) of the training contact responses `u_k - u0(mu_k)`.
@@ -301,18 +304,8 @@ fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -
         .par_iter()
         .enumerate()
         .map_init(RomWork::default, |w, (j, mu)| {
-            let mut best = f64::INFINITY;
-            let mut info = None;
-            for _ in 0..TIMING_REPEATS {
-                let t = Instant::now();
-                let i = model.solve_in(mu, p, w);
-                best = best.min(t.elapsed().as_secs_f64());
-                info = Some(i);
-                if best >= REPEAT_BELOW {
-                    break;
-                }
-            }
-            let sol = w.solution(&info.expect("TIMING_REPEATS >= 1"));
+            let (info, best) = fastest(|| model.solve_in(mu, p, w));
+            let sol = w.solution(&info);
             // at the solve's own linearisation, before the indicator re-pairs
             let inf_sup = if j % stride == 0 { model.inf_sup(w) } else { None };
             let t = Instant::now();
