@@ -59,7 +59,7 @@ struct OnlineApproximationKey<'a> {
 impl StageKey for OnlineApproximationKey<'_> {
     const KIND: ArtifactKind = ArtifactKind::OnlineApproximation;
     /// Bump when a number of the online solve changes.
-    const ALGORITHM_VERSION: u32 = 1;
+    const ALGORITHM_VERSION: u32 = 2;
 }
 
 /// The key spec of approximation `index`'s online stage (None without `[comparison]`, past

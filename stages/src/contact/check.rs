@@ -96,7 +96,7 @@ impl FactoredModel {
             let p = index.closest_point(xs, &xm);
             let d = match p.kind {
                 PairKind::None => continue,
-                PairKind::Segment(_) => p.gap,
+                PairKind::Segment(_) | PairKind::End(_) => p.gap,
                 PairKind::Vertex(v) | PairKind::Tied(v) => {
                     let r = [xs[0] - xm[v][0], xs[1] - xm[v][1]];
                     (r[0] * r[0] + r[1] * r[1]).sqrt().copysign(p.gap)
@@ -116,7 +116,9 @@ impl FactoredModel {
                 (Some(v), _) => (segment_normal(&xm, v - 1), segment_normal(&xm, v)),
                 (None, PairKind::Segment(k)) => (segment_normal(&xm, k), segment_normal(&xm, k)),
                 (None, PairKind::Vertex(v) | PairKind::Tied(v)) => (vertex_normal(&xm, v), vertex_normal(&xm, v)),
-                (None, PairKind::None) => unreachable!("unpaired slaves were skipped"),
+                (None, PairKind::None | PairKind::End(_)) => {
+                    unreachable!("unpaired slaves were skipped; a closest point is never an end tie")
+                }
             };
             out.cone_angle = out.cone_angle.max(outside_cone(f, a, b));
         }

@@ -28,6 +28,11 @@ pub enum PairKind {
     /// Tied to vertex `v` with the averaged normal because the pairing kept flipping between
     /// the segments around `v` (see [`super::vertex`]).
     Tied(usize),
+    /// Tied to the end vertex `v` (`0` or the last) with the normal of the segment at that end
+    /// because the pairing kept flipping between that segment and no pairing: the end
+    /// segment's line, extended past its end (see [`super::vertex`], end ties; only the
+    /// reduced solve ties ends).
+    End(usize),
 }
 
 impl PairKind {
@@ -48,11 +53,28 @@ impl PairKind {
         }
     }
 
+    /// The end vertex of a flip between no pairing and the segment at an end of a polyline
+    /// whose last vertex is `last`: segment `0` has end `0`, segment `last - 1` has end `last`.
+    pub fn end_vertex(self, other: PairKind, last: usize) -> Option<usize> {
+        match (self, other) {
+            (PairKind::None, PairKind::Segment(k)) | (PairKind::Segment(k), PairKind::None) => {
+                if k == 0 {
+                    Some(0)
+                } else if k + 1 == last {
+                    Some(last)
+                } else {
+                    None
+                }
+            }
+            _ => None,
+        }
+    }
+
     /// True when this (natural) pairing is one of those around vertex `v`.
     pub fn touches_vertex(self, v: usize) -> bool {
         match self {
             PairKind::Segment(k) => k == v || k + 1 == v,
-            PairKind::Vertex(w) | PairKind::Tied(w) => w == v,
+            PairKind::Vertex(w) | PairKind::Tied(w) | PairKind::End(w) => w == v,
             PairKind::None => false,
         }
     }
@@ -103,6 +125,13 @@ pub fn vertex_normal(m: &[[f64; 2]], v: usize) -> [f64; 2] {
 pub fn vertex_pair(xs: [f64; 2], m: &[[f64; 2]], v: usize, kind: PairKind) -> Pair {
     let n = vertex_normal(m, v);
     Pair { kind, xi: 0.0, normal: n, gap: dot(sub(xs, m[v]), n) }
+}
+
+/// Tie to the end vertex `v` of `m` (`0` or the last) with the normal of the segment at that
+/// end: the gap to that segment's line, extended past its end.
+pub fn end_pair(xs: [f64; 2], m: &[[f64; 2]], v: usize) -> Pair {
+    let n = segment_normal(m, if v == 0 { 0 } else { v - 1 });
+    Pair { kind: PairKind::End(v), xi: 0.0, normal: n, gap: dot(sub(xs, m[v]), n) }
 }
 
 /// Orthogonal projection of `xs` onto segment `k` of `m`: `(xi, xs - foot)` when
@@ -404,7 +433,7 @@ impl GapRow {
                 push(k, 1.0 - p.xi);
                 push(k + 1, p.xi);
             }
-            PairKind::Vertex(v) | PairKind::Tied(v) => push(v, 1.0),
+            PairKind::Vertex(v) | PairKind::Tied(v) | PairKind::End(v) => push(v, 1.0),
             PairKind::None => panic!("gap rows are built for paired slaves only"),
         }
         r

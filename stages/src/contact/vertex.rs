@@ -19,8 +19,22 @@
 //! that were in a zone (or that a solve had to flip-tie) are [`PairKind::Tied`] to their
 //! vertex; the exact sequence of solves is in `super::solve`. Such slaves are *forced*
 //! ([`VertexTies::force`]): tied from the first re-pairing and never released.
+//!
+//! **End ties** (enabled by [`VertexTies::set_end_ties`]; the reduced solve only). A slave
+//! whose natural pairing flips in the same way between the segment at an end of the polyline
+//! and no pairing (its closest point the end vertex) is tied to that end:
+//! [`PairKind::End`], gap `(x_s - x_e) . n_k`, `n_k` the end segment's normal, i.e. the end
+//! segment's line extended past its end; it equals the segment's gap wherever the projection
+//! is valid, so the gap row is continuous across the end. The tie persists while the natural
+//! pairing stays that segment or none and is released otherwise. The full-order solver does
+//! not need it: a slave whose pairing flips there has an open gap, carries no pressure, and
+//! its pairing does not move the solution. In a reduced problem it does: a slave's pressure
+//! is not its own unknown but a dual basis vector's value, so a slave with an open gap can
+//! carry pressure, and its row enters the reduced constraint only while it is paired; the
+//! reduced constraint then jumps with the pairing, and the re-pairing can cycle between two
+//! states with no fixed point (measured on ironing-fine, design note 36).
 
-use super::pairing::{vertex_pair, MasterIndex, Pair, PairKind};
+use super::pairing::{end_pair, vertex_pair, MasterIndex, Pair, PairKind};
 
 /// Radius of a vertex's zone, relative to the shorter segment at the vertex: 1 %, five times
 /// the 0.2 % within which an independent implementation and crom settled ironing-coarse slaves
@@ -35,7 +49,7 @@ pub const VERTEX_ZONE: f64 = 0.01;
 pub fn zone_vertex(xs: [f64; 2], xm: &[[f64; 2]], nat: PairKind, zone: f64) -> Option<usize> {
     let last = xm.len() - 1;
     let candidates = match nat {
-        PairKind::None => [None, None],
+        PairKind::None | PairKind::End(_) => [None, None],
         PairKind::Segment(k) => [Some(k), Some(k + 1)],
         PairKind::Vertex(v) | PairKind::Tied(v) => [Some(v), None],
     };
@@ -53,6 +67,10 @@ pub const STALL_REPAIRINGS: usize = 12;
 #[derive(Debug, Clone)]
 pub struct VertexTies {
     enabled: bool,
+    /// End ties are enabled (see the module docs).
+    ends: bool,
+    /// The end vertex each slave is tied to.
+    end: Vec<Option<usize>>,
     /// Ties imposed for the whole solve (the vertex-zone rule).
     forced: Vec<Option<usize>>,
     tie: Vec<Option<usize>>,
@@ -65,6 +83,8 @@ impl VertexTies {
     pub fn new(n: usize) -> Self {
         Self {
             enabled: true,
+            ends: false,
+            end: vec![None; n],
             forced: vec![None; n],
             tie: vec![None; n],
             last: vec![PairKind::None; n],
@@ -78,6 +98,11 @@ impl VertexTies {
         self.reset(forced.len());
         self.forced.clear();
         self.forced.extend_from_slice(forced);
+    }
+
+    /// Enable or disable end ties (see the module docs); kept by [`Self::reset`].
+    pub fn set_end_ties(&mut self, on: bool) {
+        self.ends = on;
     }
 
     /// The vertex slave `s` is tied to, forced or by a flip.
@@ -96,7 +121,7 @@ impl VertexTies {
             v.clear();
             v.resize(n, PairKind::None);
         }
-        for v in [&mut self.tie, &mut self.forced] {
+        for v in [&mut self.tie, &mut self.forced, &mut self.end] {
             v.clear();
             v.resize(n, None);
         }
@@ -108,8 +133,9 @@ impl VertexTies {
     }
 
     /// Record the natural pairing `nat` of slave `s` at re-pairing number `repairing` and return
-    /// the pairing to use (`nat` or [`PairKind::Tied`]).
-    pub fn resolve(&mut self, s: usize, nat: PairKind, repairing: usize) -> PairKind {
+    /// the pairing to use (`nat`, [`PairKind::Tied`] or [`PairKind::End`]); `last` is the index
+    /// of the polyline's last vertex.
+    pub fn resolve(&mut self, s: usize, nat: PairKind, repairing: usize, last: usize) -> PairKind {
         if let Some(v) = self.forced[s] {
             return PairKind::Tied(v);
         }
@@ -126,11 +152,24 @@ impl VertexTies {
             self.tie[s] = None;
             return nat;
         }
+        if let Some(e) = self.end[s] {
+            if nat == PairKind::None || nat.touches_vertex(e) {
+                return PairKind::End(e);
+            }
+            self.end[s] = None;
+            return nat;
+        }
         let flipped = nat != h1 && (nat == h2 || repairing >= STALL_REPAIRINGS);
         if flipped {
             if let Some(v) = nat.shared_vertex(h1) {
                 self.tie[s] = Some(v);
                 return PairKind::Tied(v);
+            }
+            // `repairing >= 2`: both earlier pairings were recorded (the history starts unpaired,
+            // so a slave paired at the first re-pairing and not at the second is no flip)
+            if let Some(e) = nat.end_vertex(h1, last).filter(|_| self.ends && repairing >= 2) {
+                self.end[s] = Some(e);
+                return PairKind::End(e);
             }
         }
         nat
@@ -142,8 +181,19 @@ impl VertexTies {
         if let Some(v) = self.forced[s] {
             return PairKind::Tied(v);
         }
-        match self.tie[s] {
-            Some(v) if self.enabled && nat.touches_vertex(v) => PairKind::Tied(v),
+        match (self.tie[s], self.end[s]) {
+            (Some(v), _) if self.enabled && nat.touches_vertex(v) => PairKind::Tied(v),
+            (_, Some(e)) if self.enabled && (nat == PairKind::None || nat.touches_vertex(e)) => PairKind::End(e),
+            _ => nat,
+        }
+    }
+
+    /// The pair of kind `kind` (from [`Self::resolve`] or [`Self::peek`]) for a slave at `xs`
+    /// whose natural pair is `nat`.
+    fn realize(kind: PairKind, nat: Pair, xs: [f64; 2], xm: &[[f64; 2]]) -> Pair {
+        match kind {
+            PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
+            PairKind::End(v) => end_pair(xs, xm, v),
             _ => nat,
         }
     }
@@ -153,10 +203,7 @@ impl VertexTies {
     /// says so; the natural pairing is recorded as re-pairing number `repairing`.
     pub fn pair(&mut self, s: usize, xs: [f64; 2], xm: &[[f64; 2]], index: &MasterIndex, repairing: usize) -> Pair {
         let nat = index.closest_point(xs, xm);
-        match self.resolve(s, nat.kind, repairing) {
-            PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
-            _ => nat,
-        }
+        Self::realize(self.resolve(s, nat.kind, repairing, xm.len() - 1), nat, xs, xm)
     }
 
     /// [`Self::pair`] with the radius of [`MasterIndex::closest_point_with_radius`] for an
@@ -170,38 +217,27 @@ impl VertexTies {
         repairing: usize,
     ) -> (Pair, f64) {
         let (nat, r) = index.closest_point_with_radius(xs, xm);
-        match self.resolve(s, nat.kind, repairing) {
-            PairKind::Tied(v) => (vertex_pair(xs, xm, v, PairKind::Tied(v)), 0.0),
-            _ => (nat, r),
-        }
+        let kind = self.resolve(s, nat.kind, repairing, xm.len() - 1);
+        (Self::realize(kind, nat, xs, xm), if kind == nat.kind { r } else { 0.0 })
     }
 
     /// [`Self::pair`] for a slave whose natural pair `nat` is already known (proven unchanged
     /// by a radius of [`MasterIndex::closest_point_with_radius`]): the same resolution and
     /// history update, no search.
     pub fn pair_known(&mut self, s: usize, nat: Pair, xs: [f64; 2], xm: &[[f64; 2]], repairing: usize) -> Pair {
-        match self.resolve(s, nat.kind, repairing) {
-            PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
-            _ => nat,
-        }
+        Self::realize(self.resolve(s, nat.kind, repairing, xm.len() - 1), nat, xs, xm)
     }
 
     /// [`Self::pair_peek`] for a slave whose natural pair `nat` is already known (see
     /// [`Self::pair_known`]): no search, no history update.
     pub fn peek_known(&self, s: usize, nat: Pair, xs: [f64; 2], xm: &[[f64; 2]]) -> Pair {
-        match self.peek(s, nat.kind) {
-            PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
-            _ => nat,
-        }
+        Self::realize(self.peek(s, nat.kind), nat, xs, xm)
     }
 
     /// [`Self::pair`] without recording anything (existing ties only, [`Self::peek`]).
     pub fn pair_peek(&self, s: usize, xs: [f64; 2], xm: &[[f64; 2]], index: &MasterIndex) -> Pair {
         let nat = index.closest_point(xs, xm);
-        match self.peek(s, nat.kind) {
-            PairKind::Tied(v) => vertex_pair(xs, xm, v, PairKind::Tied(v)),
-            _ => nat,
-        }
+        Self::realize(self.peek(s, nat.kind), nat, xs, xm)
     }
 
     /// Number of slaves currently tied.
@@ -250,8 +286,8 @@ mod tests {
     fn forced_ties_hold() {
         let mut t = VertexTies::new(2);
         t.force(&[Some(3), None]);
-        assert_eq!(t.resolve(0, Segment(9), 0), Tied(3));
-        assert_eq!(t.resolve(0, PairKind::None, 1), Tied(3));
+        assert_eq!(t.resolve(0, Segment(9), 0, 99), Tied(3));
+        assert_eq!(t.resolve(0, PairKind::None, 1, 99), Tied(3));
         assert_eq!(t.peek(0, Segment(1)), Tied(3));
         assert_eq!((t.tied(0), t.forced(0), t.tied(1), t.count()), (Some(3), Some(3), None, 1));
     }
@@ -259,21 +295,53 @@ mod tests {
     #[test]
     fn period_two_flip_ties_and_release() {
         let mut t = VertexTies::new(2);
-        assert_eq!(t.resolve(0, Segment(4), 0), Segment(4));
-        assert_eq!(t.resolve(0, Segment(5), 1), Segment(5));
+        assert_eq!(t.resolve(0, Segment(4), 0, 99), Segment(4));
+        assert_eq!(t.resolve(0, Segment(5), 1, 99), Segment(5));
         // back to segment 4: flip around vertex 5 -> tie
-        assert_eq!(t.resolve(0, Segment(4), 2), Tied(5));
+        assert_eq!(t.resolve(0, Segment(4), 2, 99), Tied(5));
         assert_eq!(t.count(), 1);
         // persists while the natural pairing stays around vertex 5
-        assert_eq!(t.resolve(0, Vertex(5), 3), Tied(5));
-        assert_eq!(t.resolve(0, Segment(5), 4), Tied(5));
+        assert_eq!(t.resolve(0, Vertex(5), 3, 99), Tied(5));
+        assert_eq!(t.resolve(0, Segment(5), 4, 99), Tied(5));
         // released when it moves away
-        assert_eq!(t.resolve(0, Segment(7), 5), Segment(7));
+        assert_eq!(t.resolve(0, Segment(7), 5, 99), Segment(7));
         assert_eq!(t.count(), 0);
         // monotone sliding is not a flip
-        assert_eq!(t.resolve(1, Segment(1), 0), Segment(1));
-        assert_eq!(t.resolve(1, Segment(2), 1), Segment(2));
-        assert_eq!(t.resolve(1, Segment(3), 2), Segment(3));
+        assert_eq!(t.resolve(1, Segment(1), 0, 99), Segment(1));
+        assert_eq!(t.resolve(1, Segment(2), 1, 99), Segment(2));
+        assert_eq!(t.resolve(1, Segment(3), 2, 99), Segment(3));
         assert_eq!(t.count(), 0);
+    }
+
+    /// End ties: only when enabled, only for a period-two flip between no pairing and the
+    /// segment at an end (here segments 0..=9, ends 0 and 10), persisting while the natural
+    /// pairing stays there, released when it moves inside; an end pair is the end segment's
+    /// line extended past the end.
+    #[test]
+    fn end_flips_tie_to_the_end_only_when_enabled() {
+        let mut t = VertexTies::new(3);
+        for (r, nat) in [Segment(9), PairKind::None, Segment(9), PairKind::None].into_iter().enumerate() {
+            assert_eq!(t.resolve(0, nat, r, 10), nat, "disabled: never tied");
+        }
+        t.set_end_ties(true);
+        t.reset(3);
+        assert_eq!(t.resolve(0, Segment(9), 0, 10), Segment(9));
+        assert_eq!(t.resolve(0, PairKind::None, 1, 10), PairKind::None);
+        assert_eq!(t.resolve(0, Segment(9), 2, 10), PairKind::End(10));
+        assert_eq!(t.resolve(0, PairKind::None, 3, 10), PairKind::End(10));
+        assert_eq!(t.peek(0, Segment(9)), PairKind::End(10));
+        assert_eq!(t.resolve(0, Segment(8), 4, 10), Segment(8), "released inside");
+        assert_eq!(t.peek(0, PairKind::None), PairKind::None);
+        // the first segment's end is vertex 0; an interior segment has no end
+        assert_eq!(t.resolve(1, Segment(0), 0, 10), Segment(0));
+        assert_eq!(t.resolve(1, PairKind::None, 1, 10), PairKind::None);
+        assert_eq!(t.resolve(1, Segment(0), 2, 10), PairKind::End(0));
+        assert_eq!(t.resolve(2, Segment(4), 0, 10), Segment(4));
+        assert_eq!(t.resolve(2, PairKind::None, 1, 10), PairKind::None);
+        assert_eq!(t.resolve(2, Segment(4), 2, 10), Segment(4));
+        // geometry: the end segment [(1,0),(2,0)] of a polyline, its line extended past x = 2
+        let m = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]];
+        let p = crate::contact::pairing::end_pair([2.5, -0.25], &m, 2);
+        assert_eq!((p.kind, p.normal, p.gap), (PairKind::End(2), [0.0, -1.0], 0.25));
     }
 }

@@ -1207,6 +1207,7 @@ impl LinState {
                 PairKind::Segment(k) => (1, k as u64),
                 PairKind::Vertex(v) => (2, v as u64),
                 PairKind::Tied(v) => (3, v as u64),
+                PairKind::End(v) => (4, v as u64),
             };
             for x in [tag, v] {
                 h ^= x;
@@ -1327,6 +1328,7 @@ impl RomWork {
             l.budget.resize(*ns, 0.0);
             l.travel = 0.0;
             l.fresh = true;
+            l.ties.set_end_ties(true);
             l.ties.reset(*ns);
         }
     }
