@@ -130,7 +130,14 @@ fn load_scene(cli: &Cli, scene_arg: &str) -> Result<SceneConfig, CromError> {
     if total <= limit {
         return Ok(scene);
     }
-    let big = terms.iter().max_by(|a, b| a.bytes.total_cmp(&b.bytes)).expect("estimate has terms");
+    // The field to change: the first term (mesh, contact surface, then the snapshot sets) that
+    // alone exceeds the limit — a mesh that cannot be factored is not fixed by fewer points,
+    // though its snapshot sets may be the larger term — else the largest term.
+    let big = terms
+        .iter()
+        .find(|t| t.bytes > limit)
+        .or_else(|| terms.iter().max_by(|a, b| a.bytes.total_cmp(&b.bytes)))
+        .expect("estimate has terms");
     Err(CromError::Scene(crom_schemas::SceneError::Invalid {
         path,
         field: big.field.to_string(),

@@ -44,8 +44,8 @@ struct ApproximationKey<'a> {
 
 impl StageKey for ApproximationKey<'_> {
     const KIND: ArtifactKind = ArtifactKind::Approximation;
-    /// Bump when a number of an approximation changes.
-    const ALGORITHM_VERSION: u32 = 1;
+    /// Bump when a number of an approximation changes (2: the CPG floor).
+    const ALGORITHM_VERSION: u32 = 2;
 }
 
 /// The dual sizes the online solve is run at (those up to the basis size; the dictionary is

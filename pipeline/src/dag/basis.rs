@@ -96,8 +96,9 @@ struct BasisKey {
 
 impl StageKey for BasisKey {
     const KIND: ArtifactKind = ArtifactKind::Basis;
-    /// Bump when POD or CPG change the bases they produce (2: the NNLS settings in the key).
-    const ALGORITHM_VERSION: u32 = 2;
+    /// Bump when POD or CPG change the bases they produce (2: the NNLS settings in the key;
+    /// 3: the CPG floor, `crom_stages::basis::CPG_FLOOR`).
+    const ALGORITHM_VERSION: u32 = 3;
 }
 
 /// The basis artifact's key spec for the training set `train`.

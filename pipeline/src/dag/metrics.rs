@@ -36,8 +36,8 @@ struct GeneralizationKey {
 
 impl StageKey for GeneralizationKey {
     const KIND: ArtifactKind = ArtifactKind::Generalization;
-    /// Bump when G(m) changes (2: the NNLS settings in the key).
-    const ALGORITHM_VERSION: u32 = 2;
+    /// Bump when G(m) changes (2: the NNLS settings in the key; 3: the CPG floor).
+    const ALGORITHM_VERSION: u32 = 3;
 }
 
 /// S(m): samples, seed, rank range, NNLS settings of the cone projections.
@@ -51,8 +51,8 @@ struct SpecificityKey {
 
 impl StageKey for SpecificityKey {
     const KIND: ArtifactKind = ArtifactKind::Specificity;
-    /// Bump when S(m) changes (2: the NNLS settings in the key).
-    const ALGORITHM_VERSION: u32 = 2;
+    /// Bump when S(m) changes (2: the NNLS settings in the key; 3: the CPG floor).
+    const ALGORITHM_VERSION: u32 = 3;
 }
 
 /// H(n): the number of levels (their keys are inputs), the NNLS settings of the cone errors.
@@ -64,8 +64,8 @@ struct NestedKey {
 
 impl StageKey for NestedKey {
     const KIND: ArtifactKind = ArtifactKind::Nested;
-    /// Bump when H(n) changes (2: the NNLS settings in the key).
-    const ALGORITHM_VERSION: u32 = 2;
+    /// Bump when H(n) changes (2: the NNLS settings in the key; 3: the CPG floor).
+    const ALGORITHM_VERSION: u32 = 3;
 }
 
 fn numerical(scene: &str, stage: &'static str, e: impl std::fmt::Display) -> CromError {

@@ -7,7 +7,7 @@
 
 use faer::{Mat, MatRef};
 
-use super::cpg::{scan, Cpg, CpgParams};
+use super::cpg::{scan, Cpg, CpgParams, CPG_FLOOR};
 use crate::cone::{copy_column, ConeError, GrowingCone};
 
 /// Greedy cone basis of the snapshots `s` (n x N), by definition (see [`cpg`](super::cpg)).
@@ -34,10 +34,10 @@ pub fn cpg_reference(s: MatRef<'_, f64>, params: CpgParams) -> Result<Cpg, ConeE
     Ok(Cpg { basis: cone.basis().to_owned(), selected, compactness })
 }
 
-/// The not-yet-selected snapshot with the largest relative error above `IN_CONE_REL_TOL`.
+/// The not-yet-selected snapshot with the largest relative error above [`CPG_FLOOR`].
 fn next_snapshot(cone: &GrowingCone<'_>, selected: &[usize]) -> Option<usize> {
     let candidates = (0..cone.norms().len())
         .filter_map(|j| cone.relative_error(j).map(|e| (j, e)))
-        .filter(|(j, e)| *e > crate::cone::IN_CONE_REL_TOL && !selected.contains(j));
+        .filter(|(j, e)| *e > CPG_FLOOR && !selected.contains(j));
     scan(candidates, cone.norms(), None)
 }

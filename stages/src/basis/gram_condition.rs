@@ -14,9 +14,13 @@
 //! `est` is Hager's estimator (Higham 1988, LAPACK `xLACON`): at most five pairs of solves with
 //! `R_tᵀ R_t` (`O(t^2)` each), a lower bound on `||G_t^{-1}||_1` that is rarely below a third
 //! of it. Total cost `O(n N^2 + N^3)` for N generators, so the 1 025-generator stress case
-//! stays cheap. A generator in the span of the earlier ones (`R_tt = 0`) gives an infinite
-//! estimate, which is returned as `f64::INFINITY` (the caller stores it as a null with that
-//! reason).
+//! stays cheap. A generator in the span of the earlier ones (`R_tt = 0`), or an estimate above
+//! `1 / eps` (the Gram singular to working precision: the solves with `R` then return
+//! round-off, and once `R_tt` is subnormal, overflow and NaN), gives `f64::INFINITY` from that
+//! step on — the condition of `G_t` never decreases with t (`G_t` is a principal submatrix of
+//! `G_{t+1}`: by interlacing its extreme eigenvalues are inside those of `G_{t+1}`). The
+//! caller stores `1 / kappa`, 0 for those steps. Found by the stress matrix's near-duplicate
+//! case, which stored NaN after 19 generators.
 
 use faer::MatRef;
 
@@ -63,7 +67,13 @@ pub fn gram_condition_path(b: MatRef<'_, f64>) -> Vec<f64> {
         let m = t + 1;
         let g_norm = col_sums.iter().copied().fold(0.0, f64::max);
         let inv_norm = hager(m, &|x: &mut [f64]| solve_gram(&r, k, m, x));
-        out.push(g_norm * inv_norm);
+        let kappa = g_norm * inv_norm;
+        if kappa.is_finite() && kappa <= 1.0 / f64::EPSILON {
+            out.push(kappa);
+        } else {
+            singular = true;
+            out.push(f64::INFINITY);
+        }
     }
     out
 }
@@ -147,6 +157,15 @@ mod tests {
             dup[(i, 3)] = b[(i, 2)];
         }
         let d = gram_condition_path(dup.as_ref());
+        // Nearly parallel generators (each a 1e-6-relative perturbation of the first, the
+        // near-duplicate snapshots' kind): the Gram is singular to working precision after a
+        // few steps; every later step is infinite, none NaN.
+        let first: Vec<f64> = b.col(0).iter().copied().collect();
+        let near = Mat::from_fn(n, 30, |i, j| first[i] * (1.0 + 1e-6 * ((i * (j + 1)) % 7) as f64 / 7.0));
+        let e = gram_condition_path(near.as_ref());
+        let at = e.iter().position(|v| v.is_infinite()).expect("singular to working precision");
+        assert!(at >= 1 && e[..at].iter().all(|v| v.is_finite() && *v <= 1.0 / f64::EPSILON), "{e:?}");
+        assert!(e[at..].iter().all(|v| v.is_infinite()), "{e:?}");
         assert!(d[2].is_finite() && d[3..].iter().all(|v| v.is_infinite() || *v > 1e12), "{d:?}");
     }
 }

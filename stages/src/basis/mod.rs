@@ -13,7 +13,7 @@ mod cpg_reference;
 mod gram_condition;
 mod pod;
 
-pub use cpg::{cpg, cpg_path, Cpg, CpgParams, CpgPath, CpgPathParams};
+pub use cpg::{cpg, cpg_path, Cpg, CpgParams, CpgPath, CpgPathParams, CPG_FLOOR};
 pub use cpg_reference::cpg_reference;
 pub use gram_condition::gram_condition_path;
 

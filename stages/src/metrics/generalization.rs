@@ -80,6 +80,7 @@ use super::compactness::compactness_cone_with;
 use super::stats::{MetricCurve, RunningStats};
 use crate::basis::{
     cpg_path, cpg_reference, numerical_rank, pod_full, CpgParams, CpgPath, CpgPathParams, LazyGreedy, PodError,
+    CPG_FLOOR,
 };
 use crate::cone::{copy_column, norm2, ConeError, NnlsParams, IN_CONE_REL_TOL};
 
@@ -348,7 +349,7 @@ fn continue_fold(
             Some(r) => (r.err, r.m, r.coeffs.clone()),
             None => (1.0, 0, Vec::new()), // empty cone: ||s_j|| / ||s_j|| = 1 exactly
         };
-        (err > IN_CONE_REL_TOL).then_some((j, err, m, coeffs))
+        (err > CPG_FLOOR).then_some((j, err, m, coeffs))
     });
     let mut lazy = LazyGreedy::resume(s, &d.norms, projector, candidates);
     let (mut coeffs, mut residual) = d.start[i].clone().expect("cpg_path records the start of folds up to max_rank");
