@@ -1,6 +1,8 @@
 """The fast subset of the stress matrix (issue 16; `scripts/stress.py --fast`, the whole matrix
-is `just stress`): first touch and grazing contact, a deep press near the sole's corners, a
-stiffness contrast of 1e6 and 1e-3, and a 5 x 1 slab mesh run to the end. Each case's
+is `just stress`): first touch and grazing contact, hertz against Hertz theory, a deep press
+near the sole's corners, a stiffness contrast of 1e6 and 1e-3, a 5 x 1 slab mesh run to the
+end, a mesh beyond the machine refused by the memory estimate, and the reduced solve on nearly
+parallel dual vectors with primal ranks 1-3. Each case's
 expectation is stated in the script (a formula or the KKT conditions on the stored fields);
 every case must pass or be refused with a reason, and no artifact may hold NaN."""
 import os
