@@ -17,6 +17,7 @@ import json
 import math
 import os
 import pathlib
+import re
 import shutil
 import subprocess
 import sys
@@ -37,6 +38,66 @@ REPO = pathlib.Path(__file__).resolve().parents[1]
 # solver stops at rel_tol = 1e-10 on penetration and complementarity (scene files), the
 # equilibrium residual is relative to the load and carries the factorisation's round-off (1e-8).
 PEN_TOL, COMP_TOL, KKT_TOL = 1e-10, 1e-10, 1e-8
+
+
+GIB = 1 << 30
+
+
+class Measured:
+    """A finished child: returncode, stdout, stderr and its own peak RSS in bytes."""
+
+    def __init__(self, returncode, stdout, stderr, rss):
+        self.returncode, self.stdout, self.stderr, self.rss = returncode, stdout, stderr, rss
+
+
+def run_measured(cmd):
+    """Run cmd in the repository with its output in temporary files; its peak RSS comes from
+    wait4's rusage of that child alone (no /usr/bin/time needed)."""
+    with tempfile.TemporaryFile() as o, tempfile.TemporaryFile() as e:
+        p = subprocess.Popen(cmd, cwd=REPO, stdout=o, stderr=e)
+        _, status, usage = os.wait4(p.pid, 0)
+        p.returncode = os.waitstatus_to_exitcode(status)
+        o.seek(0)
+        e.seek(0)
+        return Measured(p.returncode, o.read().decode(), e.read().decode(), usage.ru_maxrss * 1024)
+
+
+def estimate_of(scene):
+    """crom's own memory estimate of a scene, in bytes, from the refusal under a 1 KiB limit."""
+    p = run_measured([str(MEMO["binary"]), "--store", str(pathlib.Path(scene).with_suffix(".none")),
+                      "--max-memory", "1K", "solve", str(scene)])
+    m = re.search(r"estimated ([0-9.]+) (KiB|MiB|GiB|TiB|B)\b", p.stdout + p.stderr)
+    assert m, p.stdout + p.stderr
+    return float(m.group(1)) * {"B": 1, "KiB": 1 << 10, "MiB": 1 << 20, "GiB": 1 << 30, "TiB": 1 << 40}[m.group(2)]
+
+
+def refined(k):
+    """ironing-fine refined k times per direction, two training points (the finest-mesh row)."""
+    return [("nx = 200", f"nx = {200 * k}"), ("ny = 40", f"ny = {40 * k}"), ("nx = 60", f"nx = {60 * k}"),
+            ("ny = 60", f"ny = {60 * k}"), ("max = 3.0", "max = 1.5"), ("n_train = 128", "n_train = 2"),
+            ("nested_levels = 7", "nested_levels = 0")]
+
+
+def finest_mesh(store, out):
+    """The finest mesh the matrix runs, with the memory estimate that decides which meshes a
+    machine holds: KKT checks at every point; the run's peak RSS within a factor 1.5 of crom's
+    estimate either way (the estimate must neither let through a mesh that cannot fit nor
+    refuse one that can); and the largest refinement per direction whose estimate fits in this
+    machine's MemAvailable, reported."""
+    idx = index_of(store)
+    problems = kkt(idx, 200)
+    est, rss = estimate_of(MEMO["scene"]), MEMO["rss"]
+    if not est / 1.5 <= rss <= 1.5 * est:
+        problems.append(f"peak RSS {rss / GIB:.2f} GiB vs estimate {est / GIB:.2f} GiB: off by more than 1.5x")
+    avail = next(int(l.split()[1]) * 1024 for l in pathlib.Path("/proc/meminfo").read_text().splitlines()
+                 if l.startswith("MemAvailable:"))
+    tmp = pathlib.Path(MEMO["scene"]).parent
+    k = 4
+    while k < 64 and estimate_of(variant(tmp, "ironing-fine", f"finest-{k + 1}", refined(k + 1), ["comparison"])) <= avail:
+        k += 1
+    return (f"{len(idx)} points, max KKT {idx.kkt_residual.max():.1e}; peak RSS {rss / GIB:.2f} GiB, estimate "
+            f"{est / GIB:.2f} GiB; the estimate admits up to {k}x per direction in this machine's "
+            f"{avail / GIB:.1f} GiB"), problems
 
 
 def index_of(store):
@@ -338,10 +399,7 @@ def cases(fast):
           ("n_train = 128", "n_train = 2")] + IRON_2,
          "solve", kkt_only("KKT checks at every point"), False),
         ("ironing-fine refined 4x per direction (slab 800 x 160, iron 240 x 240; ~380 000 dofs)", "ironing-fine",
-         [("nx = 200", "nx = 800"), ("ny = 40", "ny = 160"), ("nx = 60", "nx = 240"), ("ny = 60", "ny = 240"),
-          ("max = 3.0", "max = 1.5"), ("n_train = 128", "n_train = 2"), ("nested_levels = 7", "nested_levels = 0")],
-         "solve", kkt_only("KKT checks at every point on the finest mesh the matrix affords (1.3 GiB peak, "
-                           "about 40 s on 2 cores)"), False),
+         refined(4), "solve", finest_mesh, False),
         ("ironing mesh beyond the machine (slab 100 000 x 20 000)", "ironing-coarse",
          [("nx = 100", "nx = 100000"), ("ny = 20", "ny = 20000")] + IRON_2,
          "solve", must_refuse, True),
@@ -388,10 +446,10 @@ def main():
             store = tmp / f"store-{i}"
             cmd = {"solve": ["solve"], "run": ["run"], "offline": ["run", "--offline"]}[command]
             t = time.perf_counter()
-            p = subprocess.run([str(binary), "--store", str(store), "--quiet", *cmd, str(scene)], cwd=REPO,
-                               capture_output=True, text=True)
+            p = run_measured([str(binary), "--store", str(store), "--quiet", *cmd, str(scene)])
             wall = time.perf_counter() - t
             out = p.stdout + p.stderr
+            MEMO.update(rss=p.rss, scene=scene, binary=binary)
             expectation = " ".join((check.__doc__ or "").split())
             if p.returncode == 0:
                 measured, problems = check(store, out)
@@ -406,7 +464,7 @@ def main():
             else:
                 measured, verdict = f"exit {p.returncode}: {out.strip()[-300:]}", "FAIL: no answer and no reason"
             failed += verdict.startswith("FAIL")
-            rows.append((name, expectation, f"{measured} ({wall:.1f} s)", verdict))
+            rows.append((name, expectation, f"{measured} ({wall:.1f} s, {p.rss / GIB:.2f} GiB)", verdict))
             print(f"{name}: {verdict}", file=sys.stderr)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

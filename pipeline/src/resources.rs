@@ -5,10 +5,16 @@
 //! (`n` displacement dofs, `c` contact dofs, `s` slaves, `N` training and `T` test points, `L`
 //! the largest nested level, `8` bytes per value):
 //!
-//! - stiffness matrix and its sparse Cholesky factor: `12 (18 n + f n)` (value and index per
-//!   entry; 18 entries per row of a 2-D Q1 stiffness), with the factor's fill taken as
-//!   `f = 4 log2 n` entries per row (a nested-dissection factor of a 2-D mesh grows as
-//!   `n log n`);
+//! - stiffness matrix and its sparse Cholesky factor: `12 * 18 n + 16 f n` (value and index
+//!   per entry; 18 entries per row of a 2-D Q1 stiffness; a factor entry is an 8-byte value
+//!   and an 8-byte row index), with the factor's fill `f = 10 log2 n` entries per row — a
+//!   fill-reducing factor of a 2-D mesh grows as `n log n`, and the constant is measured: the
+//!   ironing-fine mesh refined 2, 4 and 8 times per direction (95 000, 380 000 and 1.5 million
+//!   dofs, `crom solve`, two threads) peaked at 0.33, 1.27 and 5.13 GiB, about 163 bytes per
+//!   `n log2 n` beyond the process's own 0.15 GiB. The first version took `f = 4 log2 n` and
+//!   12 bytes per entry, 2.5 times too little at 1.5 million dofs: a mesh that could not fit
+//!   would have been let through (found by the stress matrix's finest-mesh row, design note
+//!   33);
 //! - the Delassus operator on the contact dofs, `8 c^2`, and one solver's condensed work
 //!   `8 (c s + s^2)` per thread (two threads);
 //! - the largest stage's snapshot matrices: the online stage's training and test sets plus
@@ -41,9 +47,13 @@ pub fn estimate(scene: &SceneConfig) -> Vec<Term> {
     let n_train: f64 = p.train_points().len() as f64;
     let n_test: f64 = p.test_points().len() as f64;
     let level = p.nested_levels as f64;
-    let fill = 4.0 * n.max(2.0).log2();
+    let fill = 10.0 * n.max(2.0).log2();
     let mut terms = vec![
-        Term { field: mesh_field, what: "stiffness matrix and its sparse factor", bytes: 12.0 * (18.0 + fill) * n },
+        Term {
+            field: mesh_field,
+            what: "stiffness matrix and its sparse factor",
+            bytes: (12.0 * 18.0 + 16.0 * fill) * n,
+        },
         Term { field: contact_field, what: "Delassus operator on the contact dofs", bytes: 8.0 * c * c },
         Term { field: contact_field, what: "contact solver work (2 threads)", bytes: 2.0 * 8.0 * (c * s + s * s) },
     ];
