@@ -250,6 +250,56 @@ def reduced_solve(store, out):
             f"{err:.1e}"), problems
 
 
+def published(store):
+    """The scene's published directory (stable names) of the case that just ran."""
+    return store / "scenes" / pathlib.Path(MEMO["scene"]).stem
+
+
+def no_contact(store, out):
+    """The obstacle 50 below the rope: every pressure snapshot is zero, so the lifted
+    contact-free solution is exact (primal error <= 1e-12 at every point, both algorithms) and
+    the relative dual error is 0/0: a null in the file, never NaN."""
+    d = published(store)
+    with h5py.File(d / "train.h5", "r") as f:
+        zero = not np.any(f["dual"][()])
+    e = pd.read_parquet(d / "rom_errors.parquet")
+    problems = [] if zero else ["a pressure snapshot is not zero"]
+    if not ((e.outcome == "converged").all() and (e.primal_error <= 1e-12).all() and e.dual_error.isna().all()):
+        problems.append(f"outcomes {set(e.outcome)}, max primal error {e.primal_error.max():.1e}, "
+                        f"{int(e.dual_error.notna().sum())} dual errors not null")
+    return f"{len(e)} queries, max primal error {e.primal_error.max():.1e}, dual errors null", problems
+
+
+def tolerance_one(store, out):
+    """Truncation tolerance 1 is met by the empty cone (||lambda - 0|| / ||lambda|| = 1): the
+    truncated dual basis is empty, the reduced pressure zero (dual error exactly 1 where there
+    is contact), and the contact-free answer penetrates the obstacle, which the indicator
+    reports at every such point."""
+    e = pd.read_parquet(published(store) / "rom_errors.parquet")
+    t = e[(e.dual_basis == "truncated") & e.dual_error.notna()]
+    problems = []
+    if not (len(t) and (t.r_dual == 0).all() and np.allclose(t.dual_error, 1.0, rtol=0, atol=1e-15)
+            and (t.penetration > 0).all()):
+        problems.append("the empty basis is not what the run reports")
+    return f"{len(t)} queries with an empty dual basis, dual error 1, penetration flagged", problems
+
+
+def rank_beyond(store, out):
+    """study.max_rank = 1000 with 10 snapshots: the curves stop at m = 10."""
+    c = pd.read_parquet(published(store) / "compactness.parquet")
+    return f"curves up to m = {int(c.m.max())}", [] if c.m.max() == 10 else [f"curves up to {c.m.max()}"]
+
+
+def refusal(field):
+    """A check for a setting that cannot work: refused with exit 2 naming `field` and the fix,
+    nothing written (an answer is a FAIL)."""
+    def check(store, out):
+        return "ran", [f"ran instead of refusing `{field}`"]
+    check.__doc__ = f"Refused with exit 2 naming `{field}` and the fix, nothing written to the store."
+    check.field = field
+    return check
+
+
 def must_refuse(store, out):
     """Refused up front by the memory estimate: exit 2 naming the mesh field (a mesh that cannot
     be factored is not fixed by fewer points) and the fix, nothing written to the store; an
@@ -418,6 +468,20 @@ def cases(fast):
         ("reduced solve on nearly parallel dual vectors, primal ranks 1-3 (129 near-duplicates)", "ironing-coarse",
          [("min = 0.0", "min = 1.5"), ("max = 3.0", "max = 1.5001"), ("n_train = 128", "train_level = 7")] + IRON_2,
          "run", reduced_solve, True),
+        ("degenerate: no contact anywhere (rope, obstacle 50 below)", "rope", [("offset = -0.5", "offset = -50.0")],
+         "run", no_contact, False),
+        ("degenerate: one training point", "rope", [("n_train = 10", "n_train = 1")], "run",
+         refusal("parameter.n_train"), False),
+        ("degenerate: two identical parameter values (min = max)", "rope",
+         [("min = -0.5", "min = 0.25"), ("max = 0.5", "max = 0.25")], "run", refusal("parameter.max"), False),
+        ("degenerate: rank request 0", "rope", [("[study]", "[study]\nmax_rank = 0")], "run",
+         refusal("study.max_rank"), False),
+        ("degenerate: rank request 1000 > N = 10", "rope", [("[study]", "[study]\nmax_rank = 1000")], "run",
+         rank_beyond, False),
+        ("degenerate: truncation tolerance 1", "rope",
+         [("dual_cone_tol_truncated = 0.2", "dual_cone_tol_truncated = 1.0")], "run", tolerance_one, False),
+        ("degenerate: solver tolerance 0", "rope", [("rel_tol = 1e-10", "rel_tol = 0.0")], "run",
+         refusal("solver.rel_tol"), False),
         ("rope, 4 097 near-duplicate training points (gamma in [0.1, 0.1001])", "rope",
          ROPE_NEAR + [("n_train = 10", "train_level = 12")], "offline", near_duplicates, False),
         ("rope, 16 385 near-duplicate training points (gamma in [0.1, 0.1001])", "rope",
@@ -460,6 +524,9 @@ def main():
                 problems = [f"non-finite {b}" for b in nonfinite(store)] if store.exists() else []
                 if check is must_refuse and ("model.ironing.slab" not in out or store.exists()):
                     problems.append("refused without naming the mesh field, or after writing to the store")
+                field = getattr(check, "field", None)
+                if field and (f"field `{field}`" not in out or any(store.rglob("manifest.json"))):
+                    problems.append(f"refused without naming `{field}`, or after writing to the store")
                 verdict = "refused (exit %d)" % p.returncode if not problems else "FAIL: " + "; ".join(problems)
             else:
                 measured, verdict = f"exit {p.returncode}: {out.strip()[-300:]}", "FAIL: no answer and no reason"
