@@ -411,7 +411,6 @@ def near_duplicates(store, out):
             f"C(m) vs scipy NNLS {worst:.1e}; Gram rcond >= {rcond.min():.1e}"), problems
 
 
-HERTZ_D = ("min = 0.025\nmax = 0.3\nn_train = 12", )
 IRON_2 = [("nested_levels = 7", "nested_levels = 0")]
 # The rope's near-duplicates: its 201-dof primal keeps the primal leave-one-out cheap at
 # 16 385 snapshots (one SVD per fold of a 201 x N matrix), where ironing-coarse's 6 164 dofs make
