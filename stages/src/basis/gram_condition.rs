@@ -31,7 +31,6 @@ pub fn gram_condition_path(b: MatRef<'_, f64>) -> Vec<f64> {
     // R column-major, k x k upper triangular.
     let mut r = vec![0.0; k * k];
     let mut out = Vec::with_capacity(k);
-    let mut singular = false;
     // Column sums of |G_t|, grown by one Gram column per step: ||G_t||_1 in O(n t).
     let mut col_sums: Vec<f64> = Vec::with_capacity(k);
     for t in 0..k {
@@ -54,26 +53,20 @@ pub fn gram_condition_path(b: MatRef<'_, f64>) -> Vec<f64> {
         }
         let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
         r[t + t * k] = norm;
-        if norm > 0.0 {
+        let kappa = if norm > 0.0 {
             q.extend(v.iter().map(|x| x / norm));
+            let m = t + 1;
+            let g_norm = col_sums.iter().copied().fold(0.0, f64::max);
+            g_norm * hager(m, &|x: &mut [f64]| solve_gram(&r, k, m, x))
         } else {
-            singular = true;
-            q.extend(std::iter::repeat_n(0.0, n));
+            f64::INFINITY
+        };
+        if !(kappa.is_finite() && kappa <= 1.0 / f64::EPSILON) {
+            // singular to working precision, and so is every longer prefix (module docs)
+            out.resize(k, f64::INFINITY);
+            break;
         }
-        if singular {
-            out.push(f64::INFINITY);
-            continue;
-        }
-        let m = t + 1;
-        let g_norm = col_sums.iter().copied().fold(0.0, f64::max);
-        let inv_norm = hager(m, &|x: &mut [f64]| solve_gram(&r, k, m, x));
-        let kappa = g_norm * inv_norm;
-        if kappa.is_finite() && kappa <= 1.0 / f64::EPSILON {
-            out.push(kappa);
-        } else {
-            singular = true;
-            out.push(f64::INFINITY);
-        }
+        out.push(kappa);
     }
     out
 }

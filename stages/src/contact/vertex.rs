@@ -69,11 +69,10 @@ pub struct VertexTies {
     enabled: bool,
     /// End ties are enabled (see the module docs).
     ends: bool,
-    /// The end vertex each slave is tied to.
-    end: Vec<Option<usize>>,
     /// Ties imposed for the whole solve (the vertex-zone rule).
     forced: Vec<Option<usize>>,
-    tie: Vec<Option<usize>>,
+    /// Each slave's flip tie: [`PairKind::Tied`] or [`PairKind::End`].
+    tie: Vec<Option<PairKind>>,
     last: Vec<PairKind>,
     before_last: Vec<PairKind>,
 }
@@ -84,7 +83,6 @@ impl VertexTies {
         Self {
             enabled: true,
             ends: false,
-            end: vec![None; n],
             forced: vec![None; n],
             tie: vec![None; n],
             last: vec![PairKind::None; n],
@@ -107,7 +105,25 @@ impl VertexTies {
 
     /// The vertex slave `s` is tied to, forced or by a flip.
     pub fn tied(&self, s: usize) -> Option<usize> {
-        self.forced[s].or(self.tie[s])
+        self.forced[s].or(self.flip_vertex(s))
+    }
+
+    /// The interior vertex a flip tied slave `s` to (not an end tie).
+    fn flip_vertex(&self, s: usize) -> Option<usize> {
+        match self.tie[s] {
+            Some(PairKind::Tied(v)) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// Whether flip tie `tie` still holds for the natural pairing `nat`: a vertex tie while
+    /// `nat` is around its vertex, an end tie while `nat` is the end segment or none.
+    fn holds(tie: PairKind, nat: PairKind) -> bool {
+        match tie {
+            PairKind::Tied(v) => nat.touches_vertex(v),
+            PairKind::End(e) => nat == PairKind::None || nat.touches_vertex(e),
+            _ => false,
+        }
     }
 
     /// The vertex slave `s` was forced to.
@@ -121,10 +137,10 @@ impl VertexTies {
             v.clear();
             v.resize(n, PairKind::None);
         }
-        for v in [&mut self.tie, &mut self.forced, &mut self.end] {
-            v.clear();
-            v.resize(n, None);
-        }
+        self.forced.clear();
+        self.forced.resize(n, None);
+        self.tie.clear();
+        self.tie.resize(n, None);
     }
 
     /// A tracker that never ties (plain closest-point pairing).
@@ -145,31 +161,25 @@ impl VertexTies {
         let (h1, h2) = (self.last[s], self.before_last[s]);
         self.before_last[s] = h1;
         self.last[s] = nat;
-        if let Some(v) = self.tie[s] {
-            if nat.touches_vertex(v) {
-                return PairKind::Tied(v);
+        if let Some(tie) = self.tie[s] {
+            if Self::holds(tie, nat) {
+                return tie;
             }
             self.tie[s] = None;
             return nat;
         }
-        if let Some(e) = self.end[s] {
-            if nat == PairKind::None || nat.touches_vertex(e) {
-                return PairKind::End(e);
-            }
-            self.end[s] = None;
-            return nat;
-        }
         let flipped = nat != h1 && (nat == h2 || repairing >= STALL_REPAIRINGS);
         if flipped {
-            if let Some(v) = nat.shared_vertex(h1) {
-                self.tie[s] = Some(v);
-                return PairKind::Tied(v);
-            }
-            // `repairing >= 2`: both earlier pairings were recorded (the history starts unpaired,
-            // so a slave paired at the first re-pairing and not at the second is no flip)
-            if let Some(e) = nat.end_vertex(h1, last).filter(|_| self.ends && repairing >= 2) {
-                self.end[s] = Some(e);
-                return PairKind::End(e);
+            // an end flip needs `repairing >= 2`: both earlier pairings were recorded (the
+            // history starts unpaired, so a slave paired at the first re-pairing and not at
+            // the second is no flip)
+            let tie = nat
+                .shared_vertex(h1)
+                .map(PairKind::Tied)
+                .or_else(|| nat.end_vertex(h1, last).filter(|_| self.ends && repairing >= 2).map(PairKind::End));
+            if let Some(tie) = tie {
+                self.tie[s] = Some(tie);
+                return tie;
             }
         }
         nat
@@ -181,9 +191,8 @@ impl VertexTies {
         if let Some(v) = self.forced[s] {
             return PairKind::Tied(v);
         }
-        match (self.tie[s], self.end[s]) {
-            (Some(v), _) if self.enabled && nat.touches_vertex(v) => PairKind::Tied(v),
-            (_, Some(e)) if self.enabled && (nat == PairKind::None || nat.touches_vertex(e)) => PairKind::End(e),
+        match self.tie[s] {
+            Some(tie) if self.enabled && Self::holds(tie, nat) => tie,
             _ => nat,
         }
     }
@@ -251,7 +260,7 @@ impl VertexTies {
     /// the online solve both ask this of every slave with pressure.
     pub fn rule_tie(&self, s: usize, xs: [f64; 2], xm: &[[f64; 2]], index: &MasterIndex) -> Option<usize> {
         let nat = index.closest_point(xs, xm);
-        zone_vertex(xs, xm, nat.kind, VERTEX_ZONE).or(if self.forced[s].is_none() { self.tie[s] } else { None })
+        zone_vertex(xs, xm, nat.kind, VERTEX_ZONE).or(if self.forced[s].is_none() { self.flip_vertex(s) } else { None })
     }
 }
 
