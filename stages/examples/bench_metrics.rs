@@ -285,7 +285,7 @@ fn scaling() {
                     fast.selected.len()
                 ));
             }
-            // Orthogonal LOO in QR coordinates: left vectors only in a reused buffer vs copy + thin SVD.
+            // Orthogonal LOO by column downdate of one SVD vs an SVD of each fold (the reference).
             let loo = LooOrth::new(s.as_ref()).expect("qr");
             let (fast_orth, t_orth) = time(|| {
                 let mut ws = loo.workspace();

@@ -36,8 +36,9 @@ struct GeneralizationKey {
 
 impl StageKey for GeneralizationKey {
     const KIND: ArtifactKind = ArtifactKind::Generalization;
-    /// Bump when G(m) changes (2: the NNLS settings in the key; 3: the CPG floor).
-    const ALGORITHM_VERSION: u32 = 3;
+    /// Bump when G(m) changes (2: the NNLS settings in the key; 3: the CPG floor; 4: the
+    /// orthogonal folds by column downdate, equal to the SVD folds to round-off).
+    const ALGORITHM_VERSION: u32 = 4;
 }
 
 /// S(m): samples, seed, rank range, NNLS settings of the cone projections.

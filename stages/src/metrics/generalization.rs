@@ -59,24 +59,26 @@
 //! With the thin QR factorisation `S = Q R` (Q n x q orthonormal, q = min(n, N)), every fold
 //! satisfies `S \ s_i = Q (R \ r_i)` and `s_i = Q r_i`, so the POD modes of `S \ s_i` are `Q`
 //! times those of `R \ r_i` (same singular values) and projection errors are the same in
-//! either coordinates. [`LooOrth`] factors S once and runs each fold's SVD on the q x (N - 1)
-//! matrix `R \ r_i` instead of n x (N - 1) (for a primal field n >> N). The numerical rank uses
-//! the cut of the full-size fold, `max(n, N - 1) eps s_max`. [`loo_fold_orth`] is the direct
-//! definition (POD of the n x (N - 1) fold), kept as the reference.
+//! either coordinates. [`LooOrth`] factors S once, takes one SVD `R = U Σ V^T`, and gets each
+//! fold from it by a column downdate ([`ColumnDowndate`], O(N^2) per fold instead of an SVD
+//! of `R \ r_i`): the fold's singular values are the roots of a secular equation and `s_i`'s
+//! squared coefficients on the fold's modes are its weights. The numerical rank uses the cut
+//! of the full-size fold, `max(n, N - 1) eps s_max`. [`LooOrth::fold_reference`] (an SVD of
+//! `R \ r_i`) and [`loo_fold_orth`] (POD of the n x (N - 1) fold, the definition) are kept as
+//! references.
 //!
 //! For orthonormal modes `U` (k of them), `c = U^T s` and the explicit residual
 //! `s_perp = s - U c`, the error on the first m modes is
 //! `||s - U_m U_m^T s||^2 = ||s_perp||^2 + sum_{l >= m} c_l^2`: a sum of non-negative terms
-//! (no cancellation), so errors reach round-off when `s` is in the span.
+//! (no cancellation), so errors reach round-off when `s` is in the span. The downdate has the
+//! same form: `s_perp` is the weight of the fold's directions beyond its rank.
 
 use std::borrow::Borrow;
 
-use faer::diag::Diag;
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
-use faer::{Mat, MatRef, Par};
+use faer::{Mat, MatRef};
 
 use super::compactness::compactness_cone_with;
+use super::downdate::ColumnDowndate;
 use super::stats::{MetricCurve, RunningStats};
 use crate::basis::{
     cpg_path, cpg_reference, numerical_rank, pod_full, CpgParams, CpgPath, CpgPathParams, LazyGreedy, PodError,
@@ -163,13 +165,17 @@ pub fn loo_fold_orth(s: MatRef<'_, f64>, i: usize, max_m: usize) -> Result<Optio
 }
 
 /// Orthogonal leave-one-out folds of one snapshot matrix, sharing one QR factorisation
-/// `S = Q R`: fold i is the POD of the q x (N - 1) matrix `R \ r_i` (q = min(n, N)), whose
-/// modes are those of `S \ s_i` in the frame Q, with the numerical-rank cut of the full-size
-/// fold. `Sync`: folds can run in parallel on a shared reference.
+/// `S = Q R` and one SVD `R = U Σ V^T`: fold i is the column downdate of that SVD
+/// ([`ColumnDowndate`]), O(N^2) instead of an SVD of `R \ r_i`. `Sync`: folds can run in
+/// parallel on a shared reference.
 #[derive(Debug, Clone)]
 pub struct LooOrth {
     /// `R` of `S = Q R`, q x N (the snapshots in the orthonormal frame Q).
     coords: Mat<f64>,
+    /// Singular values of R (descending, p = min(q, N)).
+    sigma: Vec<f64>,
+    /// V of `R = U Σ V^T`, N x N (the full orthogonal V; its first p columns pair with Σ).
+    v: Mat<f64>,
     /// `||s_j||` from the original columns (length N).
     norms: Vec<f64>,
     /// Rows n of S (for the numerical-rank cut of a full-size fold).
@@ -183,7 +189,19 @@ impl LooOrth {
         let (n, count) = (s.nrows(), s.ncols());
         let norms = (0..count).map(|j| s.col(j).norm_l2()).collect();
         let coords = if n.min(count) == 0 { Mat::zeros(0, count) } else { s.qr().thin_R().to_owned() };
-        Ok(Self { coords, norms, nrows: n })
+        let p = coords.nrows().min(count);
+        let (sigma, v) = if p == 0 {
+            (Vec::new(), Mat::identity(count, count))
+        } else if p == count {
+            let svd = coords.thin_svd().map_err(|_| PodError::SvdNoConvergence)?;
+            (svd.S().column_vector().iter().copied().collect(), svd.V().to_owned())
+        } else {
+            // Wide R (fewer rows than snapshots): the full V, whose last N - p columns give
+            // each fold's `1 - ||v||^2` without cancellation.
+            let svd = coords.svd().map_err(|_| PodError::SvdNoConvergence)?;
+            (svd.S().column_vector().iter().take(p).copied().collect(), svd.V().to_owned())
+        };
+        Ok(Self { coords, sigma, v, norms, nrows: n })
     }
 
     /// Number of snapshots N (folds).
@@ -199,22 +217,15 @@ impl LooOrth {
 
     /// Buffers for [`LooOrth::fold_with`] (one per thread).
     pub fn workspace(&self) -> LooOrthWorkspace {
-        let (q, count) = self.coords.shape();
-        let cols = count.saturating_sub(1);
-        let size = q.min(cols);
-        let thin = ComputeSvdVectors::Thin;
-        let req = svd_scratch::<f64>(q, cols, thin, ComputeSvdVectors::No, Par::Seq, Default::default());
-        LooOrthWorkspace {
-            rest: Mat::zeros(q, cols),
-            u: Mat::zeros(q, size),
-            sv: Diag::zeros(size),
-            buf: MemBuffer::new(req),
-        }
+        let p = self.sigma.len();
+        LooOrthWorkspace { row: Vec::with_capacity(p), omega: Vec::with_capacity(p), downdate: ColumnDowndate::new() }
     }
 
-    /// [`LooOrth::fold`] with caller-owned buffers: `R \ r_i` is written into the reused
-    /// q x (N - 1) buffer (no allocation) and the SVD computes the left singular vectors only
-    /// (the right ones, (N - 1) x q, are never used).
+    /// [`LooOrth::fold`] with caller-owned buffers. With `z = Σ V[i, :p]^T` (`r_i = U z`), the
+    /// squared singular values of `R \ r_i` are the eigenvalues of `Σ^2 - z z^T` and `s_i`'s
+    /// squared coefficients on its modes are the weights of [`ColumnDowndate`]; the error on
+    /// the first m modes is the sum of the weights from m on (no cancellation), and the
+    /// numerical rank cuts the fold's `min(q, N - 1)` singular values as [`pod_full`] does.
     pub fn fold_with(&self, i: usize, max_m: usize, ws: &mut LooOrthWorkspace) -> Result<Option<LooFold>, PodError> {
         let count = self.ncols();
         assert!(i < count, "LooOrth::fold: fold {i} out of {count} snapshots");
@@ -222,25 +233,28 @@ impl LooOrth {
         if norm <= 0.0 {
             return Ok(None);
         }
-        let q = self.coords.nrows();
-        for c in 0..count - 1 {
-            let from = if c < i { c } else { c + 1 };
-            ws.rest.col_mut(c).copy_from(self.coords.col(from));
+        let p = self.sigma.len();
+        ws.row.clear();
+        ws.row.extend((0..p).map(|k| self.v[(i, k)]));
+        let complement = (p..count).map(|k| self.v[(i, k)] * self.v[(i, k)]).sum();
+        let pairs = ws.downdate.solve(&self.sigma, &ws.row, complement);
+        // The fold has min(q, N - 1) singular values; with V square the extra pair is its 0.
+        let size = self.coords.nrows().min(count - 1);
+        ws.omega.clear();
+        ws.omega.extend(pairs[..size].iter().map(|p| p.0));
+        let rank = numerical_rank(&ws.omega, self.nrows, count - 1);
+        // tails[m] = sum_{l >= m} c_l^2 (every pair: beyond the rank they are s_i's
+        // component outside the fold's span).
+        let mut tails = vec![0.0; pairs.len() + 1];
+        for l in (0..pairs.len()).rev() {
+            tails[l] = tails[l + 1] + pairs[l].1;
         }
-        let rank = if count - 1 == 0 || q == 0 || ws.rest.norm_l2() <= 0.0 {
-            0
-        } else {
-            let stack = MemStack::new(&mut ws.buf);
-            svd(ws.rest.as_ref(), ws.sv.as_mut(), Some(ws.u.as_mut()), None, Par::Seq, stack, Default::default())
-                .map_err(|_| PodError::SvdNoConvergence)?;
-            let values: Vec<f64> = ws.sv.column_vector().iter().copied().collect();
-            numerical_rank(&values, self.nrows, count - 1)
-        };
-        Ok(Some(orth_fold_errors(ws.u.subcols(0, rank), self.coords.subcols(i, 1), norm, max_m)))
+        let errors = (1..=max_m).map(|m| tails[m.min(rank)].sqrt() / norm).collect();
+        Ok(Some(LooFold { errors, basis_len: rank }))
     }
 
-    /// Fold i as the previous implementation computed it (kept as the reference): a copy of
-    /// `R \ r_i` and a thin SVD with both singular vector sets.
+    /// Fold i by an SVD of `R \ r_i` (kept as the reference): a copy of `R \ r_i` and a thin
+    /// SVD with both singular vector sets.
     pub fn fold_reference(&self, i: usize, max_m: usize) -> Result<Option<LooFold>, PodError> {
         let count = self.ncols();
         assert!(i < count, "LooOrth::fold: fold {i} out of {count} snapshots");
@@ -263,17 +277,11 @@ impl LooOrth {
 }
 
 /// Reusable buffers of [`LooOrth::fold_with`].
+#[derive(Debug)]
 pub struct LooOrthWorkspace {
-    rest: Mat<f64>,
-    u: Mat<f64>,
-    sv: Diag<f64>,
-    buf: MemBuffer,
-}
-
-impl std::fmt::Debug for LooOrthWorkspace {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("LooOrthWorkspace").field("rest", &self.rest.shape()).finish_non_exhaustive()
-    }
+    row: Vec<f64>,
+    omega: Vec<f64>,
+    downdate: ColumnDowndate,
 }
 
 /// G(m) for m = 1..=max_m with POD bases ("primal orth", "dual orth"), every fold in turn.
@@ -668,23 +676,38 @@ mod tests {
     }
 
     #[test]
-    fn orth_folds_without_right_vectors_equal_the_reference() {
+    fn orth_folds_by_downdate_equal_the_reference() {
         // Ironing-like pressures (near-duplicates, a zero column, a multiple, a sum: rank
-        // deficient, so the numerical-rank rule matters) and a wide case (n < N).
+        // deficient, so the numerical-rank rule matters, and singular values down to 1e-9 of
+        // the largest) and a wide case (n < N).
         for s in [hertz_family(&mut Rng::new(74), 101, 64), hertz_family(&mut Rng::new(75), 30, 48)] {
             let loo = LooOrth::new(s.as_ref()).expect("finite");
             let mut ws = loo.workspace();
             let max_m = s.ncols() - 1;
-            for i in 0..s.ncols() {
+            let (n, count) = s.shape();
+            let sigma_1 = loo.sigma[0];
+            for i in 0..count {
                 let fast = loo.fold_with(i, max_m, &mut ws).expect("svd");
                 let slow = loo.fold_reference(i, max_m).expect("svd");
                 match (&fast, &slow) {
                     (Some(f), Some(r)) => {
                         assert_eq!(f.basis_len, r.basis_len, "fold {i}: numerical ranks differ");
-                        // The same bidiagonal SVD with and without the right vectors: equal up
-                        // to round-off of the left ones; 1e-12 relative plus 1e-14 absolute
-                        // (errors at round-off level at full rank).
-                        assert_all_close!(f.errors, r.errors, Tol { abs: 1e-14, rel: 1e-12 });
+                        // Two backward-stable computations, each exact for a matrix within
+                        // ||E|| <= max(n, N) eps σ_1 of S \ s_i. By Wedin's sin θ theorem the
+                        // span of the first m modes moves by at most ||E|| / gap_m (gap_m the
+                        // distance between the fold's m-th and (m+1)-th singular values), and a
+                        // relative projection error by at most that angle; plus 1e-13 for the
+                        // round-off of the errors themselves.
+                        let rest = without_column(loo.coords.as_ref(), i);
+                        let values: Vec<f64> =
+                            rest.thin_svd().expect("svd").S().column_vector().iter().copied().collect();
+                        let bound = n.max(count) as f64 * f64::EPSILON * sigma_1;
+                        for m in 1..=max_m {
+                            let used = m.min(r.basis_len).max(1);
+                            let gap = values[used - 1] - values.get(used).copied().unwrap_or(0.0);
+                            let tol = Tol::abs(1e-13 + bound / gap);
+                            assert_close!(f.errors[m - 1], r.errors[m - 1], tol);
+                        }
                     }
                     (None, None) => {}
                     _ => panic!("fold {i}: zero-norm detection differs"),

@@ -20,6 +20,7 @@
 //! m = 1..=M, with zero-norm snapshots counted in `n_zero` instead of divided by.
 
 mod compactness;
+mod downdate;
 mod generalization;
 mod nested;
 pub mod order;
@@ -27,6 +28,7 @@ mod specificity;
 mod stats;
 
 pub use compactness::{compactness_cone, compactness_cone_with, compactness_orth, relative_errors_orth};
+pub use downdate::ColumnDowndate;
 pub use generalization::{
     combine_folds, generalization_cone, generalization_cone_reference, generalization_orth, loo_fold_cone,
     loo_fold_cone_reference, loo_fold_orth, LooFold, LooOrth, LooOrthWorkspace,
