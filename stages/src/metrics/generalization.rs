@@ -59,12 +59,16 @@
 //! With the thin QR factorisation `S = Q R` (Q n x q orthonormal, q = min(n, N)), every fold
 //! satisfies `S \ s_i = Q (R \ r_i)` and `s_i = Q r_i`, so the POD modes of `S \ s_i` are `Q`
 //! times those of `R \ r_i` (same singular values) and projection errors are the same in
-//! either coordinates. [`LooOrth`] factors S once, takes one SVD `R = U Σ V^T`, and gets each
-//! fold from it by a column downdate ([`ColumnDowndate`], O(N^2) per fold instead of an SVD
-//! of `R \ r_i`): the fold's singular values are the roots of a secular equation and `s_i`'s
-//! squared coefficients on the fold's modes are its weights. The numerical rank uses the cut
-//! of the full-size fold, `max(n, N - 1) eps s_max`. [`LooOrth::fold_reference`] (an SVD of
-//! `R \ r_i`) and [`loo_fold_orth`] (POD of the n x (N - 1) fold, the definition) are kept as
+//! either coordinates. [`LooOrth`] factors S once; up to
+//! [`FoldMethod::SVD_MAX_SNAPSHOTS`] (256) snapshots each fold is an SVD of the q x (N - 1)
+//! matrix `R \ r_i` instead of n x (N - 1) (for a primal field n >> N), beyond that it takes
+//! one SVD `R = U Σ V^T` and gets each fold by a column downdate ([`ColumnDowndate`], O(N^2)
+//! per fold instead of O(N^3)): the fold's singular values are the roots of a secular equation
+//! and `s_i`'s squared coefficients on the fold's modes are its weights. The two agree to
+//! round-off (design note 38); the SVD is kept where it is cheap so that the published curves
+//! up to 256 snapshots stay bit for bit. The numerical rank uses the cut of the full-size fold,
+//! `max(n, N - 1) eps s_max`. [`LooOrth::fold_reference`] (an SVD of `R \ r_i` with both vector
+//! sets) and [`loo_fold_orth`] (POD of the n x (N - 1) fold, the definition) are kept as
 //! references.
 //!
 //! For orthonormal modes `U` (k of them), `c = U^T s` and the explicit residual
@@ -75,7 +79,10 @@
 
 use std::borrow::Borrow;
 
-use faer::{Mat, MatRef};
+use faer::diag::Diag;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
+use faer::{Mat, MatRef, Par};
 
 use super::compactness::compactness_cone_with;
 use super::downdate::ColumnDowndate;
@@ -164,17 +171,43 @@ pub fn loo_fold_orth(s: MatRef<'_, f64>, i: usize, max_m: usize) -> Result<Optio
     Ok(Some(orth_fold_errors(pod.modes.as_ref(), s.subcols(i, 1), norm, max_m)))
 }
 
+/// How [`LooOrth`] computes a fold; both give the errors of `s_i` on the POD modes of
+/// `S \ s_i` (they agree to round-off: design note 38).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FoldMethod {
+    /// An SVD of the q x (N - 1) matrix `R \ r_i` (left vectors only), O(N^3) per fold.
+    Svd,
+    /// A column downdate of the one SVD of R ([`ColumnDowndate`]), O(N^2) per fold.
+    Downdate,
+}
+
+impl FoldMethod {
+    /// Up to this many snapshots a fold is its own SVD (every fold is computed, and the
+    /// curves are the ones published since issue 8 bit for bit); beyond, the downdate.
+    pub const SVD_MAX_SNAPSHOTS: usize = 256;
+
+    /// The method [`LooOrth::new`] uses for N snapshots.
+    pub fn for_snapshots(count: usize) -> Self {
+        if count <= Self::SVD_MAX_SNAPSHOTS {
+            FoldMethod::Svd
+        } else {
+            FoldMethod::Downdate
+        }
+    }
+}
+
 /// Orthogonal leave-one-out folds of one snapshot matrix, sharing one QR factorisation
-/// `S = Q R` and one SVD `R = U Σ V^T`: fold i is the column downdate of that SVD
-/// ([`ColumnDowndate`]), O(N^2) instead of an SVD of `R \ r_i`. `Sync`: folds can run in
+/// `S = Q R`, and for [`FoldMethod::Downdate`] one SVD `R = U Σ V^T`. `Sync`: folds can run in
 /// parallel on a shared reference.
 #[derive(Debug, Clone)]
 pub struct LooOrth {
     /// `R` of `S = Q R`, q x N (the snapshots in the orthonormal frame Q).
     coords: Mat<f64>,
-    /// Singular values of R (descending, p = min(q, N)).
+    method: FoldMethod,
+    /// Singular values of R (descending, p = min(q, N)); empty for [`FoldMethod::Svd`].
     sigma: Vec<f64>,
-    /// V of `R = U Σ V^T`, N x N (the full orthogonal V; its first p columns pair with Σ).
+    /// V of `R = U Σ V^T`, N x N (the full orthogonal V; its first p columns pair with Σ);
+    /// empty for [`FoldMethod::Svd`].
     v: Mat<f64>,
     /// `||s_j||` from the original columns (length N).
     norms: Vec<f64>,
@@ -183,14 +216,21 @@ pub struct LooOrth {
 }
 
 impl LooOrth {
-    /// Factor the snapshots `s` (n x N).
+    /// Factor the snapshots `s` (n x N), folds by [`FoldMethod::for_snapshots`].
     pub fn new(s: MatRef<'_, f64>) -> Result<Self, PodError> {
+        Self::with_method(s, FoldMethod::for_snapshots(s.ncols()))
+    }
+
+    /// Factor the snapshots `s` (n x N) for folds by `method`.
+    pub fn with_method(s: MatRef<'_, f64>, method: FoldMethod) -> Result<Self, PodError> {
         check_finite(s)?;
         let (n, count) = (s.nrows(), s.ncols());
         let norms = (0..count).map(|j| s.col(j).norm_l2()).collect();
         let coords = if n.min(count) == 0 { Mat::zeros(0, count) } else { s.qr().thin_R().to_owned() };
         let p = coords.nrows().min(count);
-        let (sigma, v) = if p == 0 {
+        let (sigma, v) = if method == FoldMethod::Svd {
+            (Vec::new(), Mat::zeros(0, 0))
+        } else if p == 0 {
             (Vec::new(), Mat::identity(count, count))
         } else if p == count {
             let svd = coords.thin_svd().map_err(|_| PodError::SvdNoConvergence)?;
@@ -201,12 +241,17 @@ impl LooOrth {
             let svd = coords.svd().map_err(|_| PodError::SvdNoConvergence)?;
             (svd.S().column_vector().iter().take(p).copied().collect(), svd.V().to_owned())
         };
-        Ok(Self { coords, sigma, v, norms, nrows: n })
+        Ok(Self { coords, method, sigma, v, norms, nrows: n })
     }
 
     /// Number of snapshots N (folds).
     pub fn ncols(&self) -> usize {
         self.norms.len()
+    }
+
+    /// How the folds are computed.
+    pub fn method(&self) -> FoldMethod {
+        self.method
     }
 
     /// Fold i: the errors of `s_i` on the POD modes of `S \ s_i`, m = 1..=max_m; `None` when
@@ -217,15 +262,43 @@ impl LooOrth {
 
     /// Buffers for [`LooOrth::fold_with`] (one per thread).
     pub fn workspace(&self) -> LooOrthWorkspace {
-        let p = self.sigma.len();
-        LooOrthWorkspace { row: Vec::with_capacity(p), omega: Vec::with_capacity(p), downdate: ColumnDowndate::new() }
+        match self.method {
+            FoldMethod::Svd => {
+                let (q, count) = self.coords.shape();
+                let cols = count.saturating_sub(1);
+                let size = q.min(cols);
+                let thin = ComputeSvdVectors::Thin;
+                let req = svd_scratch::<f64>(q, cols, thin, ComputeSvdVectors::No, Par::Seq, Default::default());
+                LooOrthWorkspace::Svd {
+                    rest: Mat::zeros(q, cols),
+                    u: Mat::zeros(q, size),
+                    sv: Diag::zeros(size),
+                    buf: MemBuffer::new(req),
+                }
+            }
+            FoldMethod::Downdate => {
+                let p = self.sigma.len();
+                LooOrthWorkspace::Downdate {
+                    row: Vec::with_capacity(p),
+                    omega: Vec::with_capacity(p),
+                    downdate: ColumnDowndate::new(),
+                }
+            }
+        }
     }
 
-    /// [`LooOrth::fold`] with caller-owned buffers. With `z = Σ V[i, :p]^T` (`r_i = U z`), the
-    /// squared singular values of `R \ r_i` are the eigenvalues of `Σ^2 - z z^T` and `s_i`'s
-    /// squared coefficients on its modes are the weights of [`ColumnDowndate`]; the error on
-    /// the first m modes is the sum of the weights from m on (no cancellation), and the
-    /// numerical rank cuts the fold's `min(q, N - 1)` singular values as [`pod_full`] does.
+    /// [`LooOrth::fold`] with caller-owned buffers (from [`LooOrth::workspace`] of the same
+    /// matrix).
+    ///
+    /// * [`FoldMethod::Svd`]: `R \ r_i` is written into the reused q x (N - 1) buffer (no
+    ///   allocation) and the SVD computes the left singular vectors only.
+    /// * [`FoldMethod::Downdate`]: with `z = Σ V[i, :p]^T` (`r_i = U z`), the squared singular
+    ///   values of `R \ r_i` are the eigenvalues of `Σ^2 - z z^T` and `s_i`'s squared
+    ///   coefficients on its modes are the weights of [`ColumnDowndate`]; the error on the
+    ///   first m modes is the sum of the weights from m on (no cancellation).
+    ///
+    /// Either way the numerical rank cuts the fold's `min(q, N - 1)` singular values as
+    /// [`pod_full`] does.
     pub fn fold_with(&self, i: usize, max_m: usize, ws: &mut LooOrthWorkspace) -> Result<Option<LooFold>, PodError> {
         let count = self.ncols();
         assert!(i < count, "LooOrth::fold: fold {i} out of {count} snapshots");
@@ -233,24 +306,48 @@ impl LooOrth {
         if norm <= 0.0 {
             return Ok(None);
         }
-        let p = self.sigma.len();
-        ws.row.clear();
-        ws.row.extend((0..p).map(|k| self.v[(i, k)]));
-        let complement = (p..count).map(|k| self.v[(i, k)] * self.v[(i, k)]).sum();
-        let pairs = ws.downdate.solve(&self.sigma, &ws.row, complement);
-        // The fold has min(q, N - 1) singular values; with V square the extra pair is its 0.
-        let size = self.coords.nrows().min(count - 1);
-        ws.omega.clear();
-        ws.omega.extend(pairs[..size].iter().map(|p| p.0));
-        let rank = numerical_rank(&ws.omega, self.nrows, count - 1);
-        // tails[m] = sum_{l >= m} c_l^2 (every pair: beyond the rank they are s_i's
-        // component outside the fold's span).
-        let mut tails = vec![0.0; pairs.len() + 1];
-        for l in (0..pairs.len()).rev() {
-            tails[l] = tails[l + 1] + pairs[l].1;
+        match ws {
+            LooOrthWorkspace::Svd { rest, u, sv, buf } => {
+                assert_eq!(self.method, FoldMethod::Svd, "LooOrth::fold_with: a workspace of the other method");
+                let q = self.coords.nrows();
+                for c in 0..count - 1 {
+                    let from = if c < i { c } else { c + 1 };
+                    rest.col_mut(c).copy_from(self.coords.col(from));
+                }
+                let rank = if count - 1 == 0 || q == 0 || rest.norm_l2() <= 0.0 {
+                    0
+                } else {
+                    let stack = MemStack::new(buf);
+                    svd(rest.as_ref(), sv.as_mut(), Some(u.as_mut()), None, Par::Seq, stack, Default::default())
+                        .map_err(|_| PodError::SvdNoConvergence)?;
+                    let values: Vec<f64> = sv.column_vector().iter().copied().collect();
+                    numerical_rank(&values, self.nrows, count - 1)
+                };
+                Ok(Some(orth_fold_errors(u.subcols(0, rank), self.coords.subcols(i, 1), norm, max_m)))
+            }
+            LooOrthWorkspace::Downdate { row, omega, downdate } => {
+                assert_eq!(self.method, FoldMethod::Downdate, "LooOrth::fold_with: a workspace of the other method");
+                let p = self.sigma.len();
+                row.clear();
+                row.extend((0..p).map(|k| self.v[(i, k)]));
+                let complement = (p..count).map(|k| self.v[(i, k)] * self.v[(i, k)]).sum();
+                let pairs = downdate.solve(&self.sigma, row, complement);
+                // The fold has min(q, N - 1) singular values; with V square the extra pair is
+                // its 0.
+                let size = self.coords.nrows().min(count - 1);
+                omega.clear();
+                omega.extend(pairs[..size].iter().map(|p| p.0));
+                let rank = numerical_rank(omega, self.nrows, count - 1);
+                // tails[m] = sum_{l >= m} c_l^2 (every pair: beyond the rank they are s_i's
+                // component outside the fold's span).
+                let mut tails = vec![0.0; pairs.len() + 1];
+                for l in (0..pairs.len()).rev() {
+                    tails[l] = tails[l + 1] + pairs[l].1;
+                }
+                let errors = (1..=max_m).map(|m| tails[m.min(rank)].sqrt() / norm).collect();
+                Ok(Some(LooFold { errors, basis_len: rank }))
+            }
         }
-        let errors = (1..=max_m).map(|m| tails[m.min(rank)].sqrt() / norm).collect();
-        Ok(Some(LooFold { errors, basis_len: rank }))
     }
 
     /// Fold i by an SVD of `R \ r_i` (kept as the reference): a copy of `R \ r_i` and a thin
@@ -276,12 +373,23 @@ impl LooOrth {
     }
 }
 
-/// Reusable buffers of [`LooOrth::fold_with`].
-#[derive(Debug)]
-pub struct LooOrthWorkspace {
-    row: Vec<f64>,
-    omega: Vec<f64>,
-    downdate: ColumnDowndate,
+/// Reusable buffers of [`LooOrth::fold_with`], one kind per [`FoldMethod`].
+pub enum LooOrthWorkspace {
+    Svd { rest: Mat<f64>, u: Mat<f64>, sv: Diag<f64>, buf: MemBuffer },
+    Downdate { row: Vec<f64>, omega: Vec<f64>, downdate: ColumnDowndate },
+}
+
+impl std::fmt::Debug for LooOrthWorkspace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LooOrthWorkspace::Svd { rest, .. } => {
+                f.debug_struct("LooOrthWorkspace::Svd").field("rest", &rest.shape()).finish_non_exhaustive()
+            }
+            LooOrthWorkspace::Downdate { row, .. } => {
+                f.debug_struct("LooOrthWorkspace::Downdate").field("p", &row.capacity()).finish_non_exhaustive()
+            }
+        }
+    }
 }
 
 /// G(m) for m = 1..=max_m with POD bases ("primal orth", "dual orth"), every fold in turn.
@@ -425,12 +533,20 @@ mod tests {
         Mat::from_fn(n, k, |_, _| rng.uniform_in(lo, hi))
     }
 
-    /// Every orthogonal fold through both paths (reduced QR coordinates and the definition).
+    /// Every orthogonal fold through the paths (reduced QR coordinates by SVD and by downdate,
+    /// and the definition).
     fn both_orth_paths(s: MatRef<'_, f64>, max_m: usize) -> Vec<Option<LooFold>> {
         let loo = LooOrth::new(s).expect("finite");
+        let by_downdate = LooOrth::with_method(s, FoldMethod::Downdate).expect("finite");
         (0..s.ncols())
             .map(|i| {
                 let fast = loo.fold(i, max_m).expect("svd");
+                let other = by_downdate.fold(i, max_m).expect("downdate");
+                assert_eq!(fast.as_ref().map(|f| f.basis_len), other.as_ref().map(|f| f.basis_len));
+                if let (Some(f), Some(o)) = (&fast, &other) {
+                    // As below: both backward stable, cond <= 1e3 here.
+                    assert_all_close!(f.errors, o.errors, Tol::abs(1e-10));
+                }
                 let direct = loo_fold_orth(s, i, max_m).expect("svd");
                 match (&fast, &direct) {
                     (Some(f), Some(d)) => {
@@ -676,12 +792,39 @@ mod tests {
     }
 
     #[test]
+    fn orth_folds_without_right_vectors_equal_the_reference() {
+        // Ironing-like pressures (near-duplicates, a zero column, a multiple, a sum: rank
+        // deficient, so the numerical-rank rule matters) and a wide case (n < N).
+        for s in [hertz_family(&mut Rng::new(74), 101, 64), hertz_family(&mut Rng::new(75), 30, 48)] {
+            let loo = LooOrth::new(s.as_ref()).expect("finite");
+            assert_eq!(loo.method(), FoldMethod::Svd);
+            let mut ws = loo.workspace();
+            let max_m = s.ncols() - 1;
+            for i in 0..s.ncols() {
+                let fast = loo.fold_with(i, max_m, &mut ws).expect("svd");
+                let slow = loo.fold_reference(i, max_m).expect("svd");
+                match (&fast, &slow) {
+                    (Some(f), Some(r)) => {
+                        assert_eq!(f.basis_len, r.basis_len, "fold {i}: numerical ranks differ");
+                        // The same bidiagonal SVD with and without the right vectors: equal up
+                        // to round-off of the left ones; 1e-12 relative plus 1e-14 absolute
+                        // (errors at round-off level at full rank).
+                        assert_all_close!(f.errors, r.errors, Tol { abs: 1e-14, rel: 1e-12 });
+                    }
+                    (None, None) => {}
+                    _ => panic!("fold {i}: zero-norm detection differs"),
+                }
+            }
+        }
+    }
+
+    #[test]
     fn orth_folds_by_downdate_equal_the_reference() {
         // Ironing-like pressures (near-duplicates, a zero column, a multiple, a sum: rank
         // deficient, so the numerical-rank rule matters, and singular values down to 1e-9 of
         // the largest) and a wide case (n < N).
         for s in [hertz_family(&mut Rng::new(74), 101, 64), hertz_family(&mut Rng::new(75), 30, 48)] {
-            let loo = LooOrth::new(s.as_ref()).expect("finite");
+            let loo = LooOrth::with_method(s.as_ref(), FoldMethod::Downdate).expect("finite");
             let mut ws = loo.workspace();
             let max_m = s.ncols() - 1;
             let (n, count) = s.shape();

@@ -31,7 +31,7 @@ pub use compactness::{compactness_cone, compactness_cone_with, compactness_orth,
 pub use downdate::ColumnDowndate;
 pub use generalization::{
     combine_folds, generalization_cone, generalization_cone_reference, generalization_orth, loo_fold_cone,
-    loo_fold_cone_reference, loo_fold_orth, LooFold, LooOrth, LooOrthWorkspace,
+    loo_fold_cone_reference, loo_fold_orth, FoldMethod, LooFold, LooOrth, LooOrthWorkspace,
 };
 pub use nested::{nested_error_cone, nested_error_orth};
 pub use specificity::{
