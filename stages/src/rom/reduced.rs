@@ -196,7 +196,22 @@ pub struct ReducedModel {
     /// `Theta[:, :r_l]` by column (CSC): `(node, value)`.
     by_col: Compressed,
     surf: SurfaceData,
+    /// Type-1 warm starts ([`ReducedModel::with_warm_starts`]); empty unless built.
+    warm_starts: WarmStarts,
 }
+
+/// Sample parameters (row-major, `dim` per point) and the active sets of the exact solve there:
+/// a Type-1 query starts the QP from the set of the nearest sample.
+#[derive(Debug, Clone, Default)]
+struct WarmStarts {
+    dim: usize,
+    points: Vec<f64>,
+    sets: Vec<Vec<usize>>,
+}
+
+/// At most this many samples in a warm-start library (evenly spaced among those offered), so
+/// the nearest-sample scan in the query stays a few dozen distance evaluations.
+pub const WARM_START_SAMPLES: usize = 64;
 
 /// A compressed sparse layout: starts, indices, values.
 type Compressed = (Vec<usize>, Vec<usize>, Vec<f64>);
@@ -375,7 +390,18 @@ impl ReducedModel {
             }
         };
         let u_of_y = inverse_transpose(&khat_l, r_u);
-        Ok(Self { r_u, r_l, n_contact: nc, khat_l, u_of_y, weights, by_node, by_col, surf })
+        Ok(Self {
+            r_u,
+            r_l,
+            n_contact: nc,
+            khat_l,
+            u_of_y,
+            weights,
+            by_node,
+            by_col,
+            surf,
+            warm_starts: WarmStarts::default(),
+        })
     }
 
     /// Primal and dual ranks.
@@ -440,7 +466,59 @@ impl ReducedModel {
             by_node,
             by_col,
             surf,
+            warm_starts: WarmStarts::default(),
         }
+    }
+
+    /// The model with a warm-start library for Type-1 queries of [`Algorithm::Exact`]: the
+    /// exact solve (cold) at up to [`WARM_START_SAMPLES`] of `points` (evenly spaced, typically
+    /// the training parameters), and their active sets. A query then starts the QP from the
+    /// active set of the nearest sample (Euclidean distance in the parameter) instead of from
+    /// the unconstrained minimiser. The Type-1 QP is strictly convex, so the answer is the same
+    /// (to round-off) from any start; only the number of active-set steps changes — from the
+    /// 4–8 a cold start needs to reach the rope's 1–2 active constraints, to about one when the
+    /// nearest sample's set is right. A Type-2 model (re-pairing: a truncated reduced problem
+    /// can have several fixed points, and the start picks one) and the paper algorithm are
+    /// returned unchanged. Offline work: one solve per sample.
+    pub fn with_warm_starts(mut self, points: &[Vec<f64>], p: &RomParams) -> Self {
+        self.warm_starts = WarmStarts::default();
+        if !matches!(self.surf, SurfaceData::Fixed { .. }) || p.algorithm != Algorithm::Exact || points.is_empty() {
+            return self;
+        }
+        let n = points.len();
+        let take = n.min(WARM_START_SAMPLES);
+        let mut lib = WarmStarts { dim: points[0].len(), ..WarmStarts::default() };
+        let mut w = RomWork::default();
+        for k in 0..take {
+            let mu = &points[if take == n { k } else { k * (n - 1) / (take - 1).max(1) }];
+            if mu.len() != lib.dim {
+                continue;
+            }
+            let info = self.solve_in(mu, p, &mut w);
+            if info.outcome == RomOutcome::Converged {
+                lib.points.extend_from_slice(mu);
+                lib.sets.push(w.qp.active.clone());
+            }
+        }
+        self.warm_starts = lib;
+        self
+    }
+
+    /// Start `w.warm` for a cold query: the nearest warm-start sample's active set, if any.
+    fn seed_warm(&self, w: &mut RomWork) {
+        w.warm.clear();
+        let lib = &self.warm_starts;
+        if lib.sets.is_empty() || w.mu.len() != lib.dim {
+            return;
+        }
+        let mut best = (f64::INFINITY, 0);
+        for (k, point) in lib.points.chunks_exact(lib.dim.max(1)).enumerate() {
+            let d: f64 = point.iter().zip(&w.mu).map(|(a, b)| (a - b) * (a - b)).sum();
+            if d < best.0 {
+                best = (d, k);
+            }
+        }
+        w.warm.extend_from_slice(&lib.sets[best.1]);
     }
 
     /// Replace the dual basis by `theta` (`n_contact x r_l`, column-major, non-negative) and
@@ -478,6 +556,8 @@ impl ReducedModel {
         self.by_node = by_node;
         self.by_col = by_col;
         self.r_l = r_l;
+        // the samples' active sets index the old dual basis
+        self.warm_starts = WarmStarts::default();
     }
 
     /// Lengths of every array the online solve can read (name, length): none of them depends
@@ -623,7 +703,7 @@ impl ReducedModel {
         }
         w.anderson.reset();
         if !resume {
-            w.warm.clear();
+            self.seed_warm(w);
         }
         w.seen.clear();
         w.seen.push(w.lin.pairing_hash());
@@ -780,9 +860,14 @@ impl ReducedModel {
         w.s.iter().fold(0.0f64, |m, g| m.max(g.abs()))
     }
 
+    /// The reduced gaps at `û = 0` (Type-1: `ĝ(μ)` itself).
     fn offsets(&self, w: &mut RomWork) {
         let RomWork { lin, s, zero, .. } = w;
-        Oracle { m: self, lin }.values(zero, s);
+        if let SurfaceData::Fixed { .. } = &self.surf {
+            s.copy_from_slice(&lin.g_mu);
+        } else {
+            Oracle { m: self, lin }.values(zero, s);
+        }
     }
 
     /// Type-2: positions of the needed contact nodes at `y = w.u_hat`, re-pair the supported
@@ -1256,6 +1341,8 @@ pub struct RomWork {
     fnode: Vec<(usize, f64)>,
     /// Slaves forced to a vertex by the vertex-zone rule in the current query.
     forced: Vec<Option<usize>>,
+    /// The query's parameter (for the nearest warm-start sample).
+    mu: Vec<f64>,
 }
 
 impl Default for RomWork {
@@ -1276,6 +1363,7 @@ impl Default for RomWork {
             phit_f: Vec::new(),
             fnode: Vec::new(),
             forced: Vec::new(),
+            mu: Vec::new(),
         }
     }
 }
@@ -1304,6 +1392,8 @@ impl RomWork {
             v.resize(n, 0.0);
         }
         self.lin.count = 0;
+        self.mu.clear();
+        self.mu.extend_from_slice(mu);
         if let SurfaceData::Fixed { ghat, .. } = &m.surf {
             self.lin.g_mu.resize(rl, 0.0);
             affine_into(ghat, mu, &mut self.lin.g_mu);

@@ -207,6 +207,44 @@ mod tests {
         assert!(checked >= 3, "too few truncated points with a visible error: {checked}");
     }
 
+    /// Warm starts from the nearest training point's active set change the path of the
+    /// Type-1 QP, not its answer: at 37 parameters between and beyond the training points, for
+    /// the full model and two truncations, û and λ̂ equal the cold start's to 1e-12 relative
+    /// (the QP is strictly convex: one minimiser, reached by different active-set steps; the
+    /// difference is rounding of the equality-constrained solves), and the warm start never
+    /// takes more QP steps than the cold one and takes fewer in total.
+    #[test]
+    fn warm_starts_change_the_steps_not_the_answer() {
+        let rope = paper_rope();
+        let (gammas, _, _, _) = training(&rope);
+        let (full, _) = full_model(&rope);
+        let samples: Vec<Vec<f64>> = gammas.iter().map(|&g| vec![g]).collect();
+        let p = RomParams::default();
+        let (mut w, mut v) = (RomWork::default(), RomWork::default());
+        for (ru, rl) in [full.ranks(), (6, 10), (10, 4)] {
+            let cold = full.leading(ru, rl);
+            let warm = cold.clone().with_warm_starts(&samples, &p);
+            let (mut steps_cold, mut steps_warm) = (0, 0);
+            for k in 0..37 {
+                let g = -0.6 + 1.2 * k as f64 / 36.0;
+                let (a, b) = (cold.solve(&[g], &p, &mut w), warm.solve(&[g], &p, &mut v));
+                assert_eq!((a.outcome, b.outcome), (RomOutcome::Converged, RomOutcome::Converged), "gamma {g}");
+                let scale = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let (su, sl) = (scale(&a.u_hat), scale(&a.lambda_hat));
+                for (x, y) in a.u_hat.iter().zip(&b.u_hat) {
+                    assert!((x - y).abs() <= 1e-12 * su.max(1e-300), "ranks ({ru}, {rl}) gamma {g}: û {x} vs {y}");
+                }
+                for (x, y) in a.lambda_hat.iter().zip(&b.lambda_hat) {
+                    assert!((x - y).abs() <= 1e-12 * sl.max(1e-300), "ranks ({ru}, {rl}) gamma {g}: λ̂ {x} vs {y}");
+                }
+                assert!(b.iterations <= a.iterations, "gamma {g}: {} warm steps, {} cold", b.iterations, a.iterations);
+                steps_cold += a.iterations;
+                steps_warm += b.iterations;
+            }
+            assert!(steps_warm < steps_cold, "ranks ({ru}, {rl}): {steps_warm} warm steps, {steps_cold} cold");
+        }
+    }
+
     /// `leading(r_u, r_l)` answers exactly like a model built from the truncated bases (1e-12:
     /// the leading blocks of K̂ and its factor equal the fresh ones up to summation order).
     #[test]
