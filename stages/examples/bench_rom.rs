@@ -1,7 +1,7 @@
 //! Benchmark of the online reduced solve against the mesh: the same ironing problem on the
 //! coarse mesh, the fine mesh (2x per direction) and a 4x refined mesh, at the same ranks.
 //!
-//! `cargo run --release -p crom-stages --example bench_rom [r] [repetitions] [refinement] [n_train]`
+//! `cargo run --release -p crom-stages --example bench_rom [r] [repetitions] [refinement] [n_train] [tol]`
 //!
 //! For each mesh: build and factor the model, solve `n_train` (default 32) training snapshots
 //! (d_x = 3k/(n_train - 1)) and the `n_train - 1` test points between them, take the POD of the
@@ -11,7 +11,10 @@
 //! Prints a markdown table: dofs, contact dofs, median online time, its ratio to the coarse
 //! mesh (target <= 2x at 4x refinement), median full-order time and speed-up, median relative
 //! H1 error, and converged points; first a row for the rope (full bases, 9 test points).
-//! `refinement` 0 runs only the rope, 1/2/4 only that mesh.
+//! `refinement` 0 runs only the rope, 1/2/4 only that mesh. A fifth argument `tol` adds, per
+//! mesh, the same model on a sampled surface (`ReducedModel::with_sampled_surface` fitted to
+//! the training points at relative residual `tol`; design note 40), its online time against
+//! the coarse mesh's sampled model and its error against the full-order solves.
 
 use crom_stages::basis::{cpg, pod_full, CpgParams};
 use crom_stages::contact::{build_ironing, ContactSolveParams, FactoredModel, IroningParams, Material};
@@ -53,6 +56,7 @@ fn main() {
     let only: Option<usize> = std::env::args().nth(3).and_then(|a| a.parse().ok());
     let tol = ContactSolveParams { rel_tol: 1e-10, max_iter: 500 };
     let n_train: usize = std::env::args().nth(4).and_then(|a| a.parse().ok()).unwrap_or(32).max(2);
+    let sampling: Option<f64> = std::env::args().nth(5).and_then(|a| a.parse().ok());
     let train: Vec<f64> = (0..n_train).map(|k| 3.0 * k as f64 / (n_train - 1) as f64).collect();
     let test: Vec<f64> = (0..n_train - 1).map(|k| 3.0 * (k as f64 + 0.5) / (n_train - 1) as f64).collect();
     println!("| mesh | dofs | contact dofs | ranks | median online (ms) | vs coarse | target | median full-order (ms) | speed-up | median H1 error | converged | mean linearisations |");
@@ -61,6 +65,7 @@ fn main() {
         rope_row(reps.max(50));
     }
     let mut base = None;
+    let mut base_sampled = None;
     for (name, refine) in [("ironing-coarse", 1), ("ironing-fine (2x)", 2), ("ironing 4x", 4)] {
         if only.is_some_and(|o| o != refine) {
             continue;
@@ -90,39 +95,49 @@ fn main() {
         }
         let refs_view: Vec<(&[f64], &[f64])> = refs.iter().map(|(m, u)| (m.as_slice(), u.as_slice())).collect();
         let pe = PrimalErrors::new(&fm, &phi_c, ru, &refs_view).expect("M SPD");
-        let mut w = RomWork::default();
-        let (mut times, mut errs, mut conv, mut lins) = (Vec::new(), Vec::new(), 0, 0);
-        for (j, &d) in test.iter().enumerate() {
-            let mut best = f64::INFINITY;
-            let mut info = None;
-            for _ in 0..reps {
-                let t = Instant::now();
-                let i = rom.solve_in(&[d], &RomParams::default(), &mut w);
-                best = best.min(t.elapsed().as_secs_f64());
-                info = Some(i);
-            }
-            let s = w.solution(&info.expect("at least one repetition"));
-            conv += usize::from(s.outcome == RomOutcome::Converged);
-            lins += s.linearizations;
-            errs.push(pe.relative(j, &s.u_hat));
-            times.push(best);
+        let samples: Vec<Vec<f64>> = train.iter().map(|&d| vec![d]).collect();
+        let sampled = sampling.map(|t| rom.with_sampled_surface(&samples, &RomParams::default(), t).expect("sampling"));
+        let mut variants = vec![(name.to_string(), rom.clone(), None)];
+        if let Some((m, sel)) = sampled {
+            let label = format!("{name}, sampled ({} slaves, fit {:.1e})", sel.columns.len(), sel.residual);
+            variants.push((label, m, Some(())));
         }
-        let (on, fom) = (median(times), median(fom_t));
-        let ratio = on / *base.get_or_insert(on);
-        let (ranks, target) = (rom.ranks(), if refine == 4 { "<= 2" } else { "" });
-        println!(
-            "| {name} | {n} | {} | ({}, {}) | {:.4} | {:.2} | {target} | {:.2} | {:.0} | {:.2e} | {conv}/{} | {:.1} |",
-            fm.n_contact_dof(),
-            ranks.0,
-            ranks.1,
-            on * 1e3,
-            ratio,
-            fom * 1e3,
-            fom / on,
-            median(errs),
-            test.len(),
-            lins as f64 / test.len() as f64
-        );
+        for (label, rom, is_sampled) in variants {
+            let mut w = RomWork::default();
+            let (mut times, mut errs, mut conv, mut lins) = (Vec::new(), Vec::new(), 0, 0);
+            for (j, &d) in test.iter().enumerate() {
+                let mut best = f64::INFINITY;
+                let mut info = None;
+                for _ in 0..reps {
+                    let t = Instant::now();
+                    let i = rom.solve_in(&[d], &RomParams::default(), &mut w);
+                    best = best.min(t.elapsed().as_secs_f64());
+                    info = Some(i);
+                }
+                let s = w.solution(&info.expect("at least one repetition"));
+                conv += usize::from(s.outcome == RomOutcome::Converged);
+                lins += s.linearizations;
+                errs.push(pe.relative(j, &s.u_hat));
+                times.push(best);
+            }
+            let (on, fom) = (median(times), median(fom_t.clone()));
+            let slot = if is_sampled.is_some() { &mut base_sampled } else { &mut base };
+            let ratio = on / *slot.get_or_insert(on);
+            let (ranks, target) = (rom.ranks(), if refine == 4 { "<= 2" } else { "" });
+            println!(
+                "| {label} | {n} | {} | ({}, {}) | {:.4} | {:.2} | {target} | {:.2} | {:.0} | {:.2e} | {conv}/{} | {:.1} |",
+                fm.n_contact_dof(),
+                ranks.0,
+                ranks.1,
+                on * 1e3,
+                ratio,
+                fom * 1e3,
+                fom / on,
+                median(errs),
+                test.len(),
+                lins as f64 / test.len() as f64
+            );
+        }
     }
 }
 

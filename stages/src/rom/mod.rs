@@ -67,6 +67,7 @@ mod la;
 mod qp;
 mod reduced;
 mod saddle;
+pub mod sampling;
 
 pub use crate::operator::{Compliance, ContactOperator, Linearized, Surface};
 pub use error::PrimalErrors;
@@ -74,5 +75,6 @@ pub use la::Factor;
 pub use qp::{solve_qp, DenseConstraints, QpConstraints, QpOutcome, QpWork};
 pub use reduced::{
     Algorithm, Indicator, ReducedModel, ReducedSolution, RomError, RomOutcome, RomParams, RomWork, SolveInfo,
+    SAMPLING_DIRECTIONS, WARM_START_SAMPLES,
 };
 pub use saddle::solve_saddle;

@@ -137,6 +137,9 @@ pub enum RomError {
     /// `Phi^T K Phi` is not positive definite.
     #[error("the reduced stiffness Phi^T K Phi is not positive definite (rank-deficient or non-lifted primal basis)")]
     SingularStiffness,
+    /// The reduced quadrature's NNLS failed.
+    #[error("the reduced quadrature of the contact constraints failed: {0}")]
+    Sampling(String),
 }
 
 #[derive(Debug, Clone)]
@@ -166,8 +169,12 @@ enum SurfaceData {
         phi_c: Vec<f64>,
         /// Affine terms of the lift on the contact dofs.
         a_terms: Vec<Vec<f64>>,
-        /// Non-fixed slaves in the support of `Theta[:, :r_l]`.
+        /// Non-fixed slaves in the support of `Theta[:, :r_l]` (a sampled surface: the
+        /// quadrature's slaves only).
         supp: Vec<usize>,
+        /// A sampled surface's quadrature weights by slave ([`ReducedModel::with_sampled_surface`]);
+        /// `None`: every supported slave with its tributary length.
+        quad: Option<Vec<f64>>,
         /// Frobenius norm of the two rows of `Phi_c` of each contact node (bounds its motion
         /// per unit change of `û`), and the largest over the masters.
         node_norm: Vec<f64>,
@@ -208,6 +215,10 @@ struct WarmStarts {
     points: Vec<f64>,
     sets: Vec<Vec<usize>>,
 }
+
+/// Directions of `û` along which [`ReducedModel::with_sampled_surface`] matches the
+/// constraints' derivatives (a sketch of `Ĉ`).
+pub const SAMPLING_DIRECTIONS: usize = 3;
 
 /// At most this many samples in a warm-start library (evenly spaced among those offered), so
 /// the nearest-sample scan in the query stays a few dozen distance evaluations.
@@ -383,6 +394,7 @@ impl ReducedModel {
                     phi_c,
                     a_terms,
                     supp,
+                    quad: None,
                     node_norm,
                     master_norm,
                     w_c: comp.w,
@@ -450,6 +462,7 @@ impl ReducedModel {
                     phi_c,
                     a_terms: a_terms.clone(),
                     supp: (0..*ns).filter(|&s| !slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]).collect(),
+                    quad: None,
                     node_norm,
                     master_norm,
                     w_c: w_c.clone(),
@@ -504,6 +517,119 @@ impl ReducedModel {
         self
     }
 
+    /// The weight of slave `s` in the reduced constraints: its tributary length, or its
+    /// quadrature weight on a sampled surface.
+    fn gap_weight(&self, s: usize) -> f64 {
+        match &self.surf {
+            SurfaceData::Nts { quad: Some(q), .. } => q[s],
+            _ => self.weights[s],
+        }
+    }
+
+    /// Slaves of a sampled surface (`None` for a full one or a Type-1 model).
+    pub fn sampled_slaves(&self) -> Option<usize> {
+        match &self.surf {
+            SurfaceData::Nts { quad: Some(_), supp, .. } => Some(supp.len()),
+            _ => None,
+        }
+    }
+
+    /// A Type-2 model whose reduced constraints sum over a reduced quadrature of the slaves
+    /// ([`crate::rom::sampling`], design note 40): at each of `samples` (typically the
+    /// training parameters) the exact online solve of this model is run, and at its lift state
+    /// (`û = 0`) and its converged state every paired supported slave's contributions to the
+    /// reduced gaps `ŝ_a` and to their derivatives along [`SAMPLING_DIRECTIONS`] fixed
+    /// directions of `û` are recorded (each block scaled by its largest full sum); the slaves
+    /// and weights that reproduce the full sums to the relative residual `tol`
+    /// ([`greedy_nnls`](crate::rom::sampling::greedy_nnls)) replace the supported slaves and
+    /// their tributary lengths. The online query then positions, pairs and assembles only
+    /// those. A Type-1 model is returned as it is (its constraints are precomputed). The
+    /// answers change: measure them against this model's.
+    pub fn with_sampled_surface(
+        &self,
+        samples: &[Vec<f64>],
+        p: &RomParams,
+        tol: f64,
+    ) -> Result<(Self, crate::rom::sampling::Selection), RomError> {
+        let SurfaceData::Nts { supp, .. } = &self.surf else {
+            let all = crate::rom::sampling::Selection { columns: Vec::new(), weights: Vec::new(), residual: 0.0 };
+            return Ok((self.clone(), all));
+        };
+        let (ru, rl) = (self.r_u, self.r_l);
+        let cols = supp.clone();
+        let mut col_of = vec![usize::MAX; self.n_contact];
+        for (c, &s) in cols.iter().enumerate() {
+            col_of[s] = c;
+        }
+        let mut rng = crate::rng::Rng::new(40);
+        let dirs: Vec<Vec<f64>> =
+            (0..SAMPLING_DIRECTIONS).map(|_| (0..ru).map(|_| rng.uniform_in(-1.0, 1.0)).collect()).collect();
+        // rows: per state, r_l value rows then r_l rows per direction; row-major by state
+        let per_state = rl * (1 + SAMPLING_DIRECTIONS);
+        let mut values: Vec<f64> = Vec::new();
+        let mut w = RomWork::default();
+        let record = |w: &RomWork, values: &mut Vec<f64>| {
+            let at = values.len();
+            values.resize(at + per_state * cols.len(), 0.0);
+            let block = &mut values[at..];
+            let l = &w.lin;
+            for (k, &s) in l.ps.iter().enumerate() {
+                let c = col_of[s];
+                if c == usize::MAX {
+                    continue;
+                }
+                let row = &l.cphi[k * ru..(k + 1) * ru];
+                let g = dot(row, &w.u_hat) + l.g0[k];
+                let d: Vec<f64> = dirs.iter().map(|z| dot(row, z)).collect();
+                for e in self.by_node.0[s]..self.by_node.0[s + 1] {
+                    let (a, th) = (self.by_node.1[e], self.by_node.2[e]);
+                    block[a * cols.len() + c] += th * g;
+                    for (t, dt) in d.iter().enumerate() {
+                        block[((1 + t) * rl + a) * cols.len() + c] += th * dt;
+                    }
+                }
+            }
+        };
+        for mu in samples {
+            w.prepare(self, mu);
+            self.linearize(&mut w);
+            record(&w, &mut values);
+            if self.solve_in(mu, p, &mut w).outcome == RomOutcome::Converged {
+                record(&w, &mut values);
+            }
+        }
+        let (n, rows) = (cols.len(), values.len() / cols.len().max(1));
+        // the full sums (tributary weights) and a scale per block kind (values, derivatives)
+        let mut b: Vec<f64> =
+            (0..rows).map(|r| (0..n).map(|c| values[r * n + c] * self.weights[cols[c]]).sum()).collect();
+        let kind = |r: usize| usize::from((r % per_state) >= rl);
+        let mut scale = [0.0f64; 2];
+        for (r, v) in b.iter().enumerate() {
+            scale[kind(r)] = scale[kind(r)].max(v.abs());
+        }
+        for (r, v) in b.iter_mut().enumerate() {
+            let f = if scale[kind(r)] > 0.0 { 1.0 / scale[kind(r)] } else { 0.0 };
+            *v *= f;
+            values[r * n..(r + 1) * n].iter_mut().for_each(|x| *x *= f);
+        }
+        let a = faer::Mat::from_fn(rows, n, |r, c| values[r * n + c]);
+        let sel =
+            crate::rom::sampling::greedy_nnls(a.as_ref(), &b, tol, n).map_err(|e| RomError::Sampling(e.to_string()))?;
+        let mut model = self.clone();
+        if let SurfaceData::Nts { supp, quad, .. } = &mut model.surf {
+            let mut q = vec![0.0; self.n_contact];
+            let mut chosen: Vec<usize> = sel.columns.iter().map(|&c| cols[c]).collect();
+            for (&c, &xi) in sel.columns.iter().zip(&sel.weights) {
+                q[cols[c]] = xi;
+            }
+            chosen.sort_unstable();
+            *supp = chosen;
+            *quad = Some(q);
+        }
+        model.warm_starts = WarmStarts::default();
+        Ok((model, sel))
+    }
+
     /// Start `w.warm` for a cold query: the nearest warm-start sample's active set, if any.
     fn seed_warm(&self, w: &mut RomWork) {
         w.warm.clear();
@@ -548,9 +674,10 @@ impl ReducedModel {
                     }
                 }
             }
-            SurfaceData::Nts { ns, slave_fixed, supp, .. } => {
+            SurfaceData::Nts { ns, slave_fixed, supp, quad, .. } => {
                 supp.clear();
                 supp.extend((0..*ns).filter(|&s| !slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]));
+                *quad = None;
             }
         }
         self.by_node = by_node;
@@ -578,11 +705,12 @@ impl ReducedModel {
                 ("ghat", ghat.iter().map(Vec::len).sum()),
                 ("cwc", cwc.len()),
             ]),
-            SurfaceData::Nts { x_ref, phi_c, a_terms, supp, w_c, .. } => v.extend([
+            SurfaceData::Nts { x_ref, phi_c, a_terms, supp, quad, w_c, .. } => v.extend([
                 ("x_ref", x_ref.len()),
                 ("phi_c", phi_c.len()),
                 ("a_terms", a_terms.iter().map(Vec::len).sum()),
                 ("supp", supp.len()),
+                ("quad", quad.as_ref().map_or(0, Vec::len)),
                 ("w_c", w_c.len()),
             ]),
         }
@@ -1195,7 +1323,7 @@ impl QpConstraints for Oracle<'_> {
                 let l = &*self.lin;
                 for (k, &sl) in l.ps.iter().enumerate() {
                     let g = dot(&l.cphi[k * ru..(k + 1) * ru], x) + l.g0[k];
-                    let wg = m.weights[sl] * g;
+                    let wg = m.gap_weight(sl) * g;
                     for e in m.by_node.0[sl]..m.by_node.0[sl + 1] {
                         s[m.by_node.1[e]] += m.by_node.2[e] * wg;
                     }
@@ -1217,7 +1345,7 @@ impl QpConstraints for Oracle<'_> {
                     if k == usize::MAX {
                         continue;
                     }
-                    let tw = m.by_col.2[e] * m.weights[sl];
+                    let tw = m.by_col.2[e] * m.gap_weight(sl);
                     for (o, c) in out.iter_mut().zip(&l.cphi[k * ru..(k + 1) * ru]) {
                         *o += tw * c;
                     }
