@@ -138,8 +138,11 @@ pub(crate) fn run(
     let mut progress = ctx.progress.stage("online ROM", 2 + 2 * ALGORITHMS.len() * queries + sweep.len() + paper_pairs);
     let start = Instant::now();
     // offline: the reduced model at full ranks, error references
+    // Type-1 warm starts of the exact solve at the training points (the paper algorithm does not
+    // read them; `leading` drops them, so the sweep's models build their own)
     let full = ReducedModel::new(op, &phi.data, phi.cols, &theta_full.data, theta_full.cols)
-        .map_err(|e| fail(e.to_string()))?;
+        .map_err(|e| fail(e.to_string()))?
+        .with_warm_starts(&train_set.parameters, &params);
     let prefix = theta_trunc.data.len() <= theta_full.data.len()
         && theta_trunc.data == theta_full.data[..theta_trunc.data.len()];
     let trunc = if prefix {
@@ -147,7 +150,8 @@ pub(crate) fn run(
     } else {
         ReducedModel::new(op, &phi.data, phi.cols, &theta_trunc.data, theta_trunc.cols)
             .map_err(|e| fail(e.to_string()))?
-    };
+    }
+    .with_warm_starts(&train_set.parameters, &params);
     let references = |set: &trainset::TrainingSet| {
         let refs: Vec<(&[f64], &[f64])> =
             set.parameters.iter().enumerate().map(|(j, mu)| (mu.as_slice(), set.primal.col(j))).collect();
@@ -189,7 +193,6 @@ pub(crate) fn run(
     for (dual_basis, model) in [("full", &full), ("truncated", &trunc)] {
         for alg in ALGORITHMS {
             let p = RomParams { algorithm: alg, ..params };
-            let model = &model.clone().with_warm_starts(&train_set.parameters, &p);
             for (set, data, pe, fom) in &sets {
                 let pe = pe.as_ref().ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
                 let cached = if *set == "test" { at_full_ranks.remove(&(alg.name(), dual_basis)) } else { None };

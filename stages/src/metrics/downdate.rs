@@ -135,21 +135,14 @@ impl ColumnDowndate {
         let lo = if lower_pole { self.s[l + 1] } else { 0.0 };
         if !lower_pole && f0 <= 0.0 {
             // The fold lost a direction: ω = 0 exactly (V square and nothing deflated).
-            let inv = self.s.iter().zip(&self.w).map(|(s, w)| w / (s * s * s * s)).sum::<f64>();
-            return (0.0, if inv.is_finite() && inv > 0.0 { 1.0 / inv } else { 0.0 });
+            return (0.0, weight(self.s.iter().zip(&self.w).map(|(s, w)| w / (s * s * s * s)).sum()));
         }
         let mid = 0.5 * (lo + hi);
-        for ((d, p), s) in self.delta.iter_mut().zip(self.plus.iter_mut()).zip(&self.s) {
-            *d = s - lo;
-            *p = s + lo;
-        }
+        self.shift(lo);
         // f decreases: f(mid) >= 0 puts the root in [mid, hi), nearer the upper pole.
         let f_mid = self.eval(l, lo, mid - lo, f0).f;
         let (origin, mut t_lo, mut t_hi) = if f_mid >= 0.0 { (hi, mid - hi, 0.0) } else { (lo, 0.0, mid - lo) };
-        for ((d, p), s) in self.delta.iter_mut().zip(self.plus.iter_mut()).zip(&self.s) {
-            *d = s - origin;
-            *p = s + origin;
-        }
+        self.shift(origin);
         // Distances of the bracketing poles from the origin (the last root has no lower pole:
         // the model keeps only the upper one).
         let d_up = self.delta[l];
@@ -174,7 +167,7 @@ impl ColumnDowndate {
             }
             tau = next;
         }
-        let inv: f64 = self
+        let inv = self
             .delta
             .iter()
             .zip(&self.plus)
@@ -184,7 +177,15 @@ impl ColumnDowndate {
                 w / (den * den)
             })
             .sum();
-        (origin + tau, if inv.is_finite() && inv > 0.0 { 1.0 / inv } else { 0.0 })
+        (origin + tau, weight(inv))
+    }
+
+    /// Pole distances `σ_k - origin` and sums `σ_k + origin` for roots measured from `origin`.
+    fn shift(&mut self, origin: f64) {
+        for ((d, p), s) in self.delta.iter_mut().zip(self.plus.iter_mut()).zip(&self.s) {
+            *d = s - origin;
+            *p = s + origin;
+        }
     }
 
     /// f at `ω = origin + τ` (deltas and pluses relative to `origin`), as
@@ -218,6 +219,16 @@ impl ColumnDowndate {
     #[cfg(test)]
     fn kept(&self) -> usize {
         self.s.len()
+    }
+}
+
+/// The weight `c^2 = 1 / inv` of a root from `inv = sum_k z_k^2 / (σ_k^2 - ω^2)^2`; 0 when `inv`
+/// overflowed (a root on a pole carries no weight).
+fn weight(inv: f64) -> f64 {
+    if inv.is_finite() && inv > 0.0 {
+        1.0 / inv
+    } else {
+        0.0
     }
 }
 

@@ -147,14 +147,28 @@ fn orth_fold_errors(modes: MatRef<'_, f64>, x: MatRef<'_, f64>, norm: f64, max_m
     let k = modes.ncols();
     let c: Mat<f64> = modes.transpose() * x;
     let perp = x - modes * &c;
-    // tails[m] = ||s_perp||^2 + sum_{l >= m} c_l^2, accumulated from the last mode up.
-    let mut tails = vec![0.0; k + 1];
-    tails[k] = perp.squared_norm_l2();
-    for l in (0..k).rev() {
-        tails[l] = tails[l + 1] + c[(l, 0)] * c[(l, 0)];
+    fold_from_squares((0..k).map(|l| c[(l, 0)] * c[(l, 0)]), perp.squared_norm_l2(), k, norm, max_m)
+}
+
+/// A fold from the left-out snapshot's squared coefficients `sq` on the fold's modes (in mode
+/// order) and `beyond`, its squared part outside them: the error on the first m modes is
+/// `sqrt(beyond + sum_{l >= m} sq_l) / norm`, accumulated from the last mode up (no
+/// cancellation), with m capped at the fold's rank.
+fn fold_from_squares(
+    sq: impl DoubleEndedIterator<Item = f64> + ExactSizeIterator,
+    beyond: f64,
+    rank: usize,
+    norm: f64,
+    max_m: usize,
+) -> LooFold {
+    let mut tails = vec![0.0; sq.len() + 1];
+    let last = tails.len() - 1;
+    tails[last] = beyond;
+    for (l, v) in sq.enumerate().rev() {
+        tails[l] = tails[l + 1] + v;
     }
-    let errors = (1..=max_m).map(|m| tails[m.min(k)].sqrt() / norm).collect();
-    LooFold { errors, basis_len: k }
+    let errors = (1..=max_m).map(|m| tails[m.min(rank)].sqrt() / norm).collect();
+    LooFold { errors, basis_len: rank }
 }
 
 /// One orthogonal leave-one-out fold by definition: POD (numerical rank) of the n x (N - 1)
@@ -338,14 +352,8 @@ impl LooOrth {
                 omega.clear();
                 omega.extend(pairs[..size].iter().map(|p| p.0));
                 let rank = numerical_rank(omega, self.nrows, count - 1);
-                // tails[m] = sum_{l >= m} c_l^2 (every pair: beyond the rank they are s_i's
-                // component outside the fold's span).
-                let mut tails = vec![0.0; pairs.len() + 1];
-                for l in (0..pairs.len()).rev() {
-                    tails[l] = tails[l + 1] + pairs[l].1;
-                }
-                let errors = (1..=max_m).map(|m| tails[m.min(rank)].sqrt() / norm).collect();
-                Ok(Some(LooFold { errors, basis_len: rank }))
+                // every pair's weight: beyond the rank they are s_i's part outside the fold's span
+                Ok(Some(fold_from_squares(pairs.iter().map(|p| p.1), 0.0, rank, norm, max_m)))
             }
         }
     }

@@ -568,7 +568,8 @@ impl ReducedModel {
         let per_state = rl * (1 + SAMPLING_DIRECTIONS);
         let mut values: Vec<f64> = Vec::new();
         let mut w = RomWork::default();
-        let record = |w: &RomWork, values: &mut Vec<f64>| {
+        let mut d = [0.0; SAMPLING_DIRECTIONS];
+        let mut record = |w: &RomWork, values: &mut Vec<f64>| {
             let at = values.len();
             values.resize(at + per_state * cols.len(), 0.0);
             let block = &mut values[at..];
@@ -580,7 +581,7 @@ impl ReducedModel {
                 }
                 let row = &l.cphi[k * ru..(k + 1) * ru];
                 let g = dot(row, &w.u_hat) + l.g0[k];
-                let d: Vec<f64> = dirs.iter().map(|z| dot(row, z)).collect();
+                d.iter_mut().zip(&dirs).for_each(|(dt, z)| *dt = dot(row, z));
                 for e in self.by_node.0[s]..self.by_node.0[s + 1] {
                     let (a, th) = (self.by_node.1[e], self.by_node.2[e]);
                     block[a * cols.len() + c] += th * g;
@@ -612,9 +613,8 @@ impl ReducedModel {
             *v *= f;
             values[r * n..(r + 1) * n].iter_mut().for_each(|x| *x *= f);
         }
-        let a = faer::Mat::from_fn(rows, n, |r, c| values[r * n + c]);
-        let sel =
-            crate::rom::sampling::greedy_nnls(a.as_ref(), &b, tol, n).map_err(|e| RomError::Sampling(e.to_string()))?;
+        let a = faer::MatRef::from_row_major_slice(&values, rows, n);
+        let sel = crate::rom::sampling::greedy_nnls(a, &b, tol, n).map_err(|e| RomError::Sampling(e.to_string()))?;
         let mut model = self.clone();
         if let SurfaceData::Nts { supp, quad, .. } = &mut model.surf {
             let mut q = vec![0.0; self.n_contact];
@@ -630,16 +630,17 @@ impl ReducedModel {
         Ok((model, sel))
     }
 
-    /// Start `w.warm` for a cold query: the nearest warm-start sample's active set, if any.
-    fn seed_warm(&self, w: &mut RomWork) {
+    /// Start `w.warm` for a cold query at `mu`: the nearest warm-start sample's active set, if
+    /// any.
+    fn seed_warm(&self, mu: &[f64], w: &mut RomWork) {
         w.warm.clear();
         let lib = &self.warm_starts;
-        if lib.sets.is_empty() || w.mu.len() != lib.dim {
+        if lib.sets.is_empty() || mu.len() != lib.dim {
             return;
         }
         let mut best = (f64::INFINITY, 0);
         for (k, point) in lib.points.chunks_exact(lib.dim.max(1)).enumerate() {
-            let d: f64 = point.iter().zip(&w.mu).map(|(a, b)| (a - b) * (a - b)).sum();
+            let d: f64 = point.iter().zip(mu).map(|(a, b)| (a - b) * (a - b)).sum();
             if d < best.0 {
                 best = (d, k);
             }
@@ -765,7 +766,7 @@ impl ReducedModel {
         let (mut iterations, mut linearizations, mut resume) = (0, 0, false);
         loop {
             let out = match p.algorithm {
-                Algorithm::Exact => self.solve_exact(p, w, resume),
+                Algorithm::Exact => self.solve_exact(mu, p, w, resume),
                 Algorithm::Paper => self.solve_paper(p, w),
             };
             iterations += out.0;
@@ -816,7 +817,7 @@ impl ReducedModel {
     /// is a property of the start, cold or resumed alike (measured with other starts on
     /// ironing-coarse: 1 point in 30 moved, by 5e-5 relative, against a reduced-model error of
     /// 1.4e-2 there).
-    fn solve_exact(&self, p: &RomParams, w: &mut RomWork, resume: bool) -> (usize, usize, RomOutcome) {
+    fn solve_exact(&self, mu: &[f64], p: &RomParams, w: &mut RomWork, resume: bool) -> (usize, usize, RomOutcome) {
         let ru = self.r_u;
         self.linearize(w);
         let scale = self.offset_scale(w);
@@ -831,7 +832,7 @@ impl ReducedModel {
         }
         w.anderson.reset();
         if !resume {
-            self.seed_warm(w);
+            self.seed_warm(mu, w);
         }
         w.seen.clear();
         w.seen.push(w.lin.pairing_hash());
@@ -1469,8 +1470,6 @@ pub struct RomWork {
     fnode: Vec<(usize, f64)>,
     /// Slaves forced to a vertex by the vertex-zone rule in the current query.
     forced: Vec<Option<usize>>,
-    /// The query's parameter (for the nearest warm-start sample).
-    mu: Vec<f64>,
 }
 
 impl Default for RomWork {
@@ -1491,7 +1490,6 @@ impl Default for RomWork {
             phit_f: Vec::new(),
             fnode: Vec::new(),
             forced: Vec::new(),
-            mu: Vec::new(),
         }
     }
 }
@@ -1520,8 +1518,6 @@ impl RomWork {
             v.resize(n, 0.0);
         }
         self.lin.count = 0;
-        self.mu.clear();
-        self.mu.extend_from_slice(mu);
         if let SurfaceData::Fixed { ghat, .. } = &m.surf {
             self.lin.g_mu.resize(rl, 0.0);
             affine_into(ghat, mu, &mut self.lin.g_mu);
