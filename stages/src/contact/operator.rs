@@ -567,6 +567,15 @@ mod tests {
             err_loose = err_loose.max(pe.relative(j, &c.u_hat));
         }
         assert!(err_loose <= 2.0 * err_exact, "largest H1 error {err_loose:e} sampled, {err_exact:e} exact");
+        // Inputs that would give a model constraining nothing are refused, not fitted.
+        for (pts, tol) in [(&samples[..], f64::NAN), (&samples[..], -1e-2), (&samples[..], 1.0), (&samples[..0], 3e-2)]
+        {
+            assert!(
+                matches!(rom.with_sampled_surface(pts, &p, tol), Err(crate::rom::RomError::Sampling(_))),
+                "tol {tol}, {} samples",
+                pts.len()
+            );
+        }
     }
 
     /// Hertz, 6 training points d = 0.05 k with full bases. The solver ties 1 to 17 slaves to

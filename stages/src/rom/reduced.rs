@@ -544,7 +544,8 @@ impl ReducedModel {
     /// ([`greedy_nnls`](crate::rom::sampling::greedy_nnls)) replace the supported slaves and
     /// their tributary lengths. The online query then positions, pairs and assembles only
     /// those. A Type-1 model is returned as it is (its constraints are precomputed). The
-    /// answers change: measure them against this model's.
+    /// answers change: measure them against this model's. Refused ([`RomError::Sampling`]):
+    /// `tol` outside `[0, 1)`, no samples, or samples without contact (nothing to fit).
     pub fn with_sampled_surface(
         &self,
         samples: &[Vec<f64>],
@@ -555,6 +556,14 @@ impl ReducedModel {
             let all = crate::rom::sampling::Selection { columns: Vec::new(), weights: Vec::new(), residual: 0.0 };
             return Ok((self.clone(), all));
         };
+        if !(tol.is_finite() && (0.0..1.0).contains(&tol)) {
+            return Err(RomError::Sampling(format!(
+                "the relative residual tol = {tol} is not in [0, 1): give e.g. 3e-2 (0 fits exactly)"
+            )));
+        }
+        if samples.is_empty() {
+            return Err(RomError::Sampling("no sample parameters to fit to: pass the training points".into()));
+        }
         let (ru, rl) = (self.r_u, self.r_l);
         let cols = supp.clone();
         let mut col_of = vec![usize::MAX; self.n_contact];
@@ -612,6 +621,13 @@ impl ReducedModel {
             let f = if scale[kind(r)] > 0.0 { 1.0 / scale[kind(r)] } else { 0.0 };
             *v *= f;
             values[r * n..(r + 1) * n].iter_mut().for_each(|x| *x *= f);
+        }
+        if b.iter().all(|v| *v == 0.0) {
+            // no training state puts a paired slave under a dual vector: a fit would keep no
+            // slave, and the model would constrain nothing
+            return Err(RomError::Sampling(
+                "no sample state has contact under the dual basis: nothing to fit the quadrature to".into(),
+            ));
         }
         let a = faer::MatRef::from_row_major_slice(&values, rows, n);
         let sel = crate::rom::sampling::greedy_nnls(a, &b, tol, n).map_err(|e| RomError::Sampling(e.to_string()))?;
