@@ -1,12 +1,13 @@
 //! Benchmark of the online reduced solve against the mesh: the same ironing problem on the
 //! coarse mesh, the fine mesh (2x per direction) and a 4x refined mesh, at the same ranks.
 //!
-//! `cargo run --release -p crom-stages --example bench_rom [r] [repetitions] [refinement] [n_train] [tol]`
+//! `cargo run --release -p crom-stages --example bench_rom [r | r_primal,r_dual] [repetitions] [refinement] [n_train] [tol]`
 //!
 //! For each mesh: build and factor the model, solve `n_train` (default 32) training snapshots
 //! (d_x = 3k/(n_train - 1)) and the `n_train - 1` test points between them, take the POD of the
 //! contact responses and the CPG of the pressures, build the reduced model once at full ranks
-//! and query its leading `r x r` block (default r = 16) at every test point with the exact
+//! and query its leading block (default r = 16, or `r_primal,r_dual`), warm-started from the
+//! training points as the product does, at every test point with the exact
 //! online solve, single-threaded, keeping the fastest of `repetitions` (default 5) per point.
 //! Prints a markdown table: dofs, contact dofs, median online time, its ratio to the coarse
 //! mesh (target <= 2x at 4x refinement), median full-order time and speed-up, median relative
@@ -51,7 +52,14 @@ fn columns(m: MatRef<'_, f64>, r: usize) -> Vec<f64> {
 }
 
 fn main() {
-    let r: usize = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(16);
+    // `r` or `r_primal,r_dual`
+    let ranks: Vec<usize> =
+        std::env::args().nth(1).map(|a| a.split(',').filter_map(|x| x.parse().ok()).collect()).unwrap_or_default();
+    let (r_p, r_d) = match ranks[..] {
+        [r] => (r, r),
+        [a, b] => (a, b),
+        _ => (16, 16),
+    };
     let reps: usize = std::env::args().nth(2).and_then(|a| a.parse().ok()).unwrap_or(5).max(1);
     let only: Option<usize> = std::env::args().nth(3).and_then(|a| a.parse().ok());
     let tol = ContactSolveParams { rel_tol: 1e-10, max_iter: 500 };
@@ -84,7 +92,10 @@ fn main() {
         let (ru, rl) = (phi.modes.ncols(), theta.basis.ncols());
         let phi_c = columns(phi.modes.as_ref(), ru);
         let full = ReducedModel::new(&fm, &phi_c, ru, &columns(theta.basis.as_ref(), rl), rl).expect("K̂ SPD");
-        let rom = full.leading(r.min(ru), r.min(rl));
+        let samples: Vec<Vec<f64>> = train.iter().map(|&d| vec![d]).collect();
+        let rom = full.leading(r_p.min(ru), r_d.min(rl));
+        // the product's setting: warm starts from the training points (design note 41)
+        let rom = rom.with_warm_starts(&samples, &RomParams::default());
         let mut fom_t = Vec::new();
         let mut refs = Vec::new();
         for &d in &test {
@@ -95,8 +106,10 @@ fn main() {
         }
         let refs_view: Vec<(&[f64], &[f64])> = refs.iter().map(|(m, u)| (m.as_slice(), u.as_slice())).collect();
         let pe = PrimalErrors::new(&fm, &phi_c, ru, &refs_view).expect("M SPD");
-        let samples: Vec<Vec<f64>> = train.iter().map(|&d| vec![d]).collect();
-        let sampled = sampling.map(|t| rom.with_sampled_surface(&samples, &RomParams::default(), t).expect("sampling"));
+        let sampled = sampling.map(|t| {
+            let (m, sel) = rom.with_sampled_surface(&samples, &RomParams::default(), t).expect("sampling");
+            (m.with_warm_starts(&samples, &RomParams::default()), sel)
+        });
         let mut variants = vec![(name.to_string(), rom.clone(), None)];
         if let Some((m, sel)) = sampled {
             let label = format!("{name}, sampled ({} slaves, fit {:.1e})", sel.columns.len(), sel.residual);

@@ -12,10 +12,11 @@
 //!
 //! **Timing.** The online time of a query is [`ReducedModel::solve_in`] alone (reads only the
 //! reduced model: cost independent of `n_dof`); the indicator is timed separately; the
-//! full-order time is measured here, in the same process, at the test points. A Type-1 model
-//! (the rope) carries the active sets of its exact solve at the training points, computed
-//! offline ([`ReducedModel::with_warm_starts`]); a query starts its QP from the nearest one,
-//! and that lookup is part of the timed query. The trade-off
+//! full-order time is measured here, in the same process, at the test points. Every model of
+//! the exact solve carries its answers and active sets at (up to 64 of) the training points,
+//! computed offline ([`ReducedModel::with_warm_starts`]); a query starts from the nearest one
+//! (its QP's active set; Type-2 also the re-pairing's `y`), and that lookup is part of the
+//! timed query. The trade-off
 //! sweeps, for `exact`, the primal rank with the full and the truncated dual basis and the dual
 //! rank with the full primal basis, and for `paper` the primal rank with the full dual basis
 //! (up to [`PAPER_SWEEP_MAX_DUAL`] dual modes); per rank pair it counts converged, refused
@@ -56,8 +57,10 @@ struct RomKey {
 impl StageKey for RomKey {
     const KIND: ArtifactKind = ArtifactKind::Rom;
     /// Bump when the online stage changes its numbers (9: Type-1 warm starts from the nearest
-    /// training point's active set — the same answers to round-off, fewer QP steps).
-    const ALGORITHM_VERSION: u32 = 9;
+    /// training point's active set — the same answers to round-off, fewer QP steps; 10:
+    /// Type-2 warm starts, the vertex-zone rule asked before the round's fixed point, a dot
+    /// product summed in another order — design note 41).
+    const ALGORITHM_VERSION: u32 = 10;
 }
 
 /// Timing repetitions of an online query whose first solve took less than [`REPEAT_BELOW`]
@@ -138,8 +141,8 @@ pub(crate) fn run(
     let mut progress = ctx.progress.stage("online ROM", 2 + 2 * ALGORITHMS.len() * queries + sweep.len() + paper_pairs);
     let start = Instant::now();
     // offline: the reduced model at full ranks, error references
-    // Type-1 warm starts of the exact solve at the training points (the paper algorithm does not
-    // read them; `leading` drops them, so the sweep's models build their own)
+    // warm starts of the exact solve at the training points (the paper algorithm does not read
+    // them; `leading` drops them, so the sweep's models build their own)
     let full = ReducedModel::new(op, &phi.data, phi.cols, &theta_full.data, theta_full.cols)
         .map_err(|e| fail(e.to_string()))?
         .with_warm_starts(&train_set.parameters, &params);

@@ -134,6 +134,40 @@ pub fn end_pair(xs: [f64; 2], m: &[[f64; 2]], v: usize) -> Pair {
     Pair { kind: PairKind::End(v), xi: 0.0, normal: n, gap: dot(sub(xs, m[v]), n) }
 }
 
+/// [`MasterIndex::closest_point_with_radius`]'s radius for a slave at `xs` paired with segment
+/// `k` (`p`), `l_minus_d` the margin of every other candidate's distance over its own.
+fn segment_radius(xs: [f64; 2], m: &[[f64; 2]], k: usize, p: &Pair, l_minus_d: f64) -> f64 {
+    let (a, b) = (m[k], m[k + 1]);
+    let t = sub(b, a);
+    let h = dot(t, t).sqrt();
+    let along = p.xi * h;
+    let margin = along.min(h - along);
+    let (ra, rb) = (sub(xs, a), sub(xs, b));
+    let reach = dot(ra, ra).max(dot(rb, rb)).sqrt();
+    positive(0.5 * (l_minus_d / 2.0).min(margin / (3.0 + 4.0 * reach / h)).min(h / 4.0))
+}
+
+/// [`MasterIndex::closest_point_with_radius`]'s radius for a slave at `xs` closest to the end
+/// vertex `e` (at distance `d`), `l_minus_d` as in [`segment_radius`].
+fn end_radius(xs: [f64; 2], m: &[[f64; 2]], e: usize, d: f64, l_minus_d: f64) -> f64 {
+    let last = m.len() - 1;
+    let (a, b) = if e == 0 { (m[0], m[1]) } else { (m[last], m[last - 1]) };
+    let t = sub(b, a);
+    let h = dot(t, t).sqrt();
+    // distance beyond the normal line through the end vertex (positive outside)
+    let g = -dot(sub(xs, a), t) / h;
+    positive(0.5 * (l_minus_d / 2.0).min(g / (1.0 + 4.0 * d / h)).min(h / 4.0))
+}
+
+/// `r` if finite and positive, else 0.
+fn positive(r: f64) -> f64 {
+    if r.is_finite() && r > 0.0 {
+        r
+    } else {
+        0.0
+    }
+}
+
 /// Orthogonal projection of `xs` onto segment `k` of `m`: `(xi, xs - foot)` when
 /// `xi in [0, 1]`, else `None` (the one arithmetic of every closest-point search here).
 fn project_on_segment(xs: [f64; 2], m: &[[f64; 2]], k: usize) -> Option<(f64, [f64; 2])> {
@@ -169,6 +203,50 @@ pub fn closest_point(xs: [f64; 2], m: &[[f64; 2]]) -> Pair {
         }
     }
     best
+}
+
+/// The feature closest to a slave: what a [`Certificate`] is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Feature {
+    /// No candidate (never certified).
+    #[default]
+    Nothing,
+    /// Segment `k`, with a valid projection.
+    Segment(usize),
+    /// Interior vertex `v` (blind spot).
+    Vertex(usize),
+    /// End vertex `e`: the slave is unpaired.
+    End(usize),
+}
+
+/// What a search proves about the closest point for a while: see
+/// [`MasterIndex::closest_point_certified`] and [`MasterIndex::recheck`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Certificate {
+    pub feature: Feature,
+    /// Motion (the slave's plus the largest master vertex's) below which the feature's
+    /// neighbourhood decides the closest point alone.
+    pub radius: f64,
+}
+
+/// Relative margin of a certificate's radius (to `L`): the distances it compares are rounded
+/// by a few units of 1e-16 relative.
+const CERTIFICATE_MARGIN: f64 = 1e-12;
+
+/// Candidates a search keeps, nearest first: enough to see past a segment's neighbourhood
+/// (three segments and two vertices, each vertex possibly met twice at a chunk boundary) in
+/// [`MasterIndex::closest_point_certified`].
+const NEAREST: usize = 8;
+
+type Nearest = [(f64, usize); NEAREST];
+
+/// The outcome of [`MasterIndex`]'s search.
+struct Found {
+    pair: Pair,
+    feature: Feature,
+    d2: f64,
+    near: Nearest,
+    skipped: f64,
 }
 
 /// Segments per chunk of a [`MasterIndex`].
@@ -238,7 +316,7 @@ impl MasterIndex {
 
     /// [`closest_point`] of `xs` onto `m` (the polyline this index was built for).
     pub fn closest_point(&self, xs: [f64; 2], m: &[[f64; 2]]) -> Pair {
-        self.search(xs, m).0
+        self.search(xs, m).pair
     }
 
     /// [`Self::closest_point`] and, when the slave is unpaired (closest to an end vertex `e`),
@@ -271,28 +349,31 @@ impl MasterIndex {
     /// `R` is half the smallest of `(L - D) / 2`, `min(s, h - s) / (3 + 4 P / h)` and `h / 4`.
     /// Slaves paired with an interior vertex get `R = 0`.
     pub fn closest_point_with_radius(&self, xs: [f64; 2], m: &[[f64; 2]]) -> (Pair, f64) {
-        let (p, l2, end) = self.search(xs, m);
-        let Some((e, d2)) = end else {
-            let PairKind::Segment(k) = p.kind else { return (p, 0.0) };
-            let (a, b) = (m[k], m[k + 1]);
-            let t = sub(b, a);
-            let h = dot(t, t).sqrt();
-            let along = p.xi * h;
-            let margin = along.min(h - along);
-            let (ra, rb) = (sub(xs, a), sub(xs, b));
-            let reach = dot(ra, ra).max(dot(rb, rb)).sqrt();
-            let r = 0.5 * ((l2.sqrt() - p.gap.abs()) / 2.0).min(margin / (3.0 + 4.0 * reach / h)).min(h / 4.0);
-            return (p, if r.is_finite() && r > 0.0 { r } else { 0.0 });
+        let f = self.search(xs, m);
+        (f.pair, Self::radius(&f, xs, m))
+    }
+
+    /// [`Self::closest_point`] with both [`Self::closest_point_with_radius`]'s radius and
+    /// [`Self::closest_point_certified`]'s certificate, from one search.
+    pub fn closest_point_proved(&self, xs: [f64; 2], m: &[[f64; 2]]) -> (Pair, f64, Certificate) {
+        let f = self.search(xs, m);
+        (f.pair, Self::radius(&f, xs, m), Self::certificate(&f, m))
+    }
+
+    fn radius(f: &Found, xs: [f64; 2], m: &[[f64; 2]]) -> f64 {
+        let n_seg = m.len() - 1;
+        let best_id = match f.feature {
+            Feature::Segment(k) => k,
+            Feature::Vertex(v) | Feature::End(v) => n_seg + v,
+            Feature::Nothing => usize::MAX,
         };
-        let last = m.len() - 1;
-        let (a, b) = if e == 0 { (m[0], m[1]) } else { (m[last], m[last - 1]) };
-        let t = sub(b, a);
-        let h = dot(t, t).sqrt();
-        // distance beyond the normal line through the end vertex (positive outside)
-        let g = -dot(sub(xs, a), t) / h;
-        let (dd, ll) = (d2.sqrt(), l2.sqrt());
-        let r = 0.5 * ((ll - dd) / 2.0).min(g / (1.0 + 4.0 * dd / h)).min(h / 4.0);
-        (p, if r.is_finite() && r > 0.0 { r } else { 0.0 })
+        let other = if f.near[0].1 == best_id { f.near[1].0 } else { f.near[0].0 };
+        let (p, l2) = (f.pair, other.min(f.skipped));
+        match f.feature {
+            Feature::End(e) => end_radius(xs, m, e, f.d2.sqrt(), l2.sqrt() - f.d2.sqrt()),
+            Feature::Segment(k) => segment_radius(xs, m, k, &p, l2.sqrt() - p.gap.abs()),
+            _ => 0.0,
+        }
     }
 
     /// The pair with segment `k` itself (what [`Self::closest_point`] returns when `k` is the
@@ -304,32 +385,34 @@ impl MasterIndex {
         Some(Pair { kind: PairKind::Segment(k), xi, normal: n, gap: dot(r, n) })
     }
 
-    /// The search: the pair, a lower bound (squared) of the distance to every candidate but the
-    /// best, and for an unpaired result the end vertex and its squared distance.
-    fn search(&self, xs: [f64; 2], m: &[[f64; 2]]) -> (Pair, f64, Option<(usize, f64)>) {
+    /// The search: the pair, the closest feature and its squared distance, the smallest
+    /// candidate distances met, and the bound of the skipped boxes.
+    fn search(&self, xs: [f64; 2], m: &[[f64; 2]]) -> Found {
         let n_seg = m.len() - 1;
         assert_eq!(n_seg, self.n_seg, "index built for another polyline");
         // best segment (d2, k) and best vertex (d2, v), each lowest index among ties
         let mut seg: (f64, usize) = (f64::INFINITY, usize::MAX);
         let mut ver: (f64, usize) = (f64::INFINITY, usize::MAX);
-        // the two smallest candidate distances (squared) with their feature ids, and the
-        // smallest bound of a skipped box
-        let mut two: [(f64, usize); 2] = [(f64::INFINITY, usize::MAX); 2];
+        // the smallest candidate distances (squared) with their feature ids, and the smallest
+        // bound of a skipped box
+        let mut near: Nearest = [(f64::INFINITY, usize::MAX); NEAREST];
         let mut skipped = f64::INFINITY;
-        let note = |two: &mut [(f64, usize); 2], d2: f64, id: usize| {
-            if d2 < two[0].0 {
-                two[1] = two[0];
-                two[0] = (d2, id);
-            } else if d2 < two[1].0 {
-                two[1] = (d2, id);
+        let note = |near: &mut Nearest, d2: f64, id: usize| {
+            if d2 < near[NEAREST - 1].0 {
+                let mut i = NEAREST - 1;
+                while i > 0 && near[i - 1].0 > d2 {
+                    near[i] = near[i - 1];
+                    i -= 1;
+                }
+                near[i] = (d2, id);
             }
         };
-        let visit = |c: usize, seg: &mut (f64, usize), ver: &mut (f64, usize), two: &mut [(f64, usize); 2]| {
+        let visit = |c: usize, seg: &mut (f64, usize), ver: &mut (f64, usize), near: &mut Nearest| {
             let hi = ((c + 1) * CHUNK).min(n_seg);
             for k in c * CHUNK..hi {
                 if let Some((_, r)) = project_on_segment(xs, m, k) {
                     let d2 = dot(r, r);
-                    note(two, d2, k);
+                    note(near, d2, k);
                     if d2 < seg.0 || (d2 <= seg.0 && k < seg.1) {
                         *seg = (d2, k);
                     }
@@ -338,14 +421,15 @@ impl MasterIndex {
             for (v, &xv) in m.iter().enumerate().take(hi + 1).skip(c * CHUNK) {
                 let r = sub(xs, xv);
                 let d2 = dot(r, r);
-                note(two, d2, n_seg + v);
+                note(near, d2, n_seg + v);
                 if d2 < ver.0 || (d2 <= ver.0 && v < ver.1) {
                     *ver = (d2, v);
                 }
             }
         };
-        // nearest-box-first descent with an explicit stack (depth <= 64 for any usize size)
-        let mut stack = [0usize; 128];
+        // nearest-box-first descent with an explicit stack: each level pops one node and pushes
+        // two, so it holds at most depth + 1 <= 65 nodes (leaves <= 2^63)
+        let mut stack = [0usize; 66];
         let mut top = 0;
         stack[top] = 1;
         top += 1;
@@ -359,7 +443,7 @@ impl MasterIndex {
                 continue;
             }
             if node >= self.leaves {
-                visit(node - self.leaves, &mut seg, &mut ver, &mut two);
+                visit(node - self.leaves, &mut seg, &mut ver, &mut near);
                 continue;
             }
             let (a, b) = (2 * node, 2 * node + 1);
@@ -369,21 +453,106 @@ impl MasterIndex {
             top += 2;
         }
         let last = m.len() - 1;
-        let best_id = if ver.0 < seg.0 { n_seg + ver.1 } else { seg.1 };
-        let other = if two[0].1 == best_id { two[1].0 } else { two[0].0 };
-        let l2 = other.min(skipped);
-        if ver.0 < seg.0 {
+        let (pair, feature, d2) = if ver.0 < seg.0 {
             let v = ver.1;
-            return if v == 0 || v == last {
-                (Pair::NONE, l2, Some((v, ver.0)))
+            if v == 0 || v == last {
+                (Pair::NONE, Feature::End(v), ver.0)
             } else {
-                (vertex_pair(xs, m, v, PairKind::Vertex(v)), l2, None)
-            };
+                (vertex_pair(xs, m, v, PairKind::Vertex(v)), Feature::Vertex(v), ver.0)
+            }
+        } else if seg.1 == usize::MAX {
+            (Pair::NONE, Feature::Nothing, f64::INFINITY)
+        } else {
+            let k = seg.1;
+            (Self::segment_pair(xs, m, k).expect("the best segment has a projection"), Feature::Segment(k), seg.0)
+        };
+        Found { pair, feature, d2, near, skipped }
+    }
+
+    /// [`Self::closest_point`] and its [`Certificate`]: with `D` the distance to the closest
+    /// feature and `L` a lower bound of the distance to every candidate outside the feature's
+    /// neighbourhood (the nearest such candidate evaluated, and the bounds of the skipped
+    /// boxes), the radius is `(L - D) / 2` less a rounding margin. The neighbourhood of a
+    /// segment `k` is segments `k - 1..=k + 1` and vertices `k`, `k + 1`; of a vertex, itself
+    /// (its two segments have no projection, or they would be at least as close). See
+    /// [`Self::recheck`] for what the certificate proves.
+    pub fn closest_point_certified(&self, xs: [f64; 2], m: &[[f64; 2]]) -> (Pair, Certificate) {
+        let f = self.search(xs, m);
+        (f.pair, Self::certificate(&f, m))
+    }
+
+    fn certificate(f: &Found, m: &[[f64; 2]]) -> Certificate {
+        let n_seg = m.len() - 1;
+        let excluded = |id: usize| match f.feature {
+            Feature::Segment(k) => (id < n_seg && id + 1 >= k && id <= k + 1) || id == n_seg + k || id == n_seg + k + 1,
+            Feature::Vertex(v) | Feature::End(v) => id == n_seg + v,
+            Feature::Nothing => false,
+        };
+        let other = f.near.iter().find(|(_, id)| *id != usize::MAX && !excluded(*id)).map_or(f64::INFINITY, |c| c.0);
+        let (l, d) = (other.min(f.skipped).sqrt(), f.d2.sqrt());
+        let radius = 0.5 * (l - d) - CERTIFICATE_MARGIN * l;
+        let radius = if f.feature != Feature::Nothing && radius > 0.0 { radius } else { 0.0 };
+        Certificate { feature: f.feature, radius }
+    }
+
+    /// The closest point of `xs` on `m` if `cert` (from [`Self::closest_point_certified`] at
+    /// an earlier configuration) proves it, else `None` (search again). `moved` bounds the
+    /// slave's displacement since the certificate plus the largest displacement of any master
+    /// vertex. Every candidate outside the certified feature's neighbourhood was at least `L`
+    /// away, so with `moved < (L - D) / 2` it is still farther than `D + moved`, itself at
+    /// least the feature's present distance (a distance to a point or to a segment changes by
+    /// at most the motion of the point plus that of the segment's ends). The neighbourhood is
+    /// evaluated here with the search's own arithmetic:
+    ///
+    /// - segment `k`: its projection must be valid, its vertices not strictly closer and its
+    ///   neighbours `k ± 1` without a projection or strictly farther;
+    /// - interior vertex `v`: neither adjacent segment may have a projection;
+    /// - end vertex `e` (unpaired): the end segment may not have a projection.
+    ///
+    /// What it returns is then what [`closest_point`] returns, bit for bit, with a radius of
+    /// further motion (from here) within which the pairing kind cannot change, as
+    /// [`Self::closest_point_with_radius`]'s: the certificate's slack `radius - moved`, and
+    /// for the neighbourhood the same bounds as there with the neighbours' distances in place
+    /// of `L` (a segment's distance: to its projection if it has one, else to its nearer end).
+    /// A vertex gets 0.
+    pub fn recheck(xs: [f64; 2], m: &[[f64; 2]], cert: &Certificate, moved: f64) -> Option<(Pair, f64)> {
+        // a NaN motion proves nothing either
+        if moved.is_nan() || moved >= cert.radius {
+            return None;
         }
-        if seg.1 == usize::MAX {
-            return (Pair::NONE, l2, None);
+        let slack = cert.radius - moved;
+        let n_seg = m.len() - 1;
+        let has_projection = |k: usize| project_on_segment(xs, m, k).is_some();
+        let to_vertex = |v: usize| {
+            let r = sub(xs, m[v]);
+            dot(r, r)
+        };
+        match cert.feature {
+            Feature::Segment(k) => {
+                let (_, r) = project_on_segment(xs, m, k)?;
+                let d2 = dot(r, r);
+                if to_vertex(k) < d2 || to_vertex(k + 1) < d2 {
+                    return None;
+                }
+                // each neighbour's distance (squared), which must exceed the segment's
+                let mut near = f64::INFINITY;
+                for j in [k.wrapping_sub(1), k + 1].into_iter().filter(|&j| j < n_seg) {
+                    let dj = match project_on_segment(xs, m, j) {
+                        Some((_, rj)) if dot(rj, rj) <= d2 => return None,
+                        Some((_, rj)) => dot(rj, rj),
+                        None => to_vertex(j).min(to_vertex(j + 1)),
+                    };
+                    near = near.min(dj);
+                }
+                let p = Self::segment_pair(xs, m, k)?;
+                Some((p, segment_radius(xs, m, k, &p, near.sqrt() - d2.sqrt()).min(slack)))
+            }
+            Feature::Vertex(v) => (!has_projection(v - 1) && !has_projection(v))
+                .then(|| (vertex_pair(xs, m, v, PairKind::Vertex(v)), 0.0)),
+            Feature::End(e) => (!has_projection(if e == 0 { 0 } else { n_seg - 1 }))
+                .then(|| (Pair::NONE, end_radius(xs, m, e, to_vertex(e).sqrt(), f64::INFINITY).min(slack))),
+            Feature::Nothing => None,
         }
-        (Self::segment_pair(xs, m, seg.1).expect("the best segment has a projection"), l2, None)
     }
 }
 
@@ -608,6 +777,68 @@ mod tests {
             }
         }
         assert!(checked > 100, "too few unpaired points: {checked}");
+    }
+
+    /// A certificate is safe: after moving the slave and every master vertex at random by
+    /// amounts summing to less than its radius, what [`MasterIndex::recheck`] returns (when it
+    /// returns) is the brute-force [`closest_point`], bit for bit; and it does return for most
+    /// moves, on wavy polylines (convex and concave corners) with slaves near and far, on both
+    /// sides, beyond the ends.
+    #[test]
+    fn certificates_are_safe() {
+        let mut rng = crate::rng::Rng::new(29);
+        let mut index = MasterIndex::default();
+        let (mut checked, mut kept, mut renewed) = (0, 0, 0);
+        let mut features = [0usize; 3];
+        for case in 0..300 {
+            let n = 3 + case % 40;
+            let m: Vec<[f64; 2]> = (0..n)
+                .map(|i| {
+                    let x = i as f64 * 0.1;
+                    [x + rng.uniform_in(-0.02, 0.02), 0.1 * (4.0 * x).sin() + rng.uniform_in(-0.03, 0.03)]
+                })
+                .collect();
+            index.build(&m);
+            for _ in 0..10 {
+                let far = if rng.uniform() < 0.3 { 1.0 } else { 0.2 };
+                let xs = [rng.uniform_in(-far, n as f64 * 0.1 + far), rng.uniform_in(-far, far)];
+                let (p, cert) = index.closest_point_certified(xs, &m);
+                assert_eq!(p, closest_point(xs, &m), "case {case}: the search itself");
+                if cert.radius == 0.0 {
+                    continue;
+                }
+                features[match cert.feature {
+                    Feature::Segment(_) => 0,
+                    Feature::Vertex(_) => 1,
+                    _ => 2,
+                }] += 1;
+                for _ in 0..20 {
+                    let moved = cert.radius * rng.uniform();
+                    let (xs2, m2) = random_motion(&mut rng, xs, &m, moved);
+                    checked += 1;
+                    if let Some((q, r2)) = MasterIndex::recheck(xs2, &m2, &cert, moved) {
+                        kept += 1;
+                        assert_eq!(q, closest_point(xs2, &m2), "case {case}: {xs:?} {cert:?} moved {moved}");
+                        // the renewed radius: the kind holds for any further motion within it
+                        if r2 > 0.0 {
+                            renewed += 1;
+                            let further = r2 * rng.uniform();
+                            let (xs3, m3) = random_motion(&mut rng, xs2, &m2, further);
+                            assert_eq!(closest_point(xs3, &m3).kind, q.kind, "case {case}: renewed {r2}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(features.iter().all(|&c| c > 20), "every feature certified: {features:?}");
+        assert!(kept * 10 > checked * 8, "rechecks kept {kept} of {checked}");
+        assert!(renewed * 2 > kept, "renewed {renewed} of {kept}");
+        // beyond the radius a certificate proves nothing
+        let flat = [[0.0, 0.0], [0.1, 0.0], [0.2, 0.0]];
+        index.build(&flat);
+        let (_, cert) = index.closest_point_certified([0.05, 0.2], &flat);
+        assert!(cert.radius > 0.0 && MasterIndex::recheck([0.05, 0.2], &flat, &cert, 0.0).is_some());
+        assert!(MasterIndex::recheck([0.05, 0.2], &flat, &cert, cert.radius).is_none());
     }
 
     /// The radius of a slave paired with a segment is safe: moving the slave and every master

@@ -34,7 +34,7 @@
 //! reduced constraint then jumps with the pairing, and the re-pairing can cycle between two
 //! states with no fixed point (measured on ironing-fine, design note 36).
 
-use super::pairing::{end_pair, vertex_pair, MasterIndex, Pair, PairKind};
+use super::pairing::{end_pair, vertex_pair, Certificate, MasterIndex, Pair, PairKind};
 
 /// Radius of a vertex's zone, relative to the shorter segment at the vertex: 1 %, five times
 /// the 0.2 % within which an independent implementation and crom settled ironing-coarse slaves
@@ -215,19 +215,20 @@ impl VertexTies {
         Self::realize(self.resolve(s, nat.kind, repairing, xm.len() - 1), nat, xs, xm)
     }
 
-    /// [`Self::pair`] with the radius of [`MasterIndex::closest_point_with_radius`] for an
-    /// unpaired result (0 otherwise, and 0 for a tie).
-    pub fn pair_with_radius(
+    /// [`Self::pair`] with the radius of [`MasterIndex::closest_point_with_radius`] (0 for a
+    /// tie) and the certificate of [`MasterIndex::closest_point_certified`] of the natural
+    /// pairing.
+    pub fn pair_proved(
         &mut self,
         s: usize,
         xs: [f64; 2],
         xm: &[[f64; 2]],
         index: &MasterIndex,
         repairing: usize,
-    ) -> (Pair, f64) {
-        let (nat, r) = index.closest_point_with_radius(xs, xm);
+    ) -> (Pair, f64, Certificate) {
+        let (nat, r, cert) = index.closest_point_proved(xs, xm);
         let kind = self.resolve(s, nat.kind, repairing, xm.len() - 1);
-        (Self::realize(kind, nat, xs, xm), if kind == nat.kind { r } else { 0.0 })
+        (Self::realize(kind, nat, xs, xm), if kind == nat.kind { r } else { 0.0 }, cert)
     }
 
     /// [`Self::pair`] for a slave whose natural pair `nat` is already known (proven unchanged
@@ -261,6 +262,17 @@ impl VertexTies {
     pub fn rule_tie(&self, s: usize, xs: [f64; 2], xm: &[[f64; 2]], index: &MasterIndex) -> Option<usize> {
         let nat = index.closest_point(xs, xm);
         zone_vertex(xs, xm, nat.kind, VERTEX_ZONE).or(if self.forced[s].is_none() { self.flip_vertex(s) } else { None })
+    }
+
+    /// [`Self::rule_tie`] without the search, for a slave not forced whose natural pairing at
+    /// `xs` is the last one recorded ([`Self::pair`], [`Self::pair_known`] or
+    /// [`Self::pair_with_radius`] at this `xs`): reads `xm` around that pairing only.
+    pub fn rule_tie_recorded(&self, s: usize, xs: [f64; 2], xm: &[[f64; 2]]) -> Option<usize> {
+        zone_vertex(xs, xm, self.last[s], VERTEX_ZONE).or(if self.forced[s].is_none() {
+            self.flip_vertex(s)
+        } else {
+            None
+        })
     }
 }
 

@@ -5,7 +5,7 @@ use super::la::{axpy, backward_t, dot, forward, Factor};
 use super::qp::{solve_qp, QpConstraints, QpOutcome, QpWork};
 use super::saddle::{cholesky, solve_saddle};
 use crate::contact::anderson::Anderson;
-use crate::contact::pairing::{vertex_pair, GapRow, MasterIndex, Pair, PairKind};
+use crate::contact::pairing::{vertex_pair, Certificate, Feature, GapRow, MasterIndex, Pair, PairKind};
 use crate::contact::vertex::VertexTies;
 use crate::mu::affine;
 use crate::operator::{ContactOperator, Surface};
@@ -214,6 +214,8 @@ struct WarmStarts {
     dim: usize,
     points: Vec<f64>,
     sets: Vec<Vec<usize>>,
+    /// Type-2: the answers `y` at the samples (`r_u` each), where a query's re-pairing starts.
+    ys: Vec<Vec<f64>>,
 }
 
 /// Directions of `û` along which [`ReducedModel::with_sampled_surface`] matches the
@@ -264,6 +266,39 @@ fn set_positions(
         for cd in [2 * c, 2 * c + 1] {
             let d = if zero { 0.0 } else { dot(&phi_c[cd * r..(cd + 1) * r], u_hat) };
             xc[cd] = base[cd] + d;
+        }
+    }
+}
+
+/// `out = sum_j coef_j Phi_c[dof_j, :]` over the entries of a gap row, in one pass over `out`
+/// (each element written once, not read back per entry).
+fn combine_rows(row: &GapRow, phi_c: &[f64], r: usize, out: &mut [f64]) {
+    let rows: [&[f64]; 6] = std::array::from_fn(|j| {
+        let cd = row.dof[j.min(row.len - 1)];
+        &phi_c[cd * r..(cd + 1) * r]
+    });
+    let c = row.coef;
+    match row.len {
+        6 => {
+            for (j, o) in out.iter_mut().enumerate() {
+                *o = c[0] * rows[0][j]
+                    + c[1] * rows[1][j]
+                    + c[2] * rows[2][j]
+                    + c[3] * rows[3][j]
+                    + c[4] * rows[4][j]
+                    + c[5] * rows[5][j];
+            }
+        }
+        4 => {
+            for (j, o) in out.iter_mut().enumerate() {
+                *o = c[0] * rows[0][j] + c[1] * rows[1][j] + c[2] * rows[2][j] + c[3] * rows[3][j];
+            }
+        }
+        _ => {
+            out.iter_mut().for_each(|o| *o = 0.0);
+            for k in 0..row.len {
+                axpy(c[k], rows[k], out);
+            }
         }
     }
 }
@@ -483,21 +518,28 @@ impl ReducedModel {
         }
     }
 
-    /// The model with a warm-start library for Type-1 queries of [`Algorithm::Exact`]: the
-    /// exact solve (cold) at up to [`WARM_START_SAMPLES`] of `points` (evenly spaced, typically
-    /// the training parameters), and their active sets. A query then starts the QP from the
-    /// active set of the nearest sample (Euclidean distance in the parameter) instead of from
-    /// the unconstrained minimiser. The Type-1 QP is strictly convex, so the answer is the same
-    /// (to round-off) from any start; only the number of active-set steps changes — from the
-    /// 4–8 a cold start needs to reach the rope's 1–2 active constraints, to about one when the
-    /// nearest sample's set is right. A Type-2 model (re-pairing: a truncated reduced problem
-    /// can have several fixed points, and the start picks one) and the paper algorithm are
-    /// returned unchanged. Offline work: one solve per sample.
+    /// The model with a warm-start library for queries of [`Algorithm::Exact`]: the exact
+    /// solve (cold) at up to [`WARM_START_SAMPLES`] of `points` (evenly spaced, typically the
+    /// training parameters), its active set and, Type-2, its answer `y`. A query starts from
+    /// the nearest sample (Euclidean distance in the parameter): the QP from the sample's
+    /// active set instead of the unconstrained minimiser, and Type-2 the re-pairing from the
+    /// sample's `y` instead of `y = 0`. The Type-1 QP is strictly convex, so the answer is the
+    /// same (to round-off) from any start; only the number of active-set steps changes — from
+    /// the 4–8 a cold start needs to reach the rope's 1–2 active constraints, to about one
+    /// when the nearest sample's set is right. A Type-2 re-pairing converges to the same fixed
+    /// point from either start wherever it has one (full bases: the full-order solution;
+    /// measured on ironing-fine with 128 training points: cold and warm agree to 1e-10 at
+    /// every test point for ranks from (16, 60) to (128, 128)); where a truncated reduced
+    /// problem has several, the start picks one (there: 1 of 127 points at (128, 16) and 4 at
+    /// (8, 8) moved, by at most 2.7e-5 relative, against median model errors of 4.7e-3 and
+    /// 1.2e-2).
+    /// The paper algorithm is returned unchanged. Offline work: one solve per sample.
     pub fn with_warm_starts(mut self, points: &[Vec<f64>], p: &RomParams) -> Self {
         self.warm_starts = WarmStarts::default();
-        if !matches!(self.surf, SurfaceData::Fixed { .. }) || p.algorithm != Algorithm::Exact || points.is_empty() {
+        if p.algorithm != Algorithm::Exact || points.is_empty() {
             return self;
         }
+        let repairs = matches!(self.surf, SurfaceData::Nts { .. });
         let n = points.len();
         let take = n.min(WARM_START_SAMPLES);
         let mut lib = WarmStarts { dim: points[0].len(), ..WarmStarts::default() };
@@ -511,6 +553,9 @@ impl ReducedModel {
             if info.outcome == RomOutcome::Converged {
                 lib.points.extend_from_slice(mu);
                 lib.sets.push(w.qp.active.clone());
+                if repairs {
+                    lib.ys.push(w.u_hat.clone());
+                }
             }
         }
         self.warm_starts = lib;
@@ -662,6 +707,9 @@ impl ReducedModel {
             }
         }
         w.warm.extend_from_slice(&lib.sets[best.1]);
+        if let Some(y) = lib.ys.get(best.1) {
+            w.u_hat.copy_from_slice(y);
+        }
     }
 
     /// Replace the dual basis by `theta` (`n_contact x r_l`, column-major, non-negative) and
@@ -781,14 +829,14 @@ impl ReducedModel {
         }
         let (mut iterations, mut linearizations, mut resume) = (0, 0, false);
         loop {
-            let out = match p.algorithm {
+            let (out, retied) = match p.algorithm {
                 Algorithm::Exact => self.solve_exact(mu, p, w, resume),
-                Algorithm::Paper => self.solve_paper(p, w),
+                Algorithm::Paper => (self.solve_paper(p, w), false),
             };
             iterations += out.0;
             linearizations += w.lin.count;
             let rule = p.algorithm == Algorithm::Exact;
-            if out.2 != RomOutcome::Converged || !rule || !self.add_zone_ties(w) {
+            if !retied && (out.2 != RomOutcome::Converged || !rule || !self.add_zone_ties(w)) {
                 // the answer in the caller's basis: û = L^{-T} y
                 let ru = self.r_u;
                 w.coords.clear();
@@ -808,14 +856,20 @@ impl ReducedModel {
     /// flip-tied at the converged state in `w`; returns whether any was added.
     fn add_zone_ties(&self, w: &mut RomWork) -> bool {
         let SurfaceData::Nts { supp, .. } = &self.surf else { return false };
-        let max = (0..w.forced.len()).map(|s| self.pressure_at(s, &w.lam)).fold(0.0f64, f64::max);
+        // the largest pressure over every slave (a slave outside the support has none)
+        w.pressures.clear();
+        w.pressures.extend((0..w.forced.len()).map(|s| self.pressure_at(s, &w.lam)));
+        let max = w.pressures.iter().fold(0.0f64, |m, &p| m.max(p));
         let l = &w.lin;
         let mut added = false;
         for &s in supp {
-            if w.forced[s].is_some() || !l.pairs[s].kind.is_paired() || self.pressure_at(s, &w.lam) <= 1e-9 * max {
+            if w.forced[s].is_some() || !l.pairs[s].kind.is_paired() || w.pressures[s] <= 1e-9 * max {
                 continue;
             }
-            if let Some(v) = l.ties.rule_tie(s, [l.xc[2 * s], l.xc[2 * s + 1]], &l.xm, &l.index) {
+            // every supported slave not forced had its natural pairing recorded at its current
+            // position by the last linearisation (a slave known unpaired is skipped above), so
+            // the rule needs no search
+            if let Some(v) = l.ties.rule_tie_recorded(s, [l.xc[2 * s], l.xc[2 * s + 1]], &l.xm) {
                 w.forced[s] = Some(v);
                 added = true;
             }
@@ -833,12 +887,38 @@ impl ReducedModel {
     /// is a property of the start, cold or resumed alike (measured with other starts on
     /// ironing-coarse: 1 point in 30 moved, by 5e-5 relative, against a reduced-model error of
     /// 1.4e-2 there).
-    fn solve_exact(&self, mu: &[f64], p: &RomParams, w: &mut RomWork, resume: bool) -> (usize, usize, RomOutcome) {
+    ///
+    /// The vertex-zone rule is first asked once the round is within [`ZONE_PROBE`] of its fixed
+    /// point (relative), not at the fixed point itself: where it ties a slave there, the round
+    /// ends at once (returns `true`; the next round starts from this iterate), sparing the
+    /// linearisations that would converge a state the ties are about to change. Where it ties
+    /// nothing, the round goes on to `u_tol` and the caller asks the rule again at the fixed
+    /// point, as the full-order solver does. A decision taken `ZONE_PROBE` from the fixed
+    /// point differs from the one at it only for a slave within that distance of a zone's
+    /// edge; the reduced fixed point itself is a model error (>= 1e-4 relative on the shipped
+    /// scenes' test points) away from the full-order one whose decision the rule reproduces.
+    fn solve_exact(
+        &self,
+        mu: &[f64],
+        p: &RomParams,
+        w: &mut RomWork,
+        resume: bool,
+    ) -> ((usize, usize, RomOutcome), bool) {
         let ru = self.r_u;
+        if !resume {
+            self.seed_warm(mu, w);
+        }
         self.linearize(w);
-        let scale = self.offset_scale(w);
+        let mut scale = self.offset_scale(w);
+        if scale == 0.0 && w.u_hat.iter().any(|&v| v != 0.0) {
+            // no constraint at the sample's answer: start cold
+            w.u_hat.iter_mut().for_each(|v| *v = 0.0);
+            w.warm.clear();
+            self.linearize(w);
+            scale = self.offset_scale(w);
+        }
         if scale == 0.0 {
-            return (0, 0, RomOutcome::Converged);
+            return ((0, 0, RomOutcome::Converged), false);
         }
         let tol = p.gap_tol * scale;
         let max_steps = 10 * (ru + self.r_l) + 10;
@@ -847,12 +927,9 @@ impl ReducedModel {
             w.anderson = Anderson::new(ANDERSON_DEPTH, ru);
         }
         w.anderson.reset();
-        if !resume {
-            self.seed_warm(mu, w);
-        }
         w.seen.clear();
         w.seen.push(w.lin.pairing_hash());
-        let (mut steps, mut smooth, mut last_du) = (0, false, 0.0f64);
+        let (mut steps, mut smooth, mut last_du, mut probed) = (0, false, 0.0f64, false);
         for _ in 0..p.max_iter {
             let out = {
                 let RomWork { lin, qp, x, warm, .. } = w;
@@ -862,8 +939,8 @@ impl ReducedModel {
             steps += w.qp.steps;
             match out {
                 QpOutcome::Solved => {}
-                QpOutcome::Infeasible(_) => return (steps, w.qp.active.len(), RomOutcome::Infeasible),
-                QpOutcome::StepLimit => return (steps, w.qp.active.len(), RomOutcome::NotConverged),
+                QpOutcome::Infeasible(_) => return ((steps, w.qp.active.len(), RomOutcome::Infeasible), false),
+                QpOutcome::StepLimit => return ((steps, w.qp.active.len(), RomOutcome::NotConverged), false),
             }
             w.lam.iter_mut().for_each(|l| *l = 0.0);
             for (&a, &u) in w.qp.active.iter().zip(&w.qp.u) {
@@ -874,7 +951,7 @@ impl ReducedModel {
             if !repairs {
                 // Type-1: one linearisation, the QP solution is the answer
                 w.u_hat.copy_from_slice(&w.x);
-                return (steps, w.qp.active.len(), RomOutcome::Converged);
+                return ((steps, w.qp.active.len(), RomOutcome::Converged), false);
             }
             let du = w.x.iter().zip(&w.u_hat).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
             let un = dot(&w.x, &w.x).sqrt();
@@ -883,12 +960,19 @@ impl ReducedModel {
             let rho = if smooth && last_du > 0.0 { du / last_du } else { f64::INFINITY };
             let estimate = if rho < 0.5 { du * rho / (1.0 - rho) } else { du };
             last_du = du;
+            if !probed && estimate <= ZONE_PROBE * un {
+                probed = true;
+                if self.add_zone_ties(w) {
+                    w.u_hat.copy_from_slice(&w.x);
+                    return ((steps, w.qp.active.len(), RomOutcome::Converged), true);
+                }
+            }
             if estimate <= p.u_tol * un {
                 // fixed point of the linearisation: converged if the pairing at the solution is
                 // the one it was computed with
                 w.u_hat.copy_from_slice(&w.x);
                 if !self.linearize_with(w, false) {
-                    return (steps, w.qp.active.len(), RomOutcome::Converged);
+                    return ((steps, w.qp.active.len(), RomOutcome::Converged), false);
                 }
                 self.assemble(w);
                 w.anderson.reset();
@@ -917,13 +1001,13 @@ impl ReducedModel {
                 // a pairing seen before, reached by a change: the re-pairing cycles
                 let h = w.lin.pairing_hash();
                 if w.seen.contains(&h) {
-                    return (steps, w.qp.active.len(), RomOutcome::Cycled);
+                    return ((steps, w.qp.active.len(), RomOutcome::Cycled), false);
                 }
                 w.seen.push(h);
             }
             smooth = !changed;
         }
-        (steps, w.qp.active.len(), RomOutcome::NotConverged)
+        ((steps, w.qp.active.len(), RomOutcome::NotConverged), false)
     }
 
     fn solve_paper(&self, p: &RomParams, w: &mut RomWork) -> (usize, usize, RomOutcome) {
@@ -1024,18 +1108,29 @@ impl ReducedModel {
 
     /// [`Self::linearize`], rebuilding the gap rows only if `assemble`.
     ///
-    /// Each supported slave gets a safe radius `R_s` where it is searched
-    /// ([`MasterIndex::closest_point_with_radius`]): its pairing kind cannot change while the
-    /// slave and the masters have moved by less than `R_s` in all. They move by at most
-    /// `(|Psi_s| + max_m |Psi_m|) |Δy|` per change `Δy` of the coordinates, so with `T` the
-    /// path length of `y` over the linearisations of this round, the slave's kind is known
-    /// while `T <= T_s + R_s / (|Psi_s| + max_m |Psi_m|)` (its budget), `T_s` the path length
-    /// when it was searched. Then an unpaired slave keeps its pairing and a slave paired with
-    /// segment `k` is projected on `k` again (the search's own arithmetic); slaves forced to a
-    /// vertex by the zone rule are never searched; every other slave is searched and gets a
-    /// new budget. Without `assemble` (the check after convergence), a pairing known unchanged
-    /// returns at once: positions, pairs and rows stay those of the last linearisation,
-    /// `|Δy| <= u_tol |y|` away.
+    /// A slave searched ([`MasterIndex::closest_point_proved`]) gets two proofs that its
+    /// natural pairing holds while the slave and the masters move little:
+    ///
+    /// 1. a radius `R_s` within which the pairing kind cannot change at all. The slave and the
+    ///    masters move by at most `(|Psi_s| + max_m |Psi_m|) |Δy|` per change `Δy` of the
+    ///    coordinates, so with `T` the path length of `y` over the linearisations of this
+    ///    query, the kind is known while `T <= T_s + R_s / (|Psi_s| + max_m |Psi_m|)` (its
+    ///    budget), `T_s` the path length when it was searched. Then an unpaired slave keeps its
+    ///    pairing without even being placed, and a slave paired with segment `k` is projected
+    ///    on `k` again (the search's own arithmetic).
+    /// 2. a [`Certificate`], for when the budget is spent: the natural pairing is re-derived
+    ///    from the neighbourhood of the certified feature alone ([`MasterIndex::recheck`])
+    ///    while the slave's actual displacement since its search plus the masters' largest
+    ///    displacement (summed over the linearisations since, each measured when every master
+    ///    was placed at it and the previous one, else bounded by `max_m |Psi_m| |Δy|`) is
+    ///    below the certificate's radius. Unlike 1 it reads positions, so it needs them; it
+    ///    spares the searches of the slaves far from the master (unpaired, barely moving)
+    ///    and of those that slide along a segment.
+    ///
+    /// Slaves forced to a vertex by the zone rule are never searched; every other slave is
+    /// searched and gets new proofs. Without `assemble` (the check after convergence), a
+    /// pairing known unchanged by 1 returns at once: positions, pairs and rows stay those of
+    /// the last linearisation, `|Δy| <= u_tol |y|` away.
     fn linearize_with(&self, w: &mut RomWork, assemble: bool) -> bool {
         let SurfaceData::Nts { ns, nm, supp, node_norm, master_norm, phi_c, .. } = &self.surf else {
             w.lin.count = 1;
@@ -1045,44 +1140,132 @@ impl ReducedModel {
         let l = &mut w.lin;
         let path = l.travel_to(&w.u_hat);
         let travel = path.unwrap_or(0.0);
-        let known = |l: &LinState, s: usize| path.is_some_and(|t| t <= l.budget[s]);
+        let known = |l: &LinState, s: usize| l.proofs() && path.is_some_and(|t| t <= l.budget[s]);
         if !assemble && supp.iter().all(|&s| known(l, s) || l.ties.forced(s).is_some()) {
             return false;
         }
+        let step = travel - l.travel;
         l.travel = travel;
         l.last_u.clear();
         l.last_u.extend_from_slice(&w.u_hat);
         let (pairs, first) = (&l.pairs, l.fresh);
         let budget = &l.budget;
-        let nodes = supp
-            .iter()
-            .copied()
-            .filter(|&s| first || travel > budget[s] || pairs[s].kind.is_paired())
-            .chain(ns..ns + nm);
-        set_positions(phi_c, self.r_u, &w.u_hat, &l.base, &mut l.xc, nodes);
-        l.index_masters(ns, nm);
+        let slaves = supp.iter().copied().filter(|&s| first || travel > budget[s] || pairs[s].kind.is_paired());
+        set_positions(phi_c, self.r_u, &w.u_hat, &l.base, &mut l.xc, slaves);
+        // Every slave known by its budget on a segment or unpaired, or forced to a vertex,
+        // needs the masters next to its pairing only; any other needs every master (for its
+        // certificate or its search).
+        let everything = supp.iter().any(|&s| {
+            l.ties.forced(s).is_none()
+                && !(known(l, s) && matches!(l.cert[s].feature, Feature::Segment(_) | Feature::End(_)))
+        });
+        let measured = l.prev_full && !first;
+        l.masters_all = false;
+        if everything {
+            l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm);
+            // the masters' largest displacement since the last linearisation, measured when
+            // that one placed them all too
+            let moved = if measured {
+                l.xm.iter()
+                    .zip(&l.xm_prev)
+                    .map(|(a, b)| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2))
+                    .fold(0.0f64, f64::max)
+                    .sqrt()
+            } else {
+                master_norm * step
+            };
+            l.master_path += moved;
+        } else {
+            l.master_path += master_norm * step;
+            l.stamp += 1;
+            for &s in supp {
+                // a tie's averaged normal reads v - 1..=v + 1, an end tie v and its segment, a
+                // segment k its ends (and a tie on them up to k + 2)
+                let lo = match (l.ties.forced(s), l.pairs[s].kind) {
+                    (Some(v), _) | (None, PairKind::Tied(v) | PairKind::End(v) | PairKind::Vertex(v)) => Some(v),
+                    (None, PairKind::Segment(k)) => Some(k),
+                    (None, PairKind::None) => None,
+                };
+                let cert = match l.cert[s].feature {
+                    Feature::Segment(k) | Feature::End(k) => Some(k),
+                    _ => None,
+                };
+                for v in [lo, cert].into_iter().flatten() {
+                    l.window(phi_c, self.r_u, &w.u_hat, ns, v.saturating_sub(1)..(v + 3).min(nm));
+                }
+            }
+        }
         let mut changed = false;
         for &s in supp {
             let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
-            let p = if let Some(v) = l.ties.forced(s) {
-                vertex_pair(xs, &l.xm, v, PairKind::Tied(v))
-            } else if known(l, s) {
-                match l.pairs[s].kind {
-                    PairKind::None => continue,
-                    PairKind::Segment(k) => match MasterIndex::segment_pair(xs, &l.xm, k) {
-                        Some(nat) => l.ties.pair_known(s, nat, xs, &l.xm, l.count),
-                        None => l.ties.pair(s, xs, &l.xm, &l.index, l.count),
-                    },
-                    _ => l.ties.pair(s, xs, &l.xm, &l.index, l.count),
+            if let Some(v) = l.ties.forced(s) {
+                let p = vertex_pair(xs, &l.xm, v, PairKind::Tied(v));
+                changed |= p.kind != l.pairs[s].kind;
+                l.pairs[s] = p;
+                continue;
+            }
+            // the natural pairing from proof 1, else proof 2
+            let mut nat = None;
+            if known(l, s) {
+                nat = match l.cert[s].feature {
+                    Feature::End(_) => Some(Pair::NONE),
+                    Feature::Segment(k) => MasterIndex::segment_pair(xs, &l.xm, k),
+                    _ => None,
+                };
+            }
+            if nat.is_none() && l.masters_all && !first && l.proofs() {
+                let (x0, at) = (l.cert_x[s], l.cert_path[s]);
+                #[cfg(test)]
+                if l.verify {
+                    // the bookkeeping bounds the masters' actual displacement since the search
+                    let actual = l.xm.iter().zip(&l.cert_xm[s]).map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]));
+                    let actual = actual.fold(0.0f64, f64::max);
+                    assert!(actual <= (l.master_path - at) * (1.0 + 1e-12) + 1e-15, "slave {s}: {actual} moved");
                 }
-            } else {
-                let (p, r) = l.ties.pair_with_radius(s, xs, &l.xm, &l.index, l.count);
-                let speed = node_norm[s] + master_norm;
-                l.budget[s] = if speed > 0.0 { travel + r / speed } else { f64::INFINITY };
-                p
+                let moved = ((xs[0] - x0[0]).powi(2) + (xs[1] - x0[1]).powi(2)).sqrt() + (l.master_path - at);
+                if let Some((p, r)) = MasterIndex::recheck(xs, &l.xm, &l.cert[s], moved) {
+                    // a new budget from here (proof 1 again)
+                    let speed = node_norm[s] + master_norm;
+                    l.budget[s] = if speed > 0.0 { travel + r / speed } else { f64::INFINITY };
+                    nat = Some(p);
+                }
+            }
+            #[cfg(test)]
+            if let (Some(q), true) = (nat, l.verify) {
+                // every proved pairing against a search at the same positions
+                if !l.masters_all {
+                    l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm);
+                }
+                assert_eq!(q, l.index.closest_point(xs, &l.xm), "slave {s}: proved pairing is not the search's");
+            }
+            let p = match nat {
+                Some(nat) => l.ties.pair_known(s, nat, xs, &l.xm, l.count),
+                None => {
+                    if !l.masters_all {
+                        l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm);
+                    }
+                    let (p, r, cert) = l.ties.pair_proved(s, xs, &l.xm, &l.index, l.count);
+                    let speed = node_norm[s] + master_norm;
+                    l.budget[s] = if speed > 0.0 { travel + r / speed } else { f64::INFINITY };
+                    l.cert[s] = cert;
+                    l.cert_x[s] = xs;
+                    l.cert_path[s] = l.master_path;
+                    #[cfg(test)]
+                    if l.verify {
+                        l.cert_xm.resize(ns, Vec::new());
+                        l.cert_xm[s] = l.xm.clone();
+                    }
+                    p
+                }
             };
             changed |= p.kind != l.pairs[s].kind;
             l.pairs[s] = p;
+        }
+        // the next linearisation measures the masters' displacement from here if all are placed
+        l.prev_full = l.masters_all;
+        if l.masters_all {
+            l.xm_prev.clear();
+            l.xm_prev.extend_from_slice(&l.xm);
         }
         l.count += 1;
         l.fresh = false;
@@ -1110,11 +1293,7 @@ impl ReducedModel {
             l.ps.push(s);
             let at = l.cphi.len();
             l.cphi.resize(at + ru, 0.0);
-            for (cd, c) in row.entries() {
-                for (o, v) in l.cphi[at..].iter_mut().zip(&phi_c[cd * ru..(cd + 1) * ru]) {
-                    *o += c * v;
-                }
-            }
+            combine_rows(&row, phi_c, ru, &mut l.cphi[at..]);
             l.g0.push(row.apply(&l.base));
         }
     }
@@ -1338,8 +1517,10 @@ impl QpConstraints for Oracle<'_> {
             SurfaceData::Nts { .. } => {
                 s.iter_mut().for_each(|v| *v = 0.0);
                 let l = &*self.lin;
+                // at x = 0 (the QP's warm start) the gaps are the constant parts
+                let zero = x.iter().all(|&v| v == 0.0);
                 for (k, &sl) in l.ps.iter().enumerate() {
-                    let g = dot(&l.cphi[k * ru..(k + 1) * ru], x) + l.g0[k];
+                    let g = if zero { l.g0[k] } else { dot(&l.cphi[k * ru..(k + 1) * ru], x) + l.g0[k] };
                     let wg = m.gap_weight(sl) * g;
                     for e in m.by_node.0[sl]..m.by_node.0[sl + 1] {
                         s[m.by_node.1[e]] += m.by_node.2[e] * wg;
@@ -1402,9 +1583,42 @@ struct LinState {
     budget: Vec<f64>,
     /// Linearisations computed.
     count: usize,
+    /// Whether `xm` and `index` hold every master at the last linearisation (else only the
+    /// masters next to the pairings, see [`ReducedModel::linearize_with`]).
+    masters_all: bool,
+    /// Per master the `stamp` of the linearisation that placed it last.
+    placed: Vec<usize>,
+    stamp: usize,
+    /// Each slave's certificate from its last search, its position then and `master_path`
+    /// then (see [`ReducedModel::linearize_with`]).
+    cert: Vec<Certificate>,
+    cert_x: Vec<[f64; 2]>,
+    cert_path: Vec<f64>,
+    /// Bound of the path length of the largest master displacement over this query's
+    /// linearisations, and the masters at the last linearisation that placed them all.
+    master_path: f64,
+    xm_prev: Vec<[f64; 2]>,
+    prev_full: bool,
+    /// Tests: search every slave at every linearisation (no proofs).
+    #[cfg(test)]
+    search_all: bool,
+    /// Tests: check every proved pairing against a search, and the masters at each search.
+    #[cfg(test)]
+    verify: bool,
+    #[cfg(test)]
+    cert_xm: Vec<Vec<[f64; 2]>>,
 }
 
 impl LinState {
+    /// Whether pairings may be proved unchanged instead of searched (always, but in tests that
+    /// compare against searching every slave).
+    fn proofs(&self) -> bool {
+        #[cfg(test)]
+        return !self.search_all;
+        #[cfg(not(test))]
+        true
+    }
+
     /// The path length of `y` up to `u` (the linearisations' path plus the step from the last
     /// one to `u`); `None` before the first linearisation of the query.
     fn travel_to(&self, u: &[f64]) -> Option<f64> {
@@ -1417,6 +1631,26 @@ impl LinState {
     fn restart(&mut self, forced: &[Option<usize>]) {
         self.ties.force(forced);
         self.count = 0;
+    }
+
+    /// Every master's position at `y` (contact nodes `ns..ns + nm`, into `xc` and `xm`) and
+    /// the search index over them.
+    fn all_masters(&mut self, phi_c: &[f64], r: usize, y: &[f64], ns: usize, nm: usize) {
+        set_positions(phi_c, r, y, &self.base, &mut self.xc, ns..ns + nm);
+        self.index_masters(ns, nm);
+        self.masters_all = true;
+    }
+
+    /// The positions at `y` of the masters in `range` not yet placed at this linearisation
+    /// (`stamp`), into `xc` and `xm`; the index is left as it was.
+    fn window(&mut self, phi_c: &[f64], r: usize, y: &[f64], ns: usize, range: std::ops::Range<usize>) {
+        for k in range {
+            if self.placed[k] != self.stamp {
+                self.placed[k] = self.stamp;
+                set_positions(phi_c, r, y, &self.base, &mut self.xc, std::iter::once(ns + k));
+                self.xm[k] = [self.xc[2 * (ns + k)], self.xc[2 * (ns + k) + 1]];
+            }
+        }
     }
 
     /// Copy the masters' positions (contact nodes `ns..ns + nm`) into `xm` and rebuild the
@@ -1461,6 +1695,10 @@ fn state_hash(mask: &[bool], pairing: u64) -> u64 {
 /// (`ContactSolveParams::rel_tol`), so smaller multipliers carry no information.
 const PAPER_LAM_TOL: f64 = 1e-10;
 
+/// Distance to a round's fixed point (relative to `|y|`) at which the online solve first asks
+/// the vertex-zone rule (see [`ReducedModel::solve_in`]'s rounds).
+const ZONE_PROBE: f64 = 1e-6;
+
 /// Depth of the Anderson mixing of the outer re-pairing loop (as the full-order solver's).
 const ANDERSON_DEPTH: usize = 3;
 
@@ -1486,6 +1724,8 @@ pub struct RomWork {
     fnode: Vec<(usize, f64)>,
     /// Slaves forced to a vertex by the vertex-zone rule in the current query.
     forced: Vec<Option<usize>>,
+    /// Pressure per slave (the vertex-zone rule).
+    pressures: Vec<f64>,
 }
 
 impl Default for RomWork {
@@ -1506,11 +1746,29 @@ impl Default for RomWork {
             phit_f: Vec::new(),
             fnode: Vec::new(),
             forced: Vec::new(),
+            pressures: Vec::new(),
         }
     }
 }
 
 impl RomWork {
+    /// Buffers whose queries search every slave at every linearisation (tests).
+    #[cfg(test)]
+    pub(crate) fn searching_always() -> Self {
+        let mut w = Self::default();
+        w.lin.search_all = true;
+        w
+    }
+
+    /// Buffers whose queries check every proved pairing against a search, and panic if they
+    /// differ (tests).
+    #[cfg(test)]
+    pub(crate) fn verifying_proofs() -> Self {
+        let mut w = Self::default();
+        w.lin.verify = true;
+        w
+    }
+
     /// The solution of the last [`ReducedModel::solve_in`] with these buffers.
     pub fn solution(&self, info: &SolveInfo) -> ReducedSolution {
         let max = self.lam.iter().fold(0.0f64, |m, l| m.max(*l));
@@ -1550,12 +1808,22 @@ impl RomWork {
             l.xc.resize(ncd, f64::NAN);
             l.xm.clear();
             l.xm.resize(*nm, [0.0; 2]);
+            l.placed.resize(*nm, 0);
+            l.masters_all = false;
             l.pairs.clear();
             l.pairs.resize(*ns, Pair::NONE);
             l.ps_of.clear();
             l.ps_of.resize(*ns, usize::MAX);
             l.budget.clear();
             l.budget.resize(*ns, 0.0);
+            l.cert.clear();
+            l.cert.resize(*ns, Certificate::default());
+            l.cert_x.clear();
+            l.cert_x.resize(*ns, [0.0; 2]);
+            l.cert_path.clear();
+            l.cert_path.resize(*ns, 0.0);
+            l.master_path = 0.0;
+            l.prev_full = false;
             l.travel = 0.0;
             l.fresh = true;
             l.ties.set_end_ties(true);
