@@ -289,6 +289,7 @@ impl MasterIndex {
         self.n_seg = m.len() - 1;
         let chunks = self.n_seg.div_ceil(CHUNK);
         self.leaves = chunks.next_power_of_two();
+        assert!(self.leaves <= 1 << 31, "a master polyline of {} segments is beyond the search's node ids", self.n_seg);
         self.boxes.clear();
         self.boxes.resize(2 * self.leaves, EMPTY_BOX);
         for c in 0..chunks {
@@ -428,14 +429,15 @@ impl MasterIndex {
             }
         };
         // nearest-box-first descent with an explicit stack: each level pops one node and pushes
-        // two, so it holds at most depth + 1 <= 65 nodes (leaves <= 2^63)
-        let mut stack = [0usize; 66];
+        // two, so it holds at most depth + 1 <= 33 nodes (leaves <= 2^31, see `build`); node
+        // ids as u32 keep the array that is zeroed per search small
+        let mut stack = [0u32; 34];
         let mut top = 0;
         stack[top] = 1;
         top += 1;
         while top > 0 {
             top -= 1;
-            let node = stack[top];
+            let node = stack[top] as usize;
             let best = seg.0.min(ver.0);
             let lb = self.lower_bound(node, xs);
             if lb > best * (1.0 + PRUNE_MARGIN) {
@@ -448,8 +450,8 @@ impl MasterIndex {
             }
             let (a, b) = (2 * node, 2 * node + 1);
             let (near, far) = if self.lower_bound(b, xs) < self.lower_bound(a, xs) { (b, a) } else { (a, b) };
-            stack[top] = far;
-            stack[top + 1] = near;
+            stack[top] = far as u32;
+            stack[top + 1] = near as u32;
             top += 2;
         }
         let last = m.len() - 1;

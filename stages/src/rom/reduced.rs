@@ -1281,7 +1281,6 @@ impl ReducedModel {
         let ru = self.r_u;
         let l = &mut w.lin;
         l.ps.clear();
-        l.cphi.clear();
         l.g0.clear();
         for &s in supp {
             l.ps_of[s] = usize::MAX;
@@ -1289,11 +1288,15 @@ impl ReducedModel {
                 continue;
             }
             let row = GapRow::new(s, *ns, &l.pairs[s]);
+            // row k of `cphi` (the buffer only grows: every row below `ps.len()` is written
+            // here before it is read)
+            let at = l.ps.len() * ru;
             l.ps_of[s] = l.ps.len();
             l.ps.push(s);
-            let at = l.cphi.len();
-            l.cphi.resize(at + ru, 0.0);
-            combine_rows(&row, phi_c, ru, &mut l.cphi[at..]);
+            if l.cphi.len() < at + ru {
+                l.cphi.resize(at + ru, 0.0);
+            }
+            combine_rows(&row, phi_c, ru, &mut l.cphi[at..at + ru]);
             l.g0.push(row.apply(&l.base));
         }
     }
