@@ -781,6 +781,16 @@ mod tests {
         assert!(checked > 100, "too few unpaired points: {checked}");
     }
 
+    /// `n` points along `y = 0.1 sin(4 x)`, `x = 0.1 i`, each jittered by up to `dx`, `dy`.
+    fn wavy(rng: &mut crate::rng::Rng, n: usize, dx: f64, dy: f64) -> Vec<[f64; 2]> {
+        (0..n)
+            .map(|i| {
+                let x = i as f64 * 0.1;
+                [x + rng.uniform_in(-dx, dx), 0.1 * (4.0 * x).sin() + rng.uniform_in(-dy, dy)]
+            })
+            .collect()
+    }
+
     /// A certificate is safe: after moving the slave and every master vertex at random by
     /// amounts summing to less than its radius, what [`MasterIndex::recheck`] returns (when it
     /// returns) is the brute-force [`closest_point`], bit for bit; and it does return for most
@@ -794,12 +804,7 @@ mod tests {
         let mut features = [0usize; 3];
         for case in 0..300 {
             let n = 3 + case % 40;
-            let m: Vec<[f64; 2]> = (0..n)
-                .map(|i| {
-                    let x = i as f64 * 0.1;
-                    [x + rng.uniform_in(-0.02, 0.02), 0.1 * (4.0 * x).sin() + rng.uniform_in(-0.03, 0.03)]
-                })
-                .collect();
+            let m = wavy(&mut rng, n, 0.02, 0.03);
             index.build(&m);
             for _ in 0..10 {
                 let far = if rng.uniform() < 0.3 { 1.0 } else { 0.2 };
@@ -854,12 +859,7 @@ mod tests {
         let mut checked = 0;
         for case in 0..200 {
             let n = 3 + case % 30;
-            let m: Vec<[f64; 2]> = (0..n)
-                .map(|i| {
-                    let x = i as f64 * 0.1;
-                    [x + rng.uniform_in(-0.01, 0.01), 0.1 * (4.0 * x).sin() + rng.uniform_in(-0.02, 0.02)]
-                })
-                .collect();
+            let m = wavy(&mut rng, n, 0.01, 0.02);
             index.build(&m);
             for _ in 0..10 {
                 let xs = [rng.uniform_in(-0.1, n as f64 * 0.1), rng.uniform_in(-0.2, 0.3)];
