@@ -266,7 +266,7 @@ impl VertexTies {
 
     /// [`Self::rule_tie`] without the search, for a slave not forced whose natural pairing at
     /// `xs` is the last one recorded ([`Self::pair`], [`Self::pair_known`] or
-    /// [`Self::pair_with_radius`] at this `xs`): reads `xm` around that pairing only.
+    /// [`Self::pair_proved`] at this `xs`): reads `xm` around that pairing only.
     pub fn rule_tie_recorded(&self, s: usize, xs: [f64; 2], xm: &[[f64; 2]]) -> Option<usize> {
         zone_vertex(xs, xm, self.last[s], VERTEX_ZONE).or(if self.forced[s].is_none() {
             self.flip_vertex(s)

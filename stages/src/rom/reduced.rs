@@ -895,8 +895,8 @@ impl ReducedModel {
     /// nothing, the round goes on to `u_tol` and the caller asks the rule again at the fixed
     /// point, as the full-order solver does. A decision taken `ZONE_PROBE` from the fixed
     /// point differs from the one at it only for a slave within that distance of a zone's
-    /// edge; the reduced fixed point itself is a model error (>= 1e-4 relative on the shipped
-    /// scenes' test points) away from the full-order one whose decision the rule reproduces.
+    /// edge (measured on ironing-fine's 127 test points at five rank pairs: the same answers
+    /// to 2.1e-11, design note 41).
     fn solve_exact(
         &self,
         mu: &[f64],
