@@ -134,7 +134,7 @@ pub fn end_pair(xs: [f64; 2], m: &[[f64; 2]], v: usize) -> Pair {
     Pair { kind: PairKind::End(v), xi: 0.0, normal: n, gap: dot(sub(xs, m[v]), n) }
 }
 
-/// [`MasterIndex::closest_point_with_radius`]'s radius for a slave at `xs` paired with segment
+/// [`MasterIndex::closest_point_proved`]'s radius for a slave at `xs` paired with segment
 /// `k` (`p`), `l_minus_d` the margin of every other candidate's distance over its own.
 fn segment_radius(xs: [f64; 2], m: &[[f64; 2]], k: usize, p: &Pair, l_minus_d: f64) -> f64 {
     let (a, b) = (m[k], m[k + 1]);
@@ -147,7 +147,7 @@ fn segment_radius(xs: [f64; 2], m: &[[f64; 2]], k: usize, p: &Pair, l_minus_d: f
     positive(0.5 * (l_minus_d / 2.0).min(margin / (3.0 + 4.0 * reach / h)).min(h / 4.0))
 }
 
-/// [`MasterIndex::closest_point_with_radius`]'s radius for a slave at `xs` closest to the end
+/// [`MasterIndex::closest_point_proved`]'s radius for a slave at `xs` closest to the end
 /// vertex `e` (at distance `d`), `l_minus_d` as in [`segment_radius`].
 fn end_radius(xs: [f64; 2], m: &[[f64; 2]], e: usize, d: f64, l_minus_d: f64) -> f64 {
     let last = m.len() - 1;
@@ -220,7 +220,7 @@ pub enum Feature {
 }
 
 /// What a search proves about the closest point for a while: see
-/// [`MasterIndex::closest_point_certified`] and [`MasterIndex::recheck`].
+/// [`MasterIndex::closest_point_proved`] and [`MasterIndex::recheck`].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Certificate {
     pub feature: Feature,
@@ -235,7 +235,7 @@ const CERTIFICATE_MARGIN: f64 = 1e-12;
 
 /// Candidates a search keeps, nearest first: enough to see past a segment's neighbourhood
 /// (three segments and two vertices, each vertex possibly met twice at a chunk boundary) in
-/// [`MasterIndex::closest_point_certified`].
+/// [`MasterIndex::closest_point_proved`]'s certificate.
 const NEAREST: usize = 8;
 
 type Nearest = [(f64, usize); NEAREST];
@@ -320,8 +320,10 @@ impl MasterIndex {
         self.search(xs, m).pair
     }
 
-    /// [`Self::closest_point`] and, when the slave is unpaired (closest to an end vertex `e`),
-    /// a radius `R > 0` within which the result cannot change: if afterwards the slave moves
+    /// [`Self::closest_point`] with two proofs that it holds for a while, from one search.
+    ///
+    /// **A radius.** When the slave is unpaired (closest to an end vertex `e`), a radius
+    /// `R > 0` within which the result cannot change: if afterwards the slave moves
     /// by `d_s` and every master vertex by at most `d_m` with `d_s + d_m <= R`, the closest
     /// point is still `e`. With `D` the distance to `e`, `L` a lower bound of the distance to
     /// every other candidate (the second-best candidate evaluated and the bounds of the skipped
@@ -349,18 +351,19 @@ impl MasterIndex {
     ///
     /// `R` is half the smallest of `(L - D) / 2`, `min(s, h - s) / (3 + 4 P / h)` and `h / 4`.
     /// Slaves paired with an interior vertex get `R = 0`.
-    pub fn closest_point_with_radius(&self, xs: [f64; 2], m: &[[f64; 2]]) -> (Pair, f64) {
-        let f = self.search(xs, m);
-        (f.pair, Self::radius(&f, xs, m))
-    }
-
-    /// [`Self::closest_point`] with both [`Self::closest_point_with_radius`]'s radius and
-    /// [`Self::closest_point_certified`]'s certificate, from one search.
+    ///
+    /// **A [`Certificate`]:** with `D` the distance to the closest feature and `L` a lower bound
+    /// of the distance to every candidate outside the feature's neighbourhood (the nearest such
+    /// candidate evaluated, and the bounds of the skipped boxes), the radius is `(L - D) / 2`
+    /// less a rounding margin. The neighbourhood of a segment `k` is segments `k - 1..=k + 1`
+    /// and vertices `k`, `k + 1`; of a vertex, itself (its two segments have no projection, or
+    /// they would be at least as close). See [`Self::recheck`] for what it proves.
     pub fn closest_point_proved(&self, xs: [f64; 2], m: &[[f64; 2]]) -> (Pair, f64, Certificate) {
         let f = self.search(xs, m);
         (f.pair, Self::radius(&f, xs, m), Self::certificate(&f, m))
     }
 
+    /// The radius of a search (see [`Self::closest_point_proved`]).
     fn radius(f: &Found, xs: [f64; 2], m: &[[f64; 2]]) -> f64 {
         let n_seg = m.len() - 1;
         let best_id = match f.feature {
@@ -379,7 +382,7 @@ impl MasterIndex {
 
     /// The pair with segment `k` itself (what [`Self::closest_point`] returns when `k` is the
     /// closest feature: the same arithmetic), or `None` when the projection onto `k` is
-    /// invalid. For a slave known to stay paired with `k` ([`Self::closest_point_with_radius`]).
+    /// invalid. For a slave known to stay paired with `k` ([`Self::closest_point_proved`]).
     pub fn segment_pair(xs: [f64; 2], m: &[[f64; 2]], k: usize) -> Option<Pair> {
         let (xi, r) = project_on_segment(xs, m, k)?;
         let n = segment_normal(m, k);
@@ -471,18 +474,7 @@ impl MasterIndex {
         Found { pair, feature, d2, near, skipped }
     }
 
-    /// [`Self::closest_point`] and its [`Certificate`]: with `D` the distance to the closest
-    /// feature and `L` a lower bound of the distance to every candidate outside the feature's
-    /// neighbourhood (the nearest such candidate evaluated, and the bounds of the skipped
-    /// boxes), the radius is `(L - D) / 2` less a rounding margin. The neighbourhood of a
-    /// segment `k` is segments `k - 1..=k + 1` and vertices `k`, `k + 1`; of a vertex, itself
-    /// (its two segments have no projection, or they would be at least as close). See
-    /// [`Self::recheck`] for what the certificate proves.
-    pub fn closest_point_certified(&self, xs: [f64; 2], m: &[[f64; 2]]) -> (Pair, Certificate) {
-        let f = self.search(xs, m);
-        (f.pair, Self::certificate(&f, m))
-    }
-
+    /// The certificate of a search (see [`Self::closest_point_proved`]).
     fn certificate(f: &Found, m: &[[f64; 2]]) -> Certificate {
         let n_seg = m.len() - 1;
         let excluded = |id: usize| match f.feature {
@@ -497,7 +489,7 @@ impl MasterIndex {
         Certificate { feature: f.feature, radius }
     }
 
-    /// The closest point of `xs` on `m` if `cert` (from [`Self::closest_point_certified`] at
+    /// The closest point of `xs` on `m` if `cert` (from [`Self::closest_point_proved`] at
     /// an earlier configuration) proves it, else `None` (search again). `moved` bounds the
     /// slave's displacement since the certificate plus the largest displacement of any master
     /// vertex. Every candidate outside the certified feature's neighbourhood was at least `L`
@@ -513,7 +505,7 @@ impl MasterIndex {
     ///
     /// What it returns is then what [`closest_point`] returns, bit for bit, with a radius of
     /// further motion (from here) within which the pairing kind cannot change, as
-    /// [`Self::closest_point_with_radius`]'s: the certificate's slack `radius - moved`, and
+    /// [`Self::closest_point_proved`]'s radius: the certificate's slack `radius - moved`, and
     /// for the neighbourhood the same bounds as there with the neighbours' distances in place
     /// of `L` (a segment's distance: to its projection if it has one, else to its nearer end).
     /// A vertex gets 0.
@@ -767,7 +759,7 @@ mod tests {
             index.build(&m);
             for _ in 0..10 {
                 let xs = [rng.uniform_in(-(n as f64) * 0.1 - 1.0, 1.0), rng.uniform_in(-0.3, 0.3)];
-                let (p, r) = index.closest_point_with_radius(xs, &m);
+                let (p, r, _) = index.closest_point_proved(xs, &m);
                 if p.kind != PairKind::None || r == 0.0 {
                     continue;
                 }
@@ -809,7 +801,7 @@ mod tests {
             for _ in 0..10 {
                 let far = if rng.uniform() < 0.3 { 1.0 } else { 0.2 };
                 let xs = [rng.uniform_in(-far, n as f64 * 0.1 + far), rng.uniform_in(-far, far)];
-                let (p, cert) = index.closest_point_certified(xs, &m);
+                let (p, _, cert) = index.closest_point_proved(xs, &m);
                 assert_eq!(p, closest_point(xs, &m), "case {case}: the search itself");
                 if cert.radius == 0.0 {
                     continue;
@@ -843,7 +835,7 @@ mod tests {
         // beyond the radius a certificate proves nothing
         let flat = [[0.0, 0.0], [0.1, 0.0], [0.2, 0.0]];
         index.build(&flat);
-        let (_, cert) = index.closest_point_certified([0.05, 0.2], &flat);
+        let (_, _, cert) = index.closest_point_proved([0.05, 0.2], &flat);
         assert!(cert.radius > 0.0 && MasterIndex::recheck([0.05, 0.2], &flat, &cert, 0.0).is_some());
         assert!(MasterIndex::recheck([0.05, 0.2], &flat, &cert, cert.radius).is_none());
     }
@@ -863,7 +855,7 @@ mod tests {
             index.build(&m);
             for _ in 0..10 {
                 let xs = [rng.uniform_in(-0.1, n as f64 * 0.1), rng.uniform_in(-0.2, 0.3)];
-                let (p, r) = index.closest_point_with_radius(xs, &m);
+                let (p, r, _) = index.closest_point_proved(xs, &m);
                 let PairKind::Segment(k) = p.kind else { continue };
                 if r == 0.0 {
                     continue;

@@ -215,9 +215,8 @@ impl VertexTies {
         Self::realize(self.resolve(s, nat.kind, repairing, xm.len() - 1), nat, xs, xm)
     }
 
-    /// [`Self::pair`] with the radius of [`MasterIndex::closest_point_with_radius`] (0 for a
-    /// tie) and the certificate of [`MasterIndex::closest_point_certified`] of the natural
-    /// pairing.
+    /// [`Self::pair`] with the radius (0 for a tie) and the certificate of the natural pairing
+    /// from [`MasterIndex::closest_point_proved`].
     pub fn pair_proved(
         &mut self,
         s: usize,
@@ -232,7 +231,7 @@ impl VertexTies {
     }
 
     /// [`Self::pair`] for a slave whose natural pair `nat` is already known (proven unchanged
-    /// by a radius of [`MasterIndex::closest_point_with_radius`]): the same resolution and
+    /// by a radius of [`MasterIndex::closest_point_proved`]): the same resolution and
     /// history update, no search.
     pub fn pair_known(&mut self, s: usize, nat: Pair, xs: [f64; 2], xm: &[[f64; 2]], repairing: usize) -> Pair {
         Self::realize(self.resolve(s, nat.kind, repairing, xm.len() - 1), nat, xs, xm)

@@ -270,6 +270,21 @@ fn set_positions(
     }
 }
 
+/// Euclidean distance of two points.
+fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+}
+
+/// The path length of `y` up to which a pairing proved with radius `r` at path length
+/// `travel` holds, for a slave and masters moving at most `speed` per unit of path.
+fn budget_until(travel: f64, r: f64, speed: f64) -> f64 {
+    if speed > 0.0 {
+        travel + r / speed
+    } else {
+        f64::INFINITY
+    }
+}
+
 /// `out = sum_j coef_j Phi_c[dof_j, :]` over the entries of a gap row, in one pass over `out`
 /// (each element written once, not read back per entry).
 fn combine_rows(row: &GapRow, phi_c: &[f64], r: usize, out: &mut [f64]) {
@@ -1140,7 +1155,7 @@ impl ReducedModel {
         let l = &mut w.lin;
         let path = l.travel_to(&w.u_hat);
         let travel = path.unwrap_or(0.0);
-        let known = |l: &LinState, s: usize| l.proofs() && path.is_some_and(|t| t <= l.budget[s]);
+        let known = |l: &LinState, s: usize| l.budget_holds(s, path);
         if !assemble && supp.iter().all(|&s| known(l, s) || l.ties.forced(s).is_some()) {
             return false;
         }
@@ -1166,11 +1181,7 @@ impl ReducedModel {
             // the masters' largest displacement since the last linearisation, measured when
             // that one placed them all too
             let moved = if measured {
-                l.xm.iter()
-                    .zip(&l.xm_prev)
-                    .map(|(a, b)| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2))
-                    .fold(0.0f64, f64::max)
-                    .sqrt()
+                l.xm.iter().zip(&l.xm_prev).map(|(&a, &b)| distance(a, b)).fold(0.0f64, f64::max)
             } else {
                 master_norm * step
             };
@@ -1205,28 +1216,19 @@ impl ReducedModel {
                 continue;
             }
             // the natural pairing from proof 1, else proof 2
-            let mut nat = None;
-            if known(l, s) {
-                nat = match l.cert[s].feature {
-                    Feature::End(_) => Some(Pair::NONE),
-                    Feature::Segment(k) => MasterIndex::segment_pair(xs, &l.xm, k),
-                    _ => None,
-                };
-            }
+            let mut nat = l.budget_pair(s, xs, path);
             if nat.is_none() && l.masters_all && !first && l.proofs() {
                 let (x0, at) = (l.cert_x[s], l.cert_path[s]);
                 #[cfg(test)]
                 if l.verify {
                     // the bookkeeping bounds the masters' actual displacement since the search
-                    let actual = l.xm.iter().zip(&l.cert_xm[s]).map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]));
-                    let actual = actual.fold(0.0f64, f64::max);
+                    let actual = l.xm.iter().zip(&l.cert_xm[s]).map(|(&a, &b)| distance(a, b)).fold(0.0f64, f64::max);
                     assert!(actual <= (l.master_path - at) * (1.0 + 1e-12) + 1e-15, "slave {s}: {actual} moved");
                 }
-                let moved = ((xs[0] - x0[0]).powi(2) + (xs[1] - x0[1]).powi(2)).sqrt() + (l.master_path - at);
+                let moved = distance(xs, x0) + (l.master_path - at);
                 if let Some((p, r)) = MasterIndex::recheck(xs, &l.xm, &l.cert[s], moved) {
                     // a new budget from here (proof 1 again)
-                    let speed = node_norm[s] + master_norm;
-                    l.budget[s] = if speed > 0.0 { travel + r / speed } else { f64::INFINITY };
+                    l.budget[s] = budget_until(travel, r, node_norm[s] + master_norm);
                     nat = Some(p);
                 }
             }
@@ -1245,8 +1247,7 @@ impl ReducedModel {
                         l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm);
                     }
                     let (p, r, cert) = l.ties.pair_proved(s, xs, &l.xm, &l.index, l.count);
-                    let speed = node_norm[s] + master_norm;
-                    l.budget[s] = if speed > 0.0 { travel + r / speed } else { f64::INFINITY };
+                    l.budget[s] = budget_until(travel, r, node_norm[s] + master_norm);
                     l.cert[s] = cert;
                     l.cert_x[s] = xs;
                     l.cert_path[s] = l.master_path;
@@ -1394,20 +1395,15 @@ impl ReducedModel {
                 // (see `linearize_with`) are not searched again; the others are
                 let path = l.travel_to(&w.u_hat);
                 let by_node = &self.by_node;
-                let known =
-                    |l: &LinState, s: usize| by_node.0[s + 1] > by_node.0[s] && path.is_some_and(|t| t <= l.budget[s]);
-                set_positions(phi_c, ru, &w.u_hat, &l.base, &mut l.xc, slaves().chain(ns..ns + nm));
-                l.index_masters(ns, nm);
+                set_positions(phi_c, ru, &w.u_hat, &l.base, &mut l.xc, slaves());
+                l.all_masters(phi_c, ru, &w.u_hat, ns, nm);
                 let ncd = l.xc.len();
                 l.fc.clear();
                 l.fc.resize(ncd, 0.0);
                 for s in slaves() {
                     let xs = [l.xc[2 * s], l.xc[2 * s + 1]];
-                    let nat = match (known(l, s), l.pairs[s].kind) {
-                        (true, PairKind::None) => Some(Pair::NONE),
-                        (true, PairKind::Segment(k)) => MasterIndex::segment_pair(xs, &l.xm, k),
-                        _ => None,
-                    };
+                    let supported = by_node.0[s + 1] > by_node.0[s];
+                    let nat = if supported { l.budget_pair(s, xs, path) } else { None };
                     let pr: Pair = match nat {
                         Some(nat) => l.ties.peek_known(s, nat, xs, &l.xm),
                         None => l.ties.pair_peek(s, xs, &l.xm, &l.index),
@@ -1620,6 +1616,25 @@ impl LinState {
         return !self.search_all;
         #[cfg(not(test))]
         true
+    }
+
+    /// Whether slave `s`'s budget still proves its natural pairing kind at the path length
+    /// `path` of `y` (proof 1 of [`ReducedModel::linearize_with`]).
+    fn budget_holds(&self, s: usize, path: Option<f64>) -> bool {
+        self.proofs() && path.is_some_and(|t| t <= self.budget[s])
+    }
+
+    /// Slave `s`'s natural pairing at `xs` when its budget proves it: unpaired, or projected
+    /// on its segment again (the search's arithmetic; `None` if the projection is invalid).
+    fn budget_pair(&self, s: usize, xs: [f64; 2], path: Option<f64>) -> Option<Pair> {
+        if !self.budget_holds(s, path) {
+            return None;
+        }
+        match self.cert[s].feature {
+            Feature::End(_) => Some(Pair::NONE),
+            Feature::Segment(k) => MasterIndex::segment_pair(xs, &self.xm, k),
+            _ => None,
+        }
     }
 
     /// The path length of `y` up to `u` (the linearisations' path plus the step from the last
