@@ -211,6 +211,16 @@ mod tests {
         M.get_or_init(|| build_ironing(&ironing_coarse_params()).expect("ironing").factor().expect("factor"))
     }
 
+    /// The 17 ironing-coarse training points of the reduced-model tests, `d_x = 3 k / 16`.
+    fn coarse_mus() -> Vec<f64> {
+        (0..17).map(|k| 3.0 * k as f64 / 16.0).collect()
+    }
+
+    /// Scalar parameters as parameter points.
+    fn points(mus: &[f64]) -> Vec<Vec<f64>> {
+        mus.iter().map(|&m| vec![m]).collect()
+    }
+
     fn ironing_coarse_params() -> IroningParams {
         IroningParams {
             slab_length: 5.0,
@@ -504,7 +514,7 @@ mod tests {
     #[test]
     fn truncated_dual_bases_converge_at_every_test_point() {
         let fm = ironing_coarse();
-        let mus: Vec<f64> = (0..17).map(|k| 3.0 * k as f64 / 16.0).collect();
+        let mus = coarse_mus();
         let (rom, _, _) = full_rom(fm, &mus);
         let (mut w, p) = (RomWork::default(), RomParams::default());
         let mut failed = Vec::new();
@@ -530,10 +540,10 @@ mod tests {
     #[test]
     fn search_proofs_change_nothing() {
         let fm = ironing_coarse();
-        let mus: Vec<f64> = (0..17).map(|k| 3.0 * k as f64 / 16.0).collect();
+        let mus = coarse_mus();
         let (rom, _, _) = full_rom(fm, &mus);
         let p = RomParams::default();
-        let samples: Vec<Vec<f64>> = mus.iter().map(|&m| vec![m]).collect();
+        let samples = points(&mus);
         for (ru, rl) in [(17, 17), (17, 4), (6, 8), (3, 2)] {
             let cold = rom.leading(ru, rl);
             let warm = cold.clone().with_warm_starts(&samples, &p);
@@ -558,10 +568,10 @@ mod tests {
     #[test]
     fn type2_warm_starts_change_the_steps_not_the_answer() {
         let fm = ironing_coarse();
-        let mus: Vec<f64> = (0..17).map(|k| 3.0 * k as f64 / 16.0).collect();
+        let mus = coarse_mus();
         let (cold, _, _) = full_rom(fm, &mus);
         let p = RomParams::default();
-        let samples: Vec<Vec<f64>> = mus.iter().map(|&m| vec![m]).collect();
+        let samples = points(&mus);
         let warm = cold.clone().with_warm_starts(&samples, &p);
         let (mut wc, mut ww) = (RomWork::default(), RomWork::default());
         let (mut lin_cold, mut lin_warm, mut worst) = (0, 0, 0.0f64);
@@ -594,10 +604,10 @@ mod tests {
     #[test]
     fn sampled_surface_is_exact_at_zero_tolerance_and_trades_accuracy_above() {
         let fm = ironing_coarse();
-        let mus: Vec<f64> = (0..17).map(|k| 3.0 * k as f64 / 16.0).collect();
+        let mus = coarse_mus();
         let (rom, phi, _) = full_rom(fm, &mus);
         let p = RomParams::default();
-        let samples: Vec<Vec<f64>> = mus.iter().map(|&d| vec![d]).collect();
+        let samples = points(&mus);
         let (exact_q, sel) = rom.with_sampled_surface(&samples, &p, 0.0).expect("fit");
         assert!(sel.residual <= 1e-10, "fit residual {:e}", sel.residual);
         let (loose, loose_sel) = rom.with_sampled_surface(&samples, &p, 3e-2).expect("fit");
@@ -658,12 +668,12 @@ mod tests {
     fn dictionary_working_set_equals_all_atoms() {
         use crate::dual::dictionary::{WorkingSet, WorkingSetScratch};
         let fm = ironing_coarse();
-        let mus: Vec<f64> = (0..17).map(|k| 3.0 * k as f64 / 16.0).collect();
+        let mus = coarse_mus();
         let (all, phi, snaps) = full_rom(fm, &mus);
         let nc = fm.n_contact();
         let ru = all.ranks().0;
         let duals: Vec<f64> = snaps.iter().flat_map(|s| s.pressure.iter().copied()).collect();
-        let params: Vec<Vec<f64>> = mus.iter().map(|&d| vec![d]).collect();
+        let params = points(&mus);
         let ws = WorkingSet::new(MatRef::from_column_major_slice(&duals, nc, mus.len()), &params, fm.weights(), 1);
         let atoms: Vec<f64> = snaps
             .iter()
