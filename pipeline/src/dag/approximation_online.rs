@@ -58,8 +58,9 @@ struct OnlineApproximationKey<'a> {
 
 impl StageKey for OnlineApproximationKey<'_> {
     const KIND: ArtifactKind = ArtifactKind::OnlineApproximation;
-    /// Bump when a number of the online solve changes.
-    const ALGORITHM_VERSION: u32 = 2;
+    /// Bump when a number of the online solve changes (3: Newton-corrected re-pairing steps,
+    /// design note 42).
+    const ALGORITHM_VERSION: u32 = 3;
 }
 
 /// The key spec of approximation `index`'s online stage (None without `[comparison]`, past

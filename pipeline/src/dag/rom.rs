@@ -59,8 +59,9 @@ impl StageKey for RomKey {
     /// Bump when the online stage changes its numbers (9: Type-1 warm starts from the nearest
     /// training point's active set — the same answers to round-off, fewer QP steps; 10:
     /// Type-2 warm starts, the vertex-zone rule asked before the round's fixed point, a dot
-    /// product summed in another order — design note 41).
-    const ALGORITHM_VERSION: u32 = 10;
+    /// product summed in another order — design note 41; 11: Newton-corrected re-pairing
+    /// steps and interpolated warm starts, the same answers to 1e-10 — design note 42).
+    const ALGORITHM_VERSION: u32 = 11;
 }
 
 /// Timing repetitions of an online query whose first solve took less than [`REPEAT_BELOW`]

@@ -44,7 +44,10 @@
 //! sign conditions; [`qp`] solves it by a dual active-set method with finite termination that
 //! also proves infeasibility (a primal basis too small for the dual one is refused with that
 //! reason, not iterated). Type-2 wraps it in an outer loop: re-pair at `u0 + Phi û`, rebuild
-//! the rows, solve again, until the pairing repeats and `û` stops moving. A slave is searched
+//! the rows, solve again, until the pairing repeats and `û` stops moving. Once the pairing has
+//! settled, each step is Newton-corrected for the gaps' curvature ([`curvature`]: the term of
+//! the Lagrangian's Hessian the fixed-point iteration drops), which turns its linear rate of
+//! about 1e-2 into about 2e-4 and leaves the fixed point unchanged. A slave is searched
 //! again only when it may have moved by its safe radius since its last search (budgets along
 //! the path of `y`, [`ReducedModel`]'s `linearize_with`); a later round of the vertex-zone rule
 //! resumes from the previous round's answer.
@@ -62,6 +65,7 @@
 //! contact-dof compliance `W_c = E_c^T K^{-1} E_c`:
 //! `|y - Psi_c^T F_c|^2 + (F_c^T W_c F_c - |Psi_c^T F_c|^2)` in the coordinates above.
 
+mod curvature;
 mod error;
 mod la;
 mod qp;

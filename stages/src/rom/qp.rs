@@ -146,6 +146,22 @@ impl QpWork {
         }
     }
 
+    /// `v <- (I - P_A) v`, `P_A` the orthogonal projector onto the span of the active normals
+    /// of the last solve (`P_A = W_A (W_A^T W_A)^{-1} W_A^T`, through `R`).
+    pub fn remove_active_span(&mut self, r: usize, v: &mut [f64]) {
+        let q = self.active.len();
+        if q == 0 {
+            return;
+        }
+        self.z.clear();
+        self.z.extend_from_slice(v);
+        self.project(r, false);
+        self.back(r);
+        for k in 0..q {
+            axpy(-self.rv[k], &self.wa[k * r..(k + 1) * r], v);
+        }
+    }
+
     /// `rv = R^{-1} c` (back substitution).
     fn back(&mut self, r: usize) {
         let q = self.active.len();

@@ -1,0 +1,239 @@
+//! The curvature of the node-to-segment gaps in the reduced coordinates, for a Newton step of the
+//! Type-2 re-pairing (design note 42).
+//!
+//! The exact online solve linearises every paired slave's gap at the current iterate `y_k` and
+//! solves the QP `min |y|^2 / 2  s.t.  Ĉ_k y + ĝ0_k >= 0` exactly. The gap rows are the gaps'
+//! exact gradients (the projection's `ξ` and the normal frozen at `y_k` change the gap only to
+//! second order), so this is sequential quadratic programming with the Lagrangian's Hessian
+//! `I - Σ_a λ̂_a ∇²ŝ_a` replaced by `I`: it converges linearly, at the rate of the dropped term
+//! `H = -Σ_s p_s ∇²g_s` (`p_s` the force on slave `s`, its pressure times its tributary
+//! length), about 1e-2 on ironing-fine — a steady 1e-2 per linearisation.
+//!
+//! **What is dropped.** The QP's row of slave `s` is `r_s(y) = ∂g_s/∂y` with the normal (and
+//! `ξ`) of the pairing at `y`; its force balance `y = Σ_s p_s r_s(y)` changes with the
+//! linearisation point through `∂r_s/∂y`, which the fixed-point iteration ignores. Newton's
+//! matrix is `I + H`, `H = -Σ_s p_s ∂r_s/∂y`:
+//!
+//! - a slave paired with segment `[x_a, x_b]` (length `L`, unit tangent `t`, normal `n`,
+//!   projection `ξ`, gap `g = n · (x_s - x_a)`): the row is the gap's exact gradient (the
+//!   projection makes `∂g/∂ξ = 0`), so `∂r/∂y = ∇²g`, and from `∂n/∂e = -t nᵀ / L`,
+//!   `∂ξ/∂e = (-ξ L t + g n) / L²` (`e = x_b - x_a`):
+//!
+//!   ```text
+//!   ∇²g = -(A Bᵀ + B Aᵀ) - g A Aᵀ,   A·δ = n · (δx_b - δx_a) / L   (the segment's rotation),
+//!                                    B·δ = t · (δx_s - (1 - ξ) δx_a - ξ δx_b)   (the slip);
+//!   ```
+//!
+//! - a slave tied to (or paired with) interior vertex `v` has the row `n̄ · (δx_s - δx_v)`
+//!   with the averaged normal `n̄ = m / |m|`, `m = n_1 + n_2` over the segments `v - 1` and
+//!   `v`, held fixed (the tie's model: its force acts along `n̄` on the slave and on `x_v`).
+//!   Only `n̄` moves the row: `δn̄ = -t̄ (A·δ)`, `A·δ = Σ_i (t̄ · t_i) n_i · δe_i / (L_i |m|)`,
+//!   so `∂r/∂y = -B Aᵀ` with `B·δ = t̄ · (δx_s - δx_v)` — one of the two cross terms;
+//! - a slave tied to an end of the master (design note 36) gets no term.
+//!
+//! Each `A`, `B` is a combination of at most four contact nodes' rows of `Psi_c`, so
+//!
+//! ```text
+//! H v = Σ_segments p_s [A_s (B_s·v) + B_s (A_s·v) + g_s A_s (A_s·v)] + Σ_ties p_s B_s (A_s·v)
+//! ```
+//!
+//! costs two row products and two row updates per node of each slave with pressure, `O(r_u)`
+//! each; no `r_u x r_u` matrix is formed.
+
+use super::la::{axpy, dot};
+use crate::contact::pairing::{Pair, PairKind};
+
+/// One slave's term of `H`: `p [A (B·v) + B (A·v) + gamma A (A·v)]` on a segment, `p B (A·v)`
+/// at a tie (`symmetric` false), with `A` and `B` as coefficients on the two rows of up to four
+/// contact nodes.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct GapCurvature {
+    nodes: [usize; 4],
+    a: [[f64; 2]; 4],
+    b: [[f64; 2]; 4],
+    len: usize,
+    gamma: f64,
+    symmetric: bool,
+}
+
+fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+fn norm(a: [f64; 2]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1]).sqrt()
+}
+
+impl GapCurvature {
+    /// The term of supported slave `s` (of `ns`; masters are contact nodes `ns..`) for its
+    /// pairing `p` at the master positions `xm` it was computed at; `None` for an unpaired
+    /// slave, an end tie, or a vertex at an end of the master.
+    pub(super) fn new(s: usize, ns: usize, p: &Pair, xm: &[[f64; 2]]) -> Option<Self> {
+        let mut c =
+            GapCurvature { nodes: [s; 4], a: [[0.0; 2]; 4], b: [[0.0; 2]; 4], len: 0, gamma: 0.0, symmetric: true };
+        match p.kind {
+            PairKind::Segment(k) => {
+                let (n, xi) = (p.normal, p.xi);
+                let t = [-n[1], n[0]];
+                let l = norm(sub(xm[k + 1], xm[k]));
+                c.len = 3;
+                c.nodes[1] = ns + k;
+                c.nodes[2] = ns + k + 1;
+                c.a[1] = [-n[0] / l, -n[1] / l];
+                c.a[2] = [n[0] / l, n[1] / l];
+                c.b[0] = t;
+                c.b[1] = [-(1.0 - xi) * t[0], -(1.0 - xi) * t[1]];
+                c.b[2] = [-xi * t[0], -xi * t[1]];
+                c.gamma = p.gap;
+            }
+            PairKind::Tied(v) | PairKind::Vertex(v) if v >= 1 && v + 1 < xm.len() => {
+                let nb = p.normal;
+                let tb = [-nb[1], nb[0]];
+                let (e1, e2) = (sub(xm[v], xm[v - 1]), sub(xm[v + 1], xm[v]));
+                let (l1, l2) = (norm(e1), norm(e2));
+                let (t1, t2) = ([e1[0] / l1, e1[1] / l1], [e2[0] / l2, e2[1] / l2]);
+                let (n1, n2) = ([t1[1], -t1[0]], [t2[1], -t2[0]]);
+                let m = norm([n1[0] + n2[0], n1[1] + n2[1]]);
+                let c1 = (tb[0] * t1[0] + tb[1] * t1[1]) / (l1 * m);
+                let c2 = (tb[0] * t2[0] + tb[1] * t2[1]) / (l2 * m);
+                c.len = 4;
+                c.nodes[1] = ns + v - 1;
+                c.nodes[2] = ns + v;
+                c.nodes[3] = ns + v + 1;
+                c.a[1] = [-c1 * n1[0], -c1 * n1[1]];
+                c.a[2] = [c1 * n1[0] - c2 * n2[0], c1 * n1[1] - c2 * n2[1]];
+                c.a[3] = [c2 * n2[0], c2 * n2[1]];
+                c.b[0] = tb;
+                c.b[2] = [-tb[0], -tb[1]];
+                c.symmetric = false;
+            }
+            _ => return None,
+        }
+        Some(c)
+    }
+
+    /// `out += ` this term times `v`, `psi_c` the contact-dof rows (row-major, `r` columns).
+    pub(super) fn apply(&self, p: f64, psi_c: &[f64], r: usize, v: &[f64], out: &mut [f64]) {
+        let row = |cd: usize| &psi_c[cd * r..(cd + 1) * r];
+        let (mut alpha, mut beta) = (0.0, 0.0);
+        for ((&c, a), b) in self.nodes.iter().zip(&self.a).zip(&self.b).take(self.len) {
+            let d = [dot(row(2 * c), v), dot(row(2 * c + 1), v)];
+            alpha += a[0] * d[0] + a[1] * d[1];
+            beta += b[0] * d[0] + b[1] * d[1];
+        }
+        let fa = if self.symmetric { p * (beta + self.gamma * alpha) } else { 0.0 };
+        let fb = p * alpha;
+        for ((&c, a), b) in self.nodes.iter().zip(&self.a).zip(&self.b).take(self.len) {
+            for i in 0..2 {
+                let f = fa * a[i] + fb * b[i];
+                if f != 0.0 {
+                    axpy(f, row(2 * c + i), out);
+                }
+            }
+        }
+    }
+
+    /// The bilinear form `δ'ᵀ (-∂r/∂y) δ` of this term (without `p`) for contact-dof
+    /// displacements `delta` and `delta2` (tests).
+    #[cfg(test)]
+    fn form(&self, delta: &[f64], delta2: &[f64]) -> f64 {
+        let ab = |d: &[f64]| {
+            let (mut alpha, mut beta) = (0.0, 0.0);
+            for j in 0..self.len {
+                let c = self.nodes[j];
+                alpha += self.a[j][0] * d[2 * c] + self.a[j][1] * d[2 * c + 1];
+                beta += self.b[j][0] * d[2 * c] + self.b[j][1] * d[2 * c + 1];
+            }
+            (alpha, beta)
+        };
+        let ((a1, b1), (a2, b2)) = (ab(delta), ab(delta2));
+        if self.symmetric {
+            b2 * a1 + a2 * b1 + self.gamma * a2 * a1
+        } else {
+            b2 * a1
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::pairing::{closest_point, vertex_normal, vertex_pair, GapRow};
+
+    const MASTER: [[f64; 2]; 4] = [[0.0, 0.0], [1.0, 0.1], [2.0, 0.05], [3.1, -0.2]];
+
+    /// The solver's own gap row of slave 0 (contact node 0; masters `1..`) at contact
+    /// positions `x`, for a segment pairing (re-projected at `x`) or a tie at vertex 2, as a
+    /// dense row over the contact dofs.
+    fn row(tie: bool, x: &[f64]) -> Vec<f64> {
+        let xs = [x[0], x[1]];
+        let xm: Vec<[f64; 2]> = x[2..].chunks(2).map(|c| [c[0], c[1]]).collect();
+        let p = if tie { vertex_pair(xs, &xm, 2, PairKind::Tied(2)) } else { closest_point(xs, &xm) };
+        let mut out = vec![0.0; x.len()];
+        for (cd, c) in GapRow::new(0, 1, &p).entries() {
+            out[cd] += c;
+        }
+        out
+    }
+
+    /// `form` against a central difference of the solver's gap row: `-δ' · ∂r/∂y δ`, along
+    /// random directions, for slaves on segments (off the surface, so the `g` term counts) and
+    /// a slave tied at a vertex off its averaged normal. Tolerance 1e-6 relative: the
+    /// difference's truncation error is `O(h²)` with `h = 1e-5` and its rounding `eps / h`
+    /// ~ 1e-11. Fails with either cross term's sign flipped or `g` dropped.
+    #[test]
+    fn the_form_is_the_derivative_of_the_gap_row() {
+        let xm = MASTER;
+        let mut seed = 7u64;
+        let mut rand = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let near_vertex = {
+            let n = vertex_normal(&xm, 2);
+            [xm[2][0] + 0.03 * n[0] + 0.004, xm[2][1] + 0.03 * n[1]]
+        };
+        for (xs, tie) in [([1.3, 0.4], false), ([1.7, 0.02], false), ([2.5, -0.3], false), (near_vertex, true)] {
+            let p = if tie { vertex_pair(xs, &xm, 2, PairKind::Tied(2)) } else { closest_point(xs, &xm) };
+            assert!(matches!(p.kind, PairKind::Segment(_) | PairKind::Tied(_)), "{:?}", p.kind);
+            let c = GapCurvature::new(0, 1, &p, &xm).expect("a term");
+            let x0: Vec<f64> = xs.iter().chain(xm.iter().flatten()).copied().collect();
+            for _ in 0..5 {
+                let d1: Vec<f64> = (0..x0.len()).map(|_| rand()).collect();
+                let d2: Vec<f64> = (0..x0.len()).map(|_| rand()).collect();
+                let h = 1e-5;
+                let at = |t: f64| {
+                    let r = row(tie, &x0.iter().zip(&d1).map(|(a, b)| a + t * b).collect::<Vec<_>>());
+                    r.iter().zip(&d2).map(|(a, b)| a * b).sum::<f64>()
+                };
+                let fd = -(at(h) - at(-h)) / (2.0 * h);
+                let exact = c.form(&d1, &d2);
+                assert!((fd - exact).abs() <= 1e-6 * exact.abs().max(1.0), "{:?}: {fd} vs {exact}", p.kind);
+            }
+        }
+    }
+
+    /// `apply` is the form's matrix with the force: `u · H v = p form(Psi_c v, Psi_c u)` on
+    /// random rows, symmetric on a segment. Tolerance 1e-12 relative: sums of a few dozen
+    /// products.
+    #[test]
+    fn apply_is_the_matrix_of_the_form() {
+        let xm = MASTER;
+        for p in [closest_point([1.3, 0.4], &xm), vertex_pair([2.01, 0.1], &xm, 2, PairKind::Tied(2))] {
+            let c = GapCurvature::new(0, 1, &p, &xm).expect("a term");
+            let (r, ncd) = (5, 2 * (1 + xm.len()));
+            let psi: Vec<f64> = (0..ncd * r).map(|k| ((k * 37 % 11) as f64 - 5.0) / 7.0).collect();
+            let u: Vec<f64> = (0..r).map(|k| (k as f64 - 1.5) / 3.0).collect();
+            let v: Vec<f64> = (0..r).map(|k| ((k * 3 % 5) as f64 - 2.0) / 2.0).collect();
+            let rows = |y: &[f64]| (0..ncd).map(|cd| dot(&psi[cd * r..(cd + 1) * r], y)).collect::<Vec<_>>();
+            let (mut hu, mut hv) = (vec![0.0; r], vec![0.0; r]);
+            c.apply(2.0, &psi, r, &u, &mut hu);
+            c.apply(2.0, &psi, r, &v, &mut hv);
+            let form = 2.0 * c.form(&rows(&v), &rows(&u));
+            assert!((dot(&u, &hv) - form).abs() <= 1e-12 * form.abs().max(1.0), "{} vs {form}", dot(&u, &hv));
+            if matches!(p.kind, PairKind::Segment(_)) {
+                assert!((dot(&u, &hv) - dot(&v, &hu)).abs() <= 1e-12 * dot(&u, &hv).abs().max(1.0));
+            }
+        }
+    }
+}
