@@ -401,6 +401,10 @@ pub mod rom {
     ];
     /// Accuracy over rank pairs (the results half of the speed/accuracy trade).
     pub const TRADEOFF: &str = "tradeoff.parquet";
+    /// The `algorithm` of [`TRADEOFF`]'s rows of the exact solve on a sampled surface (a
+    /// reduced quadrature of the contact constraints, `study.contact_sampling`); the other
+    /// values are `exact` and `paper`.
+    pub const SAMPLED: &str = "exact-sampled";
     /// Columns of [`TRADEOFF`]. `min_inf_sup` and `median_inf_sup`: the reduced inf-sup
     /// constant `sigma_min(Â L^{-T})` of the saddle-point system at each query's final
     /// linearisation (`crom_stages::rom::ReducedModel::inf_sup`; 0: more constraining dual

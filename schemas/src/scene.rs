@@ -263,6 +263,23 @@ pub struct StudySpec {
     /// spaced folds beyond (see [`StudySpec::loo_folds_for`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub loo_folds: Option<usize>,
+    /// A reduced quadrature of the contact constraints (hyper-reduction, optional; node-to-segment
+    /// scenes only): the online stage adds trade-off rows of the exact solve on a sampled
+    /// surface at the given rank pairs (design note 40).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_sampling: Option<ContactSamplingSpec>,
+}
+
+/// `study.contact_sampling`: the quadrature's fit tolerance and the rank pairs it is measured
+/// at.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSamplingSpec {
+    /// Relative residual at which the greedy non-negative fit stops, in `[0, 1)` (0 keeps the
+    /// exact sums; 3e-2 is the measured trade of design note 40).
+    pub tol: f64,
+    /// `[r_primal, r_dual]` pairs (each clipped to the bases' sizes), at least one.
+    pub ranks: Vec<[usize; 2]>,
 }
 
 /// The default cap of the metric curves' basis size for training sets larger than this.

@@ -5,7 +5,9 @@
 use std::path::Path;
 
 use crate::comparison::{ApproximationSpec, ComparisonSpec, InterpolationSpec, MapSpec};
-use crate::scene::{HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec, SceneConfig, SolverSpec, StudySpec};
+use crate::scene::{
+    ContactSamplingSpec, HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec, SceneConfig, SolverSpec, StudySpec,
+};
 use crate::SceneError;
 
 struct Checker<'a> {
@@ -146,6 +148,9 @@ impl SceneConfig {
         }
         if let Some(cmp) = &self.comparison {
             check_comparison(&c, cmp, &self.model, self.parameter.dim(), self.parameter.train_count())?;
+        }
+        if let Some(cs) = &self.study.contact_sampling {
+            check_contact_sampling(&c, cs, &self.model)?;
         }
         match &self.model {
             Model::Rope(r) => check_rope(&c, r),
@@ -322,6 +327,37 @@ fn check_study(c: &Checker<'_>, s: &StudySpec) -> Result<(), SceneError> {
         )),
         _ => Ok(()),
     }
+}
+
+fn check_contact_sampling(c: &Checker<'_>, cs: &ContactSamplingSpec, model: &Model) -> Result<(), SceneError> {
+    if let Model::Rope(_) = model {
+        return Err(c.fail(
+            "study.contact_sampling",
+            "is set for the rope, whose contact constraints are fixed rows (assembled once offline, no per-query work to sample)".into(),
+            "remove study.contact_sampling; it applies to the node-to-segment scenes (hertz, ironing)",
+        ));
+    }
+    c.finite("study.contact_sampling.tol", cs.tol)?;
+    if !(0.0..1.0).contains(&cs.tol) {
+        return Err(c.fail(
+            "study.contact_sampling.tol",
+            format!("is {}, must be in [0, 1)", cs.tol),
+            "give the fit's relative residual, e.g. 3e-2 (0 fits the exact sums)",
+        ));
+    }
+    if cs.ranks.is_empty() || cs.ranks.len() > 64 {
+        return Err(c.fail(
+            "study.contact_sampling.ranks",
+            format!("has {} rank pairs, must have 1 to 64", cs.ranks.len()),
+            "give [r_primal, r_dual] pairs, e.g. ranks = [[32, 32], [128, 60]]",
+        ));
+    }
+    for (i, r) in cs.ranks.iter().enumerate() {
+        for (v, what) in r.iter().zip(["r_primal", "r_dual"]) {
+            c.between(&format!("study.contact_sampling.ranks[{i}] ({what})"), *v, 1, MAX_COUNT)?;
+        }
+    }
+    Ok(())
 }
 
 fn check_rope(c: &Checker<'_>, r: &RopeSpec) -> Result<(), SceneError> {

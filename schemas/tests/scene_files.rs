@@ -258,3 +258,28 @@ fn bad_comparison_settings_are_named() {
     );
     assert_names(&load_err(&rope), &["comparison.approximations[0].map", "no natural map"]);
 }
+
+/// `study.contact_sampling`: accepted on a node-to-segment scene, and every bad setting refused
+/// with the field and a fix; the rope, whose constraint rows are fixed, refuses it.
+#[test]
+fn contact_sampling_is_checked() {
+    let with =
+        |text: &str, setting: &str| text.replace("[study]\n", &format!("[study]\ncontact_sampling = {setting}\n"));
+    let good = with(&hertz_text(), "{ tol = 3e-2, ranks = [[8, 8], [12, 7]] }");
+    let cfg = SceneConfig::from_toml_str(&good, Path::new("ok.toml")).expect("a valid setting");
+    let cs = cfg.study.contact_sampling.expect("parsed");
+    assert_eq!((cs.tol, cs.ranks), (3e-2, vec![[8, 8], [12, 7]]));
+    let cases = [
+        (with(&rope_text(), "{ tol = 3e-2, ranks = [[4, 4]] }"), "study.contact_sampling"),
+        (with(&hertz_text(), "{ tol = 1.0, ranks = [[4, 4]] }"), "study.contact_sampling.tol"),
+        (with(&hertz_text(), "{ tol = -0.1, ranks = [[4, 4]] }"), "study.contact_sampling.tol"),
+        (with(&hertz_text(), "{ tol = nan, ranks = [[4, 4]] }"), "study.contact_sampling.tol"),
+        (with(&hertz_text(), "{ tol = 3e-2, ranks = [] }"), "study.contact_sampling.ranks"),
+        (with(&hertz_text(), "{ tol = 3e-2, ranks = [[4, 0]] }"), "study.contact_sampling.ranks[0] (r_dual)"),
+        (with(&hertz_text(), "{ tol = 3e-2 }"), "ranks"),
+    ];
+    for (text, field) in cases {
+        assert!(text.contains("contact_sampling"), "{field}: the setting must be inserted");
+        assert_names(&load_err(&text), &[field]);
+    }
+}

@@ -273,7 +273,7 @@ impl Plan {
         let rom = add(
             "rom",
             ArtifactKind::Rom,
-            rom::spec(&train, &test, &basis).key(),
+            rom::spec(scene, &train, &test, &basis).key(),
             &["trainset train", "trainset test", "basis"],
             true,
             Stage::Rom,

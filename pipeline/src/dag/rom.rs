@@ -28,6 +28,8 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crom_schemas::artifact::{basis as bnames, rom as names, ArtifactKind};
+use crom_schemas::scene::ContactSamplingSpec;
+use crom_schemas::SceneConfig;
 use crom_stages::basis::pod_full;
 use crom_stages::metrics::order::{quantile, spearman};
 use crom_stages::rom::{
@@ -48,13 +50,17 @@ use crate::physics::Physics;
 /// What determines the online stage's results besides its inputs (training set, test set,
 /// bases): the reduced solver's settings, shared by both algorithms.
 #[derive(Debug, Serialize)]
-struct RomKey {
+struct RomKey<'a> {
     max_iter: usize,
     gap_tol: f64,
     u_tol: f64,
+    /// The sampled-surface rows (absent from the key when not asked for, so the keys of
+    /// scenes without them are unchanged).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    contact_sampling: Option<&'a ContactSamplingSpec>,
 }
 
-impl StageKey for RomKey {
+impl StageKey for RomKey<'_> {
     const KIND: ArtifactKind = ArtifactKind::Rom;
     /// Bump when the online stage changes its numbers (9: Type-1 warm starts from the nearest
     /// training point's active set — the same answers to round-off, fewer QP steps; 10:
@@ -101,11 +107,25 @@ pub(crate) fn fastest<T>(mut query: impl FnMut() -> T) -> (T, f64) {
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];
 
+/// Training points the sampled surface is fitted to, at most (evenly spaced, ends included):
+/// the fit's rows grow as points x 2 states x r_dual x 4 (values and three derivative
+/// directions), 32 x 2 x 60 x 4 = 15 360 rows of 143 slaves at ironing-fine's (128, 60).
+const SAMPLING_FIT_POINTS: usize = 32;
+
+/// At most `n` of `points`, evenly spaced with both ends.
+fn subsample(points: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
+    if points.len() <= n || n < 2 {
+        return points.to_vec();
+    }
+    (0..n).map(|k| points[k * (points.len() - 1) / (n - 1)].clone()).collect()
+}
+
 /// The online stage's key spec. The timing constants are not in the key: they change the
 /// times, not the results.
-pub(crate) fn spec(train: &Key, test: &Key, basis: &Key) -> KeySpec {
+pub(crate) fn spec(scene: &SceneConfig, train: &Key, test: &Key, basis: &Key) -> KeySpec {
     let params = RomParams::default();
-    KeySpec::of(&RomKey { max_iter: params.max_iter, gap_tol: params.gap_tol, u_tol: params.u_tol })
+    let contact_sampling = scene.study.contact_sampling.as_ref();
+    KeySpec::of(&RomKey { max_iter: params.max_iter, gap_tol: params.gap_tol, u_tol: params.u_tol, contact_sampling })
         .input("train", train)
         .input("test", test)
         .input("basis", basis)
@@ -119,7 +139,7 @@ pub(crate) fn run(
     basis: &Key,
 ) -> Result<Key, CromError> {
     let params = RomParams::default();
-    let spec = spec(train, test, basis);
+    let spec = spec(ctx.scene, train, test, basis);
     let key = spec.key();
     if let Some(_m) = ctx.lookup(ArtifactKind::Rom, &key)? {
         ctx.progress.stage("online ROM", 1).finish("cached");
@@ -139,7 +159,10 @@ pub(crate) fn run(
     let sweep = sweep_pairs(phi.cols, theta_full.cols, theta_trunc.cols);
     let queries = train_set.parameters.len() + test_set.parameters.len();
     let paper_pairs = sweep.iter().filter(|s| paper_pair(s, &sweep)).count();
-    let mut progress = ctx.progress.stage("online ROM", 2 + 2 * ALGORITHMS.len() * queries + sweep.len() + paper_pairs);
+    let sampled_pairs = ctx.scene.study.contact_sampling.as_ref().map_or(0, |cs| cs.ranks.len());
+    let mut progress = ctx
+        .progress
+        .stage("online ROM", 2 + 2 * ALGORITHMS.len() * queries + sweep.len() + paper_pairs + sampled_pairs);
     let start = Instant::now();
     // offline: the reduced model at full ranks, error references
     // warm starts of the exact solve at the training points (the paper algorithm does not read
@@ -178,7 +201,7 @@ pub(crate) fn run(
         for &(ru, rl, dual_basis) in sweep.iter().filter(|s| alg == Algorithm::Exact || paper_pair(s, &sweep)) {
             let model = full.leading(ru, rl).with_warm_starts(&train_set.parameters, &p);
             let rows = solve_set(&model, test_data, &p);
-            trade.push(&scene, alg, dual_basis, (ru, rl), &rows, test_pe, test_fom, |j, q| {
+            trade.push(&scene, alg.name(), dual_basis, (ru, rl), &rows, test_pe, test_fom, |j, q| {
                 dual_error(op, &model, &q.sol, test_data, j)
             });
             progress.inc(&format!("{} ranks ({ru}, {rl})", alg.name()));
@@ -188,6 +211,23 @@ pub(crate) fn run(
             if full_ranks {
                 at_full_ranks.insert((alg.name(), dual_basis), rows);
             }
+        }
+    }
+    if let Some(cs) = &ctx.scene.study.contact_sampling {
+        // the exact solve on a reduced quadrature of the contact constraints (design note 40),
+        // fitted per rank pair to a subsample of the training points
+        let p = RomParams { algorithm: Algorithm::Exact, ..params };
+        let fit_points = subsample(&train_set.parameters, SAMPLING_FIT_POINTS);
+        for &[ru, rl] in &cs.ranks {
+            let (ru, rl) = (ru.min(phi.cols), rl.min(theta_full.cols));
+            let exact = full.leading(ru, rl);
+            let (model, _) = exact.with_sampled_surface(&fit_points, &p, cs.tol).map_err(|e| fail(e.to_string()))?;
+            let model = model.with_warm_starts(&train_set.parameters, &p);
+            let rows = solve_set(&model, test_data, &p);
+            trade.push(&scene, names::SAMPLED, "full", (ru, rl), &rows, test_pe, test_fom, |j, q| {
+                dual_error(op, &model, &q.sol, test_data, j)
+            });
+            progress.inc(&format!("sampled ranks ({ru}, {rl})"));
         }
     }
     let mut errors =
@@ -412,7 +452,7 @@ impl TradeRows {
     fn push(
         &mut self,
         scene: &str,
-        alg: Algorithm,
+        alg: &str,
         dual_basis: &str,
         (ru, rl): (usize, usize),
         rows: &[Query],
@@ -434,7 +474,7 @@ impl TradeRows {
         let (on_med, fom_med) = (quantile(&online, 0.5), quantile(fom, 0.5));
         let beta: Vec<f64> = conv.iter().filter_map(|&j| rows[j].inf_sup).collect();
         let beta_min = beta.iter().copied().fold(f64::NAN, |m, x| if m.is_nan() { x } else { m.min(x) });
-        for (v, x) in self.s.iter_mut().zip([scene, alg.name(), dual_basis]) {
+        for (v, x) in self.s.iter_mut().zip([scene, alg, dual_basis]) {
             v.push(x.to_string());
         }
         let ints = [ru, rl, rows.len(), conv.len(), infeasible, rows.len() - conv.len() - infeasible];
