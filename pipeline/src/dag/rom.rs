@@ -14,9 +14,9 @@
 //! reduced model: cost independent of `n_dof`); the indicator is timed separately; the
 //! full-order time is measured here, in the same process, at the test points. Every model of
 //! the exact solve carries its answers and active sets at (up to 64 of) the training points,
-//! computed offline ([`ReducedModel::with_warm_starts`]); a query starts from the nearest one
-//! (its QP's active set; Type-2 also the re-pairing's `y`), and that lookup is part of the
-//! timed query. The trade-off
+//! computed offline ([`ReducedModel::with_warm_starts`]); a query starts from the nearest one's
+//! active set and, Type-2, from its `y` interpolated toward the sample on the other side of the
+//! query, and that lookup is part of the timed query. The trade-off
 //! sweeps, for `exact`, the primal rank with the full and the truncated dual basis and the dual
 //! rank with the full primal basis, and for `paper` the primal rank with the full dual basis
 //! (up to [`PAPER_SWEEP_MAX_DUAL`] dual modes); per rank pair it counts converged, refused
