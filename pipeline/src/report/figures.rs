@@ -477,27 +477,25 @@ fn tradeoff(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, C
         .collect();
     front.sort_by(|a, b| a.0.total_cmp(&b.0));
     let (xf, yf): (Vec<f64>, Vec<f64>) = front.into_iter().unzip();
-    let chart =
-        Chart {
-            title: format!("{}: speed/accuracy trade over the test points (converged points only)", scene.scene.name),
-            x_label: "median speed-up over the full-order solve".into(),
-            y_label: "median relative primal error (H1)".into(),
-            log_y: true,
-            log_x: true,
-            series: vec![
-                Series::line(&format!("exact: primal rank 1…{ru_max}, full dual basis"), x1, y1).mark(Mark::LinePoints),
-                Series::line(&format!("exact: dual rank 1…{rl_max}, full primal basis"), x2, y2).mark(Mark::LinePoints),
-                Series::line("exact: primal ranks, truncated dual basis", x3, y3).mark(Mark::LinePoints),
-                Series::line("paper Algorithm 1 (all rank pairs)", x4, y4).mark(Mark::Points),
-                Series::line("Pareto front (exact)", xf, yf),
-            ]
-            .into_iter()
-            .chain((!x5.is_empty()).then(|| {
-                Series::line("exact on a sampled surface (study.contact_sampling)", x5, y5).mark(Mark::Points)
-            }))
-            .collect(),
-            legend: Legend::LowerRight,
-        };
+    let mut series = vec![
+        Series::line(&format!("exact: primal rank 1…{ru_max}, full dual basis"), x1, y1).mark(Mark::LinePoints),
+        Series::line(&format!("exact: dual rank 1…{rl_max}, full primal basis"), x2, y2).mark(Mark::LinePoints),
+        Series::line("exact: primal ranks, truncated dual basis", x3, y3).mark(Mark::LinePoints),
+        Series::line("paper Algorithm 1 (all rank pairs)", x4, y4).mark(Mark::Points),
+        Series::line("Pareto front (exact)", xf, yf),
+    ];
+    if !x5.is_empty() {
+        series.push(Series::line("exact on a sampled surface (study.contact_sampling)", x5, y5).mark(Mark::Points));
+    }
+    let chart = Chart {
+        title: format!("{}: speed/accuracy trade over the test points (converged points only)", scene.scene.name),
+        x_label: "median speed-up over the full-order solve".into(),
+        y_label: "median relative primal error (H1)".into(),
+        log_y: true,
+        log_x: true,
+        series,
+        legend: Legend::LowerRight,
+    };
     render(&chart, dir, "fig_tradeoff")?;
     let mut notes: Vec<String> = Vec::new();
     if let (Some(points), Some(inf), Some(failed)) = (points, inf, failed) {

@@ -221,6 +221,32 @@ mod tests {
         mus.iter().map(|&m| vec![m]).collect()
     }
 
+    /// The 48 ironing-coarse test parameters: the midpoints of 48 equal cells of `d_x` in
+    /// [0, 3], between the training points.
+    fn coarse_tests() -> Vec<f64> {
+        (0..48).map(|k| 3.0 * (k as f64 + 0.5) / 48.0).collect()
+    }
+
+    /// Two ways of solving (`a` with buffers `wa`, `b` with `wb`) at every coarse test point:
+    /// both must converge at each; returns the largest distance of their answers relative to
+    /// `a`'s, and the linearisations each took in all.
+    fn compare_solves(
+        (a, wa): (&ReducedModel, &mut RomWork),
+        (b, wb): (&ReducedModel, &mut RomWork),
+        p: &RomParams,
+    ) -> (f64, usize, usize) {
+        let (mut worst, mut lin_a, mut lin_b) = (0.0f64, 0, 0);
+        for d in coarse_tests() {
+            let (x, y) = (a.solve(&[d], p, wa), b.solve(&[d], p, wb));
+            assert_eq!((x.outcome, y.outcome), (RomOutcome::Converged, RomOutcome::Converged), "d_x {d}");
+            let diff = x.u_hat.iter().zip(&y.u_hat).map(|(s, t)| (s - t) * (s - t)).sum::<f64>().sqrt();
+            worst = worst.max(diff / x.u_hat.iter().map(|s| s * s).sum::<f64>().sqrt());
+            lin_a += x.linearizations;
+            lin_b += y.linearizations;
+        }
+        (worst, lin_a, lin_b)
+    }
+
     fn ironing_coarse_params() -> IroningParams {
         IroningParams {
             slab_length: 5.0,
@@ -520,8 +546,7 @@ mod tests {
         let mut failed = Vec::new();
         for m in 1..=8 {
             let model = rom.leading(mus.len(), m);
-            for k in 0..48 {
-                let d = 3.0 * (k as f64 + 0.5) / 48.0;
+            for d in coarse_tests() {
                 let out = model.solve(&[d], &p, &mut w).outcome;
                 if out != RomOutcome::Converged {
                     failed.push((m, d, out));
@@ -549,8 +574,7 @@ mod tests {
             let warm = cold.clone().with_warm_starts(&samples, &p);
             for model in [&cold, &warm] {
                 let (mut proved, mut searched) = (RomWork::verifying_proofs(), RomWork::searching_always());
-                for k in 0..48 {
-                    let d = 3.0 * (k as f64 + 0.5) / 48.0;
+                for d in coarse_tests() {
                     let a = model.solve(&[d], &p, &mut proved);
                     let b = model.solve(&[d], &p, &mut searched);
                     assert_eq!(a.outcome, b.outcome, "({ru}, {rl}) d_x {d}");
@@ -574,16 +598,7 @@ mod tests {
         let samples = points(&mus);
         let warm = cold.clone().with_warm_starts(&samples, &p);
         let (mut wc, mut ww) = (RomWork::default(), RomWork::default());
-        let (mut lin_cold, mut lin_warm, mut worst) = (0, 0, 0.0f64);
-        for k in 0..48 {
-            let d = 3.0 * (k as f64 + 0.5) / 48.0;
-            let (a, b) = (cold.solve(&[d], &p, &mut wc), warm.solve(&[d], &p, &mut ww));
-            assert_eq!((a.outcome, b.outcome), (RomOutcome::Converged, RomOutcome::Converged), "d_x {d}");
-            let diff = a.u_hat.iter().zip(&b.u_hat).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
-            worst = worst.max(diff / a.u_hat.iter().map(|x| x * x).sum::<f64>().sqrt());
-            lin_cold += a.linearizations;
-            lin_warm += b.linearizations;
-        }
+        let (worst, lin_cold, lin_warm) = compare_solves((&cold, &mut wc), (&warm, &mut ww), &p);
         assert!(worst <= 1e-8, "warm vs cold: {worst:e}");
         assert!(lin_warm < lin_cold, "linearisations warm {lin_warm} vs cold {lin_cold}");
     }
@@ -607,15 +622,10 @@ mod tests {
             let warm = cold.clone().with_warm_starts(&samples, &p);
             for model in [&cold, &warm] {
                 let (mut wn, mut wp) = (RomWork::default(), RomWork::plain_steps());
-                for k in 0..48 {
-                    let d = 3.0 * (k as f64 + 0.5) / 48.0;
-                    let (a, b) = (model.solve(&[d], &p, &mut wn), model.solve(&[d], &p, &mut wp));
-                    assert_eq!((a.outcome, b.outcome), (RomOutcome::Converged, RomOutcome::Converged), "d_x {d}");
-                    let diff = a.u_hat.iter().zip(&b.u_hat).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
-                    worst = worst.max(diff / a.u_hat.iter().map(|x| x * x).sum::<f64>().sqrt());
-                    lin_newton += a.linearizations;
-                    lin_plain += b.linearizations;
-                }
+                let (diff, n, pl) = compare_solves((model, &mut wn), (model, &mut wp), &p);
+                worst = worst.max(diff);
+                lin_newton += n;
+                lin_plain += pl;
             }
         }
         assert!(worst <= 1e-8, "Newton vs plain: {worst:e}");
@@ -647,7 +657,7 @@ mod tests {
         let (loose, loose_sel) = rom.with_sampled_surface(&samples, &p, 3e-2).expect("fit");
         let kept = exact_q.sampled_slaves().expect("sampled");
         assert!(loose.sampled_slaves().expect("sampled") < kept, "{} of {kept}", loose_sel.columns.len());
-        let tests: Vec<f64> = (0..48).map(|k| 3.0 * (k as f64 + 0.5) / 48.0).collect();
+        let tests = coarse_tests();
         let refs: Vec<(Vec<f64>, Vec<f64>)> =
             tests.iter().map(|&d| (vec![d], fm.solve(&[d], &TOL).expect("solve").u)).collect();
         let view: Vec<(&[f64], &[f64])> = refs.iter().map(|(m, u)| (m.as_slice(), u.as_slice())).collect();

@@ -98,10 +98,12 @@ impl Pair {
     pub const NONE: Pair = Pair { kind: PairKind::None, xi: 0.0, normal: [0.0, 0.0], gap: f64::INFINITY };
 }
 
-fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+/// `a - b`.
+pub(crate) fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
     [a[0] - b[0], a[1] - b[1]]
 }
-fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
+/// `a . b`.
+pub(crate) fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[0] + a[1] * b[1]
 }
 

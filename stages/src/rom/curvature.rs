@@ -41,7 +41,7 @@
 //! each; no `r_u x r_u` matrix is formed.
 
 use super::la::{axpy, dot};
-use crate::contact::pairing::{Pair, PairKind};
+use crate::contact::pairing::{dot as dot2, segment_normal, sub, Pair, PairKind};
 
 /// One slave's term of `H`: `p [A (B·v) + B (A·v) + gamma A (A·v)]` on a segment, `p B (A·v)`
 /// at a tie (`symmetric` false), with `A` and `B` as coefficients on the two rows of up to four
@@ -56,12 +56,15 @@ pub(super) struct GapCurvature {
     symmetric: bool,
 }
 
-fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-    [a[0] - b[0], a[1] - b[1]]
+/// Length of segment `k` of the polyline `m`.
+fn length(m: &[[f64; 2]], k: usize) -> f64 {
+    let e = sub(m[k + 1], m[k]);
+    dot2(e, e).sqrt()
 }
 
-fn norm(a: [f64; 2]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1]).sqrt()
+/// The unit tangent `t` of a segment with normal `n = (t_y, -t_x)` ([`segment_normal`]).
+fn tangent(n: [f64; 2]) -> [f64; 2] {
+    [-n[1], n[0]]
 }
 
 impl GapCurvature {
@@ -74,8 +77,8 @@ impl GapCurvature {
         match p.kind {
             PairKind::Segment(k) => {
                 let (n, xi) = (p.normal, p.xi);
-                let t = [-n[1], n[0]];
-                let l = norm(sub(xm[k + 1], xm[k]));
+                let t = tangent(n);
+                let l = length(xm, k);
                 c.len = 3;
                 c.nodes[1] = ns + k;
                 c.nodes[2] = ns + k + 1;
@@ -87,15 +90,12 @@ impl GapCurvature {
                 c.gamma = p.gap;
             }
             PairKind::Tied(v) | PairKind::Vertex(v) if v >= 1 && v + 1 < xm.len() => {
-                let nb = p.normal;
-                let tb = [-nb[1], nb[0]];
-                let (e1, e2) = (sub(xm[v], xm[v - 1]), sub(xm[v + 1], xm[v]));
-                let (l1, l2) = (norm(e1), norm(e2));
-                let (t1, t2) = ([e1[0] / l1, e1[1] / l1], [e2[0] / l2, e2[1] / l2]);
-                let (n1, n2) = ([t1[1], -t1[0]], [t2[1], -t2[0]]);
-                let m = norm([n1[0] + n2[0], n1[1] + n2[1]]);
-                let c1 = (tb[0] * t1[0] + tb[1] * t1[1]) / (l1 * m);
-                let c2 = (tb[0] * t2[0] + tb[1] * t2[1]) / (l2 * m);
+                let tb = tangent(p.normal);
+                let (n1, n2) = (segment_normal(xm, v - 1), segment_normal(xm, v));
+                let sum = [n1[0] + n2[0], n1[1] + n2[1]];
+                let m = dot2(sum, sum).sqrt();
+                let c1 = dot2(tb, tangent(n1)) / (length(xm, v - 1) * m);
+                let c2 = dot2(tb, tangent(n2)) / (length(xm, v) * m);
                 c.len = 4;
                 c.nodes[1] = ns + v - 1;
                 c.nodes[2] = ns + v;
