@@ -251,7 +251,9 @@ fn scaling() {
             row(rows, count, &format!("CPG tol 0 ({} generators)", fast.selected.len()), t_fast, t_slow, false, "-");
             // Cone LOO: the shared path (with the metrics' data) and every fold.
             let (curve, t_loo) = time(|| {
-                let path = cpg_path(s.as_ref(), CpgPathParams { nnls, max_rank: max_m }, &|| {}).expect("path");
+                let path =
+                    cpg_path(s.as_ref(), CpgPathParams { nnls, max_rank: max_m, ..CpgPathParams::default() }, &|| {})
+                        .expect("path");
                 let folds = (0..count).map(|i| loo_fold_cone(s.as_ref(), &path, i, max_m).expect("fold"));
                 combine_folds(folds.collect::<Vec<_>>(), max_m)
             });
@@ -304,7 +306,9 @@ fn scaling() {
                     .borrow_mut()
                     .push(format!("| {rows} | G(m) dual orth mean, m = 1..{max_m} | {rel:.1e} | {abs:.1e} |"));
                 // Specificity from the path's intervals vs its own cone pass.
-                let path = cpg_path(s.as_ref(), CpgPathParams { nnls, max_rank: count }, &|| {}).expect("path");
+                let path =
+                    cpg_path(s.as_ref(), CpgPathParams { nnls, max_rank: count, ..CpgPathParams::default() }, &|| {})
+                        .expect("path");
                 let sp = SpecificityParams { samples: 1000, seed: 2023 };
                 let a = specificity_cone_path(s.as_ref(), &path, usize::MAX, sp, &|| {});
                 let b = specificity_cone(s.as_ref(), path.basis.as_ref(), sp, nnls).expect("S cone");

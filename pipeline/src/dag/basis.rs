@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 
 use crom_schemas::artifact::{basis as names, ArtifactKind};
 use crom_schemas::SceneConfig;
-use crom_stages::basis::{cpg_path, pod, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
+use crom_stages::basis::{cpg_path_refined, pod, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
 use crom_stages::cone::NnlsParams;
 use serde::Serialize;
 use serde_json::json;
@@ -28,27 +28,33 @@ pub(crate) struct Bases {
 /// The dual training snapshots' tolerance-0 CPG path of this run, shared by the basis,
 /// compactness, generalization and specificity stages (one greedy run instead of four): the
 /// training-set key and max rank it was computed for.
-static DUAL_PATH: Mutex<Option<(String, usize, Arc<CpgPath>)>> = Mutex::new(None);
+static DUAL_PATH: Mutex<Option<(String, usize, [u64; 2], Arc<CpgPath>)>> = Mutex::new(None);
 
 /// The CPG path of the dual snapshots `dual` of training set `train`, recording the metrics'
-/// data up to `max_rank`: computed once per run (with a progress bar), then shared.
+/// data up to `max_rank`: computed once per run (with a progress bar), then shared. Above
+/// `crom_stages::basis::DENSE_CURVE_MAX` snapshots its curve C(m) is on a rank grid, with the
+/// scene's two cone tolerances located exactly (so both bases are the whole curve's).
 pub(crate) fn dual_path(
     ctx_progress: crate::progress::Progress,
+    scene: &SceneConfig,
     train: &Key,
     dual: &ColMatrix,
     max_rank: usize,
 ) -> Result<Arc<CpgPath>, String> {
+    let tols = [scene.study.dual_cone_tol, scene.study.dual_cone_tol_truncated];
+    let tol_bits = tols.map(f64::to_bits);
     let mut memo = DUAL_PATH.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some((key, rank, path)) = memo.as_ref() {
-        if key == &train.0 && *rank == max_rank {
+    if let Some((key, rank, bits, path)) = memo.as_ref() {
+        if key == &train.0 && *rank == max_rank && *bits == tol_bits {
             return Ok(Arc::clone(path));
         }
     }
     let bar = Ticker::new(ctx_progress, "CPG path", dual.cols);
-    let params = CpgPathParams { nnls: NnlsParams::default(), max_rank };
-    let path = Arc::new(cpg_path(view(dual), params, &|| bar.tick("generators")).map_err(|e| e.to_string())?);
+    let params = CpgPathParams { nnls: NnlsParams::default(), max_rank, ..CpgPathParams::default() };
+    let path =
+        Arc::new(cpg_path_refined(view(dual), params, &tols, &|| bar.tick("generators")).map_err(|e| e.to_string())?);
     bar.finish(&format!("{} generators", path.len()));
-    *memo = Some((train.0.clone(), max_rank, Arc::clone(&path)));
+    *memo = Some((train.0.clone(), max_rank, tol_bits, Arc::clone(&path)));
     Ok(path)
 }
 
@@ -97,8 +103,9 @@ struct BasisKey {
 impl StageKey for BasisKey {
     const KIND: ArtifactKind = ArtifactKind::Basis;
     /// Bump when POD or CPG change the bases they produce (2: the NNLS settings in the key;
-    /// 3: the CPG floor, `crom_stages::basis::CPG_FLOOR`).
-    const ALGORITHM_VERSION: u32 = 3;
+    /// 3: the CPG floor, `crom_stages::basis::CPG_FLOOR`; 4: the stored C(m) on a rank grid
+    /// above `crom_stages::basis::DENSE_CURVE_MAX` training snapshots).
+    const ALGORITHM_VERSION: u32 = 4;
 }
 
 /// The basis artifact's key spec for the training set `train`.
@@ -116,6 +123,7 @@ pub(crate) fn spec(scene: &SceneConfig, train: &Key) -> KeySpec {
 
 pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
     let st = ctx.scene.study.clone();
+    let scene_cfg = ctx.scene.clone();
     let max_rank = max_rank(ctx);
     let progress = ctx.progress;
     let spec = spec(ctx.scene, train);
@@ -130,7 +138,7 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
             || pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }),
             || {
                 let dual = pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol });
-                (dual, dual_path(progress, train, &set.dual, max_rank))
+                (dual, dual_path(progress, &scene_cfg, train, &set.dual, max_rank))
             },
         );
         let primal = primal.map_err(|e| numerical(e.to_string()))?;
@@ -214,7 +222,12 @@ fn write_cpg(f: &H5Out, group: &str, c: &Cpg, tol: f64, rcond: &[f64]) -> Result
     g.matrix(names::MODES, &to_col(c.basis.as_ref()), "unit-norm non-negative generators, selection order")?;
     let sel: Vec<u64> = c.selected.iter().map(|&i| i as u64).collect();
     g.vec_u64(names::SELECTED, &sel)?;
-    g.vec_f64(names::COMPACTNESS, &c.compactness, "C(m) of eq. 16 after each selection")?;
+    let what = if c.compactness.iter().any(|v| v.is_nan()) {
+        "C(m) of eq. 16 after each selection (NaN: off the rank grid of a large training set)"
+    } else {
+        "C(m) of eq. 16 after each selection"
+    };
+    g.vec_f64(names::COMPACTNESS, &c.compactness, what)?;
     g.vec_f64(
         names::GRAM_RCOND,
         rcond,

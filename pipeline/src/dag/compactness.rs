@@ -1,4 +1,7 @@
-//! Compactness stage: C(m) of eq. 16 for every m, for primal orth, dual orth and dual cone.
+//! Compactness stage: C(m) of eq. 16 for every m, for primal orth, dual orth and dual cone
+//! (the cone's on a rank grid above `crom_stages::basis::DENSE_CURVE_MAX` training snapshots:
+//! every m up to max(max_rank, 256), then doubling ranks, the last generator and the ranks the
+//! scene's cone tolerances reach; the table's `m` column says which).
 
 use std::collections::BTreeMap;
 
@@ -22,8 +25,9 @@ struct CompactnessKey {
 
 impl StageKey for CompactnessKey {
     const KIND: ArtifactKind = ArtifactKind::Compactness;
-    /// Bump when the compactness computation changes (2: the NNLS settings in the key).
-    const ALGORITHM_VERSION: u32 = 2;
+    /// Bump when the compactness computation changes (2: the NNLS settings in the key; 3: the
+    /// cone curve on a rank grid above `DENSE_CURVE_MAX` training snapshots).
+    const ALGORITHM_VERSION: u32 = 3;
 }
 
 /// The compactness artifact's key spec.
@@ -36,24 +40,23 @@ pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let scene = ctx.scene.scene.name.clone();
     let (progress, max_rank) = (ctx.progress, basis::max_rank(ctx));
+    let scene_cfg = ctx.scene.clone();
     ctx.single(ArtifactKind::Compactness, "compactness", &spec, |staging| {
         let set = loaded.set(store, train)?;
         let b = loaded.bases(store, basis_key)?;
         let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
         let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
         // C(m) of the stored cone basis: the prefix of the CPG path's curve (the same pass).
-        let path = basis::dual_path(progress, train, &set.dual, max_rank).map_err(|message| CromError::Numerical {
-            stage: "compactness",
-            scene: scene.clone(),
-            message,
-        })?;
+        let path = basis::dual_path(progress, &scene_cfg, train, &set.dual, max_rank)
+            .map_err(|message| CromError::Numerical { stage: "compactness", scene: scene.clone(), message })?;
         let cone = path.compactness[..=b.dual_cpg.cols.min(path.len())].to_vec();
         let mut t = Rows::default();
         t.push(&scene, "primal", "orth", &primal);
         t.push(&scene, "dual", "orth", &dual);
         t.push(&scene, "dual", "cone", &cone);
+        let rows = t.m.len();
         t.table().write_parquet(&staging.path(names::FILE))?;
-        Ok(BTreeMap::from([("rows".to_string(), json!(primal.len() + dual.len() + cone.len()))]))
+        Ok(BTreeMap::from([("rows".to_string(), json!(rows))]))
     })
 }
 
@@ -68,7 +71,8 @@ struct Rows {
 
 impl Rows {
     fn push(&mut self, scene: &str, field: &str, basis: &str, values: &[f64]) {
-        for (m, v) in values.iter().enumerate() {
+        // NaN: a rank off the grid of a large training set's cone curve (no row).
+        for (m, v) in values.iter().enumerate().filter(|(_, v)| !v.is_nan()) {
             self.scene.push(scene.to_string());
             self.field.push(field.to_string());
             self.basis.push(basis.to_string());

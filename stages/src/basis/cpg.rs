@@ -36,9 +36,11 @@ use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 use faer::{Mat, MatRef};
+use rayon::prelude::*;
 
 use crate::approx::{close, Tol};
-use crate::cone::{copy_column, norm2, ConeError, ConeProjector, GrowingCone, NnlsParams};
+use crate::cone::{copy_column, norm2, ConeError, ConeProjector, GrowingCone, NnlsParams, WideNnls};
+use crate::running_stats::RunningStats;
 
 /// Parameters of [`cpg`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -95,7 +97,8 @@ const BAND_ABS: f64 = 1e-12;
 /// Greedy cone basis of the snapshots `s` (n x N, one per column): the lazy selection, then
 /// `C(m)` by one pass over it (stopped at the tolerance).
 pub fn cpg(s: MatRef<'_, f64>, params: CpgParams) -> Result<Cpg, ConeError> {
-    let path = cpg_path_until(s, CpgPathParams { nnls: params.nnls, max_rank: 0 }, params.tol, &|| {})?;
+    let path_params = CpgPathParams { nnls: params.nnls, max_rank: 0, dense_max: usize::MAX };
+    let path = cpg_path_until(s, path_params, params.tol, &[], &|| {})?;
     Ok(path.truncated(params.tol))
 }
 
@@ -192,8 +195,10 @@ pub(crate) struct LazyGreedy<'a> {
     atb: Vec<Vec<f64>>,
     lambda: Vec<f64>,
     column: Vec<f64>,
-    /// Every projection, per snapshot (recorded for the leave-one-out continuations).
+    /// Every projection on a cone of fewer than `record_below` generators, per snapshot
+    /// (recorded for the leave-one-out continuations, which start below `max_rank`).
     history: Option<Vec<Vec<Refresh>>>,
+    record_below: usize,
 }
 
 /// One greedy step: the pick and the freshly projected candidates it was chosen from.
@@ -207,11 +212,12 @@ pub(crate) struct Step {
 impl<'a> LazyGreedy<'a> {
     /// The empty cone: every non-zero snapshot is a candidate with its exact error
     /// `||s_j|| / ||s_j||`, exactly 1 in floating point (x / x = 1 for finite x != 0).
-    fn new(s: MatRef<'a, f64>, norms: &'a [f64], nnls: NnlsParams, record: bool) -> Self {
+    fn new(s: MatRef<'a, f64>, norms: &'a [f64], nnls: NnlsParams, record_below: usize) -> Self {
         let candidates = (0..s.ncols()).filter(|&j| norms[j] > 0.0).map(|j| (j, 1.0, 0, Vec::new()));
         let projector = ConeProjector::empty(s.nrows(), nnls);
         let mut out = Self::resume(s, norms, projector, candidates);
-        out.history = record.then(|| vec![Vec::new(); s.ncols()]);
+        out.history = (record_below > 0).then(|| vec![Vec::new(); s.ncols()]);
+        out.record_below = record_below;
         out
     }
 
@@ -235,6 +241,7 @@ impl<'a> LazyGreedy<'a> {
             lambda: vec![0.0; s.nrows()],
             column: vec![0.0; s.nrows()],
             history: None,
+            record_below: 0,
         };
         for (j, err, m, coeffs) in candidates {
             out.stamp[j] = m;
@@ -261,7 +268,7 @@ impl<'a> LazyGreedy<'a> {
         let residual = self.projector.project_warm_atb(&self.lambda, atb, &mut self.coeffs[j])?;
         let err = residual / self.norms[j];
         self.stamp[j] = m;
-        if let Some(h) = &mut self.history {
+        if let Some(h) = self.history.as_mut().filter(|_| m < self.record_below) {
             h[j].push(Refresh { m, err, coeffs: self.coeffs[j].clone() });
         }
         Ok(err)
@@ -304,14 +311,35 @@ impl<'a> LazyGreedy<'a> {
     }
 }
 
-/// Parameters of [`cpg_path`] (default: default NNLS parameters, `max_rank` 0).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+/// Above this many snapshots, [`cpg_path`] computes `C(m)` beyond the metrics' ranks on a
+/// rank grid (the default of [`CpgPathParams::dense_max`]). Every `C(m)` costs one cone
+/// projection per snapshot, so the whole curve of a path of k ~ N generators costs ~N^2/2
+/// projections: 0.5 M at N = 1 025 (a few seconds), 134 M at N = 16 385 (hours).
+pub const DENSE_CURVE_MAX: usize = 1025;
+
+/// Where the rank grid of a large path starts when no larger `max_rank` is asked for: every
+/// `C(m)` up to this rank is computed (the part of the curve a reader looks at).
+pub const GRID_START: usize = 256;
+
+/// Parameters of [`cpg_path`] (default: default NNLS parameters, `max_rank` 0, the whole
+/// curve up to [`DENSE_CURVE_MAX`] snapshots).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CpgPathParams {
     /// Parameters of the cone projections.
     pub nnls: NnlsParams,
     /// Record the metrics' data (specificity intervals, leave-one-out errors) for
     /// m = 1..=max_rank (capped at the basis size). 0 records nothing.
     pub max_rank: usize,
+    /// Up to this many snapshots `C(m)` is computed for every m (the paper's curve). Above it,
+    /// for every m up to `max(max_rank, GRID_START)`, then on the doubling grid
+    /// `2 m_0, 4 m_0, ...` and at k; the other entries of [`CpgPath::compactness`] are NaN.
+    pub dense_max: usize,
+}
+
+impl Default for CpgPathParams {
+    fn default() -> Self {
+        Self { nnls: NnlsParams::default(), max_rank: 0, dense_max: DENSE_CURVE_MAX }
+    }
 }
 
 /// The whole tolerance-0 CPG path of a snapshot set, shared by the basis (any tolerance is a
@@ -322,7 +350,10 @@ pub struct CpgPath {
     pub basis: Mat<f64>,
     /// Snapshot index of each generator (length k).
     pub selected: Vec<usize>,
-    /// `C(0..=k)` of eq. 16 (`[0.0]` for an all-zero S).
+    /// `C(0..=k)` of eq. 16 (`[0.0]` for an all-zero S). Above
+    /// [`CpgPathParams::dense_max`] snapshots, NaN at the ranks off the grid (see
+    /// [`CpgPathParams::dense_max`]) except where a tolerance asked of [`cpg_path_refined`]
+    /// was located.
     pub compactness: Vec<f64>,
     /// The `max_rank` requested: the metrics' data is recorded for m = 1..=min(k, max_rank),
     /// and leave-one-out folds can be evaluated up to m = max_rank.
@@ -368,7 +399,8 @@ impl CpgPath {
     }
 
     /// Number of generators of the basis at tolerance `tol`: the first m with `C(m) <= tol`,
-    /// else k.
+    /// else k. On a grid path, exact for the tolerances given to [`cpg_path_refined`]; for
+    /// others the first grid rank with `C(m) <= tol` (an upper bound).
     pub fn rank_at(&self, tol: f64) -> usize {
         self.compactness.iter().position(|&c| c <= tol).unwrap_or(self.len()).min(self.len())
     }
@@ -382,9 +414,21 @@ impl CpgPath {
 }
 
 /// The tolerance-0 CPG path of `s` (n x N) with the metrics' data up to `params.max_rank`;
-/// `tick` is called once per generator of the compactness pass (at most N times).
+/// `tick` is called once per rank m of the compactness pass (k times in all).
 pub fn cpg_path(s: MatRef<'_, f64>, params: CpgPathParams, tick: &(dyn Fn() + Sync)) -> Result<CpgPath, ConeError> {
-    cpg_path_until(s, params, -1.0, tick)
+    cpg_path_until(s, params, -1.0, &[], tick)
+}
+
+/// [`cpg_path`] whose [`rank_at`](CpgPath::rank_at) is exact at each of `tols` also on a grid
+/// path: the grid interval where `C(m)` first reaches a tolerance is bisected (`C(m)` does not
+/// increase with m, the cone only grows), about `log2(interval)` more evaluations.
+pub fn cpg_path_refined(
+    s: MatRef<'_, f64>,
+    params: CpgPathParams,
+    tols: &[f64],
+    tick: &(dyn Fn() + Sync),
+) -> Result<CpgPath, ConeError> {
+    cpg_path_until(s, params, -1.0, tols, tick)
 }
 
 /// [`cpg_path`] whose compactness pass stops at the first `C(m) <= stop` (`stop < 0`: never).
@@ -392,13 +436,14 @@ fn cpg_path_until(
     s: MatRef<'_, f64>,
     params: CpgPathParams,
     stop: f64,
+    tols: &[f64],
     tick: &(dyn Fn() + Sync),
 ) -> Result<CpgPath, ConeError> {
     let count = s.ncols();
     let norms: Vec<f64> = (0..count).map(|j| s.col(j).norm_l2()).collect();
     let total = s.norm_l2();
     let record = params.max_rank > 0;
-    let mut lazy = LazyGreedy::new(s, &norms, params.nnls, record);
+    let mut lazy = LazyGreedy::new(s, &norms, params.nnls, params.max_rank);
     let mut selected = Vec::new();
     let mut diverge = vec![usize::MAX; count];
     if total > 0.0 {
@@ -413,21 +458,22 @@ fn cpg_path_until(
     let k = selected.len();
     let max_rank = params.max_rank.min(k);
     let requested = params.max_rank;
+    let dense_to = if count <= params.dense_max { k } else { k.min(params.max_rank.max(GRID_START)) };
     let mut compactness = vec![if total > 0.0 { 1.0 } else { 0.0 }];
     let mut cone_ranges = Vec::with_capacity(max_rank);
     let mut errors = vec![Vec::with_capacity(max_rank); if record { count } else { 0 }];
     let mut start = vec![None; if record { count } else { 0 }];
     let single_norms: Vec<f64> =
         if record { (0..count).map(|j| s.subcols(j, 1).norm_l2()).collect() } else { Vec::new() };
-    let mut cone = GrowingCone::new(s, params.nnls);
+    let mut cone = ChunkedCone::new(s, params.nnls);
     let mut column = vec![0.0; s.nrows()];
-    for (t, &g) in selected.iter().enumerate() {
+    for (t, &g) in selected[..dense_to].iter().enumerate() {
         if compactness[t] <= stop {
             break;
         }
         if record {
             for j in (0..count).filter(|&j| diverge[j] == t + 1 && t < max_rank) {
-                start[j] = Some((cone.coeffs(j).to_vec(), cone.residuals()[j]));
+                start[j] = Some((cone.coeffs(j).to_vec(), cone.residual(j)));
             }
         }
         copy_column(s, g, &mut column);
@@ -437,7 +483,7 @@ fn cpg_path_until(
         if t < max_rank {
             if record {
                 for (j, e) in errors.iter_mut().enumerate() {
-                    e.push(norm2(&[cone.residuals()[j]]) / single_norms[j]);
+                    e.push(norm2(&[cone.residual(j)]) / single_norms[j]);
                 }
             }
             cone_ranges.push(cone.coefficient_intervals(t + 1));
@@ -445,10 +491,162 @@ fn cpg_path_until(
         tick();
     }
     let basis = lazy.projector.basis().to_owned();
+    if compactness.len() == dense_to + 1 && dense_to < k && compactness[dense_to] > stop {
+        let mut grid = RankGrid::new(s, basis.as_ref(), &selected, &norms, total, &cone, params.nnls);
+        drop(cone);
+        compactness.resize(k + 1, f64::NAN);
+        let mut m = dense_to;
+        while m < k {
+            let next = (2 * m).min(k);
+            compactness[next] = grid.eval(next)?;
+            (m..next).for_each(|_| tick());
+            m = next;
+            if compactness[m] <= stop {
+                compactness.truncate(m + 1);
+                break;
+            }
+        }
+        for &tol in tols.iter().filter(|&&tol| tol > 0.0) {
+            grid.locate(&mut compactness, tol)?;
+        }
+    }
     let history = lazy.history.take().unwrap_or_default();
-    let projector = record.then_some(lazy.projector);
+    let projector = record.then(|| lazy.projector.prefix(max_rank));
     let loo = LooData { norms, single_norms, diverge, errors, start, history, projector };
     Ok(CpgPath { basis, selected, compactness, max_rank: requested, cone_ranges, loo })
+}
+
+/// The dense compactness pass split into contiguous column blocks, one [`GrowingCone`] each,
+/// pushed in parallel. Each snapshot's chain of warm-started projections depends only on the
+/// generators (the same Gram entries in every block) and on itself, so every number is the
+/// same bit for bit whatever the blocks; the sums over snapshots run in index order.
+struct ChunkedCone<'a> {
+    size: usize,
+    chunks: Vec<GrowingCone<'a>>,
+}
+
+impl<'a> ChunkedCone<'a> {
+    fn new(s: MatRef<'a, f64>, nnls: NnlsParams) -> Self {
+        let count = s.ncols();
+        let pieces = (2 * rayon::current_num_threads()).clamp(1, count.max(1));
+        let size = count.div_ceil(pieces).max(1);
+        let chunks =
+            (0..count).step_by(size).map(|a| GrowingCone::new(s.subcols(a, size.min(count - a)), nnls)).collect();
+        Self { size, chunks }
+    }
+
+    fn push(&mut self, column: &[f64]) -> Result<(), ConeError> {
+        self.chunks.par_iter_mut().map(|c| c.push(column)).collect::<Result<Vec<()>, _>>().map(|_| ())
+    }
+
+    fn residual(&self, j: usize) -> f64 {
+        self.chunks[j / self.size].residuals()[j % self.size]
+    }
+
+    fn coeffs(&self, j: usize) -> &[f64] {
+        self.chunks[j / self.size].coeffs(j % self.size)
+    }
+
+    /// `||S - Pi(S)||_F`, summed in snapshot order (as [`GrowingCone::frobenius_residual`]).
+    fn frobenius_residual(&self) -> f64 {
+        self.chunks.iter().flat_map(|c| c.residuals()).map(|a| a * a).sum::<f64>().sqrt()
+    }
+
+    /// [`GrowingCone::coefficient_intervals`] over every block, in snapshot order.
+    fn coefficient_intervals(&self, m: usize) -> Vec<(f64, f64)> {
+        let mut stats = vec![RunningStats::new(); m];
+        for c in &self.chunks {
+            for j in 0..c.norms().len() {
+                for (st, a) in stats.iter_mut().zip(c.coeffs(j)) {
+                    st.push(*a);
+                }
+            }
+        }
+        stats.iter().map(|st| st.interval(true)).collect()
+    }
+}
+
+/// `C(m)` at single ranks beyond the dense part of a large path: every snapshot that is not
+/// one of the first m generators is projected on their cone with [`WideNnls`] (no m x m Gram
+/// matrix), warm-started from its support at the previous evaluation; a generator's own error
+/// is 0 (it is a positive multiple of a generator). Snapshots are projected in parallel, each
+/// on its own, and summed in index order: the same bits whatever the thread count.
+struct RankGrid<'s> {
+    s: MatRef<'s, f64>,
+    basis: MatRef<'s, f64>,
+    /// Position of each snapshot on the path (`usize::MAX`: not selected).
+    position: Vec<usize>,
+    norms: &'s [f64],
+    total: f64,
+    nnls: NnlsParams,
+    /// Supports at the end of the dense pass (warm starts of the bisection's evaluations).
+    dense: Vec<Vec<(usize, f64)>>,
+    /// Supports at the last grid rank.
+    last: Vec<Vec<(usize, f64)>>,
+}
+
+impl<'s> RankGrid<'s> {
+    fn new(
+        s: MatRef<'s, f64>,
+        basis: MatRef<'s, f64>,
+        selected: &[usize],
+        norms: &'s [f64],
+        total: f64,
+        cone: &ChunkedCone<'_>,
+        nnls: NnlsParams,
+    ) -> Self {
+        let mut position = vec![usize::MAX; s.ncols()];
+        selected.iter().enumerate().for_each(|(p, &j)| position[j] = p);
+        let dense: Vec<Vec<(usize, f64)>> = (0..s.ncols())
+            .map(|j| cone.coeffs(j).iter().enumerate().filter(|(_, &a)| a > 0.0).map(|(g, &a)| (g, a)).collect())
+            .collect();
+        Self { s, basis, position, norms, total, nnls, last: dense.clone(), dense }
+    }
+
+    /// `C(m)`, warm-started from the last grid rank's supports (which it replaces).
+    fn eval(&mut self, m: usize) -> Result<f64, ConeError> {
+        let mut supports = std::mem::take(&mut self.last);
+        let c = self.eval_with(m, &mut supports);
+        self.last = supports;
+        c
+    }
+
+    fn eval_with(&self, m: usize, supports: &mut [Vec<(usize, f64)>]) -> Result<f64, ConeError> {
+        let (n, theta) = (self.s.nrows(), self.basis.subcols(0, m));
+        let residuals = supports
+            .par_iter_mut()
+            .enumerate()
+            .map_init(
+                || (WideNnls::new(n, m, self.nnls), vec![0.0; n]),
+                |(wide, lambda), (j, support)| {
+                    if self.norms[j] <= 0.0 || self.position[j] < m {
+                        return Ok(0.0);
+                    }
+                    copy_column(self.s, j, lambda);
+                    wide.project(theta, lambda, support)
+                },
+            )
+            .collect::<Result<Vec<f64>, ConeError>>()?;
+        Ok(norm2(&residuals) / self.total)
+    }
+
+    /// Fill `C(m)` at the first m with `C(m) <= tol` by bisecting the grid interval that
+    /// contains it (nothing to do when its lower end is already evaluated).
+    fn locate(&self, compactness: &mut [f64], tol: f64) -> Result<(), ConeError> {
+        let Some(mut hi) = compactness.iter().position(|&c| c <= tol) else { return Ok(()) };
+        let Some(mut lo) = compactness[..hi].iter().rposition(|c| !c.is_nan()) else { return Ok(()) };
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            let mut supports = self.dense.clone();
+            compactness[mid] = self.eval_with(mid, &mut supports)?;
+            if compactness[mid] <= tol {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Fold j (snapshot j left out) picks differently from the full run at step t when the full
@@ -679,5 +877,72 @@ mod tests {
             assert_all_close!(mine.compactness, cut.compactness, Tol::abs(0.0));
         }
         assert_eq!(path.cone_ranges.len(), 10);
+    }
+
+    /// A path on a rank grid (dense part forced small) against the whole curve: the dense
+    /// part and the selection are bit-identical (the same projections), every grid value
+    /// agrees with the whole curve's to 1e-10 (the Gram-free projections against the Gram
+    /// projector's, both at a 1e-12 KKT tolerance on unit generators; C(m) <= 1), and the
+    /// refined tolerances give the same basis size as the whole curve.
+    #[test]
+    fn rank_grid_agrees_with_the_whole_curve() {
+        let mut rng = Rng::new(61);
+        let s = bumps(&mut rng, 60, 400, (2.0, 9.0));
+        let dense_params = CpgPathParams { max_rank: 8, dense_max: usize::MAX, ..CpgPathParams::default() };
+        let dense = cpg_path(s.as_ref(), dense_params, &|| {}).expect("converges");
+        let k = dense.len();
+        assert!(k > GRID_START + 40, "the test needs a path past the grid start, got {k}");
+        // Tolerances reached inside the dense part, and one (midway between the whole curve's
+        // C at GRID_START + 36 and + 37, far from both next to the 1e-10 agreement) reached
+        // between two grid ranks, which the bisection must find.
+        let c = &dense.compactness;
+        assert!(c[GRID_START + 36] - c[GRID_START + 37] > 1e-8);
+        let tols = [0.05, 0.01, 0.5 * (c[GRID_START + 36] + c[GRID_START + 37]), 0.0];
+        assert!(dense.rank_at(tols[2]) > GRID_START && dense.rank_at(tols[2]) < 2 * GRID_START);
+        let grid_params = CpgPathParams { dense_max: 10, ..dense_params };
+        let ticks = std::sync::atomic::AtomicUsize::new(0);
+        let tick = || {
+            ticks.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        };
+        let grid = cpg_path_refined(s.as_ref(), grid_params, &tols, &tick).expect("converges");
+        assert_eq!(ticks.into_inner(), k, "one tick per rank");
+        assert_eq!(grid.selected, dense.selected);
+        assert_eq!(grid.compactness.len(), k + 1);
+        let dense_to = GRID_START.min(k);
+        assert_eq!(grid.compactness[..=dense_to], dense.compactness[..=dense_to]);
+        let mut evaluated = 0;
+        for m in dense_to + 1..=k {
+            if grid.compactness[m].is_nan() {
+                continue;
+            }
+            evaluated += 1;
+            assert_close!(grid.compactness[m], dense.compactness[m], Tol::abs(1e-10));
+        }
+        assert!(evaluated >= 1 && grid.compactness[k] <= 1e-10, "C(k) = {}", grid.compactness[k]);
+        for tol in tols {
+            assert_eq!(grid.rank_at(tol), dense.rank_at(tol), "tolerance {tol}");
+        }
+        // The metrics' data is the dense pass's.
+        assert_eq!(grid.cone_ranges, dense.cone_ranges);
+        assert_eq!(grid.loo.errors, dense.loo.errors);
+    }
+
+    /// The dense pass splits the snapshots into blocks by thread count; the path is the same
+    /// bits on one thread and on three.
+    #[test]
+    fn path_is_the_same_on_any_thread_count() {
+        let mut rng = Rng::new(62);
+        let s = bumps(&mut rng, 40, 150, (2.0, 8.0));
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+            let params = CpgPathParams { max_rank: 20, dense_max: 60, ..CpgPathParams::default() };
+            pool.install(|| cpg_path_refined(s.as_ref(), params, &[0.02], &|| {}).expect("converges"))
+        };
+        let (one, three) = (run(1), run(3));
+        assert_eq!(one.selected, three.selected);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&one.compactness), bits(&three.compactness));
+        assert_eq!(one.cone_ranges, three.cone_ranges);
+        assert_eq!(one.loo.errors, three.loo.errors);
     }
 }

@@ -27,13 +27,22 @@ use faer::MatRef;
 /// The estimate of `kappa_1(G_t)` for t = 1..=k, k = `b.ncols()`.
 pub fn gram_condition_path(b: MatRef<'_, f64>) -> Vec<f64> {
     let (n, k) = (b.nrows(), b.ncols());
-    let mut q: Vec<f64> = Vec::with_capacity(n * k);
-    // R column-major, k x k upper triangular.
-    let mut r = vec![0.0; k * k];
+    // At most n generators in R^n are independent: the Gram of n + 1 of them is singular, so
+    // R never needs more than n + 1 columns (a 16 385-generator path would otherwise
+    // allocate 2 GB for it).
+    let ld = k.min(n + 1);
+    let mut q: Vec<f64> = Vec::with_capacity(n * ld);
+    // R column-major, ld x ld upper triangular.
+    let mut r = vec![0.0; ld * ld];
     let mut out = Vec::with_capacity(k);
     // Column sums of |G_t|, grown by one Gram column per step: ||G_t||_1 in O(n t).
     let mut col_sums: Vec<f64> = Vec::with_capacity(k);
     for t in 0..k {
+        if t == ld {
+            // t = n + 1 generators in R^n: singular (see `ld`).
+            out.resize(k, f64::INFINITY);
+            break;
+        }
         let bt = b.col(t);
         let mut own = 0.0;
         for (i, sum) in col_sums.iter_mut().enumerate() {
@@ -47,17 +56,17 @@ pub fn gram_condition_path(b: MatRef<'_, f64>) -> Vec<f64> {
             for i in 0..t {
                 let qi = &q[i * n..(i + 1) * n];
                 let c: f64 = qi.iter().zip(&v).map(|(a, b)| a * b).sum();
-                r[i + t * k] += c;
+                r[i + t * ld] += c;
                 v.iter_mut().zip(qi).for_each(|(x, a)| *x -= c * a);
             }
         }
         let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-        r[t + t * k] = norm;
+        r[t + t * ld] = norm;
         let kappa = if norm > 0.0 {
             q.extend(v.iter().map(|x| x / norm));
             let m = t + 1;
             let g_norm = col_sums.iter().copied().fold(0.0, f64::max);
-            g_norm * hager(m, &|x: &mut [f64]| solve_gram(&r, k, m, x))
+            g_norm * hager(m, &|x: &mut [f64]| solve_gram(&r, ld, m, x))
         } else {
             f64::INFINITY
         };

@@ -13,7 +13,9 @@ mod cpg_reference;
 mod gram_condition;
 mod pod;
 
-pub use cpg::{cpg, cpg_path, Cpg, CpgParams, CpgPath, CpgPathParams, CPG_FLOOR};
+pub use cpg::{
+    cpg, cpg_path, cpg_path_refined, Cpg, CpgParams, CpgPath, CpgPathParams, CPG_FLOOR, DENSE_CURVE_MAX, GRID_START,
+};
 pub use cpg_reference::cpg_reference;
 pub use gram_condition::gram_condition_path;
 

@@ -37,10 +37,12 @@
 mod nnls;
 mod projector;
 mod reference;
+mod wide;
 
 pub use nnls::{nnls, ConeError, Nnls, NnlsParams, NnlsSolution, NnlsStats};
 pub use projector::{ConeProjection, ConeProjector, GrowingCone, IN_CONE_REL_TOL};
 pub use reference::nnls_reference;
+pub use wide::WideNnls;
 
 pub(crate) use nnls::norm2;
 pub(crate) use projector::copy_column;

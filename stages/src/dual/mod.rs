@@ -46,7 +46,7 @@ use faer::{Mat, MatRef};
 use thiserror::Error;
 
 use crate::basis::{cpg_path, pod_full, CpgPathParams, PodError};
-use crate::cone::{ConeError, NnlsParams};
+use crate::cone::ConeError;
 
 pub use prefix::{ConePrefix, SpanPrefix};
 pub use registration::{Interpolation, MapKind};
@@ -271,7 +271,7 @@ pub(crate) fn pod_modes(s: MatRef<'_, f64>, max_m: usize) -> Result<Mat<f64>, Du
 
 /// The first `max_m` generators of the tolerance-0 CPG path of `s`.
 pub(crate) fn cpg_generators(s: MatRef<'_, f64>, max_m: usize) -> Result<Mat<f64>, DualError> {
-    let path = cpg_path(s, CpgPathParams { nnls: NnlsParams::default(), max_rank: 0 }, &|| {})?;
+    let path = cpg_path(s, CpgPathParams::default(), &|| {})?;
     let k = path.len().min(max_m);
     Ok(path.basis.subcols(0, k).to_owned())
 }

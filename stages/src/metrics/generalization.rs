@@ -411,7 +411,7 @@ pub fn generalization_orth(s: MatRef<'_, f64>, max_m: usize) -> Result<MetricCur
 /// G(m) for m = 1..=max_m with CPG bases ("dual cone"): the shared path, then every fold in
 /// turn ([`loo_fold_cone`]).
 pub fn generalization_cone(s: MatRef<'_, f64>, max_m: usize, nnls: NnlsParams) -> Result<MetricCurve, ConeError> {
-    let path = cpg_path(s, CpgPathParams { nnls, max_rank: max_m }, &|| {})?;
+    let path = cpg_path(s, CpgPathParams { nnls, max_rank: max_m, ..CpgPathParams::default() }, &|| {})?;
     let folds = (0..s.ncols()).map(|i| loo_fold_cone(s, &path, i, max_m)).collect::<Result<Vec<_>, _>>()?;
     Ok(combine_folds(&folds, max_m))
 }
