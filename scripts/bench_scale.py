@@ -11,6 +11,9 @@ each target beside the measured value. Part of `just bench`; not a test.
   E  16 385 ironing-coarse snapshots stored (`crom solve`, level 14) disk <= 1.1 x raw float64,
                                                                     index opens in pandas <= 2 s,
                                                                     one column reads in <= 10 ms
+  F  ironing-coarse as one study at train_level = 11, 12, 13 (and 14 with CROM_BENCH_L14=1):
+     whole offline study cold; growing 12 -> 13 against cold 13. Targets: level 13 <= 60 s,
+     <= 1.5 GiB; level 14 <= 150 s, <= 2 GiB; growing <= 0.5 x cold.
 
 "Offline study" is `crom run --offline` (every stage but the online ROM and the report, whose
 speed is the subject of issue 10), timed with its peak RSS.
@@ -138,11 +141,36 @@ def bench_e(tmp):
     row("peak RSS of the sweep", "-", f"{rss / GIB:.2f} GiB", True)
 
 
+def bench_f(tmp):
+    import os
+    header("F. ironing-coarse as one study: train_level = k (2^k + 1 training + 2^k test points)")
+    targets = {13: (60, 1.5), 14: (150, 2.0)}
+    levels = [11, 12, 13] + ([14] if os.environ.get("CROM_BENCH_L14") == "1" else [])
+    cold = {}
+    for k in levels:
+        scene = variant(tmp, "ironing-coarse", f"ic-l{k}", [("n_train = 128\nnested_levels = 7", f"train_level = {k}")])
+        wall, rss, _ = crom(pathlib.Path(tmp) / f"f{k}", "run", "--offline", scene)
+        cold[k] = wall
+        t, m = targets.get(k, (None, None))
+        row(f"level {k} ({2**k + 1} + {2**k}): whole offline study, cold", f"<= {t} s" if t else "-",
+            f"{wall:.1f} s", t is None or wall <= t)
+        row(f"level {k}: peak RSS", f"<= {m} GiB" if m else "-", f"{rss / GIB:.2f} GiB", m is None or rss <= m * GIB)
+    # Growing: level 12's store, then level 13 on it (the new points solved, the study updated).
+    store = pathlib.Path(tmp) / "grow"
+    s12 = variant(tmp, "ironing-coarse", "ic-grow", [("n_train = 128\nnested_levels = 7", "train_level = 12")])
+    crom(store, "run", "--offline", s12)
+    s13 = variant(tmp, "ironing-coarse", "ic-grow", [("n_train = 128\nnested_levels = 7", "train_level = 13")])
+    grow, _, out = crom(store, "run", "--offline", s13)
+    solved, reused = snapshot_counts(out)
+    row("grow 12 -> 13: offline study", f"<= 0.5 x cold 13 = {0.5 * cold[13]:.1f} s", f"{grow:.1f} s "
+        f"({grow / cold[13]:.2f} x; {solved} solved, {reused} reused)", grow <= 0.5 * cold[13])
+
+
 def main():
-    which = sys.argv[1:] or ["A", "B", "C", "D", "E"]
+    which = sys.argv[1:] or ["A", "B", "C", "D", "E", "F"]
     subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
                    check=True)
-    benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "E": bench_e}
+    benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "E": bench_e, "F": bench_f}
     for w in which:
         with tempfile.TemporaryDirectory() as tmp:
             benches[w](tmp)

@@ -152,7 +152,7 @@ fn components() {
     );
 
     // Specificity, 1000 samples per m, every m.
-    let sp = SpecificityParams { samples: 1000, seed: 2023 };
+    let sp = SpecificityParams { samples: 1000, seed: 2023, ..SpecificityParams::default() };
     let (s_orth, t_so) = time(|| specificity_orth(s.as_ref(), pod.modes.as_ref(), sp));
     println!(
         "| S(m) dual orth, 1000 samples, m = 1..{} | {} | {} |",
@@ -309,7 +309,7 @@ fn scaling() {
                 let path =
                     cpg_path(s.as_ref(), CpgPathParams { nnls, max_rank: count, ..CpgPathParams::default() }, &|| {})
                         .expect("path");
-                let sp = SpecificityParams { samples: 1000, seed: 2023 };
+                let sp = SpecificityParams { samples: 1000, seed: 2023, ..SpecificityParams::default() };
                 let a = specificity_cone_path(s.as_ref(), &path, usize::MAX, sp, &|| {});
                 let b = specificity_cone(s.as_ref(), path.basis.as_ref(), sp, nnls).expect("S cone");
                 let (rel, abs) = rel_diff(&a.mean, &b.mean, 1e-8);

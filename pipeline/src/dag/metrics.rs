@@ -48,6 +48,22 @@ struct SpecificityKey {
     seed: u64,
     max_rank: usize,
     nnls: NnlsKey,
+    /// Every m up to this, then the quarter-octave rank grid (large training sets only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    dense_to: Option<usize>,
+}
+
+/// Every m of S(m) is evaluated up to this many training snapshots; above, every m up to
+/// [`SPECIFICITY_DENSE_TO`] and then the quarter-octave grid of `metrics::on_rank_grid`
+/// (one S(m) costs `samples x N x m`: the whole curve to 256 at N = 16 385 is ~4 CPU-minutes).
+const SPECIFICITY_GRID_ABOVE: usize = crom_stages::basis::DENSE_CURVE_MAX;
+
+/// See [`SPECIFICITY_GRID_ABOVE`].
+const SPECIFICITY_DENSE_TO: usize = 32;
+
+/// The specificity's rank grid for the scene: `None` (every m) or where the grid starts.
+fn specificity_dense_to(scene: &SceneConfig) -> Option<usize> {
+    (scene.parameter.train_points().len() > SPECIFICITY_GRID_ABOVE).then_some(SPECIFICITY_DENSE_TO)
 }
 
 impl StageKey for SpecificityKey {
@@ -87,7 +103,9 @@ pub(crate) fn generalization_spec(scene: &SceneConfig, train: &Key) -> KeySpec {
 pub(crate) fn specificity_spec(scene: &SceneConfig, train: &Key, basis_key: &Key) -> KeySpec {
     let st = &scene.study;
     let max_rank = basis::max_rank_of(scene);
-    let key = SpecificityKey { samples: st.specificity_samples, seed: st.seed, max_rank, nnls: NnlsKey::used() };
+    let dense_to = specificity_dense_to(scene);
+    let key =
+        SpecificityKey { samples: st.specificity_samples, seed: st.seed, max_rank, nnls: NnlsKey::used(), dense_to };
     KeySpec::of(&key).input("train", train).input("basis", basis_key)
 }
 
@@ -171,7 +189,11 @@ fn loo_cone(
 
 /// S(m) for primal orth, dual orth and dual cone, on the stored bases, m = 1..=min(k, max_rank).
 pub(crate) fn specificity(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
-    let params = SpecificityParams { samples: ctx.scene.study.specificity_samples, seed: ctx.scene.study.seed };
+    let params = SpecificityParams {
+        samples: ctx.scene.study.specificity_samples,
+        seed: ctx.scene.study.seed,
+        dense_to: specificity_dense_to(ctx.scene).unwrap_or(usize::MAX),
+    };
     let max_rank = basis::max_rank(ctx);
     let spec = specificity_spec(ctx.scene, train, basis_key);
     let scene = ctx.scene.scene.name.clone();
@@ -280,7 +302,7 @@ struct CurveRows {
 
 impl CurveRows {
     fn push(&mut self, scene: &str, field: &str, basis: &str, c: &MetricCurve) {
-        for k in 0..c.len() {
+        for k in (0..c.len()).filter(|&k| !c.skipped[k]) {
             self.s[0].push(scene.to_string());
             self.s[1].push(field.to_string());
             self.s[2].push(basis.to_string());

@@ -39,4 +39,4 @@ pub use specificity::{
 };
 
 pub use specificity::stream as specificity_stream;
-pub use stats::{MetricCurve, RunningStats};
+pub use stats::{on_rank_grid, MetricCurve, RunningStats};

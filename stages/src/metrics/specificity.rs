@@ -42,7 +42,7 @@
 use faer::{Mat, MatRef};
 use rayon::prelude::*;
 
-use super::stats::{MetricCurve, RunningStats};
+use super::stats::{on_rank_grid, MetricCurve, RunningStats};
 use crate::basis::CpgPath;
 use crate::cone::{copy_column, ConeError, GrowingCone, NnlsParams};
 use crate::rng::Rng;
@@ -54,11 +54,15 @@ pub struct SpecificityParams {
     pub samples: usize,
     /// Seed of the sampler (default 0; scenes record their own `study.seed`).
     pub seed: u64,
+    /// Evaluate every m up to this, beyond it only the ranks of
+    /// [`on_rank_grid`](super::on_rank_grid) (default `usize::MAX`: every m). Each m draws from
+    /// its own stream, so an evaluated S(m) is the same number either way.
+    pub dense_to: usize,
 }
 
 impl Default for SpecificityParams {
     fn default() -> Self {
-        Self { samples: 1000, seed: 0 }
+        Self { samples: 1000, seed: 0, dense_to: usize::MAX }
     }
 }
 
@@ -83,12 +87,15 @@ pub fn specificity_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>, params: Spec
     let stats: Vec<RunningStats> = (1..=k)
         .into_par_iter()
         .map(|m| {
+            if !on_rank_grid(m, params.dense_to, k) {
+                return RunningStats::new();
+            }
             sample_stats(&frame, &ranges[..m], stream(params.seed, m), params.samples, m, |alpha, beta| {
                 beta.copy_from_slice(alpha)
             })
         })
         .collect();
-    MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero())
+    skip_off_grid(MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero()), params.dense_to)
 }
 
 /// S(m) for m = 1..=k on the cone of the first m columns of `cone_basis` (n x k, CPG:
@@ -143,6 +150,10 @@ fn specificity_cone_with(
     let stats: Vec<RunningStats> = (1..=k)
         .into_par_iter()
         .map(|m| {
+            if !on_rank_grid(m, params.dense_to, k) {
+                tick();
+                return RunningStats::new();
+            }
             let p = m.min(qdim);
             let st = sample_stats(&frame, &ranges[m - 1], stream(params.seed, m), params.samples, p, |alpha, beta| {
                 // beta = R[:p, :m] alpha, R upper trapezoidal: row l starts at column l.
@@ -154,7 +165,14 @@ fn specificity_cone_with(
             st
         })
         .collect();
-    MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero())
+    skip_off_grid(MetricCurve::from_stats(&stats, vec![0; k], frame.n_zero()), params.dense_to)
+}
+
+/// Mark the ranks off the grid as skipped.
+fn skip_off_grid(mut curve: MetricCurve, dense_to: usize) -> MetricCurve {
+    let k = curve.len();
+    curve.skipped = (1..=k).map(|m| !on_rank_grid(m, dense_to, k)).collect();
+    curve
 }
 
 /// The training snapshots in an orthonormal frame `Q` (n x q).
@@ -319,7 +337,7 @@ mod tests {
     use crate::{assert_all_close, assert_close};
 
     fn params(seed: u64) -> SpecificityParams {
-        SpecificityParams { samples: 200, seed }
+        SpecificityParams { samples: 200, seed, ..SpecificityParams::default() }
     }
 
     /// S(m) by definition: r = Theta[:, :m] alpha formed explicitly, explicit distances.
@@ -581,5 +599,27 @@ mod tests {
             // The same sum for the winner, pruned ones provably larger: bit for bit.
             assert_close!(fast, slow, Tol::abs(0.0));
         }
+    }
+
+    /// On a rank grid the evaluated S(m) are the same bits as on the whole curve (each m has
+    /// its own random stream) and the others are marked skipped.
+    #[test]
+    fn rank_grid_evaluates_the_same_numbers() {
+        let mut rng = Rng::new(71);
+        let s = crate::testing::bumps(&mut rng, 30, 50, (2.0, 6.0));
+        let modes = crate::basis::pod(s.as_ref(), crate::basis::PodParams::default()).expect("svd").modes;
+        let k = modes.ncols().min(20);
+        let whole = specificity_orth(s.as_ref(), modes.subcols(0, k), params(5));
+        let grid = specificity_orth(s.as_ref(), modes.subcols(0, k), SpecificityParams { dense_to: 4, ..params(5) });
+        for m in 1..=k {
+            let on = crate::metrics::on_rank_grid(m, 4, k);
+            assert_eq!(grid.skipped[m - 1], !on, "m = {m}");
+            if on {
+                assert_eq!(grid.mean[m - 1].to_bits(), whole.mean[m - 1].to_bits(), "m = {m}");
+            } else {
+                assert!(grid.mean[m - 1].is_nan() && grid.count[m - 1] == 0);
+            }
+        }
+        assert!(grid.skipped.iter().any(|&x| x) && whole.skipped.iter().all(|&x| !x));
     }
 }

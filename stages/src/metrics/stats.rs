@@ -26,6 +26,9 @@ pub struct MetricCurve {
     /// Zero-norm snapshots skipped (reported, never divided by): left-out snapshots for G,
     /// training snapshots left out of the minimum for S.
     pub n_zero: usize,
+    /// m = k + 1 was not evaluated (the rank grid of a large training set, see
+    /// [`on_rank_grid`]): its entries are NaN and 0, and tables have no row for it.
+    pub skipped: Vec<bool>,
 }
 
 impl MetricCurve {
@@ -36,6 +39,7 @@ impl MetricCurve {
             mean: stats.iter().map(RunningStats::mean).collect(),
             std: stats.iter().map(RunningStats::std).collect(),
             count: stats.iter().map(RunningStats::count).collect(),
+            skipped: vec![false; padded.len()],
             padded,
             n_zero,
         }
@@ -49,6 +53,24 @@ impl MetricCurve {
     /// True when the curve covers no basis size.
     pub fn is_empty(&self) -> bool {
         self.mean.is_empty()
+    }
+}
+
+/// Whether rank m (1-based) of a curve over m = 1..=k is evaluated when every rank up to
+/// `dense_to` is and, beyond, only the quarter-octave grid `round(dense_to * 2^(i/4))`, i >= 1,
+/// and k itself (about 4 ranks per doubling: a log-scale plot's resolution). A metric whose cost
+/// grows with m then costs ~`dense_to^2 / 2 + 6 k` rank-units instead of `k^2 / 2`.
+pub fn on_rank_grid(m: usize, dense_to: usize, k: usize) -> bool {
+    if m <= dense_to || m == k {
+        return true;
+    }
+    let mut i = 1;
+    loop {
+        let g = (dense_to as f64 * 2f64.powf(i as f64 / 4.0)).round() as usize;
+        if g >= m {
+            return g == m;
+        }
+        i += 1;
     }
 }
 
@@ -81,5 +103,15 @@ mod tests {
         // Welford on equal values: delta is exactly 0 after the first push, so std is exactly 0.
         assert_close!(same.std(), 0.0, Tol::abs(0.0));
         assert_close!(same.mean(), 0.1, Tol::abs(0.0));
+    }
+
+    #[test]
+    fn rank_grid_is_dense_then_quarter_octaves() {
+        let on: Vec<usize> = (1..=256).filter(|&m| on_rank_grid(m, 32, 256)).collect();
+        // 32 * 2^(i/4) rounded: 38, 45, 54, 64, 76, 91, 108, 128, 152, 181, 215, 256.
+        let tail = [38, 45, 54, 64, 76, 91, 108, 128, 152, 181, 215, 256];
+        assert_eq!(on, (1..=32).chain(tail).collect::<Vec<_>>());
+        assert!(on_rank_grid(100, 32, 100), "the last rank is always on the grid");
+        assert!((1..=50).all(|m| on_rank_grid(m, usize::MAX, 50)));
     }
 }
