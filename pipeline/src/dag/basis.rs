@@ -28,7 +28,16 @@ pub(crate) struct Bases {
 /// The dual training snapshots' tolerance-0 CPG path of this run, shared by the basis,
 /// compactness, generalization and specificity stages (one greedy run instead of four): the
 /// training-set key and max rank it was computed for.
-static DUAL_PATH: Mutex<Option<(String, usize, [u64; 2], Arc<CpgPath>)>> = Mutex::new(None);
+static DUAL_PATH: Mutex<Option<PathMemo>> = Mutex::new(None);
+
+/// What [`DUAL_PATH`] holds: the training-set key, max rank and cone tolerances (as bits) the
+/// path was computed for, and the path.
+struct PathMemo {
+    train: String,
+    max_rank: usize,
+    tols: [u64; 2],
+    path: Arc<CpgPath>,
+}
 
 /// The CPG path of the dual snapshots `dual` of training set `train`, recording the metrics'
 /// data up to `max_rank`: computed once per run (with a progress bar), then shared. Above
@@ -44,9 +53,9 @@ pub(crate) fn dual_path(
     let tols = [scene.study.dual_cone_tol, scene.study.dual_cone_tol_truncated];
     let tol_bits = tols.map(f64::to_bits);
     let mut memo = DUAL_PATH.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some((key, rank, bits, path)) = memo.as_ref() {
-        if key == &train.0 && *rank == max_rank && *bits == tol_bits {
-            return Ok(Arc::clone(path));
+    if let Some(m) = memo.as_ref() {
+        if m.train == train.0 && m.max_rank == max_rank && m.tols == tol_bits {
+            return Ok(Arc::clone(&m.path));
         }
     }
     let bar = Ticker::new(ctx_progress, "CPG path", dual.cols);
@@ -54,7 +63,7 @@ pub(crate) fn dual_path(
     let path =
         Arc::new(cpg_path_refined(view(dual), params, &tols, &|| bar.tick("generators")).map_err(|e| e.to_string())?);
     bar.finish(&format!("{} generators", path.len()));
-    *memo = Some((train.0.clone(), max_rank, tol_bits, Arc::clone(&path)));
+    *memo = Some(PathMemo { train: train.0.clone(), max_rank, tols: tol_bits, path: Arc::clone(&path) });
     Ok(path)
 }
 

@@ -35,6 +35,7 @@
 //!   vectors, and for a basis growing one generator at a time.
 
 mod nnls;
+mod passive_factor;
 mod projector;
 mod reference;
 mod wide;

@@ -19,6 +19,8 @@
 use faer::{Mat, MatRef};
 use thiserror::Error;
 
+use super::passive_factor;
+
 /// Numerical failure of a cone (NNLS) computation.
 #[derive(Debug, Clone, Error)]
 pub enum ConeError {
@@ -364,71 +366,36 @@ impl Nnls {
 
     /// Append column t to the factor; false (factor unchanged) if its pivot is too small.
     fn try_add(&mut self, t: usize) -> bool {
-        let k = self.ld;
         let p = self.passive.len();
-        let mut norm2 = 0.0;
-        for i in 0..p {
-            let mut s = self.gram[(self.passive[i], t)];
-            for j in 0..i {
-                s -= self.chol[i * k + j] * self.chol[p * k + j];
-            }
-            let l = s / self.chol[i * k + i];
-            self.chol[p * k + i] = l;
-            norm2 += l * l;
+        let (gram, passive) = (&self.gram, &self.passive);
+        let ok = passive_factor::append(
+            &mut self.chol,
+            self.ld,
+            p,
+            |i| gram[(passive[i], t)],
+            gram[(t, t)],
+            self.params.pivot_tol,
+        );
+        if ok {
+            self.passive.push(t);
+            self.in_passive[t] = true;
         }
-        let gtt = self.gram[(t, t)];
-        let d2 = gtt - norm2;
-        if !(d2 > self.params.pivot_tol * gtt && d2 > 0.0) {
-            return false;
-        }
-        self.chol[p * k + p] = d2.sqrt();
-        self.passive.push(t);
-        self.in_passive[t] = true;
-        true
+        ok
     }
 
-    /// Remove the passive column at factor position q: delete its row of L and restore the
-    /// lower triangle with Givens rotations on columns (j, j+1), j = q..p-2.
+    /// Remove the passive column at factor position q (see [`passive_factor::remove`]).
     fn remove_at(&mut self, q: usize) {
-        let k = self.ld;
-        let p = self.passive.len();
-        for i in q..p - 1 {
-            self.chol.copy_within((i + 1) * k..(i + 1) * k + p, i * k);
-        }
-        for j in q..p - 1 {
-            let a = self.chol[j * k + j];
-            let b = self.chol[j * k + j + 1];
-            let r = a.hypot(b);
-            let (c, s) = (a / r, b / r);
-            for i in j..p - 1 {
-                let u = self.chol[i * k + j];
-                let v = self.chol[i * k + j + 1];
-                self.chol[i * k + j] = c * u + s * v;
-                self.chol[i * k + j + 1] = c * v - s * u;
-            }
-            self.chol[j * k + j] = r;
-            self.chol[j * k + j + 1] = 0.0;
-        }
+        passive_factor::remove(&mut self.chol, self.ld, self.passive.len(), q);
         let col = self.passive.remove(q);
         self.in_passive[col] = false;
     }
 
     /// `z = G[P, P]^{-1} rhs[P]` by forward and backward substitution with L.
     fn solve_z(&mut self, rhs: &[f64]) {
-        let k = self.ld;
-        let p = self.passive.len();
-        let (l, z) = (&self.chol, &mut self.z);
         for (q, &j) in self.passive.iter().enumerate() {
-            z[q] = rhs[j];
+            self.z[q] = rhs[j];
         }
-        for i in 0..p {
-            let s: f64 = (0..i).map(|j| l[i * k + j] * z[j]).sum();
-            z[i] = (z[i] - s) / l[i * k + i];
-        }
-        for i in (0..p).rev() {
-            let s: f64 = (i + 1..p).map(|j| l[j * k + i] * z[j]).sum();
-            z[i] = (z[i] - s) / l[i * k + i];
-        }
+        passive_factor::solve(&self.chol, self.ld, self.passive.len(), &mut self.z);
     }
 }
 

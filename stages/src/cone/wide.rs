@@ -27,6 +27,7 @@
 use faer::MatRef;
 
 use super::nnls::{norm2, ConeError, NnlsParams};
+use super::passive_factor;
 
 /// Workspaces of [`WideNnls::project`], sized once for `n` rows and `m` columns.
 #[derive(Debug, Clone)]
@@ -81,7 +82,7 @@ impl WideNnls {
     ) -> Result<f64, ConeError> {
         let (n, m) = (theta.nrows(), theta.ncols());
         assert_eq!(b.len(), n, "WideNnls::project: b has length {}, theta has {n} rows", b.len());
-        assert!(m <= self.x.len() && n + 1 <= self.ld, "WideNnls::project: workspace sized for a smaller cone");
+        assert!(m <= self.x.len() && n < self.ld, "WideNnls::project: workspace sized for a smaller cone");
         if !b.iter().all(|v| v.is_finite()) || !support.iter().all(|(_, v)| v.is_finite()) {
             return Err(ConeError::NonFinite);
         }
@@ -200,55 +201,24 @@ impl WideNnls {
     /// Append column t to the factor; false (unchanged) if its pivot is below
     /// `pivot_tol * ||theta_t||^2` (numerically in the span of P) or P already has n columns.
     fn try_add(&mut self, theta: MatRef<'_, f64>, t: usize) -> bool {
-        let k = self.ld;
         let p = self.passive.len();
-        if p + 1 >= k {
+        if p + 1 >= self.ld {
             return false;
         }
         let col_t = theta.col(t);
         let dot = |a: usize| theta.col(a).iter().zip(col_t.iter()).map(|(x, y)| x * y).sum::<f64>();
-        let mut norm2 = 0.0;
-        for i in 0..p {
-            let mut s = dot(self.passive[i]);
-            for j in 0..i {
-                s -= self.chol[i * k + j] * self.chol[p * k + j];
-            }
-            let l = s / self.chol[i * k + i];
-            self.chol[p * k + i] = l;
-            norm2 += l * l;
-        }
-        let gtt = dot(t);
-        let d2 = gtt - norm2;
-        if !(d2 > self.params.pivot_tol * gtt && d2 > 0.0) {
+        let passive = &self.passive;
+        if !passive_factor::append(&mut self.chol, self.ld, p, |i| dot(passive[i]), dot(t), self.params.pivot_tol) {
             return false;
         }
-        self.chol[p * k + p] = d2.sqrt();
         self.passive.push(t);
         self.in_passive[t] = true;
         true
     }
 
-    /// Remove the passive column at factor position q (Givens rotations restore the triangle).
+    /// Remove the passive column at factor position q.
     fn remove_at(&mut self, q: usize) {
-        let k = self.ld;
-        let p = self.passive.len();
-        for i in q..p - 1 {
-            self.chol.copy_within((i + 1) * k..(i + 1) * k + p, i * k);
-        }
-        for j in q..p - 1 {
-            let a = self.chol[j * k + j];
-            let b = self.chol[j * k + j + 1];
-            let r = a.hypot(b);
-            let (c, s) = (a / r, b / r);
-            for i in j..p - 1 {
-                let u = self.chol[i * k + j];
-                let v = self.chol[i * k + j + 1];
-                self.chol[i * k + j] = c * u + s * v;
-                self.chol[i * k + j + 1] = c * v - s * u;
-            }
-            self.chol[j * k + j] = r;
-            self.chol[j * k + j + 1] = 0.0;
-        }
+        passive_factor::remove(&mut self.chol, self.ld, self.passive.len(), q);
         let col = self.passive.remove(q);
         self.in_passive[col] = false;
     }
@@ -281,17 +251,8 @@ impl WideNnls {
 
     /// `z = L^{-T} L^{-1} rhs` on the first p entries.
     fn chol_solve(&mut self, p: usize) {
-        let k = self.ld;
-        let (l, z) = (&self.chol, &mut self.z);
-        z[..p].copy_from_slice(&self.rhs[..p]);
-        for i in 0..p {
-            let s: f64 = (0..i).map(|j| l[i * k + j] * z[j]).sum();
-            z[i] = (z[i] - s) / l[i * k + i];
-        }
-        for i in (0..p).rev() {
-            let s: f64 = (i + 1..p).map(|j| l[j * k + i] * z[j]).sum();
-            z[i] = (z[i] - s) / l[i * k + i];
-        }
+        self.z[..p].copy_from_slice(&self.rhs[..p]);
+        passive_factor::solve(&self.chol, self.ld, p, &mut self.z);
     }
 }
 
