@@ -58,10 +58,10 @@ pub(crate) fn dual_path(
             return Ok(Arc::clone(&m.path));
         }
     }
-    let bar = Ticker::new(ctx_progress, "CPG path", dual.cols);
+    // One step per selected generator, one per rank of the compactness pass (k <= N each).
+    let bar = Ticker::new(ctx_progress, "CPG path", 2 * dual.cols);
     let params = CpgPathParams { nnls: NnlsParams::default(), max_rank, ..CpgPathParams::default() };
-    let path =
-        Arc::new(cpg_path_refined(view(dual), params, &tols, &|| bar.tick("generators")).map_err(|e| e.to_string())?);
+    let path = Arc::new(cpg_path_refined(view(dual), params, &tols, &|| bar.tick("steps")).map_err(|e| e.to_string())?);
     bar.finish(&format!("{} generators", path.len()));
     *memo = Some(PathMemo { train: train.0.clone(), max_rank, tols: tol_bits, path: Arc::clone(&path) });
     Ok(path)

@@ -414,7 +414,8 @@ impl CpgPath {
 }
 
 /// The tolerance-0 CPG path of `s` (n x N) with the metrics' data up to `params.max_rank`;
-/// `tick` is called once per rank m of the compactness pass (k times in all).
+/// `tick` is called once per selected generator and once per rank m of the compactness pass
+/// (2k times in all, k <= N: a progress bar of 2N steps that jumps to its end when k < N).
 pub fn cpg_path(s: MatRef<'_, f64>, params: CpgPathParams, tick: &(dyn Fn() + Sync)) -> Result<CpgPath, ConeError> {
     cpg_path_until(s, params, -1.0, &[], tick)
 }
@@ -453,6 +454,7 @@ fn cpg_path_until(
                 mark_divergence(&step, &norms, t, &mut diverge);
             }
             selected.push(step.pick);
+            tick();
         }
     }
     let k = selected.len();
@@ -905,7 +907,7 @@ mod tests {
             ticks.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         };
         let grid = cpg_path_refined(s.as_ref(), grid_params, &tols, &tick).expect("converges");
-        assert_eq!(ticks.into_inner(), k, "one tick per rank");
+        assert_eq!(ticks.into_inner(), 2 * k, "one tick per selection and per rank");
         assert_eq!(grid.selected, dense.selected);
         assert_eq!(grid.compactness.len(), k + 1);
         let dense_to = GRID_START.min(k);
