@@ -88,8 +88,8 @@ use super::compactness::compactness_cone_with;
 use super::downdate::ColumnDowndate;
 use super::stats::{MetricCurve, RunningStats};
 use crate::basis::{
-    cpg_path, cpg_reference, numerical_rank, pod_full, CpgParams, CpgPath, CpgPathParams, LazyGreedy, PodError,
-    CPG_FLOOR, POD_FRAME_ABOVE,
+    cpg_path, cpg_reference, numerical_rank, pod_frame, pod_full, CpgParams, CpgPath, CpgPathParams, LazyGreedy,
+    PodError, CPG_FLOOR,
 };
 use crate::cone::{copy_column, norm2, ConeError, NnlsParams, IN_CONE_REL_TOL};
 
@@ -224,7 +224,7 @@ pub struct LooOrth {
     /// [`FoldMethod::Svd`].
     v: Mat<f64>,
     /// `1 - ||V[i, :p]||^2` per snapshot: from the rest of the full orthogonal V on the direct
-    /// path (no cancellation), from the thin V above [`POD_FRAME_ABOVE`] snapshots.
+    /// path (no cancellation), from the thin V where [`pod_frame`] gives a frame.
     complement: Vec<f64>,
     /// `||s_j||` from the original columns (length N).
     norms: Vec<f64>,
@@ -243,8 +243,10 @@ impl LooOrth {
         check_finite(s)?;
         let count = s.ncols();
         let norms = (0..count).map(|j| s.col(j).norm_l2()).collect();
-        if method == FoldMethod::Downdate && count > POD_FRAME_ABOVE {
-            return Self::framed(s, norms);
+        if method == FoldMethod::Downdate {
+            if let Some(frame) = pod_frame(s) {
+                return Self::framed(frame, count, s.nrows(), norms);
+            }
         }
         Self::direct(s, method, norms)
     }
@@ -272,7 +274,7 @@ impl LooOrth {
         Ok(Self { coords, method, sigma, v, complement, norms, nrows: n })
     }
 
-    /// Above [`POD_FRAME_ABOVE`] snapshots: the coordinates in the blockwise frame
+    /// Where [`pod_frame`] gives a frame: the coordinates in the blockwise frame
     /// ([`frame`](crate::basis::frame), q ~ the numerical rank rows instead of min(n, N)) and
     /// the thin SVD of those, `V` N x q. The full N x N V of the direct path (537 MB and
     /// `O(N^3)` at N = 8 193) is replaced by `1 - ||v_i||^2`, whose absolute error is a few
@@ -280,9 +282,8 @@ impl LooOrth {
     /// direction (leverage near 1), and a snapshot that does gets its own direction's weight
     /// from the pairs either way. Agreement with the direct path at the switch-over size is
     /// tested.
-    fn framed(s: MatRef<'_, f64>, norms: Vec<f64>) -> Result<Self, PodError> {
-        let (n, count) = (s.nrows(), s.ncols());
-        let coords = crate::basis::frame(s).r;
+    fn framed(frame: crate::basis::Frame, count: usize, n: usize, norms: Vec<f64>) -> Result<Self, PodError> {
+        let coords = frame.r;
         let p = coords.nrows();
         let (sigma, v) = if p == 0 {
             (Vec::new(), Mat::zeros(count, 0))
@@ -911,7 +912,7 @@ mod tests {
     #[test]
     fn framed_folds_agree_with_direct_ones() {
         let mut rng = Rng::new(93);
-        let s = bumps(&mut rng, 60, POD_FRAME_ABOVE + 40, (3.0, 12.0));
+        let s = bumps(&mut rng, 60, crate::basis::POD_FRAME_ABOVE + 40, (3.0, 12.0));
         let norms: Vec<f64> = (0..s.ncols()).map(|j| s.col(j).norm_l2()).collect();
         let framed = LooOrth::with_method(s.as_ref(), FoldMethod::Downdate).expect("factor");
         let direct = LooOrth::direct(s.as_ref(), FoldMethod::Downdate, norms).expect("factor");
