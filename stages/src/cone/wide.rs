@@ -124,9 +124,8 @@ impl WideNnls {
             self.settle(theta, b);
         }
         support.clear();
-        let mut out: Vec<(usize, f64)> = self.passive.iter().map(|&j| (j, self.x[j])).collect();
-        out.sort_unstable_by_key(|p| p.0);
-        support.extend(out);
+        support.extend(self.passive.iter().map(|&j| (j, self.x[j])));
+        support.sort_unstable_by_key(|p| p.0);
         self.residual(theta, b);
         Ok(norm2(&self.r))
     }
