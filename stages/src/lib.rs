@@ -9,6 +9,7 @@ pub mod cone;
 pub mod contact;
 pub mod dual;
 pub mod fem;
+pub mod kernels;
 pub mod mesh;
 pub mod metrics;
 pub mod mu;

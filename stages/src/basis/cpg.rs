@@ -180,6 +180,11 @@ pub(crate) struct Refresh {
     pub(crate) coeffs: Vec<f64>,
 }
 
+/// The non-zero entries of `dense` as `(index, value)`.
+fn sparse(dense: &[f64]) -> Vec<(usize, f64)> {
+    dense.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(g, v)| (g, *v)).collect()
+}
+
 /// A lazily maintained greedy selection; see the module docs.
 #[derive(Debug)]
 pub(crate) struct LazyGreedy<'a> {
@@ -189,8 +194,12 @@ pub(crate) struct LazyGreedy<'a> {
     heap: BinaryHeap<Bound>,
     /// Cone size at which each candidate's bound was computed.
     stamp: Vec<usize>,
-    /// Last coefficients of each candidate (warm start of its next projection).
-    coeffs: Vec<Vec<f64>>,
+    /// Last coefficients of each candidate as `(generator, value)` over its support (warm
+    /// start of its next projection). Sparse: a candidate's support has at most n entries,
+    /// while dense vectors of the cone's size would hold ~N^2/2 numbers by the end of a path.
+    coeffs: Vec<Vec<(usize, f64)>>,
+    /// Dense coefficients of the candidate being projected; all zero between refreshes.
+    dense: Vec<f64>,
     /// `Theta^T s_j` of each candidate, extended when it is next projected.
     atb: Vec<Vec<f64>>,
     lambda: Vec<f64>,
@@ -237,6 +246,7 @@ impl<'a> LazyGreedy<'a> {
             heap: BinaryHeap::new(),
             stamp: vec![0; count],
             coeffs: vec![Vec::new(); count],
+            dense: Vec::new(),
             atb: vec![Vec::new(); count],
             lambda: vec![0.0; s.nrows()],
             column: vec![0.0; s.nrows()],
@@ -245,7 +255,7 @@ impl<'a> LazyGreedy<'a> {
         };
         for (j, err, m, coeffs) in candidates {
             out.stamp[j] = m;
-            out.coeffs[j] = coeffs;
+            out.coeffs[j] = sparse(&coeffs);
             out.heap.push(Bound { err, j });
         }
         out
@@ -259,19 +269,27 @@ impl<'a> LazyGreedy<'a> {
     /// Re-project candidate j on the current cone, warm-started from its last coefficients.
     fn refresh(&mut self, j: usize) -> Result<f64, ConeError> {
         let m = self.projector.ncols();
-        self.coeffs[j].resize(m, 0.0);
+        self.dense.resize(m, 0.0);
+        for &(g, v) in &self.coeffs[j] {
+            self.dense[g] = v;
+        }
         copy_column(self.s, j, &mut self.lambda);
         let atb = &mut self.atb[j];
         for g in atb.len()..m {
             atb.push(self.projector.dot_column(g, &self.lambda));
         }
-        let residual = self.projector.project_warm_atb(&self.lambda, atb, &mut self.coeffs[j])?;
-        let err = residual / self.norms[j];
-        self.stamp[j] = m;
-        if let Some(h) = self.history.as_mut().filter(|_| m < self.record_below) {
-            h[j].push(Refresh { m, err, coeffs: self.coeffs[j].clone() });
+        let err = self.projector.project_warm_atb(&self.lambda, atb, &mut self.dense).map(|r| r / self.norms[j]);
+        if let (Ok(err), Some(h)) = (&err, self.history.as_mut().filter(|_| m < self.record_below)) {
+            h[j].push(Refresh { m, err: *err, coeffs: self.dense.clone() });
         }
-        Ok(err)
+        let support = &mut self.coeffs[j];
+        support.clear();
+        for (g, v) in self.dense.iter_mut().enumerate().filter(|(_, v)| **v != 0.0) {
+            support.push((g, *v));
+            *v = 0.0;
+        }
+        self.stamp[j] = m;
+        err
     }
 
     /// Select the next generator and add it to the cone; `None` when every candidate is in

@@ -20,6 +20,7 @@ use faer::{Mat, MatRef};
 use thiserror::Error;
 
 use super::passive_factor;
+use rayon::prelude::*;
 
 /// Numerical failure of a cone (NNLS) computation.
 #[derive(Debug, Clone, Error)]
@@ -104,13 +105,21 @@ pub struct Nnls {
     gram_finite: bool,
     /// Lower Cholesky factor of `G[P, P]`, row-major with leading dimension `ld`.
     chol: Vec<f64>,
-    /// Leading dimension of `chol` (the column capacity, `>= k`).
+    /// Leading dimension of `chol`: grown (doubling) with the largest passive set seen, which
+    /// is at most the rank of the columns — not with k (a 16 385-column cone in R^101 would
+    /// otherwise hold a 2 GB factor of which 101 rows are ever used).
     ld: usize,
+    /// Reserved columns (and rows) of `gram`.
+    cap: usize,
     /// Passive columns in factor order.
     passive: Vec<usize>,
     in_passive: Vec<bool>,
     /// Columns refused since the last successful addition.
     blocked: Vec<bool>,
+    /// The indices set in `blocked` (cleared entry by entry, not by an O(k) fill).
+    blocked_list: Vec<usize>,
+    /// The passive columns in ascending order (workspace of [`update_dual`](Self::update_dual)).
+    sorted: Vec<usize>,
     /// Passive least-squares solution by factor position.
     z: Vec<f64>,
     /// Dual vector `w = c - G x`, by column.
@@ -121,7 +130,7 @@ impl Clone for Nnls {
     /// A copy that keeps the reserved capacity (so pushes on the copy stay amortised).
     fn clone(&self) -> Self {
         let mut gram = self.gram.clone();
-        gram.reserve(self.ld, self.ld);
+        gram.reserve(self.cap, self.cap);
         Self {
             gram,
             params: self.params,
@@ -129,9 +138,12 @@ impl Clone for Nnls {
             gram_finite: self.gram_finite,
             chol: self.chol.clone(),
             ld: self.ld,
+            cap: self.cap,
             passive: self.passive.clone(),
             in_passive: self.in_passive.clone(),
             blocked: self.blocked.clone(),
+            blocked_list: self.blocked_list.clone(),
+            sorted: Vec::new(),
             z: self.z.clone(),
             w: self.w.clone(),
         }
@@ -150,11 +162,14 @@ impl Nnls {
             params,
             gmax,
             gram_finite,
-            chol: vec![0.0; k * k],
-            ld: k,
+            chol: Vec::new(),
+            ld: 0,
+            cap: k,
             passive: Vec::with_capacity(k),
             in_passive: vec![false; k],
             blocked: vec![false; k],
+            blocked_list: Vec::new(),
+            sorted: Vec::new(),
             z: vec![0.0; k],
             w: vec![0.0; k],
         }
@@ -191,11 +206,9 @@ impl Nnls {
     pub fn push_column(&mut self, cross: &[f64]) {
         let k = self.ncols();
         assert_eq!(cross.len(), k + 1, "Nnls::push_column: need k + 1 inner products");
-        if k + 1 > self.ld {
-            let cap = (2 * self.ld).max(k + 1).max(4);
-            self.gram.reserve(cap, cap);
-            self.chol = vec![0.0; cap * cap];
-            self.ld = cap;
+        if k + 1 > self.cap {
+            self.cap = (2 * self.cap).max(k + 1).max(4);
+            self.gram.reserve(self.cap, self.cap);
         }
         self.gram.resize_with(k + 1, k + 1, |i, j| if i == k { cross[j] } else { cross[i] });
         self.gmax = self.gmax.max(cross[k]);
@@ -219,6 +232,7 @@ impl Nnls {
             v.clear();
             v.resize(k, false);
         }
+        self.blocked_list.clear();
         self.z.resize(k, 0.0);
         self.w.resize(k, 0.0);
     }
@@ -239,9 +253,10 @@ impl Nnls {
         self.settle(atb, x);
         let max_iter = self.params.max_iter_for(k);
         let mut iterations = 0;
+        let cmax = atb.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
         loop {
-            let scale = self.update_dual(atb, x);
-            let Some(t) = self.entering(scale) else {
+            let (scale, entering) = self.update_dual(atb, x, cmax);
+            let Some(t) = entering else {
                 return Ok(NnlsStats { iterations, kkt_residual: self.kkt_residual(scale) });
             };
             if iterations >= max_iter {
@@ -249,7 +264,7 @@ impl Nnls {
                 return Err(ConeError::NotConverged { iterations, kkt_residual });
             }
             if !self.try_add(t) {
-                self.blocked[t] = true;
+                self.block(t);
                 continue;
             }
             self.solve_z(atb);
@@ -258,11 +273,11 @@ impl Nnls {
             // round-off: refuse t rather than cycle.
             if self.z[last] <= 0.0 {
                 self.remove_at(last);
-                self.blocked[t] = true;
+                self.block(t);
                 continue;
             }
             iterations += 1;
-            self.blocked.fill(false);
+            self.unblock_all();
             self.settle(atb, x);
         }
     }
@@ -285,7 +300,7 @@ impl Nnls {
     fn warm_start(&mut self, x: &mut [f64]) {
         self.passive.clear();
         self.in_passive.fill(false);
-        self.blocked.fill(false);
+        self.unblock_all();
         for (j, xj) in x.iter_mut().enumerate() {
             if !(*xj > 0.0 && self.try_add(j)) {
                 *xj = 0.0;
@@ -327,31 +342,57 @@ impl Nnls {
         }
     }
 
-    /// `w = c - G x` (using the sparsity of x); returns the KKT scale.
-    fn update_dual(&mut self, atb: &[f64], x: &[f64]) -> f64 {
-        self.w.copy_from_slice(atb);
-        for &j in &self.passive {
-            let gj = self.gram.col_as_slice(j);
-            for (wi, gi) in self.w.iter_mut().zip(gj) {
-                *wi -= x[j] * gi;
-            }
-        }
-        let cmax = atb.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
-        let x1: f64 = x.iter().map(|v| v.abs()).sum();
-        cmax + self.gmax * x1
+    /// Refuse column t until the next successful addition.
+    fn block(&mut self, t: usize) {
+        self.blocked[t] = true;
+        self.blocked_list.push(t);
     }
 
-    /// The column outside P (and not refused) with the largest `w_j > tol * scale`.
-    fn entering(&self, scale: f64) -> Option<usize> {
-        let mut best = self.params.tol * scale;
-        let mut arg = None;
-        for j in 0..self.ncols() {
-            if !self.in_passive[j] && !self.blocked[j] && self.w[j] > best {
-                best = self.w[j];
-                arg = Some(j);
-            }
+    fn unblock_all(&mut self) {
+        for &t in &self.blocked_list {
+            self.blocked[t] = false;
         }
-        arg
+        self.blocked_list.clear();
+    }
+
+    /// `w = c - G x` (using the sparsity of x) and the entering column: the one outside P
+    /// and the refused set with the largest `w_j > tol * scale`, the first on ties. Returns
+    /// the KKT scale `cmax + gmax ||x||_1` (`cmax = max_j |c_j|`) and that column.
+    ///
+    /// x is zero off the passive set, so `||x||_1` is summed over the passive columns in
+    /// ascending order: the same bits as the sum over all k entries (adding +0 to a
+    /// non-negative sum is exact). Above [`PAR_DUAL_MIN`] columns the rows of `w` are done in
+    /// parallel blocks, each entry by the same operations in the same order, and the blocks'
+    /// candidates merged by (value, then lower index): the same `w` and the same column on
+    /// any thread count.
+    fn update_dual(&mut self, atb: &[f64], x: &[f64], cmax: f64) -> (f64, Option<usize>) {
+        self.sorted.clear();
+        self.sorted.extend_from_slice(&self.passive);
+        self.sorted.sort_unstable();
+        let x1: f64 = self.sorted.iter().fold(0.0, |acc, &j| acc + x[j].abs());
+        let scale = cmax + self.gmax * x1;
+        let threshold = self.params.tol * scale;
+        let (gram, passive, in_passive, blocked) = (&self.gram, &self.passive, &self.in_passive, &self.blocked);
+        let block = |start: usize, w: &mut [f64]| {
+            let end = start + w.len();
+            w.copy_from_slice(&atb[start..end]);
+            for &j in passive {
+                let gj = &gram.col_as_slice(j)[start..end];
+                for (wi, gi) in w.iter_mut().zip(gj) {
+                    *wi -= x[j] * gi;
+                }
+            }
+            scan_entering(w, &in_passive[start..end], &blocked[start..end], start, threshold)
+        };
+        let k = self.w.len();
+        let pick = if k < PAR_DUAL_MIN {
+            block(0, &mut self.w)
+        } else {
+            let found: Vec<Option<(f64, usize)>> =
+                self.w.par_chunks_mut(DUAL_BLOCK).enumerate().map(|(b, w)| block(b * DUAL_BLOCK, w)).collect();
+            found.into_iter().flatten().fold(None, |held, c| Some(better_entering(held, c)))
+        };
+        (scale, pick.map(|(_, j)| j))
     }
 
     fn kkt_residual(&self, scale: f64) -> f64 {
@@ -367,6 +408,9 @@ impl Nnls {
     /// Append column t to the factor; false (factor unchanged) if its pivot is too small.
     fn try_add(&mut self, t: usize) -> bool {
         let p = self.passive.len();
+        if p + 1 > self.ld {
+            self.grow_factor(p + 1);
+        }
         let (gram, passive) = (&self.gram, &self.passive);
         let ok = passive_factor::append(
             &mut self.chol,
@@ -383,6 +427,18 @@ impl Nnls {
         ok
     }
 
+    /// Room for a factor of `rows` rows: a new leading dimension (doubling), the current
+    /// p x p factor copied over (the same values, so the same bits downstream).
+    fn grow_factor(&mut self, rows: usize) {
+        let ld = (2 * self.ld).max(rows).max(8);
+        let mut chol = vec![0.0; ld * ld];
+        for i in 0..self.passive.len() {
+            chol[i * ld..i * ld + i + 1].copy_from_slice(&self.chol[i * self.ld..i * self.ld + i + 1]);
+        }
+        self.chol = chol;
+        self.ld = ld;
+    }
+
     /// Remove the passive column at factor position q (see [`passive_factor::remove`]).
     fn remove_at(&mut self, q: usize) {
         passive_factor::remove(&mut self.chol, self.ld, self.passive.len(), q);
@@ -396,6 +452,56 @@ impl Nnls {
             self.z[q] = rhs[j];
         }
         passive_factor::solve(&self.chol, self.ld, self.passive.len(), &mut self.z);
+    }
+}
+
+/// Lanes of [`scan_entering`].
+const ENTER_LANES: usize = 8;
+
+/// From this many columns on, [`Nnls`]'s dual update runs in parallel blocks of
+/// [`DUAL_BLOCK`] rows (below, a block's work is shorter than a thread hand-off).
+const PAR_DUAL_MIN: usize = 4096;
+
+/// Rows per block of the parallel dual update.
+const DUAL_BLOCK: usize = 2048;
+
+/// The entering candidate of one block of the dual (`offset` = its first column): the largest
+/// `w_j > threshold` outside the passive and refused columns, the first on ties. Scanned in
+/// [`ENTER_LANES`] interleaved lanes, each keeping its first strict maximum, merged by
+/// [`better_entering`]: the same column as one in-order scan, without a dependent compare per
+/// column.
+fn scan_entering(
+    w: &[f64],
+    in_passive: &[bool],
+    blocked: &[bool],
+    offset: usize,
+    threshold: f64,
+) -> Option<(f64, usize)> {
+    let k = w.len();
+    let mut best = [threshold; ENTER_LANES];
+    let mut arg = [usize::MAX; ENTER_LANES];
+    let whole = k - k % ENTER_LANES;
+    for base in (0..whole).step_by(ENTER_LANES) {
+        for l in 0..ENTER_LANES {
+            let j = base + l;
+            let v = if in_passive[j] | blocked[j] { f64::NEG_INFINITY } else { w[j] };
+            if v > best[l] {
+                best[l] = v;
+                arg[l] = j;
+            }
+        }
+    }
+    let lanes = (0..ENTER_LANES).filter(|&l| arg[l] != usize::MAX).map(|l| (best[l], arg[l]));
+    let tail = (whole..k).filter(|&j| !in_passive[j] && !blocked[j] && w[j] > threshold).map(|j| (w[j], j));
+    lanes.chain(tail).map(|(v, j)| (v, j + offset)).fold(None, |held, c| Some(better_entering(held, c)))
+}
+
+/// The larger candidate, the lower column on equal values (candidates exceed a non-negative
+/// threshold: no NaN).
+fn better_entering(held: Option<(f64, usize)>, c: (f64, usize)) -> (f64, usize) {
+    match held {
+        Some((bv, bj)) if bv.total_cmp(&c.0).then(c.1.cmp(&bj)).is_gt() => (bv, bj),
+        _ => c,
     }
 }
 
@@ -643,6 +749,69 @@ mod tests {
         }
     }
 
+    /// The laned scan picks what one in-order scan picks: the first column of the largest
+    /// `w_j > tol * scale` outside P and the refused set, on random duals with many exact ties
+    /// (values from a set of 4) and lengths around the lane count.
+    #[test]
+    fn laned_entering_equals_the_in_order_scan() {
+        let mut rng = Rng::new(23);
+        for k in [1, 5, 8, 9, 16, 23, 64, 101] {
+            let mut solver = Nnls::new(Mat::identity(k, k), NnlsParams::default());
+            for _ in 0..50 {
+                for j in 0..k {
+                    solver.w[j] = [-1.0, 0.0, 0.5, 2.0][(rng.uniform() * 4.0) as usize % 4];
+                    solver.in_passive[j] = rng.uniform() < 0.2;
+                    solver.blocked[j] = rng.uniform() < 0.1;
+                }
+                let scale = 1.0;
+                let mut reference = None;
+                let mut best = solver.params.tol * scale;
+                for j in 0..k {
+                    if !solver.in_passive[j] && !solver.blocked[j] && solver.w[j] > best {
+                        best = solver.w[j];
+                        reference = Some(j);
+                    }
+                }
+                let threshold = solver.params.tol * scale;
+                let laned = scan_entering(&solver.w, &solver.in_passive, &solver.blocked, 0, threshold);
+                assert_eq!(laned.map(|c| c.1), reference, "k = {k}");
+                // Split into two blocks and merged: the same column.
+                let h = k / 2;
+                let a = scan_entering(&solver.w[..h], &solver.in_passive[..h], &solver.blocked[..h], 0, threshold);
+                let b = scan_entering(&solver.w[h..], &solver.in_passive[h..], &solver.blocked[h..], h, threshold);
+                let merged = [a, b].into_iter().flatten().fold(None, |held, c| Some(better_entering(held, c)));
+                assert_eq!(merged.map(|c| c.1), reference, "k = {k}, split");
+            }
+        }
+    }
+
+    /// Above `PAR_DUAL_MIN` columns the dual update runs in parallel blocks: the solution is
+    /// the same bits on one thread and on four, and satisfies the KKT conditions (1e-9
+    /// relative, the check's round-off allowance for O(1) data).
+    #[test]
+    fn parallel_dual_update_is_the_same_on_any_thread_count() {
+        let mut rng = Rng::new(24);
+        let (n, k) = (12, PAR_DUAL_MIN + 900);
+        let a = random_mat(&mut rng, n, k, 0.0, 1.0);
+        let b: Vec<f64> = (0..n).map(|_| rng.uniform_in(-0.5, 1.0)).collect();
+        let mut atb = vec![0.0; k];
+        at_b(a.as_ref(), &b, &mut atb);
+        let solver = Nnls::from_columns(a.as_ref(), NnlsParams::default());
+        let solve_on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+            pool.install(|| {
+                let mut s = solver.clone();
+                let mut x = vec![0.0; k];
+                s.solve_normal(&atb, &mut x).expect("converges");
+                x
+            })
+        };
+        let (one, four) = (solve_on(1), solve_on(4));
+        assert!(one.iter().zip(&four).all(|(p, q)| p.to_bits() == q.to_bits()));
+        assert!(one.iter().any(|&v| v > 0.0));
+        assert_kkt(a.as_ref(), &b, &one, 1e-9);
+    }
+
     #[test]
     fn push_column_equals_building_from_all_columns() {
         let mut rng = Rng::new(21);
@@ -662,7 +831,7 @@ mod tests {
 
     #[test]
     fn push_column_grows_storage_geometrically() {
-        // 200 pushes: with capacity doubling the factor buffer is reallocated ~log2(200) times,
+        // 200 pushes: with capacity doubling the Gram storage is reallocated ~log2(200) times,
         // not 200 times.
         let mut rng = Rng::new(22);
         let a = random_mat(&mut rng, 10, 200, -1.0, 1.0);
@@ -672,11 +841,21 @@ mod tests {
             let column: Vec<f64> = a.col(k).iter().copied().collect();
             let mut cross = vec![0.0; k + 1];
             at_b(a.subcols(0, k + 1), &column, &mut cross);
-            let ld = solver.ld;
+            let cap = solver.cap;
             solver.push_column(&cross);
-            reallocations += usize::from(solver.ld != ld);
+            reallocations += usize::from(solver.cap != cap);
         }
         assert!(reallocations <= 8, "{reallocations} reallocations for 200 pushes");
+        // The factor is sized by the passive set (at most rank 10 here), not by k = 200: one
+        // solve per column as right-hand side, then ld is the doubling step above 10.
+        for j in 0..200 {
+            let b: Vec<f64> = a.col(j).iter().map(|v| v + 0.3).collect();
+            let mut atb = vec![0.0; 200];
+            at_b(a.as_ref(), &b, &mut atb);
+            solver.solve_normal(&atb, &mut vec![0.0; 200]).expect("converges");
+            assert!(solver.passive.len() <= 10);
+        }
+        assert_eq!(solver.ld, 16, "factor leading dimension");
         let full = Nnls::from_columns(a.as_ref(), NnlsParams::default());
         for j in 0..200 {
             for i in 0..200 {

@@ -14,6 +14,9 @@
 //! point (Carathéodory) — is factored from its columns' inner products (`O(n |P|)` per added
 //! column), with the same incremental Cholesky and Givens downdate as [`Nnls`](super::Nnls).
 //!
+//! The dual update `w = Theta^T r` uses the vectorised [`dot`](crate::kernels::dot): the
+//! same bits on every run, not those of an in-order sum.
+//!
 //! Warm start: the support of a previous solution (a sparse list), typically the same
 //! snapshot's projection on a smaller prefix of the same cone. Its entries are re-solved on
 //! their own support first, then the iteration continues, so the answer does not depend on the
@@ -28,6 +31,7 @@ use faer::MatRef;
 
 use super::nnls::{norm2, ConeError, NnlsParams};
 use super::passive_factor;
+use crate::kernels::dot;
 
 /// Workspaces of [`WideNnls::project`], sized once for `n` rows and `m` columns.
 #[derive(Debug, Clone)]
@@ -99,7 +103,7 @@ impl WideNnls {
         loop {
             self.residual(theta, b);
             for (j, w) in self.w[..m].iter_mut().enumerate() {
-                *w = theta.col(j).iter().zip(&self.r).map(|(a, r)| a * r).sum();
+                *w = column_dot(theta, j, &self.r);
             }
             let scale = bnorm + self.passive.iter().map(|&j| self.x[j]).sum::<f64>();
             let Some(t) = self.entering(m, scale) else { break };
@@ -252,6 +256,15 @@ impl WideNnls {
     fn chol_solve(&mut self, p: usize) {
         self.z[..p].copy_from_slice(&self.rhs[..p]);
         passive_factor::solve(&self.chol, self.ld, p, &mut self.z);
+    }
+}
+
+/// `theta_j . v` with the vectorised [`dot`] (contiguous columns, as every caller passes), or
+/// in order for a strided view. The `O(n m)` dual update is the whole cost of a wide solve.
+fn column_dot(theta: MatRef<'_, f64>, j: usize, v: &[f64]) -> f64 {
+    match theta.col(j).try_as_col_major() {
+        Some(col) => dot(col.as_slice(), v),
+        None => theta.col(j).iter().zip(v).map(|(a, r)| a * r).sum(),
     }
 }
 
