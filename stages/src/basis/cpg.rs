@@ -40,7 +40,6 @@ use rayon::prelude::*;
 
 use crate::approx::{close, Tol};
 use crate::cone::{copy_column, norm2, ConeError, ConeProjector, GrowingCone, NnlsParams, WideNnls};
-use crate::running_stats::RunningStats;
 
 /// Parameters of [`cpg`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -574,15 +573,8 @@ impl<'a> ChunkedCone<'a> {
 
     /// [`GrowingCone::coefficient_intervals`] over every block, in snapshot order.
     fn coefficient_intervals(&self, m: usize) -> Vec<(f64, f64)> {
-        let mut stats = vec![RunningStats::new(); m];
-        for c in &self.chunks {
-            for j in 0..c.norms().len() {
-                for (st, a) in stats.iter_mut().zip(c.coeffs(j)) {
-                    st.push(*a);
-                }
-            }
-        }
-        stats.iter().map(|st| st.interval(true)).collect()
+        let coeffs = self.chunks.iter().flat_map(|c| (0..c.norms().len()).map(move |j| c.coeffs(j)));
+        crate::cone::coefficient_intervals(m, coeffs)
     }
 }
 
@@ -617,9 +609,7 @@ impl<'s> RankGrid<'s> {
     ) -> Self {
         let mut position = vec![usize::MAX; s.ncols()];
         selected.iter().enumerate().for_each(|(p, &j)| position[j] = p);
-        let dense: Vec<Vec<(usize, f64)>> = (0..s.ncols())
-            .map(|j| cone.coeffs(j).iter().enumerate().filter(|(_, &a)| a > 0.0).map(|(g, &a)| (g, a)).collect())
-            .collect();
+        let dense: Vec<Vec<(usize, f64)>> = (0..s.ncols()).map(|j| sparse(cone.coeffs(j))).collect();
         Self { s, basis, position, norms, total, nnls, last: dense.clone(), dense }
     }
 

@@ -46,4 +46,4 @@ pub use reference::nnls_reference;
 pub use wide::WideNnls;
 
 pub(crate) use nnls::norm2;
-pub(crate) use projector::copy_column;
+pub(crate) use projector::{coefficient_intervals, copy_column};

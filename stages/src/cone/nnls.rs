@@ -470,7 +470,7 @@ const DUAL_BLOCK: usize = 2048;
 /// [`ENTER_LANES`] interleaved lanes, each keeping its first strict maximum, merged by
 /// [`better_entering`]: the same column as one in-order scan, without a dependent compare per
 /// column.
-fn scan_entering(
+pub(super) fn scan_entering(
     w: &[f64],
     in_passive: &[bool],
     blocked: &[bool],

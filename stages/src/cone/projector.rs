@@ -373,13 +373,7 @@ impl<'a> GrowingCone<'a> {
     /// The clipped intervals `[max(0, mu - sigma), mu + sigma]` of the coefficients of every
     /// snapshot on the first `m` generators (the specificity's sampling ranges, paper eq. 18).
     pub fn coefficient_intervals(&self, m: usize) -> Vec<(f64, f64)> {
-        let mut stats = vec![RunningStats::new(); m];
-        for j in 0..self.norms.len() {
-            for (st, a) in stats.iter_mut().zip(self.coeffs(j)) {
-                st.push(*a);
-            }
-        }
-        stats.iter().map(|st| st.interval(true)).collect()
+        coefficient_intervals(m, (0..self.norms.len()).map(|j| self.coeffs(j)))
     }
 
     /// Relative projection error of snapshot j, `None` for a zero snapshot.
@@ -391,6 +385,18 @@ impl<'a> GrowingCone<'a> {
     pub fn frobenius_residual(&self) -> f64 {
         norm2(&self.residuals)
     }
+}
+
+/// The specificity's sampling interval of each of the first m coordinates (mean ± standard
+/// deviation, clipped at 0) over the snapshots' coefficient vectors, pushed in the given order.
+pub(crate) fn coefficient_intervals<'c>(m: usize, coeffs: impl IntoIterator<Item = &'c [f64]>) -> Vec<(f64, f64)> {
+    let mut stats = vec![RunningStats::new(); m];
+    for c in coeffs {
+        for (st, a) in stats.iter_mut().zip(c) {
+            st.push(*a);
+        }
+    }
+    stats.iter().map(|st| st.interval(true)).collect()
 }
 
 #[cfg(test)]

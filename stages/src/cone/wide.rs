@@ -29,7 +29,7 @@
 
 use faer::MatRef;
 
-use super::nnls::{norm2, ConeError, NnlsParams};
+use super::nnls::{norm2, scan_entering, ConeError, NnlsParams};
 use super::passive_factor;
 use crate::kernels::dot;
 
@@ -154,17 +154,11 @@ impl WideNnls {
         }
     }
 
-    /// The column outside P (and not refused) with the largest `w_j > tol * scale`.
+    /// The column outside P (and not refused) with the largest `w_j > tol * scale`, the first
+    /// on ties (the Gram solver's scan).
     fn entering(&self, m: usize, scale: f64) -> Option<usize> {
-        let mut best = self.params.tol * scale;
-        let mut arg = None;
-        for j in 0..m {
-            if !self.in_passive[j] && !self.blocked[j] && self.w[j] > best {
-                best = self.w[j];
-                arg = Some(j);
-            }
-        }
-        arg
+        let threshold = self.params.tol * scale;
+        scan_entering(&self.w[..m], &self.in_passive[..m], &self.blocked[..m], 0, threshold).map(|c| c.1)
     }
 
     /// Inner loop: from the feasible `x` towards the passive least-squares solution, dropping
