@@ -1,7 +1,10 @@
 //! Dense kernels written so the compiler vectorises them while the result stays a fixed
 //! function of the inputs (the same bits on every run and thread count): a dot product with
 //! independent accumulators (a single running sum is one dependent add per element) and an
-//! axpy. Shared by the online solve and the Gram-free cone projection.
+//! axpy. Shared by the online solve and the Gram-free cone projection. And the out-of-span
+//! part of a snapshot matrix in one buffer, for the metrics of large sets.
+
+use faer::{Mat, MatRef};
 
 /// `a . b` (equal lengths). A long product is summed in sixteen interleaved partial sums: four
 /// vectors of four lanes, so the adds of consecutive chunks do not wait on each other (one
@@ -55,10 +58,40 @@ pub fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
     }
 }
 
+/// `s - basis * coords` (n x N; `basis` n x q, `coords` q x N) in one n x N buffer: the
+/// product, overwritten column by column with the difference. `s - basis * &coords` holds the
+/// product and the difference at once: 0.8 GB instead of 0.4 GB for 8 193 primal snapshots of
+/// 6 164 dofs. Each entry is the same subtraction of the same product entry, so the same bits.
+pub fn out_of_span(s: MatRef<'_, f64>, basis: MatRef<'_, f64>, coords: MatRef<'_, f64>) -> Mat<f64> {
+    assert_eq!(s.shape(), (basis.nrows(), coords.ncols()), "out_of_span: shapes differ");
+    let mut out = basis * coords;
+    for j in 0..s.ncols() {
+        for (o, v) in out.col_mut(j).iter_mut().zip(s.col(j).iter()) {
+            *o = *v - *o;
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::rng::Rng;
+
+    #[test]
+    fn out_of_span_is_the_two_buffer_difference_bit_for_bit() {
+        let mut rng = Rng::new(5);
+        let s = Mat::from_fn(37, 23, |_, _| rng.uniform_in(-1.0, 1.0));
+        let basis = Mat::from_fn(37, 6, |_, _| rng.uniform_in(-1.0, 1.0));
+        let coords: Mat<f64> = basis.transpose() * &s;
+        let two = &s - &basis * &coords;
+        let one = out_of_span(s.as_ref(), basis.as_ref(), coords.as_ref());
+        for j in 0..23 {
+            for i in 0..37 {
+                assert_eq!(one[(i, j)].to_bits(), two[(i, j)].to_bits(), "entry ({i}, {j})");
+            }
+        }
+    }
 
     /// Against the naive sum (1e-13 relative: reordered sums of O(1) products), at lengths
     /// around both lane counts.

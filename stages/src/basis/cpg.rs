@@ -184,6 +184,10 @@ fn sparse(dense: &[f64]) -> Vec<(usize, f64)> {
     dense.iter().enumerate().filter(|(_, v)| **v != 0.0).map(|(g, v)| (g, *v)).collect()
 }
 
+/// Largest Gram matrix [`LazyGreedy`] reserves up front (8 GiB of address space: a path of up
+/// to 32 768 generators; the pages are touched only as generators arrive).
+const RESERVE_GRAM_BYTES: usize = 8 << 30;
+
 /// A lazily maintained greedy selection; see the module docs.
 #[derive(Debug)]
 pub(crate) struct LazyGreedy<'a> {
@@ -222,7 +226,14 @@ impl<'a> LazyGreedy<'a> {
     /// `||s_j|| / ||s_j||`, exactly 1 in floating point (x / x = 1 for finite x != 0).
     fn new(s: MatRef<'a, f64>, norms: &'a [f64], nnls: NnlsParams, record_below: usize) -> Self {
         let candidates = (0..s.ncols()).filter(|&j| norms[j] > 0.0).map(|j| (j, 1.0, 0, Vec::new()));
-        let projector = ConeProjector::empty(s.nrows(), nnls);
+        let mut projector = ConeProjector::empty(s.nrows(), nnls);
+        // Every generator is a candidate, so the cone never holds more than the non-zero
+        // snapshots: reserve that much once (address space; see `Nnls::reserve`), within
+        // `RESERVE_GRAM_BYTES`; a larger path grows by doubling.
+        let most = norms.iter().filter(|&&v| v > 0.0).count();
+        if most.saturating_mul(most).saturating_mul(std::mem::size_of::<f64>()) <= RESERVE_GRAM_BYTES {
+            projector.reserve(most);
+        }
         let mut out = Self::resume(s, norms, projector, candidates);
         out.history = (record_below > 0).then(|| vec![Vec::new(); s.ncols()]);
         out.record_below = record_below;

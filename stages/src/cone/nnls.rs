@@ -200,6 +200,19 @@ impl Nnls {
         &self.passive
     }
 
+    /// Reserve room for `columns` columns in all: pushes up to that count then grow the Gram
+    /// matrix in place, without the doubling's copies. A caller that knows its final size
+    /// (a greedy over N candidates never holds more than N generators) avoids the transient
+    /// of the last doubling, which at 8 193 generators copies a 0.5 GB Gram matrix into a
+    /// 2 GB reservation. Only the written entries are touched, so an unused reservation costs
+    /// address space, not memory.
+    pub fn reserve(&mut self, columns: usize) {
+        if columns > self.cap {
+            self.cap = columns;
+            self.gram.reserve(columns, columns);
+        }
+    }
+
     /// Grow the Gram matrix by one column: `cross[i] = a_i^T a_new` for `i < k` and
     /// `cross[k] = a_new^T a_new`. Storage grows by doubling (amortised O(k) per push); the
     /// passive set is reset.
@@ -863,5 +876,36 @@ mod tests {
                 assert_close!(solver.gram()[(i, j)], full.gram()[(i, j)], Tol::abs(1e-13));
             }
         }
+    }
+
+    #[test]
+    fn reserved_pushes_never_move_the_gram_and_solve_the_same() {
+        // With the final count reserved, no push reallocates (the storage address is fixed),
+        // and every solve gives the same bits as a solver grown by doubling.
+        let mut rng = Rng::new(23);
+        let a = random_mat(&mut rng, 12, 90, -1.0, 1.0);
+        let mut reserved = Nnls::new(Mat::zeros(0, 0), NnlsParams::default());
+        reserved.reserve(90);
+        let mut doubling = Nnls::new(Mat::zeros(0, 0), NnlsParams::default());
+        let at = reserved.gram.as_ptr();
+        for k in 0..90 {
+            let column: Vec<f64> = a.col(k).iter().copied().collect();
+            let mut cross = vec![0.0; k + 1];
+            at_b(a.subcols(0, k + 1), &column, &mut cross);
+            reserved.push_column(&cross);
+            doubling.push_column(&cross);
+            assert_eq!(reserved.gram.as_ptr(), at, "push {k} moved the reserved Gram matrix");
+            let b: Vec<f64> = (0..12).map(|_| rng.uniform_in(0.0, 1.0)).collect();
+            let mut atb = vec![0.0; k + 1];
+            at_b(a.subcols(0, k + 1), &b, &mut atb);
+            let (mut x, mut y) = (vec![0.0; k + 1], vec![0.0; k + 1]);
+            reserved.solve_normal(&atb, &mut x).expect("converges");
+            doubling.solve_normal(&atb, &mut y).expect("converges");
+            assert_eq!(
+                x.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                y.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+            );
+        }
+        assert_eq!(reserved.cap, 90);
     }
 }

@@ -114,6 +114,16 @@ impl ConeProjector {
         self.theta.as_ref()
     }
 
+    /// Reserve room for `columns` generators in all (`Theta` and the Gram matrix), so pushes
+    /// up to that count copy nothing ([`Nnls::reserve`]).
+    pub fn reserve(&mut self, columns: usize) {
+        if columns > self.col_capacity {
+            self.col_capacity = columns;
+            self.theta.reserve(self.nrows(), columns);
+        }
+        self.nnls.reserve(columns);
+    }
+
     /// Append a generator (length n) to the cone. `Theta` and the Gram matrix grow in place
     /// (capacity doubling: amortised O(n + k) per push, no copy of `Theta`).
     pub fn push_column(&mut self, column: &[f64]) {

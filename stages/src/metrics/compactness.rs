@@ -21,7 +21,7 @@ pub fn compactness_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>) -> Vec<f64> 
         return vec![0.0; m_max + 1];
     }
     let q: Mat<f64> = modes.transpose() * s;
-    let perp = s - modes * &q;
+    let perp = crate::kernels::out_of_span(s, modes, q.as_ref());
     let perp2 = perp.squared_norm_l2();
     let mut c = vec![0.0; m_max + 1];
     let mut tail = 0.0;
@@ -68,7 +68,7 @@ pub fn compactness_cone_with(
 pub fn relative_errors_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>) -> Vec<Option<f64>> {
     assert_eq!(s.nrows(), modes.nrows(), "relative_errors_orth: S and modes rows differ");
     let q: Mat<f64> = modes.transpose() * s;
-    let perp = s - modes * &q;
+    let perp = crate::kernels::out_of_span(s, modes, q.as_ref());
     let mut column = vec![0.0; s.nrows()];
     (0..s.ncols())
         .map(|j| {

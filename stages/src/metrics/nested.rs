@@ -32,7 +32,8 @@ pub fn nested_error_orth(lower: MatRef<'_, f64>, upper: MatRef<'_, f64>) -> Resu
     if total <= 0.0 {
         return Ok(0.0);
     }
-    let residual = upper - &modes * (modes.transpose() * upper);
+    let coords: Mat<f64> = modes.transpose() * upper;
+    let residual = crate::kernels::out_of_span(upper, modes.as_ref(), coords.as_ref());
     Ok(residual.norm_l2() / total)
 }
 

@@ -206,7 +206,7 @@ struct Frame {
 impl Frame {
     fn new(s: MatRef<'_, f64>, q: MatRef<'_, f64>) -> Self {
         let coords: Mat<f64> = q.transpose() * s;
-        let perp = s - q * &coords;
+        let perp = crate::kernels::out_of_span(s, q, coords.as_ref());
         let (qdim, count) = coords.shape();
         let mut tails = Mat::zeros(qdim + 1, count);
         for j in 0..count {
