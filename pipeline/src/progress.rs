@@ -18,6 +18,19 @@ impl Progress {
         Self { tty: std::io::stdout().is_terminal(), quiet }
     }
 
+    /// The same display with nothing printed (a stage run beside another, whose line is
+    /// printed by [`line`](Self::line) when it is joined).
+    pub fn silent(self) -> Self {
+        Self { quiet: true, ..self }
+    }
+
+    /// The closing line of a stage that ran elsewhere: `name outcome (secs s)`.
+    pub fn line(&self, name: &str, outcome: &str, secs: f64) {
+        if !self.quiet {
+            eprintln!("{name:>12} {outcome} ({secs:.2} s)");
+        }
+    }
+
     /// Start a stage of `len` items.
     pub fn stage(&self, name: &str, len: usize) -> StageProgress {
         let bar = if self.tty && !self.quiet {

@@ -11,6 +11,7 @@
 mod approximation;
 mod approximation_online;
 pub(crate) mod basis;
+mod beside;
 mod compactness;
 pub(crate) mod comparison;
 mod convert;
@@ -142,7 +143,7 @@ pub struct RunOutput {
     pub report: Option<Key>,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
     /// Look an artifact up; on a miss (or a quarantined corrupt one) compute it with `compute`,
     /// which writes its files into the staging directory and returns summary facts.
     pub(crate) fn cached(
@@ -208,6 +209,32 @@ impl Ctx<'_> {
         staging.commit(self.store, prov)
     }
 
+    /// A context for a stage that runs beside the main loop ([`execute`]): the same store,
+    /// scene and loaded inputs, its own records and warnings (merged back by
+    /// [`merge`](Self::merge)), and no progress output (its line is printed when it is
+    /// joined, so it never breaks into another stage's bar).
+    fn beside(&self) -> Ctx<'a> {
+        Ctx {
+            store: self.store,
+            scene: self.scene,
+            command: self.command.clone(),
+            progress: self.progress.silent(),
+            records: Vec::new(),
+            warnings: Vec::new(),
+            points: PointCounts::default(),
+            loaded: std::sync::Arc::clone(&self.loaded),
+        }
+    }
+
+    /// Take in what a context from [`beside`](Self::beside) did.
+    fn merge(&mut self, other: Ctx<'_>) {
+        for r in other.records {
+            self.record(r.stage, r.computed, r.cached, r.dir);
+        }
+        self.warnings.extend(other.warnings);
+        self.points.add(other.points);
+    }
+
     /// Count a stage's artifacts in the run summary (one line per stage name).
     pub(crate) fn record(&mut self, stage: &'static str, computed: usize, cached: usize, dir: PathBuf) {
         match self.records.iter_mut().find(|r| r.stage == stage) {
@@ -266,18 +293,50 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
 /// The local executor: walk the plan's nodes in order (each node's inputs come before it),
 /// running each node's stage with its inputs' keys; a stage whose artifact is stored is a
 /// cache hit inside the stage. Every key a stage returns is checked against the plan's.
+///
+/// The views (XDMF over stored columns: HDF5 metadata, one core, no numerics) run on one
+/// worker beside the main loop ([`beside`]) as soon as their inputs exist: the heavy stages
+/// after them (the basis' greedy path is mostly sequential) leave a core idle.
 pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Result<RunOutput, CromError> {
+    std::thread::scope(|scope| execute_in(scope, ctx, plan, online))
+}
+
+fn execute_in<'scope, 'env, 'a: 'env>(
+    scope: &'scope std::thread::Scope<'scope, 'env>,
+    ctx: &mut Ctx<'a>,
+    plan: &'env plan::Plan,
+    online: bool,
+) -> Result<RunOutput, CromError> {
     use plan::Stage;
     let scene = ctx.scene;
     let mut physics = LazyPhysics { scene, built: None };
     let mut online_base: Option<approximation_online::OnlineBase> = None;
     let mut keys: BTreeMap<&str, Key> = BTreeMap::new();
     let mut columns: BTreeMap<usize, snapshots::Columns> = BTreeMap::new();
+    let mut beside = beside::Beside::new(scope);
     for node in &plan.nodes {
         if node.online && !online {
             continue;
         }
-        let input = |i: usize| -> &Key { &keys[node.inputs[i].as_str()] };
+        for done in beside.wait_for(&node.inputs) {
+            join_beside(ctx, done, &mut keys)?;
+        }
+        let inputs: Vec<Key> = node.inputs.iter().map(|n| keys[n.as_str()].clone()).collect();
+        if matches!(node.stage, Stage::SetViews { .. } | Stage::BasisViews | Stage::OnlineViews) {
+            // Reserve the summary line in plan order; the thread adds its counts.
+            ctx.record("views", 0, 0, ctx.store.dir(node.kind, &node.key));
+            beside.hand(
+                node,
+                ctx.beside(),
+                Box::new(move |sub| match &node.stage {
+                    Stage::SetViews { set } => views::set(sub, set, &inputs[0], &inputs[1]),
+                    Stage::BasisViews => views::basis(sub, &inputs[0], &inputs[1]),
+                    _ => views::online(sub, &inputs[0], &inputs[1], &inputs[2]),
+                }),
+            );
+            continue;
+        }
+        let input = |i: usize| -> &Key { &inputs[i] };
         let key = match &node.stage {
             Stage::Mesh => mesh::run(ctx, &mut physics)?,
             Stage::Sweep(i) => {
@@ -290,17 +349,9 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
                 let rows = &cols.rows[*start..*start + points.len()];
                 trainset::run(ctx, set, points, rows, cols.shape)?
             }
-            Stage::SetViews { set } => {
-                let (set_key, mesh_key) = (input(0).clone(), input(1).clone());
-                views::set(ctx, set, &set_key, &mesh_key)?
-            }
             Stage::Basis => {
                 let train = input(0).clone();
                 basis::run(ctx, &train)?
-            }
-            Stage::BasisViews => {
-                let (b, m) = (input(0).clone(), input(1).clone());
-                views::basis(ctx, &b, &m)?
             }
             Stage::Compactness => {
                 let (t, b) = (input(0).clone(), input(1).clone());
@@ -340,10 +391,7 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
                 let (t, te, b) = (input(0).clone(), input(1).clone(), input(2).clone());
                 rom::run(ctx, &mut physics, &t, &te, &b)?
             }
-            Stage::OnlineViews => {
-                let (r, te, m) = (input(0).clone(), input(1).clone(), input(2).clone());
-                views::online(ctx, &r, &te, &m)?
-            }
+            Stage::SetViews { .. } | Stage::BasisViews | Stage::OnlineViews => unreachable!("views run beside"),
             Stage::Report => {
                 let k = |name: &str| keys[name].clone();
                 let inputs = report::ReportInputs {
@@ -361,14 +409,11 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
                 report::run(ctx, &inputs)?
             }
         };
-        if key != node.key {
-            return Err(CromError::artifact(
-                ctx.store.dir(node.kind, &key),
-                format!("stage `{}` wrote key {}, its plan says {}", node.name, key.short(), node.key.short()),
-                "report this as a bug in crom (the plan and the stage compute the key differently)",
-            ));
-        }
+        check_key(ctx, node, &key)?;
         keys.insert(node.name.as_str(), key);
+    }
+    for done in beside.finish() {
+        join_beside(ctx, done, &mut keys)?;
     }
     let k = |name: &str| keys[name].clone();
     let n_train = scene.parameter.train_points().len();
@@ -403,6 +448,34 @@ pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Res
         online_comparison: keys.get("online-comparison").cloned(),
         report: keys.get("report").cloned(),
     })
+}
+
+/// A stage's key against its plan's.
+fn check_key(ctx: &Ctx<'_>, node: &plan::Node, key: &Key) -> Result<(), CromError> {
+    if *key == node.key {
+        return Ok(());
+    }
+    Err(CromError::artifact(
+        ctx.store.dir(node.kind, key),
+        format!("stage `{}` wrote key {}, its plan says {}", node.name, key.short(), node.key.short()),
+        "report this as a bug in crom (the plan and the stage compute the key differently)",
+    ))
+}
+
+/// A node that ran beside the main loop: print its line, take in its records, check and keep its
+/// key.
+fn join_beside<'p>(
+    ctx: &mut Ctx<'_>,
+    (node, (key, sub, secs)): (&'p plan::Node, beside::Done<'_>),
+    keys: &mut BTreeMap<&'p str, Key>,
+) -> Result<(), CromError> {
+    let computed = sub.records.iter().map(|r| r.computed).sum::<usize>() > 0;
+    ctx.merge(sub);
+    let key = key?;
+    ctx.progress.line("views", if computed { "computed beside" } else { "cached" }, secs);
+    check_key(ctx, node, &key)?;
+    keys.insert(node.name.as_str(), key);
+    Ok(())
 }
 
 /// The (approximation name, key) of each input of a side-by-side node, whose inputs are the

@@ -186,7 +186,13 @@ pub fn table(rows: &[CatalogRow]) -> Table {
 }
 
 /// Rebuild `catalog.parquet` of the store at `root` and replace it atomically.
+///
+/// Serialised within the process (stages commit from more than one thread): each refresh
+/// lists the store after every rename that came before it, so the last one written holds
+/// every artifact.
 pub fn refresh(root: &Path) -> Result<std::path::PathBuf, CromError> {
+    static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let store = Store::open_read_only(root);
     let path = root.join(names::FILE);
     let mut bytes = Vec::new();
