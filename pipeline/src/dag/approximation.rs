@@ -22,6 +22,7 @@ use serde_json::json;
 use super::basis::Ticker;
 use super::comparison::{contact_x, item, THRESHOLDS};
 use super::convert::view;
+use super::graph::{Input, Shared, StageDef};
 use super::Ctx;
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -55,14 +56,7 @@ pub(crate) const ONLINE_MS: [usize; 7] = [1, 2, 3, 5, 8, 16, 32];
 /// The key spec of approximation `index` of the scene's comparison (in [`items`] order; None
 /// without `[comparison]` or past its end); `nested` are the nested levels' sets (level n at
 /// index n - 1), for H(n).
-pub(crate) fn spec(
-    scene: &SceneConfig,
-    index: usize,
-    train: &Key,
-    test: &Key,
-    mesh: &Key,
-    nested: &[Key],
-) -> Option<KeySpec> {
+fn spec(scene: &SceneConfig, index: usize, train: &Key, test: &Key, mesh: &Key, nested: &[Key]) -> Option<KeySpec> {
     let (cmp, item) = item(scene, index)?;
     let key = ApproximationKey {
         approximation: &item.spec,
@@ -79,9 +73,57 @@ pub(crate) fn spec(
     Some(spec)
 }
 
+/// Dual approximation `index` of the comparison (in `comparison::items` order), measured
+/// offline.
+#[derive(Debug)]
+pub(crate) struct ApproximationStage {
+    pub spec: KeySpec,
+    pub index: usize,
+    pub train: Input,
+    pub test: Input,
+    pub mesh: Input,
+    /// The nested levels' sets (level n at index n - 1), for H(n).
+    pub nested: Vec<Input>,
+}
+
+impl ApproximationStage {
+    /// None where the scene has no approximation `index`.
+    pub(crate) fn plan(
+        scene: &SceneConfig,
+        index: usize,
+        train: Input,
+        test: Input,
+        mesh: Input,
+        nested: Vec<Input>,
+    ) -> Option<Self> {
+        let keys: Vec<Key> = nested.iter().map(|l| l.key.clone()).collect();
+        let spec = spec(scene, index, &train.key, &test.key, &mesh.key, &keys)?;
+        Some(Self { spec, index, train, test, mesh, nested })
+    }
+}
+
+impl StageDef for ApproximationStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Approximation
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        let mut inputs = vec![&self.train, &self.test, &self.mesh];
+        inputs.extend(&self.nested);
+        inputs
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
+        let keys: Vec<Key> = self.nested.iter().map(|l| l.key.clone()).collect();
+        run(ctx, &self.spec, self.index, &self.train.key, &self.test.key, &self.mesh.key, &keys)
+    }
+}
+
 /// Build and measure approximation `index`; returns the artifact's key.
-pub(crate) fn run(
+fn run(
     ctx: &mut Ctx<'_>,
+    spec: &KeySpec,
     index: usize,
     train: &Key,
     test: &Key,
@@ -90,7 +132,7 @@ pub(crate) fn run(
 ) -> Result<Key, CromError> {
     let scene_cfg = ctx.scene;
     let found = item(scene_cfg, index).map(|(c, i)| (c.clone(), i));
-    let (Some((cmp, item)), Some(spec)) = (found, spec(scene_cfg, index, train, test, mesh, nested)) else {
+    let Some((cmp, item)) = found else {
         return Err(CromError::artifact(
             "comparison",
             format!("the scene's [comparison] has no approximation number {index}"),
@@ -100,7 +142,7 @@ pub(crate) fn run(
     let scene = scene_cfg.scene.name.clone();
     let (samples, seed) = (scene_cfg.study.specificity_samples, scene_cfg.study.seed);
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
-    ctx.single(ArtifactKind::Approximation, "approximation", &spec, |staging| {
+    ctx.single(ArtifactKind::Approximation, "approximation", spec, |staging| {
         let set = loaded.set(store, train)?;
         let tset = loaded.set(store, test)?;
         let surface = contact_x(store, mesh)?;

@@ -36,6 +36,7 @@ use serde_json::json;
 use super::approximation::ONLINE_MS;
 use super::comparison::{contact_x, item};
 use super::convert::view;
+use super::graph::{Input, Shared, StageDef};
 use super::rom::{dual_error, fastest, fom_seconds, response_basis};
 use super::{Ctx, LazyPhysics};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
@@ -66,7 +67,7 @@ impl StageKey for OnlineApproximationKey<'_> {
 /// The key spec of approximation `index`'s online stage (None without `[comparison]`, past
 /// its end, or for an approximation without a non-negative basis); `approximation` is the key
 /// of its offline artifact.
-pub(crate) fn spec(
+fn spec(
     scene: &SceneConfig,
     index: usize,
     train: &Key,
@@ -124,22 +125,63 @@ struct Query {
     nonzero: usize,
 }
 
+/// The online solve with dual approximation `index` (one with a non-negative basis).
+#[derive(Debug)]
+pub(crate) struct OnlineApproximationStage {
+    pub spec: KeySpec,
+    pub index: usize,
+    pub train: Input,
+    pub test: Input,
+    pub mesh: Input,
+    /// Its offline artifact.
+    pub approximation: Input,
+}
+
+impl OnlineApproximationStage {
+    /// None where the scene has no approximation `index` or it has no non-negative basis.
+    pub(crate) fn plan(
+        scene: &SceneConfig,
+        index: usize,
+        train: Input,
+        test: Input,
+        mesh: Input,
+        approximation: Input,
+    ) -> Option<Self> {
+        let spec = spec(scene, index, &train.key, &test.key, &mesh.key, &approximation.key)?;
+        Some(Self { spec, index, train, test, mesh, approximation })
+    }
+}
+
+impl StageDef for OnlineApproximationStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::OnlineApproximation
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        vec![&self.train, &self.test, &self.mesh, &self.approximation]
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
+        let keys = [&self.train.key, &self.test.key, &self.mesh.key, &self.approximation.key];
+        run(ctx, &mut shared.physics, &mut shared.online_base, &self.spec, self.index, keys)
+    }
+}
+
 /// Run the online solve with approximation `index`; returns the artifact's key. `shared` is
-/// the process's [`OnlineBase`] (built here on first use).
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn run(
+/// the process's [`OnlineBase`] (built here on first use); `keys` are the training set's, the
+/// test set's, the mesh's and the offline approximation's.
+fn run(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
     shared: &mut Option<OnlineBase>,
+    spec: &KeySpec,
     index: usize,
-    train: &Key,
-    test: &Key,
-    mesh: &Key,
-    approximation: &Key,
+    [train, test, mesh, approximation]: [&Key; 4],
 ) -> Result<Key, CromError> {
     let scene_cfg = ctx.scene;
     let found = item(scene_cfg, index).map(|(c, i)| (c.clone(), i));
-    let (Some((cmp, item)), Some(spec)) = (found, spec(scene_cfg, index, train, test, mesh, approximation)) else {
+    let Some((cmp, item)) = found else {
         return Err(CromError::artifact(
             "online-approximation",
             format!("the scene's [comparison] has no approximation number {index} with a non-negative basis"),
@@ -218,7 +260,7 @@ pub(crate) fn run(
             rows.push(&name, m, b.r_primal, &queries, b.fom_median);
         }
     }
-    let staging = ctx.store.stage(&spec)?;
+    let staging = ctx.store.stage(spec)?;
     let (results, times) = rows.tables(&scene);
     results.write_parquet(&staging.path(names::ONLINE))?;
     times.write_parquet(&staging.path(names::ONLINE_TIMINGS))?;

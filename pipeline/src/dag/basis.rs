@@ -12,6 +12,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::convert::{to_col, view};
+use super::graph::{Input, Shared, StageDef};
 use super::Ctx;
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -40,17 +41,16 @@ struct PathMemo {
 }
 
 /// The CPG path of the dual snapshots `dual` of training set `train`, recording the metrics'
-/// data up to `max_rank`: computed once per run (with a progress bar), then shared. Above
+/// data up to `max_rank`, with the cone tolerances `tols` (full, truncated): computed once per run (with a progress bar), then shared. Above
 /// `crom_stages::basis::DENSE_CURVE_MAX` snapshots its curve C(m) is on a rank grid, with the
 /// scene's two cone tolerances located exactly (so both bases are the whole curve's).
 pub(crate) fn dual_path(
     ctx_progress: crate::progress::Progress,
-    scene: &SceneConfig,
+    tols: [f64; 2],
     train: &Key,
     dual: &ColMatrix,
     max_rank: usize,
 ) -> Result<Arc<CpgPath>, String> {
-    let tols = [scene.study.dual_cone_tol, scene.study.dual_cone_tol_truncated];
     let tol_bits = tols.map(f64::to_bits);
     let mut memo = DUAL_PATH.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(m) = memo.as_ref() {
@@ -93,20 +93,35 @@ pub(crate) fn max_rank(ctx: &Ctx<'_>) -> usize {
     max_rank_of(ctx.scene)
 }
 
+/// The scene's cone tolerances (full, truncated), as the shared greedy path takes them.
+pub(crate) fn cone_tols(scene: &SceneConfig) -> [f64; 2] {
+    [scene.study.dual_cone_tol, scene.study.dual_cone_tol_truncated]
+}
+
 /// [`max_rank`] from the scene alone.
 pub(crate) fn max_rank_of(scene: &SceneConfig) -> usize {
     scene.study.max_rank_for(scene.parameter.train_points().len())
 }
 
-/// What determines the bases of a training set (its key is an input).
-#[derive(Debug, Serialize)]
-struct BasisKey {
+/// What determines the bases of a training set (its key is an input): the stage computes from
+/// these fields alone.
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct BasisKey {
     primal_tol: f64,
     dual_orth_tol: f64,
     dual_cone_tol: f64,
     dual_cone_tol_truncated: f64,
     /// The CPG greedy solves NNLS problems.
     nnls: NnlsKey,
+    /// The rank up to which the stored C(m) of the cone is dense, where the scene's `max_rank`
+    /// decides it (above `DENSE_CURVE_MAX` training snapshots and past `GRID_START`); absent
+    /// (and not in the key) elsewhere.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    curve_dense_to: Option<usize>,
+    /// The metrics' range recorded on the shared greedy path (`dual_path`): it decides the
+    /// bases only through `curve_dense_to`, so it is not in the key itself.
+    #[serde(skip)]
+    max_rank: usize,
 }
 
 impl StageKey for BasisKey {
@@ -117,68 +132,108 @@ impl StageKey for BasisKey {
     const ALGORITHM_VERSION: u32 = 4;
 }
 
-/// The basis artifact's key spec for the training set `train`.
-pub(crate) fn spec(scene: &SceneConfig, train: &Key) -> KeySpec {
-    let st = &scene.study;
-    KeySpec::of(&BasisKey {
-        primal_tol: st.primal_tol,
-        dual_orth_tol: st.dual_orth_tol,
-        dual_cone_tol: st.dual_cone_tol,
-        dual_cone_tol_truncated: st.dual_cone_tol_truncated,
-        nnls: NnlsKey::used(),
-    })
-    .input("train", train)
+impl BasisKey {
+    /// The scene's basis settings.
+    fn of(scene: &SceneConfig) -> Self {
+        let st = &scene.study;
+        let max_rank = max_rank_of(scene);
+        let n_train = scene.parameter.train_points().len();
+        let grid = n_train > crom_stages::basis::DENSE_CURVE_MAX && max_rank > crom_stages::basis::GRID_START;
+        Self {
+            primal_tol: st.primal_tol,
+            dual_orth_tol: st.dual_orth_tol,
+            dual_cone_tol: st.dual_cone_tol,
+            dual_cone_tol_truncated: st.dual_cone_tol_truncated,
+            nnls: NnlsKey::used(),
+            curve_dense_to: grid.then_some(max_rank),
+            max_rank,
+        }
+    }
 }
 
-pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
-    let st = ctx.scene.study.clone();
-    let scene_cfg = ctx.scene.clone();
-    let max_rank = max_rank(ctx);
-    let progress = ctx.progress;
-    let spec = spec(ctx.scene, train);
-    let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
-    let scene = ctx.scene.scene.name.clone();
-    let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
-    ctx.single(ArtifactKind::Basis, "basis", &spec, |staging| {
-        let set = loaded.set(store, train)?;
-        // The primal POD (the large SVD) beside the dual POD and the greedy path: independent
-        // computations, each deterministic, on the two cores.
-        let (primal, (dual, path)) = rayon::join(
-            || pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }),
-            || {
-                let dual = pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol });
-                (dual, dual_path(progress, &scene_cfg, train, &set.dual, max_rank))
-            },
-        );
-        let primal = primal.map_err(|e| numerical(e.to_string()))?;
-        let dual = dual.map_err(|e| numerical(e.to_string()))?;
-        // One greedy path; both bases are its prefixes (the greedy is deterministic).
-        let path = path.map_err(numerical)?;
-        let full = path.truncated(st.dual_cone_tol);
-        let trunc = path.truncated(st.dual_cone_tol_truncated);
-        let f = H5Out::create(&staging.path(names::FILE))?;
-        f.attr_str("scene", &scene)?;
-        f.attr_str("kind", "basis")?;
-        f.attr_u64("schema_version", u64::from(ArtifactKind::Basis.schema_version()))?;
-        f.attr_str("cache_key", &staging.key().0)?;
-        write_pod(&f, names::PRIMAL_POD, &primal, st.primal_tol)?;
-        write_pod(&f, names::DUAL_POD, &dual, st.dual_orth_tol)?;
-        // Both are prefixes of one path, so one condition path (of the longer) serves both;
-        // 1 / kappa is finite always (0 = a generator in the span of the earlier ones).
-        let longer = if full.basis.ncols() >= trunc.basis.ncols() { &full } else { &trunc };
-        let rcond: Vec<f64> =
-            crom_stages::basis::gram_condition_path(longer.basis.as_ref()).iter().map(|k| 1.0 / k).collect();
-        write_cpg(&f, names::DUAL_CPG, &full, st.dual_cone_tol, &rcond[..full.basis.ncols()])?;
-        let t = trunc.basis.ncols();
-        write_cpg(&f, names::DUAL_CPG_TRUNCATED, &trunc, st.dual_cone_tol_truncated, &rcond[..t])?;
-        drop(f);
-        Ok(BTreeMap::from([
-            ("primal_rank".to_string(), json!(primal.modes.ncols())),
-            ("dual_orth_rank".to_string(), json!(dual.modes.ncols())),
-            ("dual_cone_rank".to_string(), json!(full.basis.ncols())),
-            ("dual_cone_truncated_rank".to_string(), json!(trunc.basis.ncols())),
-        ]))
-    })
+/// POD and CPG bases of the training set. Its compute reads its settings from its key
+/// ([`BasisKey`]) and its training set from its input: nothing it uses can be missing from its
+/// key.
+#[derive(Debug)]
+pub(crate) struct BasisStage {
+    pub spec: KeySpec,
+    pub settings: BasisKey,
+    pub train: Input,
+    /// The scene's name, written into the artifact as a label.
+    pub scene: String,
+}
+
+impl BasisStage {
+    pub(crate) fn plan(scene: &SceneConfig, train: Input) -> Self {
+        let settings = BasisKey::of(scene);
+        let spec = KeySpec::of(&settings).input("train", &train.key);
+        Self { spec, settings, train, scene: scene.scene.name.clone() }
+    }
+}
+
+impl StageDef for BasisStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Basis
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        vec![&self.train]
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
+        self.compute(ctx)
+    }
+}
+
+impl BasisStage {
+    fn compute(&self, ctx: &mut Ctx<'_>) -> Result<Key, CromError> {
+        let (st, train, scene) = (&self.settings, &self.train.key, &self.scene);
+        let tols = [st.dual_cone_tol, st.dual_cone_tol_truncated];
+        let progress = ctx.progress;
+        let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
+        let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
+        ctx.single(ArtifactKind::Basis, "basis", &self.spec, |staging| {
+            let set = loaded.set(store, train)?;
+            // The primal POD (the large SVD) beside the dual POD and the greedy path: independent
+            // computations, each deterministic, on the two cores.
+            let (primal, (dual, path)) = rayon::join(
+                || pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }),
+                || {
+                    let dual = pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol });
+                    (dual, dual_path(progress, tols, train, &set.dual, st.max_rank))
+                },
+            );
+            let primal = primal.map_err(|e| numerical(e.to_string()))?;
+            let dual = dual.map_err(|e| numerical(e.to_string()))?;
+            // One greedy path; both bases are its prefixes (the greedy is deterministic).
+            let path = path.map_err(numerical)?;
+            let full = path.truncated(st.dual_cone_tol);
+            let trunc = path.truncated(st.dual_cone_tol_truncated);
+            let f = H5Out::create(&staging.path(names::FILE))?;
+            f.attr_str("scene", scene)?;
+            f.attr_str("kind", "basis")?;
+            f.attr_u64("schema_version", u64::from(ArtifactKind::Basis.schema_version()))?;
+            f.attr_str("cache_key", &staging.key().0)?;
+            write_pod(&f, names::PRIMAL_POD, &primal, st.primal_tol)?;
+            write_pod(&f, names::DUAL_POD, &dual, st.dual_orth_tol)?;
+            // Both are prefixes of one path, so one condition path (of the longer) serves both;
+            // 1 / kappa is finite always (0 = a generator in the span of the earlier ones).
+            let longer = if full.basis.ncols() >= trunc.basis.ncols() { &full } else { &trunc };
+            let rcond: Vec<f64> =
+                crom_stages::basis::gram_condition_path(longer.basis.as_ref()).iter().map(|k| 1.0 / k).collect();
+            write_cpg(&f, names::DUAL_CPG, &full, st.dual_cone_tol, &rcond[..full.basis.ncols()])?;
+            let t = trunc.basis.ncols();
+            write_cpg(&f, names::DUAL_CPG_TRUNCATED, &trunc, st.dual_cone_tol_truncated, &rcond[..t])?;
+            drop(f);
+            Ok(BTreeMap::from([
+                ("primal_rank".to_string(), json!(primal.modes.ncols())),
+                ("dual_orth_rank".to_string(), json!(dual.modes.ncols())),
+                ("dual_cone_rank".to_string(), json!(full.basis.ncols())),
+                ("dual_cone_truncated_rank".to_string(), json!(trunc.basis.ncols())),
+            ]))
+        })
+    }
 }
 
 /// Load the untruncated-tolerance bases used by the metrics.

@@ -11,6 +11,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::convert::view;
+use super::graph::{Input, Shared, StageDef};
 use super::{basis, Ctx};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -31,23 +32,51 @@ impl StageKey for CompactnessKey {
 }
 
 /// The compactness artifact's key spec.
-pub(crate) fn spec(train: &Key, basis_key: &Key) -> KeySpec {
+fn spec(train: &Key, basis_key: &Key) -> KeySpec {
     KeySpec::of(&CompactnessKey { nnls: NnlsKey::used() }).input("train", train).input("basis", basis_key)
 }
 
-pub(crate) fn run(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
-    let spec = spec(train, basis_key);
+/// C(m) of the training set on its bases.
+#[derive(Debug)]
+pub(crate) struct CompactnessStage {
+    pub spec: KeySpec,
+    pub train: Input,
+    pub basis: Input,
+}
+
+impl CompactnessStage {
+    pub(crate) fn plan(train: Input, basis: Input) -> Self {
+        Self { spec: spec(&train.key, &basis.key), train, basis }
+    }
+}
+
+impl StageDef for CompactnessStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Compactness
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        vec![&self.train, &self.basis]
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
+        run(ctx, &self.spec, &self.train.key, &self.basis.key)
+    }
+}
+
+fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let scene = ctx.scene.scene.name.clone();
     let (progress, max_rank) = (ctx.progress, basis::max_rank(ctx));
     let scene_cfg = ctx.scene.clone();
-    ctx.single(ArtifactKind::Compactness, "compactness", &spec, |staging| {
+    ctx.single(ArtifactKind::Compactness, "compactness", spec, |staging| {
         let set = loaded.set(store, train)?;
         let b = loaded.bases(store, basis_key)?;
         let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
         let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
         // C(m) of the stored cone basis: the prefix of the CPG path's curve (the same pass).
-        let path = basis::dual_path(progress, &scene_cfg, train, &set.dual, max_rank)
+        let path = basis::dual_path(progress, basis::cone_tols(&scene_cfg), train, &set.dual, max_rank)
             .map_err(|message| CromError::Numerical { stage: "compactness", scene: scene.clone(), message })?;
         let cone = path.compactness[..=b.dual_cpg.cols.min(path.len())].to_vec();
         let mut t = Rows::default();

@@ -15,6 +15,7 @@ use crom_stages::dual::{Approach, Inner, Interpolation, MapKind};
 use serde::Serialize;
 use serde_json::json;
 
+use super::graph::{Input, Shared, StageDef};
 use super::Ctx;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -136,7 +137,7 @@ fn files(kind: ArtifactKind) -> &'static [&'static str] {
 
 /// The key spec of a side-by-side artifact of `kind` over `parts`: (approximation name, key of
 /// its `approximation` or `online-approximation` artifact), in table order.
-pub(crate) fn gather_spec(kind: ArtifactKind, parts: &[(String, Key)]) -> KeySpec {
+fn gather_spec(kind: ArtifactKind, parts: &[(String, Key)]) -> KeySpec {
     let mut spec = if kind == ArtifactKind::Comparison {
         KeySpec::of(&ComparisonKey(GatherKey { kind: "comparison" }))
     } else {
@@ -148,18 +149,51 @@ pub(crate) fn gather_spec(kind: ArtifactKind, parts: &[(String, Key)]) -> KeySpe
     spec
 }
 
+/// The approximations side by side (`kind`: the offline comparison or the online one), one
+/// part per approximation (its name, and its artifact of kind `part_kind`).
+#[derive(Debug)]
+pub(crate) struct GatherStage {
+    pub spec: KeySpec,
+    pub kind: ArtifactKind,
+    pub part_kind: ArtifactKind,
+    pub parts: Vec<(String, Input)>,
+}
+
+impl GatherStage {
+    pub(crate) fn plan(kind: ArtifactKind, part_kind: ArtifactKind, parts: Vec<(String, Input)>) -> Self {
+        let keys: Vec<(String, Key)> = parts.iter().map(|(n, i)| (n.clone(), i.key.clone())).collect();
+        Self { spec: gather_spec(kind, &keys), kind, part_kind, parts }
+    }
+}
+
+impl StageDef for GatherStage {
+    fn kind(&self) -> ArtifactKind {
+        self.kind
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        self.parts.iter().map(|(_, i)| i).collect()
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
+        let parts: Vec<(String, Key)> = self.parts.iter().map(|(n, i)| (n.clone(), i.key.clone())).collect();
+        gather(ctx, &self.spec, self.kind, self.part_kind, &parts)
+    }
+}
+
 /// Concatenate the tables of `parts` (artifacts of kind `part_kind`) into one artifact of
 /// `kind`; returns its key.
-pub(crate) fn gather(
+fn gather(
     ctx: &mut Ctx<'_>,
+    spec: &KeySpec,
     kind: ArtifactKind,
     part_kind: ArtifactKind,
     parts: &[(String, Key)],
 ) -> Result<Key, CromError> {
-    let spec = gather_spec(kind, parts);
     let store = ctx.store;
     let label = if kind == ArtifactKind::Comparison { "comparison" } else { "online-comparison" };
-    ctx.single(kind, label, &spec, |staging| {
+    ctx.single(kind, label, spec, |staging| {
         for file in files(kind) {
             let mut all = Table::default();
             for (name, key) in parts {

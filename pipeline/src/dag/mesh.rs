@@ -6,6 +6,7 @@ use crom_schemas::artifact::{mesh as names, ArtifactKind};
 use serde::Serialize;
 use serde_json::json;
 
+use super::graph::{Input, Shared, StageDef};
 use super::{Ctx, LazyPhysics};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -29,11 +30,37 @@ pub(crate) fn spec(scene: &crom_schemas::SceneConfig) -> KeySpec {
     KeySpec::of(&MeshKey(&scene.model))
 }
 
-pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>) -> Result<Key, CromError> {
-    let spec = spec(ctx.scene);
+/// The mesh stage: the scene's model (its key spec), no input.
+#[derive(Debug)]
+pub(crate) struct MeshStage {
+    pub spec: KeySpec,
+}
+
+impl MeshStage {
+    pub(crate) fn plan(scene: &crom_schemas::SceneConfig) -> Self {
+        Self { spec: spec(scene) }
+    }
+}
+
+impl StageDef for MeshStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Mesh
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        Vec::new()
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
+        run(ctx, &mut shared.physics, &self.spec)
+    }
+}
+
+pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>, spec: &KeySpec) -> Result<Key, CromError> {
     let key = spec.key();
     let scene = ctx.scene.scene.name.clone();
-    ctx.single(ArtifactKind::Mesh, "mesh", &spec, |staging| {
+    ctx.single(ArtifactKind::Mesh, "mesh", spec, |staging| {
         let phys = physics.get()?;
         let m = phys.mesh();
         let condition = phys.operator().stiffness_condition();

@@ -17,6 +17,7 @@ use serde_json::json;
 
 use super::basis::Ticker;
 use super::convert::view;
+use super::graph::{Input, Shared, StageDef};
 use super::{basis, trainset, Ctx};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -90,7 +91,7 @@ fn numerical(scene: &str, stage: &'static str, e: impl std::fmt::Display) -> Cro
 }
 
 /// The generalization artifact's key spec.
-pub(crate) fn generalization_spec(scene: &SceneConfig, train: &Key) -> KeySpec {
+fn generalization_spec(scene: &SceneConfig, train: &Key) -> KeySpec {
     let max_rank = basis::max_rank_of(scene);
     let n_train = scene.parameter.train_points().len();
     let folds = scene.study.loo_folds_for(n_train);
@@ -100,7 +101,7 @@ pub(crate) fn generalization_spec(scene: &SceneConfig, train: &Key) -> KeySpec {
 }
 
 /// The specificity artifact's key spec.
-pub(crate) fn specificity_spec(scene: &SceneConfig, train: &Key, basis_key: &Key) -> KeySpec {
+fn specificity_spec(scene: &SceneConfig, train: &Key, basis_key: &Key) -> KeySpec {
     let st = &scene.study;
     let max_rank = basis::max_rank_of(scene);
     let dense_to = specificity_dense_to(scene);
@@ -110,7 +111,7 @@ pub(crate) fn specificity_spec(scene: &SceneConfig, train: &Key, basis_key: &Key
 }
 
 /// The nested-error artifact's key spec for the nested sets `levels` (level n at index n-1).
-pub(crate) fn nested_spec(levels: &[Key]) -> KeySpec {
+fn nested_spec(levels: &[Key]) -> KeySpec {
     let mut spec = KeySpec::of(&NestedKey { levels: levels.len(), nnls: NnlsKey::used() });
     for (i, k) in levels.iter().enumerate() {
         spec = spec.input(&format!("level{}", i + 1), k);
@@ -118,21 +119,108 @@ pub(crate) fn nested_spec(levels: &[Key]) -> KeySpec {
     spec
 }
 
+/// G(m) of the training set (leave-one-out).
+#[derive(Debug)]
+pub(crate) struct GeneralizationStage {
+    pub spec: KeySpec,
+    pub train: Input,
+}
+
+impl GeneralizationStage {
+    pub(crate) fn plan(scene: &SceneConfig, train: Input) -> Self {
+        Self { spec: generalization_spec(scene, &train.key), train }
+    }
+}
+
+impl StageDef for GeneralizationStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Generalization
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        vec![&self.train]
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
+        generalization(ctx, &self.spec, &self.train.key)
+    }
+}
+
+/// S(m) of the training set's bases.
+#[derive(Debug)]
+pub(crate) struct SpecificityStage {
+    pub spec: KeySpec,
+    pub train: Input,
+    pub basis: Input,
+}
+
+impl SpecificityStage {
+    pub(crate) fn plan(scene: &SceneConfig, train: Input, basis: Input) -> Self {
+        Self { spec: specificity_spec(scene, &train.key, &basis.key), train, basis }
+    }
+}
+
+impl StageDef for SpecificityStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Specificity
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        vec![&self.train, &self.basis]
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
+        specificity(ctx, &self.spec, &self.train.key, &self.basis.key)
+    }
+}
+
+/// H(n) over the nested levels (level n at index n - 1).
+#[derive(Debug)]
+pub(crate) struct NestedStage {
+    pub spec: KeySpec,
+    pub levels: Vec<Input>,
+}
+
+impl NestedStage {
+    pub(crate) fn plan(levels: Vec<Input>) -> Self {
+        let keys: Vec<Key> = levels.iter().map(|l| l.key.clone()).collect();
+        Self { spec: nested_spec(&keys), levels }
+    }
+}
+
+impl StageDef for NestedStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Nested
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        self.levels.iter().collect()
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
+        let keys: Vec<Key> = self.levels.iter().map(|l| l.key.clone()).collect();
+        nested(ctx, &self.spec, &keys)
+    }
+}
+
 /// G(m) for primal orth, dual orth and dual cone, m = 1..=min(N - 1, max_rank).
-pub(crate) fn generalization(ctx: &mut Ctx<'_>, train: &Key) -> Result<Key, CromError> {
+fn generalization(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key) -> Result<Key, CromError> {
     let max_rank = basis::max_rank(ctx);
     let n_train = ctx.scene.parameter.train_points().len();
     let folds = ctx.scene.study.loo_folds_for(n_train);
-    let spec = generalization_spec(ctx.scene, train);
     let scene = ctx.scene.scene.name.clone();
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
     let scene_cfg = ctx.scene.clone();
-    ctx.single(ArtifactKind::Generalization, "generalization", &spec, |staging| {
+    ctx.single(ArtifactKind::Generalization, "generalization", spec, |staging| {
         let set = loaded.set(store, train)?;
         let max_m = set.dual.cols.saturating_sub(1).min(max_rank);
         let fail = |e: String| numerical(&scene, "generalization", e);
-        let path = basis::dual_path(progress, &scene_cfg, train, &set.dual, max_rank).map_err(fail)?;
+        let path =
+            basis::dual_path(progress, basis::cone_tols(&scene_cfg), train, &set.dual, max_rank).map_err(fail)?;
         let bar = Ticker::new(progress, "LOO folds", 3 * folds.len());
         let mut rows = CurveRows::default();
         for (field, s) in [("primal", &set.primal), ("dual", &set.dual)] {
@@ -188,22 +276,21 @@ fn loo_cone(
 }
 
 /// S(m) for primal orth, dual orth and dual cone, on the stored bases, m = 1..=min(k, max_rank).
-pub(crate) fn specificity(ctx: &mut Ctx<'_>, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
+fn specificity(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
     let params = SpecificityParams {
         samples: ctx.scene.study.specificity_samples,
         seed: ctx.scene.study.seed,
         dense_to: specificity_dense_to(ctx.scene).unwrap_or(usize::MAX),
     };
     let max_rank = basis::max_rank(ctx);
-    let spec = specificity_spec(ctx.scene, train, basis_key);
     let scene = ctx.scene.scene.name.clone();
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
     let scene_cfg = ctx.scene.clone();
-    ctx.single(ArtifactKind::Specificity, "specificity", &spec, |staging| {
+    ctx.single(ArtifactKind::Specificity, "specificity", spec, |staging| {
         let set = loaded.set(store, train)?;
         let b = loaded.bases(store, basis_key)?;
-        let path = basis::dual_path(progress, &scene_cfg, train, &set.dual, max_rank)
+        let path = basis::dual_path(progress, basis::cone_tols(&scene_cfg), train, &set.dual, max_rank)
             .map_err(|e| numerical(&scene, "specificity", e))?;
         let pm = view(&b.primal_pod).subcols(0, b.primal_pod.cols.min(max_rank));
         let dm = view(&b.dual_pod).subcols(0, b.dual_pod.cols.min(max_rank));
@@ -245,12 +332,11 @@ impl<A, B, C> IntoFlat<A, B, C> for (A, (B, C)) {
 }
 
 /// H(n), n = 1..levels-1, from the nested sets (level n at index n-1).
-pub(crate) fn nested(ctx: &mut Ctx<'_>, levels: &[Key]) -> Result<Key, CromError> {
-    let spec = nested_spec(levels);
+fn nested(ctx: &mut Ctx<'_>, spec: &KeySpec, levels: &[Key]) -> Result<Key, CromError> {
     let scene = ctx.scene.scene.name.clone();
     let store = ctx.store;
     let progress = ctx.progress;
-    ctx.single(ArtifactKind::Nested, "nested", &spec, |staging| {
+    ctx.single(ArtifactKind::Nested, "nested", spec, |staging| {
         // Two levels in memory at a time (level n and n + 1), the finer one kept for the next
         // pair: memory is bounded by the two finest levels, not by all of them.
         let mut t = NestedRows::default();

@@ -1,12 +1,23 @@
-//! The study as a DAG of cached stages (DESIGN.md):
+//! The study as a graph of cached stages.
 //!
 //! ```text
-//! scene ─► mesh ─► snapshot (one per parameter point) ─► trainset (train, test)
-//!                                                          └─► basis ─► compactness
+//! scene ─► mesh ─► snapshots (one sweep per point set) ─► trainset train, test, nested-k
+//!   trainset ─► views (beside the main loop)
+//!   trainset train ─► basis ─► views basis
+//!   trainset train + basis ─► compactness, specificity
+//!   trainset train ─► generalization
+//!   trainset nested-1..K ─► nested
+//!   trainset train, test, mesh (+ nested) ─► approximation <name> … ─► comparison
+//!   trainset train, test, basis ─► rom ─► views online                       (online)
+//!   approximation <name> ─► online-approximation <name> … ─► online-comparison (online)
+//!   mesh, train, basis, the metrics, rom, comparisons ─► report             (online)
 //! ```
 //!
-//! Each stage is named by the content hash of its parameters and inputs ([`crate::cache`]); a
-//! stage whose artifact is in the store and verifies is not run again.
+//! [`plan::Plan::of`] builds the graph from the scene file alone: each node is a typed stage
+//! ([`graph::StageDef`]) holding its key spec and its named inputs, so the key of every
+//! artifact is known before anything runs. Each stage is named by the content hash of its
+//! parameters and inputs ([`crate::cache`]); a stage whose artifact is in the store and
+//! verifies is not run again. [`execute`] runs the nodes in order with no stage-specific code.
 
 mod approximation;
 mod approximation_online;
@@ -15,6 +26,7 @@ mod beside;
 mod compactness;
 pub(crate) mod comparison;
 mod convert;
+mod graph;
 mod loaded;
 mod mesh;
 mod metrics;
@@ -253,7 +265,7 @@ impl<'a> Ctx<'a> {
 pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
     let scene = ctx.scene;
     let mut physics = LazyPhysics { scene, built: None };
-    let mesh_key = mesh::run(ctx, &mut physics)?;
+    let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene))?;
     for sweep in snapshots::sweeps(scene, &mesh_key) {
         snapshots::run(ctx, &mut physics, &mesh_key, &sweep)?;
     }
@@ -265,7 +277,7 @@ pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
 pub fn prepare_sweeps(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
     let scene = ctx.scene;
     let mut physics = LazyPhysics { scene, built: None };
-    let mesh_key = mesh::run(ctx, &mut physics)?;
+    let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene))?;
     let family = snapshots::scene_family(scene, &mesh_key);
     if let Some(f) = crate::store::columns::ColumnFamily::find(ctx.store.root(), &family)? {
         f.clean_orphans()?;
@@ -307,12 +319,9 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     plan: &'env plan::Plan,
     online: bool,
 ) -> Result<RunOutput, CromError> {
-    use plan::Stage;
     let scene = ctx.scene;
-    let mut physics = LazyPhysics { scene, built: None };
-    let mut online_base: Option<approximation_online::OnlineBase> = None;
+    let mut shared = graph::Shared::new(scene);
     let mut keys: BTreeMap<&str, Key> = BTreeMap::new();
-    let mut columns: BTreeMap<usize, snapshots::Columns> = BTreeMap::new();
     let mut beside = beside::Beside::new(scope);
     for node in &plan.nodes {
         if node.online && !online {
@@ -321,94 +330,14 @@ fn execute_in<'scope, 'env, 'a: 'env>(
         for done in beside.wait_for(&node.inputs) {
             join_beside(ctx, done, &mut keys)?;
         }
-        let inputs: Vec<Key> = node.inputs.iter().map(|n| keys[n.as_str()].clone()).collect();
-        if matches!(node.stage, Stage::SetViews { .. } | Stage::BasisViews | Stage::OnlineViews) {
-            // Reserve the summary line in plan order; the thread adds its counts.
-            ctx.record("views", 0, 0, ctx.store.dir(node.kind, &node.key));
-            beside.hand(
-                node,
-                ctx.beside(),
-                Box::new(move |sub| match &node.stage {
-                    Stage::SetViews { set } => views::set(sub, set, &inputs[0], &inputs[1]),
-                    Stage::BasisViews => views::basis(sub, &inputs[0], &inputs[1]),
-                    _ => views::online(sub, &inputs[0], &inputs[1], &inputs[2]),
-                }),
-            );
+        if node.stage.placement() == graph::Placement::Beside {
+            // Reserve the summary line in plan order; the worker adds its counts.
+            ctx.record(node.kind.name(), 0, 0, ctx.store.dir(node.kind, &node.key));
+            let stage = std::sync::Arc::clone(&node.stage);
+            beside.hand(node, ctx.beside(), Box::new(move |sub| stage.run(sub, &mut graph::Shared::new(scene))));
             continue;
         }
-        let input = |i: usize| -> &Key { &inputs[i] };
-        let key = match &node.stage {
-            Stage::Mesh => mesh::run(ctx, &mut physics)?,
-            Stage::Sweep(i) => {
-                let mesh_key = keys["mesh"].clone();
-                columns.insert(*i, snapshots::run(ctx, &mut physics, &mesh_key, &plan.sweeps[*i])?);
-                plan.family.clone()
-            }
-            Stage::Set { set, points, sweep, start } => {
-                let cols = &columns[sweep];
-                let rows = &cols.rows[*start..*start + points.len()];
-                trainset::run(ctx, set, points, rows, cols.shape)?
-            }
-            Stage::Basis => {
-                let train = input(0).clone();
-                basis::run(ctx, &train)?
-            }
-            Stage::Compactness => {
-                let (t, b) = (input(0).clone(), input(1).clone());
-                compactness::run(ctx, &t, &b)?
-            }
-            Stage::Generalization => {
-                let t = input(0).clone();
-                metrics::generalization(ctx, &t)?
-            }
-            Stage::Specificity => {
-                let (t, b) = (input(0).clone(), input(1).clone());
-                metrics::specificity(ctx, &t, &b)?
-            }
-            Stage::Nested => {
-                let sets: Vec<Key> = (0..node.inputs.len()).map(|i| input(i).clone()).collect();
-                metrics::nested(ctx, &sets)?
-            }
-            Stage::Approximation(i) => {
-                let (t, te, m) = (input(0).clone(), input(1).clone(), input(2).clone());
-                let nested: Vec<Key> = (3..node.inputs.len()).map(|i| input(i).clone()).collect();
-                approximation::run(ctx, *i, &t, &te, &m, &nested)?
-            }
-            Stage::Comparison => {
-                let parts = gathered(node, comparison::OFFLINE_NODE, &keys);
-                comparison::gather(ctx, ArtifactKind::Comparison, ArtifactKind::Approximation, &parts)?
-            }
-            Stage::OnlineApproximation(i) => {
-                let (t, te, m, a) = (input(0).clone(), input(1).clone(), input(2).clone(), input(3).clone());
-                approximation_online::run(ctx, &mut physics, &mut online_base, *i, &t, &te, &m, &a)?
-            }
-            Stage::OnlineComparison => {
-                let parts = gathered(node, comparison::ONLINE_NODE, &keys);
-                let part = ArtifactKind::OnlineApproximation;
-                comparison::gather(ctx, ArtifactKind::OnlineComparison, part, &parts)?
-            }
-            Stage::Rom => {
-                let (t, te, b) = (input(0).clone(), input(1).clone(), input(2).clone());
-                rom::run(ctx, &mut physics, &t, &te, &b)?
-            }
-            Stage::SetViews { .. } | Stage::BasisViews | Stage::OnlineViews => unreachable!("views run beside"),
-            Stage::Report => {
-                let k = |name: &str| keys[name].clone();
-                let inputs = report::ReportInputs {
-                    mesh: k("mesh"),
-                    train: k("trainset train"),
-                    basis: k("basis"),
-                    compactness: k("compactness"),
-                    rom: k("rom"),
-                    generalization: k("generalization"),
-                    specificity: k("specificity"),
-                    nested: keys.get("nested").cloned(),
-                    comparison: keys.get("comparison").cloned(),
-                    online_comparison: keys.get("online-comparison").cloned(),
-                };
-                report::run(ctx, &inputs)?
-            }
-        };
+        let key = node.stage.run(ctx, &mut shared)?;
         check_key(ctx, node, &key)?;
         keys.insert(node.name.as_str(), key);
     }
@@ -418,22 +347,16 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     let k = |name: &str| keys[name].clone();
     let n_train = scene.parameter.train_points().len();
     let mut views = BTreeMap::new();
-    for node in
-        plan.nodes.iter().filter(|n| matches!(n.stage, Stage::SetViews { .. } | Stage::BasisViews | Stage::OnlineViews))
-    {
+    for node in plan.nodes.iter().filter(|n| n.kind == ArtifactKind::Views) {
         if let Some(key) = keys.get(node.name.as_str()) {
             views.insert(node.name.trim_start_matches("views ").to_string(), key.clone());
         }
     }
-    let nested_sets: Vec<Key> = plan
-        .nodes
-        .iter()
-        .filter(|n| n.name.starts_with("trainset nested-"))
-        .map(|n| keys[n.name.as_str()].clone())
-        .collect();
+    let nested_sets: Vec<Key> =
+        plan.node("nested").map(|n| n.inputs.iter().map(|i| keys[i.as_str()].clone()).collect()).unwrap_or_default();
     Ok(RunOutput {
         mesh: k("mesh"),
-        train_snapshots: columns[&0].rows[..n_train].iter().map(|r| r.key.clone()).collect(),
+        train_snapshots: shared.columns[&0].rows[..n_train].iter().map(|r| r.key.clone()).collect(),
         train: k("trainset train"),
         test: k("trainset test"),
         basis: k("basis"),
@@ -472,23 +395,17 @@ fn join_beside<'p>(
     let computed = sub.records.iter().map(|r| r.computed).sum::<usize>() > 0;
     ctx.merge(sub);
     let key = key?;
-    ctx.progress.line("views", if computed { "computed beside" } else { "cached" }, secs);
+    ctx.progress.line(node.kind.name(), if computed { "computed beside" } else { "cached" }, secs);
     check_key(ctx, node, &key)?;
     keys.insert(node.name.as_str(), key);
     Ok(())
 }
 
-/// The (approximation name, key) of each input of a side-by-side node, whose inputs are the
-/// nodes `<prefix><name>`.
-fn gathered(node: &plan::Node, prefix: &str, keys: &BTreeMap<&str, Key>) -> Vec<(String, Key)> {
-    node.inputs.iter().map(|n| (n.trim_start_matches(prefix).to_string(), keys[n.as_str()].clone())).collect()
-}
-
 /// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.
 #[derive(Debug)]
 pub(crate) struct LazyPhysics<'s> {
-    scene: &'s SceneConfig,
-    built: Option<Physics>,
+    pub(crate) scene: &'s SceneConfig,
+    pub(crate) built: Option<Physics>,
 }
 
 impl LazyPhysics<'_> {

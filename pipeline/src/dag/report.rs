@@ -10,6 +10,7 @@ use crom_schemas::artifact::{
 };
 use serde_json::json;
 
+use super::graph::{Input, Shared, StageDef};
 use super::loaded::Loaded;
 use super::{basis, Ctx};
 use crate::cache::{Key, KeySpec, StageKey};
@@ -56,7 +57,7 @@ pub struct ReportInputs {
 }
 
 /// The report's key spec: every artifact it shows.
-pub(crate) fn spec(inputs: &ReportInputs) -> KeySpec {
+fn spec(inputs: &ReportInputs) -> KeySpec {
     let spec = KeySpec::of(&ReportKey {})
         .input("mesh", &inputs.mesh)
         .input("train", &inputs.train)
@@ -79,12 +80,43 @@ pub(crate) fn spec(inputs: &ReportInputs) -> KeySpec {
     }
 }
 
+/// The report over the artifacts it shows.
+#[derive(Debug)]
+pub(crate) struct ReportStage {
+    pub spec: KeySpec,
+    /// The artifacts shown, by role.
+    pub shows: ReportInputs,
+    /// The same, as the graph's inputs.
+    pub inputs: Vec<Input>,
+}
+
+impl ReportStage {
+    /// `inputs`: the nodes it reads (their keys are the ones in `shows`).
+    pub(crate) fn plan(shows: ReportInputs, inputs: Vec<Input>) -> Self {
+        Self { spec: spec(&shows), shows, inputs }
+    }
+}
+
+impl StageDef for ReportStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Report
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        self.inputs.iter().collect()
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
+        run(ctx, &self.spec, &self.shows)
+    }
+}
+
 /// Build (or find) the report; returns its key.
-pub fn run(ctx: &mut Ctx<'_>, inputs: &ReportInputs) -> Result<Key, CromError> {
-    let spec = spec(inputs);
+fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, inputs: &ReportInputs) -> Result<Key, CromError> {
     let scene = ctx.scene.clone();
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
-    ctx.single(ArtifactKind::Report, "report", &spec, |staging| {
+    ctx.single(ArtifactKind::Report, "report", spec, |staging| {
         let data = gather(store, &loaded, inputs)?;
         let figures = render(&scene, &data, &staging.path(""))?;
         Ok(BTreeMap::from([("figures".to_string(), json!(figures))]))

@@ -40,6 +40,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
 
+use super::graph::{Input, Shared, StageDef};
 use super::{trainset, Ctx, LazyPhysics};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -122,7 +123,7 @@ fn subsample(points: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
 
 /// The online stage's key spec. The timing constants are not in the key: they change the
 /// times, not the results.
-pub(crate) fn spec(scene: &SceneConfig, train: &Key, test: &Key, basis: &Key) -> KeySpec {
+fn spec(scene: &SceneConfig, train: &Key, test: &Key, basis: &Key) -> KeySpec {
     let params = RomParams::default();
     let contact_sampling = scene.study.contact_sampling.as_ref();
     KeySpec::of(&RomKey { max_iter: params.max_iter, gap_tol: params.gap_tol, u_tol: params.u_tol, contact_sampling })
@@ -131,15 +132,45 @@ pub(crate) fn spec(scene: &SceneConfig, train: &Key, test: &Key, basis: &Key) ->
         .input("basis", basis)
 }
 
-pub(crate) fn run(
+/// The online reduced model, measured at the test points.
+#[derive(Debug)]
+pub(crate) struct RomStage {
+    pub spec: KeySpec,
+    pub train: Input,
+    pub test: Input,
+    pub basis: Input,
+}
+
+impl RomStage {
+    pub(crate) fn plan(scene: &SceneConfig, train: Input, test: Input, basis: Input) -> Self {
+        Self { spec: spec(scene, &train.key, &test.key, &basis.key), train, test, basis }
+    }
+}
+
+impl StageDef for RomStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Rom
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        vec![&self.train, &self.test, &self.basis]
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
+        run(ctx, &mut shared.physics, &self.spec, &self.train.key, &self.test.key, &self.basis.key)
+    }
+}
+
+fn run(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
+    spec: &KeySpec,
     train: &Key,
     test: &Key,
     basis: &Key,
 ) -> Result<Key, CromError> {
     let params = RomParams::default();
-    let spec = spec(ctx.scene, train, test, basis);
     let key = spec.key();
     if let Some(_m) = ctx.lookup(ArtifactKind::Rom, &key)? {
         ctx.progress.stage("online ROM", 1).finish("cached");
@@ -253,7 +284,7 @@ pub(crate) fn run(
             }
         }
     }
-    let staging = ctx.store.stage(&spec)?;
+    let staging = ctx.store.stage(spec)?;
     let (errors, query_times) = errors.tables();
     errors.write_parquet(&staging.path(names::ERRORS))?;
     query_times.write_parquet(&staging.path(names::TIMINGS))?;

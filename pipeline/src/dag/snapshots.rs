@@ -23,6 +23,7 @@ use crom_stages::snapshot::{Snapshot, SolveStats};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::graph::{Input, Shared, StageDef};
 use super::{Ctx, LazyPhysics, PointCounts};
 use crate::cache::{params, Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -182,6 +183,33 @@ pub(crate) fn load_index(root: &std::path::Path, family: &Key) -> Result<(Option
         None => Index::default(),
     };
     Ok((family, index))
+}
+
+/// Snapshot sweep `number` of the plan: its points' columns in the scene's column family (the
+/// node's key is the family's). Hands its index rows on in memory ([`Shared::columns`]).
+#[derive(Debug)]
+pub(crate) struct SweepStage {
+    pub number: usize,
+    pub sweep: Sweep,
+    pub mesh: Input,
+    pub family: Key,
+}
+
+impl StageDef for SweepStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Snapshot
+    }
+    fn key(&self) -> Key {
+        self.family.clone()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        vec![&self.mesh]
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
+        let columns = run(ctx, &mut shared.physics, &self.mesh.key, &self.sweep)?;
+        shared.columns.insert(self.number, columns);
+        Ok(self.family.clone())
+    }
 }
 
 /// Ensure a stored column exists for every point of `sweep`; their index rows in its order.

@@ -18,6 +18,7 @@ use crom_schemas::artifact::{trainset as names, ArtifactKind};
 use serde::Serialize;
 use serde_json::json;
 
+use super::graph::{Input, Shared, StageDef};
 use super::Ctx;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -64,14 +65,63 @@ pub(crate) fn spec(set: &str, points: &[Vec<f64>], keys: &[&Key]) -> KeySpec {
     spec
 }
 
+/// A named snapshot set: the points `start..start + points.len()` of sweep `sweep` (whose index
+/// rows the sweep hands on in memory).
+#[derive(Debug)]
+pub(crate) struct SetStage {
+    pub spec: KeySpec,
+    pub set: String,
+    pub points: Vec<Vec<f64>>,
+    pub snapshots: Input,
+    pub sweep: usize,
+    pub start: usize,
+}
+
+impl SetStage {
+    /// The set `set` of `points`, whose snapshot keys are `keys`, from the sweep node `snapshots`.
+    pub(crate) fn plan(
+        set: &str,
+        points: &[Vec<f64>],
+        keys: &[&Key],
+        snapshots: Input,
+        sweep: usize,
+        start: usize,
+    ) -> Self {
+        Self { spec: spec(set, points, keys), set: set.to_string(), points: points.to_vec(), snapshots, sweep, start }
+    }
+}
+
+impl StageDef for SetStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::TrainingSet
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        vec![&self.snapshots]
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
+        let cols = shared.columns.get(&self.sweep).ok_or_else(|| {
+            CromError::artifact(
+                ctx.store.root(),
+                format!("set `{}` before its sweep", self.set),
+                "report this as a bug in crom",
+            )
+        })?;
+        let rows = &cols.rows[self.start..self.start + self.points.len()];
+        run(ctx, &self.spec, &self.set, &self.points, rows, cols.shape)
+    }
+}
+
 pub(crate) fn run(
     ctx: &mut Ctx<'_>,
+    spec: &KeySpec,
     set: &str,
     points: &[Vec<f64>],
     rows: &[IndexRow],
     shape: (usize, usize),
 ) -> Result<Key, CromError> {
-    let spec = spec(set, points, &rows.iter().map(|r| &r.key).collect::<Vec<_>>());
     let label = match set {
         "train" => "trainset",
         "test" => "testset",
@@ -87,7 +137,7 @@ pub(crate) fn run(
     let pname = ctx.scene.parameter.name.clone();
     let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
     let root = ctx.store.root().to_path_buf();
-    ctx.single(ArtifactKind::TrainingSet, label, &spec, |staging| {
+    ctx.single(ArtifactKind::TrainingSet, label, spec, |staging| {
         let path = staging.path(names::FILE);
         let f = H5Out::create(&path)?;
         f.attr_str("scene", &scene)?;

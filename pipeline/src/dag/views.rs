@@ -26,6 +26,7 @@ use crom_schemas::artifact::{views as names, ArtifactKind};
 use serde::Serialize;
 use serde_json::json;
 
+use super::graph::{Input, Placement, Shared, StageDef};
 use super::Ctx;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -277,9 +278,65 @@ pub(crate) fn online_spec(rom: &Key, test: &Key, mesh: &Key) -> KeySpec {
     KeySpec::of(&ViewsKey { subject: "online", set: None }).input("rom", rom).input("test", test).input("mesh", mesh)
 }
 
+/// What a views stage shows.
+#[derive(Debug)]
+pub(crate) enum Subject {
+    /// The snapshot set `set` (its node is the input `of`).
+    Set { set: String, of: Input },
+    /// The bases (the input `of`).
+    Basis { of: Input },
+    /// The online solutions of the rom `of` at the points of the test set `test`.
+    Online { of: Input, test: Input },
+}
+
+/// The views (XDMF over stored columns) of a subject on the mesh: run beside the main loop.
+#[derive(Debug)]
+pub(crate) struct ViewsStage {
+    pub spec: KeySpec,
+    pub subject: Subject,
+    pub mesh: Input,
+}
+
+impl ViewsStage {
+    /// The views of `subject` on `mesh`.
+    pub(crate) fn plan(subject: Subject, mesh: Input) -> Self {
+        let spec = match &subject {
+            Subject::Set { set, of } => set_spec(set, &of.key, &mesh.key),
+            Subject::Basis { of } => basis_spec(&of.key, &mesh.key),
+            Subject::Online { of, test } => online_spec(&of.key, &test.key, &mesh.key),
+        };
+        Self { spec, subject, mesh }
+    }
+}
+
+impl StageDef for ViewsStage {
+    fn kind(&self) -> ArtifactKind {
+        ArtifactKind::Views
+    }
+    fn key(&self) -> Key {
+        self.spec.key()
+    }
+    fn inputs(&self) -> Vec<&Input> {
+        match &self.subject {
+            Subject::Set { of, .. } | Subject::Basis { of } => vec![of, &self.mesh],
+            Subject::Online { of, test } => vec![of, test, &self.mesh],
+        }
+    }
+    fn placement(&self) -> Placement {
+        Placement::Beside
+    }
+    fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
+        let mesh = &self.mesh.key;
+        match &self.subject {
+            Subject::Set { set: name, of } => set(ctx, &self.spec, name, &of.key, mesh),
+            Subject::Basis { of } => basis(ctx, &self.spec, &of.key, mesh),
+            Subject::Online { of, test } => online(ctx, &self.spec, &of.key, &test.key, mesh),
+        }
+    }
+}
+
 /// The views of the snapshot set `set` (train, test, nested-k) stored as `set_key`.
-pub(crate) fn set(ctx: &mut Ctx<'_>, set: &str, set_key: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let spec = set_spec(set, set_key, mesh);
+fn set(ctx: &mut Ctx<'_>, spec: &KeySpec, set: &str, set_key: &Key, mesh: &Key) -> Result<Key, CromError> {
     let names_of: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
     let root = ctx.store.root().to_path_buf();
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::STATS);
@@ -288,7 +345,7 @@ pub(crate) fn set(ctx: &mut Ctx<'_>, set: &str, set_key: &Key, mesh: &Key) -> Re
         let f = H5In::open(&ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::FILE))?;
         (f.shape(set_names::PRIMAL)?[0], f.shape(set_names::DUAL)?[0])
     };
-    ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
+    ctx.single(ArtifactKind::Views, "views", spec, |staging| {
         let steps = set_steps(&root, &stats, &names_of, shape)?;
         write_series(staging, ("set", set), &mesh_facts, &steps, names::SET_XDMF, set)
     })
@@ -299,11 +356,10 @@ pub(crate) const BASIS_VIEWS: [(&str, bool); 3] =
     [(basis_names::PRIMAL_POD, true), (basis_names::DUAL_POD, false), (basis_names::DUAL_CPG, false)];
 
 /// The views of the basis artifact `basis`: one XDMF per group of [`BASIS_VIEWS`].
-pub(crate) fn basis(ctx: &mut Ctx<'_>, basis: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let spec = basis_spec(basis, mesh);
+fn basis(ctx: &mut Ctx<'_>, spec: &KeySpec, basis: &Key, mesh: &Key) -> Result<Key, CromError> {
     let mesh_facts = mesh_facts(ctx, mesh)?;
     let basis_file = ctx.store.dir(ArtifactKind::Basis, basis).join(basis_names::FILE);
-    ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
+    ctx.single(ArtifactKind::Views, "views", spec, |staging| {
         let f = H5In::open(&basis_file)?;
         let h5 = H5Out::create(&staging.path(names::FILE))?;
         h5.attr_str("kind", "views")?;
@@ -348,14 +404,13 @@ pub(crate) fn basis(ctx: &mut Ctx<'_>, basis: &Key, mesh: &Key) -> Result<Key, C
 /// The views of the online solutions (`online.h5` of the rom artifact `rom`) at the points of
 /// the test set `test`: per test point the online fields, their errors and the full-order
 /// fields (onto the snapshot columns), the parameter and whether the query converged.
-pub(crate) fn online(ctx: &mut Ctx<'_>, rom: &Key, test: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let spec = online_spec(rom, test, mesh);
+fn online(ctx: &mut Ctx<'_>, spec: &KeySpec, rom: &Key, test: &Key, mesh: &Key) -> Result<Key, CromError> {
     let names_of: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
     let root = ctx.store.root().to_path_buf();
     let mesh_facts = mesh_facts(ctx, mesh)?;
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, test).join(set_names::STATS);
     let online_file = ctx.store.dir(ArtifactKind::Rom, rom).join(rom_names::ONLINE);
-    ctx.single(ArtifactKind::Views, "views", &spec, |staging| {
+    ctx.single(ArtifactKind::Views, "views", spec, |staging| {
         let f = H5In::open(&online_file)?;
         let (n_dof, k) = {
             let s = f.shape("primal")?;

@@ -1,0 +1,87 @@
+//! The stage graph's node type: one stage, one type.
+//!
+//! A stage is a struct that [`super::plan::Plan::of`] builds from the scene once, holding
+//!
+//! - its key spec ([`KeySpec`]: the settings that determine its artifact and its inputs'
+//!   keys), computed at plan time and never again: the run writes the artifact under the
+//!   spec it was planned with;
+//! - its inputs as named fields ([`Input`]: the node that makes each and that node's key), so a
+//!   stage reads `self.train`, not "input 0";
+//! - whatever else its compute needs from the scene, as plain fields beside the spec.
+//!
+//! It implements [`StageDef`]: its artifact kind, its key, the nodes it reads, where it runs,
+//! and its compute. The executor ([`super::execute`]) is one loop over the plan's nodes that
+//! calls [`StageDef::run`]; dry-run, status, Slurm and the run summary read the same nodes.
+//! Adding a stage is one type in one file plus one `add` line in `Plan::of`.
+
+use std::collections::BTreeMap;
+use std::fmt::Debug;
+
+use crom_schemas::artifact::ArtifactKind;
+
+use super::approximation_online::OnlineBase;
+use super::snapshots::Columns;
+use super::{Ctx, LazyPhysics};
+use crate::cache::Key;
+use crate::error::CromError;
+
+/// One input of a stage: the plan node that makes it, and that node's key.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Input {
+    /// The node's name in the plan.
+    pub node: String,
+    /// Its artifact's key.
+    pub key: Key,
+}
+
+impl Input {
+    /// The input made by the node `node` with key `key`.
+    pub(crate) fn new(node: impl Into<String>, key: &Key) -> Self {
+        Self { node: node.into(), key: key.clone() }
+    }
+}
+
+/// Where a stage runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Placement {
+    /// In the executor's loop.
+    Main,
+    /// On the one worker beside it ([`super::beside`]): light, one core, no numerics.
+    Beside,
+}
+
+/// What stages of one run hand each other in memory rather than through the store: the
+/// high-fidelity model (built on first use), the snapshot sweeps' index rows, the online
+/// approximations' shared base.
+#[derive(Debug)]
+pub(crate) struct Shared<'s> {
+    /// The high-fidelity model.
+    pub physics: LazyPhysics<'s>,
+    /// The index rows of each sweep run so far, by sweep number.
+    pub columns: BTreeMap<usize, Columns>,
+    /// The online approximations' full-order base.
+    pub online_base: Option<OnlineBase>,
+}
+
+impl<'s> Shared<'s> {
+    /// Nothing built yet.
+    pub(crate) fn new(scene: &'s crom_schemas::SceneConfig) -> Self {
+        Self { physics: LazyPhysics { scene, built: None }, columns: BTreeMap::new(), online_base: None }
+    }
+}
+
+/// A stage of the study, as data.
+pub(crate) trait StageDef: Debug + Send + Sync {
+    /// The kind of artifact it makes.
+    fn kind(&self) -> ArtifactKind;
+    /// Its artifact's key (for a snapshot sweep: its column family's).
+    fn key(&self) -> Key;
+    /// The inputs it reads, in the order they are shown.
+    fn inputs(&self) -> Vec<&Input>;
+    /// Where it runs.
+    fn placement(&self) -> Placement {
+        Placement::Main
+    }
+    /// Make its artifact, or find it in the store; returns its key.
+    fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError>;
+}
