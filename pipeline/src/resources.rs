@@ -143,6 +143,47 @@ pub fn human(bytes: f64) -> String {
     }
 }
 
+/// The environment variable that bounds glibc's malloc arenas.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+const ARENA_VAR: &str = "MALLOC_ARENA_MAX";
+
+/// The arenas `crom` runs with unless the user sets [`ARENA_VAR`] (one per core of the
+/// development machine).
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+const ARENAS: &str = "2";
+
+/// Start the process again (the same program, arguments and PID, `exec`) with glibc's malloc
+/// arenas bounded to [`ARENAS`], unless `MALLOC_ARENA_MAX` is already set; returns only when
+/// nothing was started (already bounded, or the program cannot be found again: then the run goes
+/// on with glibc's default).
+///
+/// glibc gives each thread that allocates while another holds the lock its own arena, up to
+/// eight per core, and an arena keeps what was freed in it for its own thread. The study's
+/// stages run on the main thread, a worker beside it and the parallel pool, so the memory one
+/// stage frees on one thread is not reused by the next stage on another. Measured on the
+/// ironing-coarse level-13 study (`crom run --offline`, 2 cores, peak RSS from
+/// `/usr/bin/time -v`): 1.84 GB with glibc's default, 1.44 GB with 2 arenas, 1.33 GB with 1, and
+/// the same wall time (58–63 s) for all three. The value is read by glibc at start-up, so it has
+/// to be in the environment before the process starts; the results do not depend on it.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+pub fn bound_malloc_arenas() {
+    if std::env::var_os(ARENA_VAR).is_some() {
+        return;
+    }
+    let Ok(exe) = std::env::current_exe() else { return };
+    let mut args = std::env::args_os();
+    let mut command = std::process::Command::new(exe);
+    if let Some(name) = args.next() {
+        std::os::unix::process::CommandExt::arg0(&mut command, name);
+    }
+    // `exec` returns only when it failed.
+    let _ = std::os::unix::process::CommandExt::exec(command.args(args).env(ARENA_VAR, ARENAS));
+}
+
+/// Other platforms' allocators: nothing to bound.
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+pub fn bound_malloc_arenas() {}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -186,44 +227,3 @@ mod tests {
         assert!(parse_size("lots").is_err() && parse_size("-1G").is_err() && parse_size("0").is_err());
     }
 }
-
-/// The environment variable that bounds glibc's malloc arenas.
-#[cfg(all(target_os = "linux", target_env = "gnu"))]
-const ARENA_VAR: &str = "MALLOC_ARENA_MAX";
-
-/// The arenas `crom` runs with unless the user sets [`ARENA_VAR`] (one per core of the
-/// development machine).
-#[cfg(all(target_os = "linux", target_env = "gnu"))]
-const ARENAS: &str = "2";
-
-/// Start the process again (the same program, arguments and PID, `exec`) with glibc's malloc
-/// arenas bounded to [`ARENAS`], unless `MALLOC_ARENA_MAX` is already set; returns only when
-/// nothing was started (already bounded, or the program cannot be found again: then the run goes
-/// on with glibc's default).
-///
-/// glibc gives each thread that allocates while another holds the lock its own arena, up to
-/// eight per core, and an arena keeps what was freed in it for its own thread. The study's
-/// stages run on the main thread, a worker beside it and the parallel pool, so the memory one
-/// stage frees on one thread is not reused by the next stage on another. Measured on the
-/// ironing-coarse level-13 study (`crom run --offline`, 2 cores, peak RSS from
-/// `/usr/bin/time -v`): 1.84 GB with glibc's default, 1.44 GB with 2 arenas, 1.33 GB with 1, and
-/// the same wall time (58–63 s) for all three. The value is read by glibc at start-up, so it has
-/// to be in the environment before the process starts; the results do not depend on it.
-#[cfg(all(target_os = "linux", target_env = "gnu"))]
-pub fn bound_malloc_arenas() {
-    if std::env::var_os(ARENA_VAR).is_some() {
-        return;
-    }
-    let Ok(exe) = std::env::current_exe() else { return };
-    let mut args = std::env::args_os();
-    let mut command = std::process::Command::new(exe);
-    if let Some(name) = args.next() {
-        std::os::unix::process::CommandExt::arg0(&mut command, name);
-    }
-    // `exec` returns only when it failed.
-    let _ = std::os::unix::process::CommandExt::exec(command.args(args).env(ARENA_VAR, ARENAS));
-}
-
-/// Other platforms' allocators: nothing to bound.
-#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-pub fn bound_malloc_arenas() {}
