@@ -1,7 +1,12 @@
 //! Test data shared by the unit tests of several modules.
 
+use std::sync::OnceLock;
+
 use faer::Mat;
 
+use crate::contact::{
+    build_hertz, build_ironing, ContactSolveParams, FactoredModel, HertzParams, IroningParams, Material,
+};
 use crate::rng::Rng;
 
 /// `count` non-negative "pressure-like" snapshots on `n` points: parabolic bumps
@@ -58,4 +63,41 @@ pub(crate) fn spd(n: usize, shift: f64, rng: &mut Rng) -> Vec<f64> {
         }
     }
     a
+}
+
+/// The full-order solver's settings of the contact-operator and reduced-model tests.
+pub(crate) const TOL: ContactSolveParams = ContactSolveParams { rel_tol: 1e-10, max_iter: 500 };
+
+/// The hertz scene (n_arc = 78), built and factored once per test process.
+pub(crate) fn hertz() -> &'static FactoredModel {
+    static M: OnceLock<FactoredModel> = OnceLock::new();
+    M.get_or_init(|| {
+        let p = HertzParams { radius: 1.0, material: Material::new(1.0, 0.3), n_arc: 78, n_side: None };
+        build_hertz(&p).expect("hertz").factor().expect("factor")
+    })
+}
+
+/// The ironing-coarse scene, built and factored once per test process.
+pub(crate) fn ironing_coarse() -> &'static FactoredModel {
+    static M: OnceLock<FactoredModel> = OnceLock::new();
+    M.get_or_init(|| build_ironing(&ironing_coarse_params()).expect("ironing").factor().expect("factor"))
+}
+
+/// The parameters of ironing-coarse.
+pub(crate) fn ironing_coarse_params() -> IroningParams {
+    IroningParams {
+        slab_length: 5.0,
+        slab_height: 1.0,
+        slab_nx: 100,
+        slab_ny: 20,
+        slab: Material::new(1.0, 0.3),
+        iron_width: 1.0,
+        iron_height: 1.0,
+        sole_radius: 2.0,
+        iron_nx: 30,
+        iron_ny: 30,
+        iron: Material::new(10.0, 0.3),
+        contact_x: 1.0,
+        d_y: Some(0.04),
+    }
 }

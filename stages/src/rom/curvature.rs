@@ -132,33 +132,34 @@ impl GapCurvature {
             }
         }
     }
-
-    /// The bilinear form `δ'ᵀ (-∂r/∂y) δ` of this term (without `p`) for contact-dof
-    /// displacements `delta` and `delta2` (tests).
-    #[cfg(test)]
-    fn form(&self, delta: &[f64], delta2: &[f64]) -> f64 {
-        let ab = |d: &[f64]| {
-            let (mut alpha, mut beta) = (0.0, 0.0);
-            for j in 0..self.len {
-                let c = self.nodes[j];
-                alpha += self.a[j][0] * d[2 * c] + self.a[j][1] * d[2 * c + 1];
-                beta += self.b[j][0] * d[2 * c] + self.b[j][1] * d[2 * c + 1];
-            }
-            (alpha, beta)
-        };
-        let ((a1, b1), (a2, b2)) = (ab(delta), ab(delta2));
-        if self.symmetric {
-            b2 * a1 + a2 * b1 + self.gamma * a2 * a1
-        } else {
-            b2 * a1
-        }
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::contact::pairing::{closest_point, vertex_normal, vertex_pair, GapRow};
+
+    impl GapCurvature {
+        /// The bilinear form `δ'ᵀ (-∂r/∂y) δ` of this term (without `p`) for contact-dof
+        /// displacements `delta` and `delta2` (tests).
+        fn form(&self, delta: &[f64], delta2: &[f64]) -> f64 {
+            let ab = |d: &[f64]| {
+                let (mut alpha, mut beta) = (0.0, 0.0);
+                for j in 0..self.len {
+                    let c = self.nodes[j];
+                    alpha += self.a[j][0] * d[2 * c] + self.a[j][1] * d[2 * c + 1];
+                    beta += self.b[j][0] * d[2 * c] + self.b[j][1] * d[2 * c + 1];
+                }
+                (alpha, beta)
+            };
+            let ((a1, b1), (a2, b2)) = (ab(delta), ab(delta2));
+            if self.symmetric {
+                b2 * a1 + a2 * b1 + self.gamma * a2 * a1
+            } else {
+                b2 * a1
+            }
+        }
+    }
 
     const MASTER: [[f64; 2]; 4] = [[0.0, 0.0], [1.0, 0.1], [2.0, 0.05], [3.1, -0.2]];
 

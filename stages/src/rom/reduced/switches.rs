@@ -1,0 +1,137 @@
+//! Test-only switches of the linearisation: search every slave instead of proving pairings
+//! unchanged, check every proof against a search, or take plain re-pairing steps without the
+//! Newton correction. Outside tests [`Switches`] is an empty type whose answers are constants
+//! and whose checks do nothing, so production builds compute exactly what they would without
+//! it. Every test-only switch of the reduced solve lives in this file.
+
+use super::linearise::LinState;
+use crate::contact::pairing::Pair;
+
+/// Test switches of a [`LinState`] (empty outside tests).
+#[cfg(not(test))]
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Switches;
+
+#[cfg(not(test))]
+impl Switches {
+    /// Re-pairing steps are Newton-corrected.
+    #[inline]
+    pub(super) fn newton(&self) -> bool {
+        true
+    }
+
+    /// Pairings may be proved unchanged instead of searched.
+    #[inline]
+    pub(super) fn proofs(&self) -> bool {
+        true
+    }
+
+    /// Nothing to check outside tests.
+    #[inline]
+    pub(super) fn check_master_path(&self, _s: usize, _xm: &[[f64; 2]], _master_path: f64, _at: f64) {}
+
+    /// Nothing to check outside tests (`place` is not called).
+    #[inline]
+    pub(super) fn check_proved(
+        _l: &mut LinState,
+        _s: usize,
+        _xs: [f64; 2],
+        _nat: Option<Pair>,
+        _place: impl FnOnce(&mut LinState),
+    ) {
+    }
+
+    /// Nothing to record outside tests.
+    #[inline]
+    pub(super) fn record_search(&mut self, _s: usize, _ns: usize, _xm: &[[f64; 2]]) {}
+}
+
+/// Test switches of a [`LinState`].
+#[cfg(test)]
+#[derive(Debug, Clone, Default)]
+pub(super) struct Switches {
+    /// Search every slave at every linearisation (no proofs).
+    search_all: bool,
+    /// Check every proved pairing against a search, and the masters at each search.
+    verify: bool,
+    /// Plain re-pairing steps, without the Newton correction.
+    plain: bool,
+    /// With `verify`: every master's position at each slave's last search.
+    cert_xm: Vec<Vec<[f64; 2]>>,
+}
+
+#[cfg(test)]
+impl Switches {
+    /// Whether re-pairing steps are Newton-corrected (always, but in tests that compare
+    /// against plain steps).
+    pub(super) fn newton(&self) -> bool {
+        !self.plain
+    }
+
+    /// Whether pairings may be proved unchanged instead of searched (always, but in tests that
+    /// compare against searching every slave).
+    pub(super) fn proofs(&self) -> bool {
+        !self.search_all
+    }
+
+    /// With `verify`: the bookkeeping bounds the masters' actual displacement since slave
+    /// `s`'s search (`master_path` now, `at` then).
+    pub(super) fn check_master_path(&self, s: usize, xm: &[[f64; 2]], master_path: f64, at: f64) {
+        if self.verify {
+            let actual =
+                xm.iter().zip(&self.cert_xm[s]).map(|(&a, &b)| super::linearise::distance(a, b)).fold(0.0f64, f64::max);
+            assert!(actual <= (master_path - at) * (1.0 + 1e-12) + 1e-15, "slave {s}: {actual} moved");
+        }
+    }
+
+    /// With `verify`: every proved pairing `nat` of slave `s` at `xs` against a search at the
+    /// same positions (`place` puts every master in place first if needed).
+    pub(super) fn check_proved(
+        l: &mut LinState,
+        s: usize,
+        xs: [f64; 2],
+        nat: Option<Pair>,
+        place: impl FnOnce(&mut LinState),
+    ) {
+        if let (Some(q), true) = (nat, l.switches.verify) {
+            if !l.masters_all {
+                place(l);
+            }
+            assert_eq!(q, l.index.closest_point(xs, &l.xm), "slave {s}: proved pairing is not the search's");
+        }
+    }
+
+    /// With `verify`: record the masters `xm` at slave `s`'s search (`ns` slaves).
+    pub(super) fn record_search(&mut self, s: usize, ns: usize, xm: &[[f64; 2]]) {
+        if self.verify {
+            self.cert_xm.resize(ns, Vec::new());
+            self.cert_xm[s] = xm.to_vec();
+        }
+    }
+}
+
+#[cfg(test)]
+impl super::RomWork {
+    /// Buffers whose queries search every slave at every linearisation (tests).
+    pub(crate) fn searching_always() -> Self {
+        let mut w = Self::default();
+        w.lin.switches.search_all = true;
+        w
+    }
+
+    /// Buffers whose queries check every proved pairing against a search, and panic if they
+    /// differ (tests).
+    pub(crate) fn verifying_proofs() -> Self {
+        let mut w = Self::default();
+        w.lin.switches.verify = true;
+        w
+    }
+
+    /// Buffers whose queries take plain re-pairing steps, without the Newton correction
+    /// (tests).
+    pub(crate) fn plain_steps() -> Self {
+        let mut w = Self::default();
+        w.lin.switches.plain = true;
+        w
+    }
+}
