@@ -11,7 +11,7 @@ each target beside the measured value. Part of `just bench`; not a test.
   E  16 385 ironing-coarse snapshots stored (`crom solve`, level 14) disk <= 1.1 x raw float64,
                                                                     index opens in pandas <= 2 s,
                                                                     one column reads in <= 10 ms
-  F  ironing-coarse as one study at train_level = 11, 12, 13 (and 14 with CROM_BENCH_L14=1):
+  F  ironing-coarse as one study at train_level = 11, 12, 13 and 14:
      whole offline study cold; growing 12 -> 13 against cold 13. Targets: level 13 <= 60 s,
      <= 1.5 GiB; level 14 <= 150 s, <= 2 GiB; growing <= 0.5 x cold.
 
@@ -142,10 +142,9 @@ def bench_e(tmp):
 
 
 def bench_f(tmp):
-    import os
     header("F. ironing-coarse as one study: train_level = k (2^k + 1 training + 2^k test points)")
     targets = {13: (60, 1.5), 14: (150, 2.0)}
-    levels = [11, 12, 13] + ([14] if os.environ.get("CROM_BENCH_L14") == "1" else [])
+    levels = [11, 12, 13, 14]
     cold = {}
     for k in levels:
         scene = variant(tmp, "ironing-coarse", f"ic-l{k}", [("n_train = 128\nnested_levels = 7", f"train_level = {k}")])

@@ -93,6 +93,14 @@ pub(crate) fn max_rank(ctx: &Ctx<'_>) -> usize {
     max_rank_of(ctx.scene)
 }
 
+/// How the greedy path of `n_train` snapshots selects, for the keys of the stages that read it:
+/// `None` for the selection with the Gram matrix, `"without-gram"` above
+/// `crom_stages::basis::DENSE_CURVE_MAX` snapshots (`CpgPathParams::wide_above`: the same
+/// generators in exact arithmetic, other round-off in the candidates' coefficients).
+pub(crate) fn selection_of(n_train: usize) -> Option<&'static str> {
+    (n_train > CpgPathParams::default().wide_above).then_some("without-gram")
+}
+
 /// The scene's cone tolerances (full, truncated), as the shared greedy path takes them.
 pub(crate) fn cone_tols(scene: &SceneConfig) -> [f64; 2] {
     [scene.study.dual_cone_tol, scene.study.dual_cone_tol_truncated]
@@ -118,6 +126,10 @@ pub(crate) struct BasisKey {
     /// (and not in the key) elsewhere.
     #[serde(skip_serializing_if = "Option::is_none")]
     curve_dense_to: Option<usize>,
+    /// How the greedy path selects ([`selection_of`]); absent (and not in the key) for the
+    /// Gram selection of up to `DENSE_CURVE_MAX` snapshots.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    selection: Option<&'static str>,
     /// The metrics' range recorded on the shared greedy path (`dual_path`): it decides the
     /// bases only through `curve_dense_to`, so it is not in the key itself.
     #[serde(skip)]
@@ -146,6 +158,7 @@ impl BasisKey {
             dual_cone_tol_truncated: st.dual_cone_tol_truncated,
             nnls: NnlsKey::used(),
             curve_dense_to: grid.then_some(max_rank),
+            selection: selection_of(n_train),
             max_rank,
         }
     }

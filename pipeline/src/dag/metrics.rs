@@ -33,6 +33,10 @@ struct GeneralizationKey {
     #[serde(skip_serializing_if = "Option::is_none")]
     folds: Option<usize>,
     nnls: NnlsKey,
+    /// How the shared greedy path selects (`basis::selection_of`): absent for the Gram
+    /// selection of up to `DENSE_CURVE_MAX` snapshots.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    selection: Option<&'static str>,
 }
 
 impl StageKey for GeneralizationKey {
@@ -97,7 +101,8 @@ fn generalization_spec(scene: &SceneConfig, train: &Key) -> KeySpec {
     let folds = scene.study.loo_folds_for(n_train);
     // A sample of folds is part of the key; every fold is the default.
     let sampled = (folds.len() != n_train).then_some(folds.len());
-    KeySpec::of(&GeneralizationKey { max_rank, folds: sampled, nnls: NnlsKey::used() }).input("train", train)
+    let selection = basis::selection_of(n_train);
+    KeySpec::of(&GeneralizationKey { max_rank, folds: sampled, nnls: NnlsKey::used(), selection }).input("train", train)
 }
 
 /// The specificity artifact's key spec.

@@ -96,7 +96,7 @@ const BAND_ABS: f64 = 1e-12;
 /// Greedy cone basis of the snapshots `s` (n x N, one per column): the lazy selection, then
 /// `C(m)` by one pass over it (stopped at the tolerance).
 pub fn cpg(s: MatRef<'_, f64>, params: CpgParams) -> Result<Cpg, ConeError> {
-    let path_params = CpgPathParams { nnls: params.nnls, max_rank: 0, dense_max: usize::MAX };
+    let path_params = CpgPathParams { nnls: params.nnls, max_rank: 0, dense_max: usize::MAX, wide_above: usize::MAX };
     let path = cpg_path_until(s, path_params, params.tol, &[], &|| {})?;
     Ok(path.truncated(params.tol))
 }
@@ -188,12 +188,40 @@ fn sparse(dense: &[f64]) -> Vec<(usize, f64)> {
 /// to 32 768 generators; the pages are touched only as generators arrive).
 const RESERVE_GRAM_BYTES: usize = 8 << 30;
 
+/// The cone of a large selection held without its Gram matrix: the generators themselves
+/// (column-major, `n` rows) and one [`WideNnls`] workspace sized for every candidate.
+#[derive(Debug)]
+struct WideCone {
+    n: usize,
+    cols: usize,
+    data: Vec<f64>,
+    nnls: WideNnls,
+}
+
+impl WideCone {
+    fn new(n: usize, most: usize, params: NnlsParams) -> Self {
+        Self { n, cols: 0, data: Vec::with_capacity(n.saturating_mul(most)), nnls: WideNnls::new(n, most, params) }
+    }
+
+    fn theta(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.data[..self.n * self.cols], self.n, self.cols)
+    }
+
+    fn push(&mut self, column: &[f64]) {
+        self.data.extend_from_slice(column);
+        self.cols += 1;
+    }
+}
+
 /// A lazily maintained greedy selection; see the module docs.
 #[derive(Debug)]
 pub(crate) struct LazyGreedy<'a> {
     s: MatRef<'a, f64>,
     norms: &'a [f64],
+    /// The cone with its Gram matrix (empty while `wide` holds the cone).
     pub(crate) projector: ConeProjector,
+    /// The cone of a selection over more than [`CpgPathParams::wide_above`] snapshots.
+    wide: Option<WideCone>,
     heap: BinaryHeap<Bound>,
     /// Cone size at which each candidate's bound was computed.
     stamp: Vec<usize>,
@@ -224,17 +252,19 @@ pub(crate) struct Step {
 impl<'a> LazyGreedy<'a> {
     /// The empty cone: every non-zero snapshot is a candidate with its exact error
     /// `||s_j|| / ||s_j||`, exactly 1 in floating point (x / x = 1 for finite x != 0).
-    fn new(s: MatRef<'a, f64>, norms: &'a [f64], nnls: NnlsParams, record_below: usize) -> Self {
+    /// `wide`: hold the cone without its Gram matrix ([`WideCone`]).
+    fn new(s: MatRef<'a, f64>, norms: &'a [f64], nnls: NnlsParams, record_below: usize, wide: bool) -> Self {
         let candidates = (0..s.ncols()).filter(|&j| norms[j] > 0.0).map(|j| (j, 1.0, 0, Vec::new()));
         let mut projector = ConeProjector::empty(s.nrows(), nnls);
         // Every generator is a candidate, so the cone never holds more than the non-zero
         // snapshots: reserve that much once (address space; see `Nnls::reserve`), within
         // `RESERVE_GRAM_BYTES`; a larger path grows by doubling.
         let most = norms.iter().filter(|&&v| v > 0.0).count();
-        if most.saturating_mul(most).saturating_mul(std::mem::size_of::<f64>()) <= RESERVE_GRAM_BYTES {
+        if !wide && most.saturating_mul(most).saturating_mul(std::mem::size_of::<f64>()) <= RESERVE_GRAM_BYTES {
             projector.reserve(most);
         }
         let mut out = Self::resume(s, norms, projector, candidates);
+        out.wide = wide.then(|| WideCone::new(s.nrows(), most, nnls));
         out.history = (record_below > 0).then(|| vec![Vec::new(); s.ncols()]);
         out.record_below = record_below;
         out
@@ -253,6 +283,7 @@ impl<'a> LazyGreedy<'a> {
             s,
             norms,
             projector,
+            wide: None,
             heap: BinaryHeap::new(),
             stamp: vec![0; count],
             coeffs: vec![Vec::new(); count],
@@ -273,11 +304,53 @@ impl<'a> LazyGreedy<'a> {
 
     /// Number of generators so far.
     pub(crate) fn len(&self) -> usize {
-        self.projector.ncols()
+        self.wide.as_ref().map_or_else(|| self.projector.ncols(), |w| w.cols)
+    }
+
+    /// The generators selected so far (n x k).
+    fn basis(&self) -> Mat<f64> {
+        match &self.wide {
+            Some(w) => w.theta().to_owned(),
+            None => self.projector.basis().to_owned(),
+        }
+    }
+
+    /// A projector (with its Gram matrix) onto the cone of the first `m` generators.
+    fn prefix(&self, m: usize) -> ConeProjector {
+        match &self.wide {
+            Some(w) => ConeProjector::new(w.theta().subcols(0, m), self.projector_params()),
+            None => self.projector.prefix(m),
+        }
+    }
+
+    fn projector_params(&self) -> NnlsParams {
+        self.projector.params()
+    }
+
+    /// Re-project candidate j on the current cone without its Gram matrix, warm-started from
+    /// its last support.
+    fn refresh_wide(&mut self, j: usize) -> Result<f64, ConeError> {
+        let Some(wide) = self.wide.as_mut() else { unreachable!("refresh_wide on a Gram cone") };
+        let m = wide.cols;
+        copy_column(self.s, j, &mut self.lambda);
+        let theta = MatRef::from_column_major_slice(&wide.data[..wide.n * m], wide.n, m);
+        let err = wide.nnls.project(theta, &self.lambda, &mut self.coeffs[j]).map(|r| r / self.norms[j]);
+        if let (Ok(err), Some(h)) = (&err, self.history.as_mut().filter(|_| m < self.record_below)) {
+            let mut coeffs = vec![0.0; m];
+            for &(g, v) in &self.coeffs[j] {
+                coeffs[g] = v;
+            }
+            h[j].push(Refresh { m, err: *err, coeffs });
+        }
+        self.stamp[j] = m;
+        err
     }
 
     /// Re-project candidate j on the current cone, warm-started from its last coefficients.
     fn refresh(&mut self, j: usize) -> Result<f64, ConeError> {
+        if self.wide.is_some() {
+            return self.refresh_wide(j);
+        }
         let m = self.projector.ncols();
         self.dense.resize(m, 0.0);
         for &(g, v) in &self.coeffs[j] {
@@ -305,7 +378,7 @@ impl<'a> LazyGreedy<'a> {
     /// Select the next generator and add it to the cone; `None` when every candidate is in
     /// the cone.
     pub(crate) fn step(&mut self) -> Result<Option<Step>, ConeError> {
-        let m = self.projector.ncols();
+        let m = self.len();
         let mut band = Vec::new();
         let mut best = f64::NEG_INFINITY;
         while let Some(&top) = self.heap.peek() {
@@ -334,7 +407,10 @@ impl<'a> LazyGreedy<'a> {
         copy_column(self.s, pick, &mut self.column);
         let norm = self.norms[pick];
         self.column.iter_mut().for_each(|v| *v /= norm);
-        self.projector.push_column(&self.column);
+        match self.wide.as_mut() {
+            Some(w) => w.push(&self.column),
+            None => self.projector.push_column(&self.column),
+        }
         Ok(Some(Step { pick, band }))
     }
 }
@@ -362,11 +438,16 @@ pub struct CpgPathParams {
     /// for every m up to `max(max_rank, GRID_START)`, then on the doubling grid
     /// `2 m_0, 4 m_0, ...` and at k; the other entries of [`CpgPath::compactness`] are NaN.
     pub dense_max: usize,
+    /// Above this many snapshots the selection holds its cone without the Gram matrix
+    /// ([`WideNnls`]): a path of k generators needs `8 k^2` bytes of Gram matrix (2.1 GB at
+    /// k = 16 385) and `Theta^T s_j` per candidate (as much again), against `8 n k` for the
+    /// generators themselves.
+    pub wide_above: usize,
 }
 
 impl Default for CpgPathParams {
     fn default() -> Self {
-        Self { nnls: NnlsParams::default(), max_rank: 0, dense_max: DENSE_CURVE_MAX }
+        Self { nnls: NnlsParams::default(), max_rank: 0, dense_max: DENSE_CURVE_MAX, wide_above: DENSE_CURVE_MAX }
     }
 }
 
@@ -472,7 +553,7 @@ fn cpg_path_until(
     let norms: Vec<f64> = (0..count).map(|j| s.col(j).norm_l2()).collect();
     let total = s.norm_l2();
     let record = params.max_rank > 0;
-    let mut lazy = LazyGreedy::new(s, &norms, params.nnls, params.max_rank);
+    let mut lazy = LazyGreedy::new(s, &norms, params.nnls, params.max_rank, count > params.wide_above);
     let mut selected = Vec::new();
     let mut diverge = vec![usize::MAX; count];
     if total > 0.0 {
@@ -520,7 +601,7 @@ fn cpg_path_until(
         }
         tick();
     }
-    let basis = lazy.projector.basis().to_owned();
+    let basis = lazy.basis();
     if compactness.len() == dense_to + 1 && dense_to < k && compactness[dense_to] > stop {
         let mut grid = RankGrid::new(s, basis.as_ref(), &selected, &norms, total, &cone, params.nnls);
         drop(cone);
@@ -541,7 +622,7 @@ fn cpg_path_until(
         }
     }
     let history = lazy.history.take().unwrap_or_default();
-    let projector = record.then(|| lazy.projector.prefix(max_rank));
+    let projector = record.then(|| lazy.prefix(max_rank));
     let loo = LooData { norms, single_norms, diverge, errors, start, history, projector };
     Ok(CpgPath { basis, selected, compactness, max_rank: requested, cone_ranges, loo })
 }
@@ -898,6 +979,32 @@ mod tests {
             assert_all_close!(mine.compactness, cut.compactness, Tol::abs(0.0));
         }
         assert_eq!(path.cone_ranges.len(), 10);
+    }
+
+    /// The selection without the Gram matrix (forced on a small set) picks the Gram
+    /// selection's generators in the same order on two families (smooth Hertz-like pressures,
+    /// random bumps with many near-ties late in the path), so the basis, the curve (the same
+    /// compactness pass) and the metrics' data of that pass are the same bits; the two
+    /// selections differ only in the round-off of the candidates' errors, far below the
+    /// refresh band.
+    #[test]
+    fn selection_without_the_gram_picks_the_same_generators() {
+        let families = [hertz_family(&mut Rng::new(63), 101, 300), bumps(&mut Rng::new(64), 60, 400, (2.0, 9.0))];
+        for (f, s) in families.iter().enumerate() {
+            let gram_params = CpgPathParams { max_rank: 8, wide_above: usize::MAX, ..CpgPathParams::default() };
+            let gram = cpg_path(s.as_ref(), gram_params, &|| {}).expect("converges");
+            let wide = cpg_path(s.as_ref(), CpgPathParams { wide_above: 0, ..gram_params }, &|| {}).expect("converges");
+            assert!(gram.len() > 50, "family {f}: the test needs a long path, got {}", gram.len());
+            assert_eq!(wide.selected, gram.selected, "family {f}");
+            assert_eq!(wide.basis, gram.basis, "family {f}");
+            assert_eq!(wide.compactness, gram.compactness, "family {f}");
+            assert_eq!(wide.cone_ranges, gram.cone_ranges, "family {f}");
+            // Bit patterns: the errors hold NaN where a snapshot has no error at a rank.
+            let bits = |e: &[Vec<f64>]| {
+                e.iter().map(|r| r.iter().map(|v| v.to_bits()).collect::<Vec<_>>()).collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&wide.loo.errors), bits(&gram.loo.errors), "family {f}");
+        }
     }
 
     /// A path on a rank grid (dense part forced small) against the whole curve: the dense

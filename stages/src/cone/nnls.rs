@@ -473,10 +473,10 @@ const ENTER_LANES: usize = 8;
 
 /// From this many columns on, [`Nnls`]'s dual update runs in parallel blocks of
 /// [`DUAL_BLOCK`] rows (below, a block's work is shorter than a thread hand-off).
-const PAR_DUAL_MIN: usize = 4096;
+pub(crate) const PAR_DUAL_MIN: usize = 4096;
 
 /// Rows per block of the parallel dual update.
-const DUAL_BLOCK: usize = 2048;
+pub(crate) const DUAL_BLOCK: usize = 2048;
 
 /// The entering candidate of one block of the dual (`offset` = its first column): the largest
 /// `w_j > threshold` outside the passive and refused columns, the first on ties. Scanned in

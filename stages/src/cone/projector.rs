@@ -99,6 +99,11 @@ impl ConeProjector {
         Self::new(Mat::<f64>::zeros(nrows, 0).as_ref(), params)
     }
 
+    /// The NNLS parameters of its projections.
+    pub fn params(&self) -> NnlsParams {
+        *self.nnls.params()
+    }
+
     /// Dimension n of the vectors.
     pub fn nrows(&self) -> usize {
         self.theta.nrows()

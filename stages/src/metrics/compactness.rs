@@ -21,8 +21,14 @@ pub fn compactness_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>) -> Vec<f64> 
         return vec![0.0; m_max + 1];
     }
     let q: Mat<f64> = modes.transpose() * s;
-    let perp = crate::kernels::out_of_span(s, modes, q.as_ref());
-    let perp2 = perp.squared_norm_l2();
+    // Up to DENSE_CURVE_MAX snapshots the whole residual's norm (the paper's numbers); above,
+    // the sum of its columns' squared norms in index order, formed blockwise (memory n x
+    // SPAN_BLOCK, not n x N; the same value to round-off).
+    let perp2 = if s.ncols() <= crate::basis::DENSE_CURVE_MAX {
+        crate::kernels::out_of_span(s, modes, q.as_ref()).squared_norm_l2()
+    } else {
+        crate::kernels::out_of_span_norms(s, modes, q.as_ref()).iter().sum()
+    };
     let mut c = vec![0.0; m_max + 1];
     let mut tail = 0.0;
     for m in (1..=m_max).rev() {

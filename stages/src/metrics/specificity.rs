@@ -206,11 +206,11 @@ struct Frame {
 impl Frame {
     fn new(s: MatRef<'_, f64>, q: MatRef<'_, f64>) -> Self {
         let coords: Mat<f64> = q.transpose() * s;
-        let perp = crate::kernels::out_of_span(s, q, coords.as_ref());
+        let perp = crate::kernels::out_of_span_norms(s, q, coords.as_ref());
         let (qdim, count) = coords.shape();
         let mut tails = Mat::zeros(qdim + 1, count);
         for j in 0..count {
-            tails[(qdim, j)] = perp.col(j).squared_norm_l2();
+            tails[(qdim, j)] = perp[j];
             for l in (0..qdim).rev() {
                 tails[(l, j)] = tails[(l + 1, j)] + coords[(l, j)] * coords[(l, j)];
             }
