@@ -19,7 +19,9 @@
 //!   `8 (c s + s^2)` per thread (two threads);
 //! - the largest stage's snapshot matrices: the online stage's training and test sets plus
 //!   three `n x N` bases (`8 n (N + T + 3 N)`), or the nested-error stage's two levels
-//!   (`8 n (2^L + 2^(L-1) + 2)`), or the metrics' `N x N` Gram matrices, whichever is largest.
+//!   (`8 n (2^L + 2^(L-1) + 2)`), or the metrics' `N x N` Gram matrices (`32 N^2`, up to 1 025
+//!   training snapshots; above, where no `N x N` matrix is formed, the training set and the
+//!   primal POD's working copy, `16 (n + c) N`), whichever is largest.
 //!
 //! It is an estimate, not a bound: it is meant to catch a scene that cannot fit, by orders of
 //! magnitude, before it starts. A scene is refused when the estimate exceeds the limit: the
@@ -27,6 +29,10 @@
 //! known nothing is refused.
 
 use crom_schemas::scene::{Model, SceneConfig};
+
+/// Training snapshots up to which the metrics form N x N Gram matrices (above, the CPG
+/// selection works without its Gram matrix and the metrics in column blocks).
+const GRAM_LIMIT: f64 = crom_stages::basis::DENSE_CURVE_MAX as f64;
 
 /// One term of an estimate: the scene field that drives it, what it is, and its bytes.
 #[derive(Debug, Clone, PartialEq)]
@@ -59,13 +65,20 @@ pub fn estimate(scene: &SceneConfig) -> Vec<Term> {
     ];
     let online = 8.0 * n * (n_train + n_test + 3.0 * n_train);
     let nested = 8.0 * n * (2f64.powf(level) + 2f64.powf(level - 1.0) + 2.0);
-    let gram = 8.0 * 4.0 * n_train * n_train;
-    let (field, what, bytes) = if online >= nested && online >= gram {
+    // Up to the Gram limit the metrics' N x N Gram matrices; above it no N x N matrix is formed
+    // (the greedy selection holds its generators, the metrics work in column blocks): the
+    // training set in memory and the primal POD's working copy of it.
+    let (metrics_what, metrics) = if n_train <= GRAM_LIMIT {
+        ("Gram matrices of the metrics", 8.0 * 4.0 * n_train * n_train)
+    } else {
+        ("training set and the POD's working copy", 8.0 * 2.0 * (n + c) * n_train)
+    };
+    let (field, what, bytes) = if online >= nested && online >= metrics {
         ("parameter.n_train", "snapshot sets and bases of the online stage", online)
-    } else if nested >= gram {
+    } else if nested >= metrics {
         ("parameter.nested_levels", "two nested levels of snapshots", nested)
     } else {
-        ("parameter.n_train", "Gram matrices of the metrics", gram)
+        ("parameter.n_train", metrics_what, metrics)
     };
     terms.push(Term { field, what, bytes });
     terms
@@ -216,6 +229,26 @@ mod tests {
             i.slab.nx *= 4;
         }
         assert!(total(&coarse) > before);
+    }
+
+    /// Above 1 025 training snapshots no Gram term: the estimate of ironing-coarse at level 16
+    /// (65 537 training points; n = 6 164 dofs and c = 264 contact dofs counted from the scene
+    /// as `sizes` does) is led by the online term `8 n (N + T + 3 N)` and stays below 24 GiB
+    /// (the Gram term alone was 137 GB and refused the study on any machine).
+    #[test]
+    fn large_training_sets_are_estimated_without_gram_matrices() {
+        let mut scene = shipped("ironing-coarse");
+        scene.parameter.n_train = None;
+        scene.parameter.train_level = Some(16);
+        scene.parameter.nested_levels = 0;
+        let (n, c) = snapshot_rows(&scene);
+        assert_eq!((n, c), (2.0 * (101.0 * 21.0 + 31.0 * 31.0), 2.0 * (100.0 + 30.0 + 2.0)));
+        let n_train = 65537.0;
+        let terms = estimate(&scene);
+        let online = terms.iter().find(|t| t.what.contains("online")).expect("online term");
+        assert_eq!(online.bytes.to_bits(), (8.0 * n * (n_train + 65536.0 + 3.0 * n_train)).to_bits());
+        assert!(total(&scene) < 24.0 * 1024f64.powi(3), "{}", human(total(&scene)));
+        assert!(terms.iter().all(|t| !t.what.contains("Gram")));
     }
 
     #[test]
