@@ -188,7 +188,7 @@ fn work(cli: &Cli, scene_arg: &str, k: usize, n: usize) -> Result<(), CromError>
     record.solved = p.solved;
     record.reused = p.reused;
     record.failed = p.failed;
-    record.ended = Some(store::unix_now());
+    record.ended = Some(store::fs::unix_now());
     record.state = if result.is_ok() { executor::tasks::TaskState::Done } else { executor::tasks::TaskState::Failed };
     record.error = result.as_ref().err().map(|e| e.to_string().lines().next().unwrap_or_default().to_string());
     record.write(store.root(), &name)?;
@@ -244,7 +244,7 @@ fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput,
     // A snapshot column that fails its checksum: move its block aside and run again, which
     // solves exactly that block's points and rewrites the sets that referred to it.
     if let Err(CromError::CorruptColumns { block, message, .. }) = &result {
-        let to = store::columns::quarantine_block(store.root(), block)?;
+        let to = store.quarantine_block(block)?;
         ctx.warnings.push(format!("{message}; block moved to {} and its points solved again", to.display()));
         ctx.records.clear();
         ctx.points = dag::PointCounts::default();

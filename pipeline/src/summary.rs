@@ -62,7 +62,7 @@ pub(crate) fn ls(
     let bytes = match format {
         LsFormat::Text => text_listing(store, stage).into_bytes(),
         _ => {
-            let rows: Vec<catalog::CatalogRow> = catalog::rows(store)
+            let rows: Vec<catalog::CatalogRow> = catalog::rows(store.root())
                 .into_iter()
                 .filter(|r| stage.is_none_or(|s| s == r.stage || (s == "snapshot" && r.stage == "columns")))
                 .collect();
@@ -93,7 +93,7 @@ pub(crate) fn ls(
         }
     };
     match output {
-        Some(path) => crate::store::columns::write_atomic(path, &bytes),
+        Some(path) => crate::store::fs::write_atomic(path, &bytes),
         None => {
             // A closed pipe (e.g. `| head`) is not an error of the listing.
             let _ = std::io::stdout().lock().write_all(&bytes);
@@ -175,7 +175,7 @@ pub(crate) fn verify(store: &Store) -> Result<(), CromError> {
     }
     let mut blocks = 0;
     for fam in store.families() {
-        let (n, p) = fam.verify_all()?;
+        let (n, p) = store.verify_family(&fam)?;
         blocks += n;
         problems.extend(p);
     }

@@ -147,8 +147,8 @@ fn add_point(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::fem::Material;
+    use crate::float_cmp::Tol;
     use crate::{assert_all_close, assert_close};
 
     fn skewed() -> [[f64; 2]; 4] {

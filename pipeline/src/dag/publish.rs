@@ -84,7 +84,7 @@ pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
         layout_version: a::published::LAYOUT_VERSION,
         scene: scene.scene.name.clone(),
         crom_version: env!("CARGO_PKG_VERSION").to_string(),
-        created_unix: crate::store::unix_now(),
+        created_unix: crate::store::fs::unix_now(),
         online,
         parameter_names: scene.parameter.names().iter().map(|s| s.to_string()).collect(),
         entries: e,

@@ -523,7 +523,7 @@ fn write_failures(
     points: &[Vec<f64>],
     keys: &[Key],
 ) -> Result<std::path::PathBuf, CromError> {
-    let dir = crate::store::named_dir(ctx.store.root(), "runs", &ctx.scene.scene.name)?;
+    let dir = crate::store::fs::named_dir(ctx.store.root(), "runs", &ctx.scene.scene.name)?;
     std::fs::create_dir_all(&dir).map_err(|e| CromError::io(&dir, "creating the run directory", e))?;
     let n = failures.len();
     let table = Table::default().with("scene", Column::Str(vec![ctx.scene.scene.name.clone(); n]));
@@ -533,7 +533,7 @@ fn write_failures(
         .with("snapshot_key", Column::Str(failures.iter().map(|f| keys[f.0].0.clone()).collect()))
         .with("error", Column::Str(failures.iter().map(|f| f.1.clone()).collect()));
     // Workers on several hosts may write this at once: a name unique to host and process.
-    let tmp = dir.join(format!(".solver_failures.{}.tmp", crate::store::writer_token()));
+    let tmp = dir.join(format!(".solver_failures.{}.tmp", crate::store::fs::writer_token()));
     table.write_parquet(&tmp)?;
     let path = dir.join("solver_failures.parquet");
     std::fs::rename(&tmp, &path).map_err(|e| CromError::io(&path, "moving the failure table into place", e))?;

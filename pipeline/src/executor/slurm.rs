@@ -30,8 +30,7 @@ use crate::dag::plan::Plan;
 use crate::dag::shard_range;
 use crate::error::CromError;
 use crate::progress::Progress;
-use crate::store::columns::write_atomic;
-use crate::store::named_dir;
+use crate::store::fs::{named_dir, write_atomic};
 
 /// Snapshot points per array task when neither the scene nor a flag says.
 pub const DEFAULT_SHARD_SIZE: usize = 512;
@@ -264,7 +263,7 @@ fn submit(s: &Submission<'_>, missing: &[usize]) -> Result<JobRecord, CromError>
             fix: "check the Slurm installation (`sbatch --version`)".into(),
         });
     }
-    let record = JobRecord { job_id, tasks, of, submitted: crate::store::unix_now(), script };
+    let record = JobRecord { job_id, tasks, of, submitted: crate::store::fs::unix_now(), script };
     write_atomic(&dir.join("job.json"), serde_json::to_string_pretty(&record).unwrap_or_default().as_bytes())?;
     eprintln!(
         "slurm: job {} submitted: {} of {of} shards (array tasks {}), logs in {}",

@@ -10,8 +10,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::CromError;
-use crate::store::columns::write_atomic;
-use crate::store::named_dir;
+use crate::store::fs::{named_dir, write_atomic};
 
 /// State of a worker's task.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -70,10 +69,10 @@ impl TaskRecord {
             shard,
             of,
             state: TaskState::Running,
-            host: crate::store::host_name(),
+            host: crate::store::fs::host_name(),
             pid: std::process::id(),
             slurm_task,
-            started: crate::store::unix_now(),
+            started: crate::store::fs::unix_now(),
             ended: None,
             solved: 0,
             reused: 0,
@@ -94,7 +93,7 @@ impl TaskRecord {
     /// Whether the process of a `running` record is gone, as far as this host can tell: `Some`
     /// for a record of this host, `None` for another host's.
     pub fn process_gone(&self) -> Option<bool> {
-        (self.host == crate::store::host_name()).then(|| !Path::new(&format!("/proc/{}", self.pid)).exists())
+        (self.host == crate::store::fs::host_name()).then(|| !Path::new(&format!("/proc/{}", self.pid)).exists())
     }
 }
 

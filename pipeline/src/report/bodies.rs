@@ -314,7 +314,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, s: &Scene) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crom_stages::approx::{close, Tol};
+    use crom_stages::float_cmp::{close, Tol};
 
     /// Exact arithmetic on short binary fractions: positions agree to rounding.
     const EXACT: Tol = Tol { abs: 1e-12, rel: 1e-12 };

@@ -265,7 +265,7 @@ fn comparison_view(c: &super::ComparisonData) -> Table {
                         .find(|&i| {
                             &a[i] == n
                                 && metric[i] == which
-                                && crom_stages::approx::close(th[i], level, crom_stages::approx::Tol::rel(1e-12))
+                                && crom_stages::float_cmp::close(th[i], level, crom_stages::float_cmp::Tol::rel(1e-12))
                         })
                         .map(|i| if m[i].is_finite() { format!("{}", m[i] as u64) } else { "never".into() })
                         .unwrap_or_default()

@@ -15,7 +15,9 @@ use std::path::Path;
 
 use crom_schemas::artifact::{basis as basis_names, catalog as names, ArtifactKind};
 
-use super::{columns, published, Manifest, Store};
+use super::fs::write_atomic;
+use super::manifest::{self, Manifest};
+use super::{columns, published};
 use crate::error::CromError;
 use crate::io::table::{Column, Table};
 
@@ -136,12 +138,12 @@ impl CatalogRow {
     }
 }
 
-/// Every row, built from the manifests, the column families and the published scene names; in
-/// DAG order of the stages (families first), then by creation time and key.
-pub fn rows(store: &Store) -> Vec<CatalogRow> {
-    let root = store.root();
-    let mut rows: Vec<CatalogRow> = store.families().iter().map(|f| CatalogRow::from_family(root, f)).collect();
-    let mut artifacts: Vec<CatalogRow> = store.manifests().iter().map(CatalogRow::from_manifest).collect();
+/// Every row of the store at `root`, built from the manifests, the column families and the
+/// published scene names; in DAG order of the stages (families first), then by creation time
+/// and key.
+pub fn rows(root: &Path) -> Vec<CatalogRow> {
+    let mut rows: Vec<CatalogRow> = columns::families(root).iter().map(|f| CatalogRow::from_family(root, f)).collect();
+    let mut artifacts: Vec<CatalogRow> = manifest::read_all(root).iter().map(CatalogRow::from_manifest).collect();
     let order = |s: &str| ArtifactKind::from_name(s).map_or(usize::MAX, |k| k as usize);
     artifacts.sort_by(|a, b| {
         order(&a.stage).cmp(&order(&b.stage)).then(a.created_unix.cmp(&b.created_unix)).then(a.key.cmp(&b.key))
@@ -193,13 +195,12 @@ pub fn table(rows: &[CatalogRow]) -> Table {
 pub fn refresh(root: &Path) -> Result<std::path::PathBuf, CromError> {
     static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    let store = Store::open_read_only(root);
     let path = root.join(names::FILE);
     let mut bytes = Vec::new();
-    table(&rows(&store)).write_parquet_to(&mut bytes).map_err(|e| {
+    table(&rows(root)).write_parquet_to(&mut bytes).map_err(|e| {
         CromError::artifact(&path, format!("Parquet write: {e}"), "check free space and permissions of the store")
     })?;
-    columns::write_atomic(&path, &bytes)?;
+    write_atomic(&path, &bytes)?;
     Ok(path)
 }
 

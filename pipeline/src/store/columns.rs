@@ -25,11 +25,12 @@
 //! are recomputed. `crom verify` re-hashes every block.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::fs::{self, unix_now, write_atomic, writer_token};
+use super::manifest::hash_file;
 use crate::cache::Key;
 use crate::error::CromError;
 use crate::io::h5::ColMatrix;
@@ -140,18 +141,6 @@ pub fn column_hash(primal: &[f64], dual: &[f64]) -> String {
         h.update(&v.to_le_bytes());
     }
     h.finalize().to_hex().to_string()
-}
-
-fn fsync_file(path: &Path) -> Result<(), CromError> {
-    let f = std::fs::File::open(path).map_err(|e| CromError::io(path, "opening for fsync", e))?;
-    f.sync_all().map_err(|e| CromError::io(path, "fsync", e))
-}
-
-pub(crate) fn fsync_dir(path: &Path) {
-    // Best effort: directory fsync makes the rename durable on Linux; not every FS supports it.
-    if let Ok(d) = std::fs::File::open(path) {
-        let _ = d.sync_all();
-    }
 }
 
 impl ColumnFamily {
@@ -388,9 +377,9 @@ impl ColumnFamily {
         let rows: Vec<&IndexRow> = index.rows.values().collect();
         let covered: BTreeSet<&str> = rows.iter().map(|r| r.block.as_str()).collect();
         let path = self.dir.join("index.parquet");
-        let tmp = self.dir.join(format!(".tmp-index-{}.parquet", crate::store::writer_token()));
+        let tmp = self.dir.join(format!(".tmp-index-{}.parquet", writer_token()));
         self.table(&rows).write_parquet(&tmp)?;
-        publish(&tmp, &path)?;
+        fs::publish(&tmp, &path)?;
         for id in fragments {
             if covered.contains(self.block_rel(&id).as_str()) {
                 let _ = std::fs::remove_file(self.dir.join("index").join(format!("{id}.parquet")));
@@ -416,11 +405,10 @@ impl ColumnFamily {
             let p = self.dir.join(sub);
             std::fs::create_dir_all(&p).map_err(|e| CromError::io(&p, "creating a column family", e))?;
         }
-        let tmp = self.dir.join("blocks").join(format!(".tmp-{id}-{}.h5", crate::store::writer_token()));
+        let tmp = self.dir.join("blocks").join(format!(".tmp-{id}-{}.h5", writer_token()));
         write_block(&tmp, &self.meta, &sorted)?;
-        publish(&tmp, &path)?;
-        let (bytes, bhash) =
-            crate::store::manifest::hash_file(&path).map_err(|e| CromError::io(&path, "hashing a block", e))?;
+        fs::publish(&tmp, &path)?;
+        let (bytes, bhash) = hash_file(&path).map_err(|e| CromError::io(&path, "hashing a block", e))?;
         let rows: Vec<IndexRow> = sorted
             .iter()
             .enumerate()
@@ -436,15 +424,25 @@ impl ColumnFamily {
             })
             .collect();
         let frag = self.dir.join("index").join(format!("{id}.parquet"));
-        let ftmp = self.dir.join("index").join(format!(".tmp-{id}-{}.parquet", crate::store::writer_token()));
+        let ftmp = self.dir.join("index").join(format!(".tmp-{id}-{}.parquet", writer_token()));
         self.table(&rows.iter().collect::<Vec<_>>()).write_parquet(&ftmp)?;
-        publish(&ftmp, &frag)?;
+        fs::publish(&ftmp, &frag)?;
         Ok(rows)
     }
 
     /// Re-hash every block file and every column against the index; blocks that fail are moved
-    /// to the quarantine. Returns `(blocks checked, problems)`.
-    pub fn verify_all(&self) -> Result<(usize, Vec<String>), CromError> {
+    /// to the quarantine. Returns `(blocks checked, problems)`; the caller acts on the quarantined
+    /// blocks among the problems (`Store::verify_family` does).
+    pub fn verify_all(&self) -> Result<(usize, Vec<BlockProblem>), CromError> {
+        self.verify_each(|_| Ok(()))
+    }
+
+    /// [`ColumnFamily::verify_all`], handing each block to `quarantined` right after it was
+    /// moved aside (before the next block is checked).
+    pub fn verify_each(
+        &self,
+        mut quarantined: impl FnMut(&QuarantinedBlock) -> Result<(), CromError>,
+    ) -> Result<(usize, Vec<BlockProblem>), CromError> {
         let index = self.load_index()?;
         let mut by_block: BTreeMap<&str, Vec<&IndexRow>> = BTreeMap::new();
         for r in index.rows.values() {
@@ -453,26 +451,23 @@ impl ColumnFamily {
         let mut problems = Vec::new();
         for (block, rows) in &by_block {
             let path = self.root.join(block);
-            let (bytes, hash) =
-                crate::store::manifest::hash_file(&path).map_err(|e| CromError::io(&path, "hashing a block", e))?;
+            let (bytes, hash) = hash_file(&path).map_err(|e| CromError::io(&path, "hashing a block", e))?;
             let whole_ok = bytes == rows[0].block_bytes && hash == rows[0].block_blake3;
             let cols_ok = whole_ok && self.read_checked(rows).is_ok();
             if !cols_ok {
-                let to = self.quarantine(block)?;
-                problems.push(format!("{block}: does not match the index; moved to {}", to.display()));
+                let q = self.quarantine(block)?;
+                quarantined(&q)?;
+                problems.push(BlockProblem::Quarantined(q));
             }
         }
         if index.dropped > 0 {
-            problems.push(format!(
-                "{} index rows point at missing blocks (their points will be solved again)",
-                index.dropped
-            ));
+            problems.push(BlockProblem::Dropped(index.dropped));
         }
         Ok((by_block.len(), problems))
     }
 
-    /// Move a block file to `<store>/.quarantine/`.
-    pub fn quarantine(&self, block: &str) -> Result<PathBuf, CromError> {
+    /// Move a block file to `<store>/.quarantine/` (see [`quarantine_block`]).
+    pub fn quarantine(&self, block: &str) -> Result<QuarantinedBlock, CromError> {
         quarantine_block(&self.root, block)
     }
 
@@ -481,23 +476,68 @@ impl ColumnFamily {
     }
 }
 
+/// Every column family under the store root `root`, in key order (families whose
+/// `family.json` cannot be read are skipped).
+pub fn families(root: &Path) -> Vec<ColumnFamily> {
+    let mut out = Vec::new();
+    let Ok(entries) = std::fs::read_dir(root.join(COLUMNS_DIR)) else { return out };
+    let mut names: Vec<String> = entries.flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+    names.sort();
+    for n in names {
+        if let Ok(Some(f)) = ColumnFamily::find(root, &Key(n)) {
+            out.push(f);
+        }
+    }
+    out
+}
+
+/// A snapshot block that was moved to the quarantine. Its index rows are dropped by the next
+/// index read (the file is missing), but the published names and the catalog still refer to
+/// it: the caller withdraws the names of the training sets that read it and refreshes the
+/// catalog (`Store::quarantine_block`, `Store::verify_family`).
+#[derive(Debug, Clone, PartialEq)]
+#[must_use = "the published names and the catalog still refer to the block"]
+pub struct QuarantinedBlock {
+    /// The block file, relative to the store root.
+    pub block: String,
+    /// Where it is now.
+    pub to: PathBuf,
+}
+
+/// What [`ColumnFamily::verify_all`] found wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BlockProblem {
+    /// A block that does not match the index, now in the quarantine.
+    Quarantined(QuarantinedBlock),
+    /// Index rows that point at missing blocks (their count).
+    Dropped(usize),
+}
+
+impl std::fmt::Display for BlockProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Quarantined(q) => write!(f, "{}: does not match the index; moved to {}", q.block, q.to.display()),
+            Self::Dropped(n) => {
+                write!(f, "{n} index rows point at missing blocks (their points will be solved again)")
+            }
+        }
+    }
+}
+
 /// Move the block file `block` (relative to the store root `root`) to `<root>/.quarantine/`;
-/// its index rows are dropped by the next index read (the file is missing).
-pub fn quarantine_block(root: &Path, block: &str) -> Result<PathBuf, CromError> {
+/// its index rows are dropped by the next index read (the file is missing). Moves the file
+/// only: what else must follow is the caller's (see [`QuarantinedBlock`]).
+pub fn quarantine_block(root: &Path, block: &str) -> Result<QuarantinedBlock, CromError> {
     let q = root.join(".quarantine");
     std::fs::create_dir_all(&q).map_err(|e| CromError::io(&q, "creating the quarantine", e))?;
     let mut parts = Path::new(block).components().rev();
     let name = parts.next().map(|c| c.as_os_str().to_string_lossy().into_owned()).unwrap_or_default();
     let family: String =
         parts.nth(1).map(|c| c.as_os_str().to_string_lossy().chars().take(12).collect()).unwrap_or_default();
-    let to = q.join(format!("columns-{family}-{}-{name}", crate::store::unix_now()));
+    let to = q.join(format!("columns-{family}-{}-{name}", unix_now()));
     let from = root.join(block);
     std::fs::rename(&from, &to).map_err(|e| CromError::io(&from, "moving a corrupt block aside", e))?;
-    // A published training set reading this block would read fill values: withdraw its names.
-    let reason = format!("reads snapshot block {block}, quarantined to {}", to.display());
-    super::published::withdraw_block(root, block, &reason)?;
-    super::catalog::refresh(root)?;
-    Ok(to)
+    Ok(QuarantinedBlock { block: block.to_string(), to })
 }
 
 /// A solved snapshot waiting for its block.
@@ -629,29 +669,6 @@ fn list(dir: &Path, ext: &str) -> Vec<String> {
         .unwrap_or_default();
     v.sort();
     v
-}
-
-/// Write `bytes` to `path` through a temporary file, fsync and rename.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CromError> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let tmp = dir.join(format!(
-        ".tmp-{}-{}",
-        path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
-        crate::store::writer_token()
-    ));
-    let mut f = std::fs::File::create(&tmp).map_err(|e| CromError::io(&tmp, "creating", e))?;
-    f.write_all(bytes).map_err(|e| CromError::io(&tmp, "writing", e))?;
-    drop(f);
-    publish(&tmp, path)
-}
-
-/// Make the complete file `tmp` durable and move it to `dest` atomically: fsync the file,
-/// rename, fsync the directory (the commit step of blocks, fragments and the index).
-fn publish(tmp: &Path, dest: &Path) -> Result<(), CromError> {
-    fsync_file(tmp)?;
-    std::fs::rename(tmp, dest).map_err(|e| CromError::io(dest, "moving into place", e))?;
-    fsync_dir(dest.parent().unwrap_or(Path::new(".")));
-    Ok(())
 }
 
 /// A `family.json`.

@@ -4,6 +4,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use crom_schemas::artifact::{ArtifactKind, MANIFEST};
 use serde::{Deserialize, Serialize};
 
 use crate::cache::Key;
@@ -57,4 +58,20 @@ pub fn hash_file(path: &Path) -> std::io::Result<(u64, String)> {
     let mut file = std::fs::File::open(path)?;
     let bytes = std::io::copy(&mut file, &mut hasher)?;
     Ok((bytes, hasher.finalize().to_hex().to_string()))
+}
+
+/// Every artifact manifest under the store root `root` (unverified; for listing).
+pub fn read_all(root: &Path) -> Vec<Manifest> {
+    let mut out = Vec::new();
+    for kind in ArtifactKind::ALL {
+        let Ok(entries) = std::fs::read_dir(root.join(kind.name())) else { continue };
+        for e in entries.flatten() {
+            if let Ok(text) = std::fs::read_to_string(e.path().join(MANIFEST)) {
+                if let Ok(m) = serde_json::from_str::<Manifest>(&text) {
+                    out.push(m);
+                }
+            }
+        }
+    }
+    out
 }

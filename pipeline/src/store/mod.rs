@@ -10,39 +10,21 @@
 
 pub mod catalog;
 pub mod columns;
+pub mod fs;
 mod lock;
 pub mod manifest;
 pub mod published;
 
 use std::path::{Path, PathBuf};
-use std::time::{SystemTime, UNIX_EPOCH};
 
 use crom_schemas::artifact::{ArtifactKind, MANIFEST};
 
 use crate::cache::{Key, KeySpec};
 use crate::error::CromError;
+use columns::QuarantinedBlock;
+use fs::{unique_suffix, unix_now};
 pub use manifest::Manifest;
 use manifest::{hash_file, FileEntry};
-
-/// `root/dir/name`, where `name` comes from a scene file (a scene name under `runs/` or
-/// `scenes/`): refused unless it is one plain path component — no separator, not `.` or `..`,
-/// no leading dot — so that no scene file can make crom write outside its store. Scene
-/// validation refuses such names first (`scene.name`); this is the second line, at the place
-/// where the path is made.
-pub fn named_dir(root: &Path, dir: &str, name: &str) -> Result<PathBuf, CromError> {
-    use std::path::Component;
-    let mut parts = Path::new(name).components();
-    let plain = matches!((parts.next(), parts.next()), (Some(Component::Normal(_)), None))
-        && !name.starts_with('.')
-        && !name.contains(['/', '\\']);
-    if !plain {
-        return Err(CromError::Usage {
-            message: format!("scene name {name:?} would make a path outside {}/{dir}", root.display()),
-            fix: "give scene.name a plain name of letters, digits, '-', '_' and '.' (not first)".into(),
-        });
-    }
-    Ok(root.join(dir).join(name))
-}
 
 /// An open store.
 #[derive(Debug)]
@@ -154,32 +136,37 @@ impl Store {
 
     /// Every column family of snapshots in the store.
     pub fn families(&self) -> Vec<columns::ColumnFamily> {
-        let mut out = Vec::new();
-        let Ok(entries) = std::fs::read_dir(self.root.join(columns::COLUMNS_DIR)) else { return out };
-        let mut names: Vec<String> = entries.flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
-        names.sort();
-        for n in names {
-            if let Ok(Some(f)) = columns::ColumnFamily::find(&self.root, &Key(n)) {
-                out.push(f);
-            }
-        }
-        out
+        columns::families(&self.root)
     }
 
     /// Every artifact manifest in the store (unverified; for listing).
     pub fn manifests(&self) -> Vec<Manifest> {
-        let mut out = Vec::new();
-        for kind in ArtifactKind::ALL {
-            let Ok(entries) = std::fs::read_dir(self.root.join(kind.name())) else { continue };
-            for e in entries.flatten() {
-                if let Ok(text) = std::fs::read_to_string(e.path().join(MANIFEST)) {
-                    if let Ok(m) = serde_json::from_str::<Manifest>(&text) {
-                        out.push(m);
-                    }
-                }
-            }
-        }
-        out
+        manifest::read_all(&self.root)
+    }
+
+    /// Move the snapshot block `block` (relative to the store root) to `<root>/.quarantine/`
+    /// and bring the published names and the catalog up to date; its new path.
+    pub fn quarantine_block(&self, block: &str) -> Result<PathBuf, CromError> {
+        let q = columns::quarantine_block(&self.root, block)?;
+        self.block_quarantined(&q)?;
+        Ok(q.to)
+    }
+
+    /// Re-hash every block file and every column of `family` against its index; each block
+    /// that fails is moved to the quarantine and the names and the catalog are brought up to
+    /// date before the next block is checked. Returns `(blocks checked, problems)`.
+    pub fn verify_family(&self, family: &columns::ColumnFamily) -> Result<(usize, Vec<String>), CromError> {
+        let (checked, problems) = family.verify_each(|q| self.block_quarantined(q))?;
+        Ok((checked, problems.iter().map(ToString::to_string).collect()))
+    }
+
+    /// What follows moving a block aside: a published training set reading it would read fill
+    /// values, so its names are withdrawn; then the catalog is rebuilt.
+    fn block_quarantined(&self, q: &QuarantinedBlock) -> Result<(), CromError> {
+        let reason = format!("reads snapshot block {}, quarantined to {}", q.block, q.to.display());
+        published::withdraw_block(&self.root, &q.block, &reason)?;
+        catalog::refresh(&self.root)?;
+        Ok(())
     }
 }
 
@@ -281,48 +268,4 @@ fn verify(dir: &Path, kind: ArtifactKind, key: &Key) -> Result<Manifest, String>
         }
     }
     Ok(m)
-}
-
-pub(crate) fn unix_now() -> u64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
-}
-
-/// A suffix no other writer uses at the same time: time, a process-wide counter, this process
-/// and this host (workers on several nodes share the store's directories).
-pub(crate) fn writer_token() -> String {
-    format!("{}-{}-{}", host_name(), std::process::id(), unique_suffix())
-}
-
-/// This machine's host name (`/proc/sys/kernel/hostname`; `localhost` where unknown).
-pub(crate) fn host_name() -> String {
-    std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .ok()
-        .map(|s| s.trim().chars().filter(|c| c.is_ascii_alphanumeric() || *c == '-' || *c == '.').collect())
-        .filter(|s: &String| !s.is_empty())
-        .unwrap_or_else(|| "localhost".to_string())
-}
-
-fn unique_suffix() -> u128 {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let nanos = SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0);
-    nanos.wrapping_mul(1000) + u128::from(COUNTER.fetch_add(1, Ordering::Relaxed))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Every traversal through a name is refused; plain names pass and stay inside the store.
-    #[test]
-    fn named_dirs_stay_inside_the_store() {
-        let root = Path::new("/store");
-        for bad in ["../../../escaped", "..", ".", "a/b", "a\\b", "/abs", ".hidden", "", "x/../.."] {
-            assert!(named_dir(root, "runs", bad).is_err(), "{bad:?} accepted");
-        }
-        for good in ["rope", "ironing-fine-2d", "a.b_c"] {
-            let p = named_dir(root, "runs", good).expect("plain name");
-            assert_eq!(p, root.join("runs").join(good));
-        }
-    }
 }

@@ -33,6 +33,7 @@ use std::path::{Path, PathBuf};
 use crom_schemas::artifact::{published as names, trainset, ArtifactKind};
 use serde::{Deserialize, Serialize};
 
+use super::fs::{fsync_dir, named_dir, unix_now, write_atomic};
 use crate::cache::Key;
 use crate::error::CromError;
 
@@ -102,7 +103,7 @@ fn scenes_dir(root: &Path) -> PathBuf {
 /// Publish `study` as the current names of its scene (see the module doc for the protocol).
 pub fn publish(root: &Path, study: &Study) -> Result<PathBuf, CromError> {
     let scenes = scenes_dir(root);
-    let named = super::named_dir(root, names::DIR, &study.scene)?;
+    let named = named_dir(root, names::DIR, &study.scene)?;
     // A rerun that found everything in the cache names the same files: nothing to swap.
     let current =
         std::fs::read_to_string(named.join(names::STUDY)).ok().and_then(|t| serde_json::from_str::<Study>(&t).ok());
@@ -149,10 +150,10 @@ pub fn publish(root: &Path, study: &Study) -> Result<PathBuf, CromError> {
         std::os::unix::fs::symlink(&relative, &link).map_err(|e| CromError::io(&link, "creating a name", e))?;
     }
     let text = serde_json::to_string_pretty(study).unwrap_or_default();
-    super::columns::write_atomic(&tmp.join(names::STUDY), text.as_bytes())?;
+    write_atomic(&tmp.join(names::STUDY), text.as_bytes())?;
     let dest = versions.join(&version);
     std::fs::rename(&tmp, &dest).map_err(|e| CromError::io(&dest, "moving a link set into place", e))?;
-    super::columns::fsync_dir(&versions);
+    fsync_dir(&versions);
 
     // Swap the one link: a new link under a temporary name, renamed over the old one.
     let link = named;
@@ -168,7 +169,7 @@ pub fn publish(root: &Path, study: &Study) -> Result<PathBuf, CromError> {
     std::os::unix::fs::symlink(format!("{}/{version}", names::VERSIONS), &tmp_link)
         .map_err(|e| CromError::io(&tmp_link, "creating a name", e))?;
     std::fs::rename(&tmp_link, &link).map_err(|e| CromError::io(&link, "replacing a scene's names", e))?;
-    super::columns::fsync_dir(&scenes);
+    fsync_dir(&scenes);
 
     // Keep the new and the previous version; older ones and leftovers of killed publishes go.
     let keep_previous = previous.as_ref().and_then(|p| p.file_name()).map(|n| n.to_string_lossy().into_owned());
@@ -222,7 +223,7 @@ fn withdraw(root: &Path, reason: &str, drop: impl Fn(&Entry) -> bool) -> Result<
             study.entries.remove(&n);
             study.withdrawn.insert(n, "its artifact is missing from the store".to_string());
         }
-        study.created_unix = super::unix_now();
+        study.created_unix = unix_now();
         publish(root, &study)?;
     }
     Ok(())

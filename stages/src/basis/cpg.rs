@@ -38,8 +38,8 @@ use std::collections::BinaryHeap;
 use faer::{Mat, MatRef};
 use rayon::prelude::*;
 
-use crate::approx::{close, Tol};
 use crate::cone::{copy_column, norm2, ConeError, ConeProjector, GrowingCone, NnlsParams, WideNnls};
+use crate::float_cmp::{close, Tol};
 
 /// Parameters of [`cpg`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -767,9 +767,9 @@ fn mark_divergence(step: &Step, norms: &[f64], t: usize, diverge: &mut [usize]) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
     use crate::cone::ConeProjector;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
     use crate::testing::{bumps, hertz_family};
     use crate::{assert_all_close, basis::cpg_reference};

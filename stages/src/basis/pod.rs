@@ -135,7 +135,7 @@ pub fn tail_energies(values: &[f64]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
     use crate::{assert_all_close, assert_close};
 

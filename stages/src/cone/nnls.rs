@@ -558,8 +558,8 @@ pub fn nnls(a: MatRef<'_, f64>, b: &[f64], params: NnlsParams) -> Result<NnlsSol
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::cone::nnls_reference;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
     use crate::{assert_all_close, assert_close};
 

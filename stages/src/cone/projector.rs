@@ -418,7 +418,7 @@ pub(crate) fn coefficient_intervals<'c>(m: usize, coeffs: impl IntoIterator<Item
 mod tests {
     use super::super::nnls::residual_into;
     use super::*;
-    use crate::approx::Tol;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
     use crate::{assert_all_close, assert_close};
 

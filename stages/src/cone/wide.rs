@@ -282,8 +282,8 @@ fn column_dot(theta: MatRef<'_, f64>, j: usize, v: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::{close, Tol};
     use crate::cone::nnls;
+    use crate::float_cmp::{close, Tol};
     use crate::rng::Rng;
     use faer::Mat;
 

@@ -129,8 +129,8 @@ impl FactoredModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use std::f64::consts::PI;
 
     /// Angles outside a cone, from plane geometry: inside gives 0, outside the distance to the

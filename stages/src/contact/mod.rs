@@ -21,7 +21,9 @@
 //! - [`vertex`]: vertex-flip detection, ties and the vertex-zone rule;
 //! - [`check`]: the geometric check of a converged state;
 //! - [`anderson`]: acceleration of the re-pairing fixed point;
-//! - `model`, `factor`, `solve`: the scenes, the factorisation, the re-pairing loop.
+//! - `model`, `factor`, `solve`: the scenes, the factorisation, the re-pairing loop;
+//! - `rom_view`: the factored model as the reduced model sees it
+//!   ([`crate::full_order::ContactOperator`]).
 //!
 //! The stored pressure is `lambda_i / l_i`, `l_i` the slave's tributary length (reference
 //! configuration, half of each adjacent slave edge), SCENES.md's "nodal contact force divided
@@ -34,8 +36,8 @@ pub mod delassus;
 mod error;
 mod factor;
 mod model;
-mod operator;
 pub mod pairing;
+mod rom_view;
 pub mod scene;
 mod solve;
 pub mod vertex;

@@ -625,8 +625,8 @@ impl GapRow {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
 
     /// Convex "roof" master, listed counter-clockwise around a body below it (right to left
     /// along its top), so outward normals point up:

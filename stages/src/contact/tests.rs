@@ -4,8 +4,8 @@
 use crom_schemas::scene::Model;
 
 use super::*;
-use crate::approx::{close, Tol};
 use crate::assert_close;
+use crate::float_cmp::{close, Tol};
 use crate::shipped::shipped_scene;
 use crate::snapshot::Snapshot;
 use std::f64::consts::PI;
@@ -211,7 +211,7 @@ fn hertz_kkt_over_training_set_and_no_contact_cases() {
         let s = fm.solve(&[d], &TOL).expect("solve");
         assert_kkt(&s, "hertz no contact");
         assert_eq!(s.stats.active, 0);
-        assert!(s.pressure.iter().all(|&p| crate::approx::is_zero(p, 0.0)));
+        assert!(s.pressure.iter().all(|&p| crate::float_cmp::is_zero(p, 0.0)));
     }
 }
 

@@ -140,9 +140,9 @@ impl DualApprox for Dictionary {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
     use crate::cone::nnls_reference;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
 
     /// Unlimited, the greedy loop ends at the NNLS over every atom (dense Lawson–Hanson

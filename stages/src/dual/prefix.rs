@@ -200,9 +200,9 @@ impl DualApprox for ConePrefix {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_all_close;
     use crate::cone::nnls_reference;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
 
     /// Span residuals against a least-squares solve by a fresh SVD of each prefix.

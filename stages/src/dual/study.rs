@@ -215,9 +215,9 @@ pub fn nested_error(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_all_close;
     use crate::cone::NnlsParams;
+    use crate::float_cmp::Tol;
     use crate::metrics::{compactness_orth, generalization_cone, generalization_orth};
     use crate::rng::Rng;
     use faer::Mat;
@@ -270,13 +270,13 @@ mod tests {
         let t = Training { snapshots: lo.as_ref(), params: &lo_p, surface: &[], ms: &ms };
         let pod = nested_error(&Approach::Pod, &t, hi.as_ref(), &hi_p).expect("pod");
         let reference = crate::metrics::nested_error_orth(lo.as_ref(), hi.as_ref()).expect("orth");
-        assert!(crate::approx::close(pod, reference, Tol { abs: 1e-12, rel: 1e-10 }), "{pod} vs {reference}");
+        assert!(crate::float_cmp::close(pod, reference, Tol { abs: 1e-12, rel: 1e-10 }), "{pod} vs {reference}");
         let cpg = nested_error(&Approach::Cpg, &t, hi.as_ref(), &hi_p).expect("cpg");
         let reference =
             crate::metrics::nested_error_cone(lo.as_ref(), hi.as_ref(), NnlsParams::default()).expect("cone");
         // 1e-8: NNLS on the CPG generators (a subset of the level's snapshots spanning the same
         // cone) against NNLS on all of them; both at the solver's KKT tolerance.
-        assert!(crate::approx::close(cpg, reference, Tol { abs: 1e-10, rel: 1e-8 }), "{cpg} vs {reference}");
+        assert!(crate::float_cmp::close(cpg, reference, Tol { abs: 1e-10, rel: 1e-8 }), "{cpg} vs {reference}");
     }
 
     /// Specificity through the interface follows eq. 18 on POD: against a direct evaluation of
@@ -317,7 +317,7 @@ mod tests {
             }
             // 1e-9: SVD modes against their Gram-Schmidt re-orthonormalisation (signs and
             // rounding identical up to ~1e-14; the minimum over snapshots is continuous).
-            assert!(crate::approx::close(got[k].mean(), want.mean(), Tol { abs: 1e-12, rel: 1e-9 }), "m {m}");
+            assert!(crate::float_cmp::close(got[k].mean(), want.mean(), Tol { abs: 1e-12, rel: 1e-9 }), "m {m}");
         }
         let dict = build(&Approach::Dictionary, &t).expect("dictionary");
         assert!(specificity(dict.as_ref(), &t, 5, 1).expect("s").is_none());

@@ -122,6 +122,6 @@ mod tests {
         assert_eq!(a.row_ptr, vec![0, 2, 3, 4]);
         let y = a.matvec(&[1.0, 2.0, 3.0]);
         // small integers: exact in floating point
-        crate::assert_all_close!(y, [18.0, -3.0, 8.0], crate::approx::Tol::abs(0.0));
+        crate::assert_all_close!(y, [18.0, -3.0, 8.0], crate::float_cmp::Tol::abs(0.0));
     }
 }

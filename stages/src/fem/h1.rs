@@ -68,8 +68,8 @@ pub fn h1_gram(mesh: &Mesh2d) -> super::CsrMatrix {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use crate::mesh::rectangle;
     use crate::rng::Rng;
 

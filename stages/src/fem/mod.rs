@@ -17,8 +17,8 @@ pub use material::Material;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use crate::mesh::{rectangle, Mesh2d};
     use crate::rng::Rng;
     use faer::linalg::solvers::Solve;

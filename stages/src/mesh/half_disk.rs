@@ -152,8 +152,8 @@ pub fn half_disk(p: &HalfDiskParams) -> Result<HalfDisk, MeshError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use crate::mesh::Mesh2d;
 
     fn params(n_arc: usize, arc_up: bool) -> HalfDiskParams {

@@ -73,8 +73,8 @@ pub fn iron(g: &IronGeometry, nx: usize, ny: usize) -> Result<Grid, MeshError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use crate::mesh::Mesh2d;
 
     fn scene() -> IronGeometry {

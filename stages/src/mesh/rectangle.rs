@@ -21,8 +21,8 @@ pub fn rectangle(x0: f64, y0: f64, lx: f64, ly: f64, nx: usize, ny: usize) -> Re
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
 
     #[test]
     fn rectangle_corners_and_counts() {

@@ -88,8 +88,8 @@ pub fn relative_errors_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>) -> Vec<O
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::basis::{cpg, pod_full, tail_energies, CpgParams};
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
     use crate::{assert_all_close, assert_close};
 

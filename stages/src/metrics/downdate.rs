@@ -268,8 +268,8 @@ fn model_step(e: &Eval, a: f64, b: Option<f64>) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
     use faer::Mat;
 

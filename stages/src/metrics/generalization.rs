@@ -567,8 +567,8 @@ pub fn generalization_cone_reference(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::cone::nnls_reference;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
     use crate::testing::{bumps, hertz_family};
     use crate::{assert_all_close, assert_close};

@@ -57,8 +57,8 @@ pub fn nested_error_cone(lower: MatRef<'_, f64>, upper: MatRef<'_, f64>, nnls: N
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
 
     /// Level n: 5 non-negative random fields in R^20; level n + 1 interleaves them with the

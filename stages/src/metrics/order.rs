@@ -58,8 +58,8 @@ pub fn spearman(x: &[f64], y: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
 
     #[test]
     fn nearest_rank_quantiles() {

@@ -388,10 +388,10 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::basis::{cpg, pod_full, CpgParams};
     use crate::basis::{cpg_path, CpgPathParams};
     use crate::cone::nnls_reference;
+    use crate::float_cmp::Tol;
     use crate::testing::{bumps, hertz_family};
     use crate::{assert_all_close, assert_close};
 

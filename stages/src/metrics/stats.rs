@@ -77,8 +77,8 @@ pub fn on_rank_grid(m: usize, dense_to: usize, k: usize) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
 
     #[test]
     fn running_stats_by_hand() {

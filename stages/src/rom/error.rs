@@ -16,7 +16,7 @@
 
 use super::la::{backward_t, dot, forward};
 use super::saddle::cholesky;
-use crate::operator::ContactOperator;
+use crate::full_order::ContactOperator;
 use faer::{Mat, MatRef};
 
 /// Precomputed references for [`PrimalErrors::relative`].

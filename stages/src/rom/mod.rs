@@ -73,7 +73,7 @@ mod reduced;
 mod saddle;
 pub mod sampling;
 
-pub use crate::operator::{Compliance, ContactOperator, Linearized, Surface};
+pub use crate::full_order::{Compliance, ContactOperator, Linearized, Surface};
 pub use error::PrimalErrors;
 pub use la::Factor;
 pub use qp::{solve_qp, DenseConstraints, QpConstraints, QpOutcome, QpWork};

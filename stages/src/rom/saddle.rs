@@ -136,7 +136,7 @@ pub fn solve_saddle(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
     use crate::rom::la::Factor;
     use crate::testing::spd;

@@ -92,9 +92,9 @@ pub fn greedy_nnls(a: MatRef<'_, f64>, b: &[f64], tol: f64, max_columns: usize) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
     use crate::cone::nnls;
+    use crate::float_cmp::Tol;
     use crate::rng::Rng;
     use faer::Mat;
 

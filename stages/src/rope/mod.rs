@@ -19,8 +19,8 @@
 //! `Λ - max(0, Λ + c (g - u)) = 0`, Hintermüller–Ito–Kunisch 2002): for an M-matrix `K` it
 //! terminates in finitely many steps with the exact discrete solution.
 
-mod operator;
 mod problem;
+mod rom_view;
 mod solve;
 
 pub use problem::{Rope, RopeParams};

@@ -99,8 +99,8 @@ impl Rope {
 
 #[cfg(test)]
 mod tests {
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use crate::rope::fixtures::paper_rope;
 
     #[test]

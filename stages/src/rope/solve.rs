@@ -185,8 +185,8 @@ pub(super) fn thomas(sub: &[f64], diag: &mut [f64], sup: &[f64], rhs: &mut [f64]
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use crate::rope::RopeParams;
 
     fn rope(offset: f64, n_elements: usize) -> Rope {

@@ -2,7 +2,7 @@
 //! ranks, and what the online solve stores.
 
 use super::{ReducedModel, RomError, SurfaceData, WarmStarts};
-use crate::operator::{Compliance, ContactOperator, Linearized, Surface};
+use crate::full_order::{Compliance, ContactOperator, Linearized, Surface};
 use crate::rom::la::{backward_t, dot, forward};
 use crate::rom::saddle::cholesky;
 use faer::MatRef;

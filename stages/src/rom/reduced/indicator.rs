@@ -187,8 +187,8 @@ fn energy_residual(z: &[f64], y: &[f64], fww: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
     use crate::rom::reduced::test_support::full_rom;
     use crate::rom::{ContactOperator, Linearized, RomOutcome, RomParams, RomWork};
     use crate::testing::ironing_coarse;

@@ -2,7 +2,7 @@
 //! `u_i - g(x_i, γ)` at every interior node, nodal force = pressure × `h`.
 
 use super::{unconstrained, Rope};
-use crate::operator::{Compliance, ContactOperator, Linearized, Surface};
+use crate::full_order::{Compliance, ContactOperator, Linearized, Surface};
 
 impl ContactOperator for Rope {
     fn n_dof(&self) -> usize {
@@ -113,8 +113,8 @@ impl ContactOperator for Rope {
 mod tests {
     use faer::{Mat, MatRef};
 
-    use crate::approx::Tol;
     use crate::assert_close;
+    use crate::float_cmp::Tol;
 
     use crate::basis::{cpg, pod, CpgParams, PodParams};
     use crate::rom::{Algorithm, ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};

@@ -41,9 +41,9 @@ pub fn is_zero(x: f64, abs: f64) -> bool {
 #[macro_export]
 macro_rules! assert_close {
     ($a:expr, $b:expr, $tol:expr $(,)?) => {{
-        let (a, b, tol): (f64, f64, $crate::approx::Tol) = ($a, $b, $tol);
+        let (a, b, tol): (f64, f64, $crate::float_cmp::Tol) = ($a, $b, $tol);
         assert!(
-            $crate::approx::close(a, b, tol),
+            $crate::float_cmp::close(a, b, tol),
             "assert_close failed: {} = {a:e} vs {} = {b:e} (diff {:e}, {tol:?})",
             stringify!($a),
             stringify!($b),
@@ -56,11 +56,11 @@ macro_rules! assert_close {
 #[macro_export]
 macro_rules! assert_all_close {
     ($a:expr, $b:expr, $tol:expr $(,)?) => {{
-        let (a, b, tol): (&[f64], &[f64], $crate::approx::Tol) = (&$a[..], &$b[..], $tol);
+        let (a, b, tol): (&[f64], &[f64], $crate::float_cmp::Tol) = (&$a[..], &$b[..], $tol);
         assert_eq!(a.len(), b.len(), "assert_all_close: length mismatch");
         for (i, (x, y)) in a.iter().zip(b.iter()).enumerate() {
             assert!(
-                $crate::approx::close(*x, *y, tol),
+                $crate::float_cmp::close(*x, *y, tol),
                 "assert_all_close failed at index {i}: {x:e} vs {y:e} (diff {:e}, {tol:?})",
                 (x - y).abs()
             );

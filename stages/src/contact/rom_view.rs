@@ -30,7 +30,7 @@ use super::factor::FactoredModel;
 use super::pairing::GapRow;
 use super::pairing::{closest_point, vertex_pair, Pair, PairKind};
 use crate::fem::h1::{h1_gram, h1_norm_sq};
-use crate::operator::{Compliance, ContactOperator, Linearized, Surface};
+use crate::full_order::{Compliance, ContactOperator, Linearized, Surface};
 
 /// A segment foot point with `ξ <= VERTEX_SNAP` or `ξ >= 1 - VERTEX_SNAP` next to an interior
 /// vertex is paired with the vertex (see the module docs). The rounding of `ξ` for a slave on a
@@ -181,8 +181,8 @@ impl ContactOperator for FactoredModel {
 #[cfg(test)]
 mod tests {
     use super::super::pairing::{closest_point, vertex_normal};
-    use crate::approx::Tol;
     use crate::contact::{build_hertz, FactoredModel, HertzParams, Material};
+    use crate::float_cmp::Tol;
     use crate::rom::{ContactOperator, Linearized};
     use crate::snapshot::Snapshot;
     use crate::testing::{hertz, ironing_coarse, TOL};
