@@ -212,7 +212,7 @@ mod tests {
 
     /// Every shipped scene is estimated below 4 GiB (so a machine like CI's never refuses
     /// them), ironing-fine's online term is the hand count `8 n (N + T + 3 N)` with
-    /// n = 23 924 dofs (README), N = 128, T = 127, and refining a mesh raises the estimate.
+    /// n = 23 924 dofs (docs/scenes.md), N = 128, T = 127, and refining a mesh raises the estimate.
     #[test]
     fn shipped_scenes_fit_and_refinement_needs_more() {
         for name in ["rope", "hertz", "hertz-fine", "ironing-coarse", "ironing-fine", "ironing-fine-2d"] {

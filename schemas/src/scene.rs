@@ -1,5 +1,5 @@
 //! The scene file: `data/scenes/<name>.toml`. Every physical and numerical value of a scene
-//! lives here (SCENES.md); nothing of it is hard-coded in Rust.
+//! lives here (docs/scenes.md describes the shipped scenes); nothing of it is hard-coded in Rust.
 //!
 //! ```toml
 //! [scene]
@@ -237,7 +237,7 @@ pub struct SolverSpec {
     pub max_iter: usize,
 }
 
-/// Reduced-basis and metric settings (SCENES.md → Study settings).
+/// Reduced-basis and metric settings (docs/scenes.md#study-settings).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StudySpec {

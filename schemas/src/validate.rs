@@ -390,9 +390,10 @@ fn check_hertz(c: &Checker<'_>, h: &HertzSpec) -> Result<(), SceneError> {
 
 /// The rise of the iron's circular sole over its half width, `R - sqrt(R^2 - (w/2)^2)`: pressed
 /// deeper than this into the undeformed slab, the block's lower corners — not its sole — would
-/// meet the slab. The contact model has the sole as its only master surface (SCENES.md), so
-/// such a press cannot be solved: the slab would pass through the block's sides, and the
-/// active-set loop, which sees nothing there, cycles until its iteration cap.
+/// meet the slab. The contact model has the sole as its only master surface
+/// (docs/scenes.md#ironing-coarse-and-ironing-fine), so such a press cannot be solved: the slab
+/// would pass through the block's sides, and the active-set loop, which sees nothing there,
+/// cycles until its iteration cap.
 pub fn sole_rise(i: &IroningSpec) -> f64 {
     let (r, h) = (i.iron.sole_radius, 0.5 * i.iron.width);
     r - (r * r - h * h).max(0.0).sqrt()

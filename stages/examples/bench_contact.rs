@@ -1,4 +1,4 @@
-//! Benchmark of the 2-D high-fidelity contact solver on the four scenes of SCENES.md.
+//! Benchmark of the 2-D high-fidelity contact solver on the four 2-D scenes of docs/scenes.md.
 //!
 //! `cargo run --release -p crom-stages --example bench_contact`
 //!

@@ -1,6 +1,6 @@
 //! The numerics of crom: meshes, finite elements, contact solvers, cone projection, reduced
 //! bases, metrics and the online reduced solve. Nothing here opens a file or hashes anything:
-//! every function is a pure function of its inputs (see DESIGN.md).
+//! every function is a pure function of its inputs (the pipeline does the I/O and the caching).
 
 pub mod basis;
 pub mod condition;

@@ -24,7 +24,8 @@ def test_mesh_is_two_quad_bodies_for_paraview(hertz_store):
         bodies = f["cell_body"][:]
         contact = f["contact_nodes"][:]
     assert cells.shape[1] == 4 and set(np.unique(bodies)) == {0, 1}
-    # SCENES.md: about 500 nodes per body at n_arc = 78.
+    # docs/scenes.md#hertz-and-hertz-fine: about 500 nodes per body at n_arc = 78 (520 with the
+    # default n_side).
     assert 400 <= len(nodes) / 2 <= 700
     # Slave nodes: the top body's curved edge, n_arc + 1 = 79 of them, on the circle of radius 1
     # about (0, 1) (mesh nodes lie exactly on the arc: 1e-12).

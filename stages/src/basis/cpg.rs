@@ -1,4 +1,5 @@
-//! Cone-Projected Greedy (CPG) dual basis (paper Sec. 2.3.1, eq. 12; rule in SCENES.md).
+//! Cone-Projected Greedy (CPG) dual basis (paper Sec. 2.3.1, eq. 12; the rule is stated in
+//! docs/scenes.md#study-settings).
 //!
 //! Start from the empty cone. At each step compute, for every training snapshot `s_j` with
 //! `||s_j|| > 0`, its relative cone-projection error `e_j = ||s_j - Pi_m(s_j)|| / ||s_j||` onto

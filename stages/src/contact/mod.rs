@@ -1,5 +1,5 @@
-//! Two-body frictionless node-to-segment contact (paper Secs. 2.1–2.2, eqs. 2, 5–7; SCENES.md
-//! → hertz, ironing).
+//! Two-body frictionless node-to-segment contact (paper Secs. 2.1–2.2, eqs. 2, 5–7;
+//! docs/scenes.md#contact-formulation).
 //!
 //! Discrete problem (paper eq. 7) with one Lagrange multiplier (nodal contact force) per slave
 //! node and the gap of eq. 2 evaluated with the closest-point projection in the deformed
@@ -26,8 +26,8 @@
 //!   ([`crate::full_order::ContactOperator`]).
 //!
 //! The stored pressure is `lambda_i / l_i`, `l_i` the slave's tributary length (reference
-//! configuration, half of each adjacent slave edge), SCENES.md's "nodal contact force divided
-//! by the node's tributary length".
+//! configuration, half of each adjacent slave edge): the nodal contact force divided by the node's
+//! tributary length (docs/scenes.md#common-setting).
 
 pub mod active_set;
 pub mod anderson;

@@ -1,4 +1,4 @@
-//! Scene-level two-body contact models (SCENES.md → hertz, ironing) and their builders.
+//! Scene-level two-body contact models (docs/scenes.md: hertz, ironing) and their builders.
 //!
 //! A [`ContactModel`] holds everything that does not depend on the scene parameter `mu`: the
 //! mesh of both bodies, the global stiffness `K`, the Dirichlet partition, the imposed
@@ -9,7 +9,8 @@ use super::error::ModelError;
 use crate::fem::{assemble_stiffness, CsrMatrix, DofSplit, Material};
 use crate::mesh::{half_disk, iron, rectangle, HalfDiskParams, IronGeometry, Mesh2d};
 
-/// Hertz scene (SCENES.md → hertz): two half-disks of radius `R` touching at the origin.
+/// Hertz scene (docs/scenes.md#hertz-and-hertz-fine): two half-disks of radius `R` touching at
+/// the origin.
 ///
 /// ```text
 ///        y = R  ===========  top flat face: u = (0, -d)      (body 1, slave arc)
@@ -21,11 +22,11 @@ use crate::mesh::{half_disk, iron, rectangle, HalfDiskParams, IronGeometry, Mesh
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct HertzParams {
-    /// `R1 = R2 = R` (SCENES.md: 1).
+    /// `R1 = R2 = R` (shipped scenes: 1).
     pub radius: f64,
-    /// Material of both bodies (SCENES.md: E = 1, nu = 0.3).
+    /// Material of both bodies (shipped scenes: E = 1, nu = 0.3).
     pub material: Material,
-    /// Elements on each curved edge (SCENES.md: 78; hertz-fine 312); >= 3.
+    /// Elements on each curved edge (shipped scenes: 78; hertz-fine 312); >= 3.
     pub n_arc: usize,
     /// Element layers between flat face and arc (the Coons patch's short sides, see
     /// [`crate::mesh::half_disk`]); `None` = `round(7 n_arc / 78)`, giving 520 nodes per body at
@@ -33,7 +34,7 @@ pub struct HertzParams {
     pub n_side: Option<usize>,
 }
 
-/// Ironing scene (SCENES.md → ironing-coarse / ironing-fine).
+/// Ironing scene (docs/scenes.md#ironing-coarse-and-ironing-fine).
 ///
 /// ```text
 ///                 u = (d_x, -d_y) on the iron's top

@@ -1,5 +1,5 @@
 //! The two-body node-to-segment contact model as a [`ContactOperator`] for the online reduced
-//! solve (paper Sec. 2.3.2, Algorithm 1; SCENES.md → hertz, ironing). Type-2: the pairing is
+//! solve (paper Sec. 2.3.2, Algorithm 1; scenes hertz and ironing). Type-2: the pairing is
 //! recomputed at every linearisation.
 //!
 //! - dofs: all displacement dofs of both bodies, interleaved `(u_x, u_y)` per node;

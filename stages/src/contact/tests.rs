@@ -1,5 +1,5 @@
-//! Reference and validation tests of the 2-D contact scenes (SCENES.md → hertz, hertz-fine,
-//! ironing-coarse, ironing-fine), built from the shipped scene files `data/scenes/*.toml`.
+//! Reference and validation tests of the 2-D contact scenes (hertz, hertz-fine, ironing-coarse,
+//! ironing-fine; docs/scenes.md), built from the shipped scene files `data/scenes/*.toml`.
 
 use crom_schemas::scene::Model;
 
@@ -71,7 +71,7 @@ fn contact_force_on_slaves(fm: &FactoredModel, s: &Snapshot) -> f64 {
     s.pressure.iter().zip(fm.model().tributary_lengths()).map(|(p, l)| p * l).sum()
 }
 
-/// Hertz line contact (Johnson, *Contact Mechanics*, 1985, §4.3; SCENES.md → hertz):
+/// Hertz line contact (Johnson, *Contact Mechanics*, 1985, §4.3; docs/scenes.md, hertz):
 ///
 /// ```text
 ///          ===== u = (0, -d) =====
@@ -193,8 +193,8 @@ fn hertz_global_equilibrium() {
     }
 }
 
-/// KKT evidence over the whole hertz training set (SCENES.md: d_k = 0.025 k, k = 1..12), and
-/// the pressure is zero where the bodies do not touch (d = 0: contact at one point with no
+/// KKT evidence over the whole hertz training set (d_k = 0.025 k, k = 1..12, docs/scenes.md),
+/// and the pressure is zero where the bodies do not touch (d = 0: contact at one point with no
 /// load; d < 0: separated).
 #[test]
 fn hertz_kkt_over_training_set_and_no_contact_cases() {
@@ -268,8 +268,8 @@ fn numerical_rank(cols: &[Vec<f64>]) -> usize {
 }
 
 /// Ironing-coarse dual snapshot matrix over the main training set (128 equidistant d_x in
-/// [0, 3], SCENES.md): 101 x 128, so its rank could reach 101, but it is bounded by the number of
-/// slave nodes ever in contact (SCENES.md: "about 71" with this travel, x in [0.75, 4.25]).
+/// [0, 3], docs/scenes.md): 101 x 128, so its rank could reach 101, but it is bounded by the number
+/// of slave nodes ever in contact (about 71 with this travel, x in [0.75, 4.25]; docs/scenes.md).
 #[test]
 fn ironing_coarse_dual_rank_bounded_by_nodes_ever_in_contact() {
     let fm = ironing_coarse();
@@ -436,9 +436,9 @@ fn bad_inputs_are_errors() {
     assert!(matches!(fm.solve(&[0.2], &tight), Err(ContactError::NoConvergence { .. })));
 }
 
-/// Snapshot layout (SCENES.md): `u` holds all dofs of both bodies including the Dirichlet ones
-/// (the driven face moves by exactly the imposed displacement) and `pressure` one value per
-/// slave; mesh sizes are those documented in `mesh::half_disk`.
+/// Snapshot layout (docs/scenes.md#common-setting): `u` holds all dofs of both bodies including
+/// the Dirichlet ones (the driven face moves by exactly the imposed displacement) and `pressure`
+/// one value per slave; mesh sizes are those documented in `mesh::half_disk`.
 #[test]
 fn snapshot_layout_and_mesh_sizes() {
     let fm = hertz();

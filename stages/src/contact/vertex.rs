@@ -1,4 +1,5 @@
-//! Vertex-flip detection and ties (SCENES.md → ironing, last paragraph).
+//! Vertex-flip detection and ties (docs/scenes.md#contact-formulation, the vertices of the master
+//! polyline).
 //!
 //! Closest-point projection is not unique at a vertex of the master polyline: a slave near a
 //! vertex `v` can alternate between the two segments around `v` (or between a segment and the

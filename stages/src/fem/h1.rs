@@ -1,4 +1,5 @@
-//! The H1 norm of a Q1 displacement field (SCENES.md: primal norm for reconstruction errors).
+//! The H1 norm of a Q1 displacement field (the primal norm for reconstruction errors,
+//! docs/scenes.md#study-settings).
 //!
 //! For `u = (u_x, u_y)` on the mesh,
 //!

@@ -1,4 +1,5 @@
-//! Mapped quad mesh of a half-disk (the bodies of the Hertz scenes, SCENES.md → hertz).
+//! Mapped quad mesh of a half-disk (the bodies of the Hertz scenes,
+//! docs/scenes.md#hertz-and-hertz-fine).
 //!
 //! # Scheme: one Coons (transfinite) patch with two corners on the arc
 //!

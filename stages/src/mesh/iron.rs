@@ -1,5 +1,5 @@
-//! The iron of the ironing scenes (SCENES.md → ironing): a block with a flat top and a convex
-//! circular sole, meshed by exactly the mapping of SCENES.md.
+//! The iron of the ironing scenes (docs/scenes.md#ironing-coarse-and-ironing-fine): a block with
+//! a flat top and a convex circular sole, meshed by exactly the mapping given there.
 //!
 //! ```text
 //!   y = h  +----------------------------+   flat top (Dirichlet in the scenes)
@@ -15,15 +15,15 @@ use super::{Grid, MeshError};
 /// Geometry of the iron block.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IronGeometry {
-    /// x of the sole's lowest point (SCENES.md: 1.0).
+    /// x of the sole's lowest point (shipped scenes: 1.0).
     pub contact_x: f64,
-    /// y of the sole's lowest point (SCENES.md: 0.0, the slab's top).
+    /// y of the sole's lowest point (shipped scenes: 0.0, the slab's top).
     pub contact_y: f64,
-    /// Block width `w` (SCENES.md: 1).
+    /// Block width `w` (shipped scenes: 1).
     pub width: f64,
-    /// Height `h` from the sole's lowest point to the flat top (SCENES.md: 1).
+    /// Height `h` from the sole's lowest point to the flat top (shipped scenes: 1).
     pub height: f64,
-    /// Sole radius `R` (SCENES.md: 2); must exceed `w / 2`, and the sole must stay below the top.
+    /// Sole radius `R` (shipped scenes: 2); must exceed `w / 2`, and the sole must stay below the top.
     pub sole_radius: f64,
 }
 

@@ -1,4 +1,4 @@
-//! Structured and mapped quadrilateral meshes for the 2-D contact scenes (SCENES.md).
+//! Structured and mapped quadrilateral meshes for the 2-D contact scenes (docs/scenes.md).
 //!
 //! Every mesh here is built from one or more [`Grid`]s: an `(nx + 1) x (ny + 1)` lattice of nodes
 //! `node(i, j) = j (nx + 1) + i` mapped into the plane, with counter-clockwise bilinear quads
@@ -9,7 +9,8 @@
 //! - [`rectangle`]: the slab of the ironing scenes.
 //! - [`half_disk`]: the bodies of the Hertz scenes (a Coons patch, see its docs for the scheme and
 //!   the node counts it gives).
-//! - [`iron`]: the iron of the ironing scenes, exactly the mapping of SCENES.md.
+//! - [`iron`]: the iron of the ironing scenes, exactly the mapping of
+//!   docs/scenes.md#ironing-coarse-and-ironing-fine.
 
 mod grid;
 mod half_disk;

@@ -12,7 +12,7 @@
 //! * "dual cone": CPG of `S \ s_i` at tolerance 0 (every snapshot not already in the cone, in
 //!   CPG's selection order), cone projection (eq. 12) on the first m generators.
 //!
-//! Conventions (SCENES.md "Study settings"):
+//! Conventions (docs/scenes.md#study-settings):
 //!
 //! * The curve covers m = 1..=max_m. A fold whose basis has fewer than m vectors (rank of
 //!   `S \ s_i` below m, or CPG stopped earlier) uses its whole basis — the python slicing

@@ -14,7 +14,7 @@
 //!   N training snapshots; `alpha_ik` uniform in `[mu_k - sigma_k, mu_k + sigma_k]` for POD and
 //!   in `[max(0, mu_k - sigma_k), mu_k + sigma_k]` for the cone (the interval is clipped, so
 //!   every sample is a non-negative combination of non-negative generators — a pressure field,
-//!   SCENES.md). The POD basis is not centred (DESIGN.md), so no mean field is added.
+//!   docs/scenes.md#study-settings). The POD basis is not centred, so no mean field is added.
 //! * `min_j` runs over the training snapshots with `||s_j|| > 0`; zero ones are counted in
 //!   [`MetricCurve::n_zero`]. With no non-zero snapshot there is nothing to compare: count 0
 //!   and NaN for that m.
@@ -50,7 +50,7 @@ use crate::rng::Rng;
 /// Parameters of [`specificity_orth`] and [`specificity_cone`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SpecificityParams {
-    /// Number `N_s` of random members per basis size m (default 1000, SCENES.md).
+    /// Number `N_s` of random members per basis size m (default 1000, as in the shipped scenes).
     pub samples: usize,
     /// Seed of the sampler (default 0; scenes record their own `study.seed`).
     pub seed: u64,

@@ -1,4 +1,4 @@
-//! The rope-on-obstacle problem (Type-1, paper Sec. 3, eqs. 14–15; SCENES.md → rope).
+//! The rope-on-obstacle problem (Type-1, paper Sec. 3, eqs. 14–15; docs/scenes.md#rope).
 //!
 //! Find `u` on `[0, L]`, `u(0) = u(L) = 0`, minimising `∫ ½ ν u'² + f u dx` subject to
 //! `u(x) >= g(x, γ)`. Strong form: `-ν u'' + f = λ`, `λ >= 0`, `u - g >= 0`, `λ (u - g) = 0`.
@@ -35,7 +35,7 @@ pub(crate) mod fixtures {
     use crate::shipped::shipped_scene;
     use crate::snapshot::Snapshot;
 
-    /// The paper's rope, from the shipped `data/scenes/rope.toml` (SCENES.md → rope).
+    /// The paper's rope, from the shipped `data/scenes/rope.toml` (docs/scenes.md#rope).
     pub(crate) fn paper_rope() -> Rope {
         let Model::Rope(r) = shipped_scene("rope").expect("rope.toml").model else {
             panic!("rope.toml is a rope scene")

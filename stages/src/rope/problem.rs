@@ -1,6 +1,6 @@
 //! The discretised rope: grid, obstacle and the H1 norm.
 
-/// Physical and discretisation parameters of the rope (SCENES.md → rope).
+/// Physical and discretisation parameters of the rope (docs/scenes.md#rope).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RopeParams {
     /// Domain length `L`.
