@@ -279,7 +279,7 @@ fn ironing_coarse_dual_rank_bounded_by_nodes_ever_in_contact() {
     let cols: Vec<Vec<f64>> = snaps.iter().map(|s| s.pressure.clone()).collect();
     let rank = numerical_rank(&cols);
     assert!(rank <= ever, "rank {rank} > nodes ever in contact {ever}");
-    assert!((65..=77).contains(&ever), "nodes ever in contact: {ever} (SCENES.md: about 71)");
+    assert!((65..=77).contains(&ever), "nodes ever in contact: {ever} (docs/scenes.md: about 71)");
     assert!(ever < ns);
 }
 
