@@ -135,8 +135,8 @@ fn vector_parameters_are_checked_against_the_model() {
     let grid = base.replace("train_level = 4", "train_level = 4\nn_train = 9");
     let err = SceneConfig::from_toml_str(&grid, Path::new("bad.toml")).expect_err("two grids");
     assert_names(&err, &["parameter.axes[0].train_level"]);
-    // Too many points on a tensor grid.
-    let big = base.replace("train_level = 6", "train_level = 12");
+    // Too many points on a tensor grid: 8 193 x 17 = 139 281 > 2^17 + 1.
+    let big = base.replace("train_level = 6", "train_level = 13");
     let err = SceneConfig::from_toml_str(&big, Path::new("bad.toml")).expect_err("too many points");
     assert_names(&err, &["parameter", "training points"]);
 }
