@@ -12,8 +12,8 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::convert::{to_col, view};
-use super::graph::{Input, Shared, StageDef};
-use super::Ctx;
+use super::graph::{Input, StageDef};
+use super::{Ctx, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In, H5Out};

@@ -11,8 +11,8 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::convert::view;
-use super::graph::{Input, Shared, StageDef};
-use super::{basis, Ctx};
+use super::graph::{Input, StageDef};
+use super::{basis, Ctx, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::table::{Column, Table};

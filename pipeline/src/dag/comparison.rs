@@ -15,8 +15,8 @@ use crom_stages::dual::{Approach, Inner, Interpolation, MapKind};
 use serde::Serialize;
 use serde_json::json;
 
-use super::graph::{Input, Shared, StageDef};
-use super::Ctx;
+use super::graph::{Input, StageDef};
+use super::{Ctx, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;

@@ -14,14 +14,11 @@
 //! calls [`StageDef::run`]; dry-run, status, Slurm and the run summary read the same nodes.
 //! Adding a stage is one type in one file plus one `add` line in `Plan::of`.
 
-use std::collections::BTreeMap;
 use std::fmt::Debug;
 
 use crom_schemas::artifact::ArtifactKind;
 
-use super::approximation_online::OnlineBase;
-use super::snapshots::Columns;
-use super::{Ctx, LazyPhysics};
+use super::{Ctx, Shared};
 use crate::cache::Key;
 use crate::error::CromError;
 
@@ -48,26 +45,6 @@ pub(crate) enum Placement {
     Main,
     /// On the one worker beside it ([`super::beside`]): light, one core, no numerics.
     Beside,
-}
-
-/// What stages of one run hand each other in memory rather than through the store: the
-/// high-fidelity model (built on first use), the snapshot sweeps' index rows, the online
-/// approximations' shared base.
-#[derive(Debug)]
-pub(crate) struct Shared<'s> {
-    /// The high-fidelity model.
-    pub physics: LazyPhysics<'s>,
-    /// The index rows of each sweep run so far, by sweep number.
-    pub columns: BTreeMap<usize, Columns>,
-    /// The online approximations' full-order base.
-    pub online_base: Option<OnlineBase>,
-}
-
-impl<'s> Shared<'s> {
-    /// Nothing built yet.
-    pub(crate) fn new(scene: &'s crom_schemas::SceneConfig) -> Self {
-        Self { physics: LazyPhysics { scene, built: None }, columns: BTreeMap::new(), online_base: None }
-    }
 }
 
 /// A stage of the study, as data.

@@ -6,8 +6,8 @@ use crom_schemas::artifact::{mesh as names, ArtifactKind};
 use serde::Serialize;
 use serde_json::json;
 
-use super::graph::{Input, Shared, StageDef};
-use super::{Ctx, LazyPhysics};
+use super::graph::{Input, StageDef};
+use super::{Ctx, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5Out;

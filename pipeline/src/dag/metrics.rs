@@ -17,8 +17,8 @@ use serde_json::json;
 
 use super::basis::Ticker;
 use super::convert::view;
-use super::graph::{Input, Shared, StageDef};
-use super::{basis, trainset, Ctx};
+use super::graph::{Input, StageDef};
+use super::{basis, trainset, Ctx, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::h5::ColMatrix;

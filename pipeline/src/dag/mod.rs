@@ -320,7 +320,7 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     online: bool,
 ) -> Result<RunOutput, CromError> {
     let scene = ctx.scene;
-    let mut shared = graph::Shared::new(scene);
+    let mut shared = Shared::new(scene);
     let mut keys: BTreeMap<&str, Key> = BTreeMap::new();
     let mut beside = beside::Beside::new(scope);
     for node in &plan.nodes {
@@ -334,7 +334,7 @@ fn execute_in<'scope, 'env, 'a: 'env>(
             // Reserve the summary line in plan order; the worker adds its counts.
             ctx.record(node.kind.name(), 0, 0, ctx.store.dir(node.kind, &node.key));
             let stage = std::sync::Arc::clone(&node.stage);
-            beside.hand(node, ctx.beside(), Box::new(move |sub| stage.run(sub, &mut graph::Shared::new(scene))));
+            beside.hand(node, ctx.beside(), Box::new(move |sub| stage.run(sub, &mut Shared::new(scene))));
             continue;
         }
         let key = node.stage.run(ctx, &mut shared)?;
@@ -399,6 +399,26 @@ fn join_beside<'p>(
     check_key(ctx, node, &key)?;
     keys.insert(node.name.as_str(), key);
     Ok(())
+}
+
+/// What stages of one run hand each other in memory rather than through the store: the
+/// high-fidelity model (built on first use), the snapshot sweeps' index rows, the online
+/// approximations' shared base.
+#[derive(Debug)]
+pub(crate) struct Shared<'s> {
+    /// The high-fidelity model.
+    pub physics: LazyPhysics<'s>,
+    /// The index rows of each sweep run so far, by sweep number.
+    pub columns: BTreeMap<usize, snapshots::Columns>,
+    /// The online approximations' full-order base.
+    pub online_base: Option<approximation_online::OnlineBase>,
+}
+
+impl<'s> Shared<'s> {
+    /// Nothing built yet.
+    pub(crate) fn new(scene: &'s SceneConfig) -> Self {
+        Self { physics: LazyPhysics { scene, built: None }, columns: BTreeMap::new(), online_base: None }
+    }
 }
 
 /// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.

@@ -10,9 +10,9 @@ use crom_schemas::artifact::{
 };
 use serde_json::json;
 
-use super::graph::{Input, Shared, StageDef};
+use super::graph::{Input, StageDef};
 use super::loaded::Loaded;
-use super::{basis, Ctx};
+use super::{basis, Ctx, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;

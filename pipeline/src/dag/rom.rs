@@ -40,8 +40,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
 
-use super::graph::{Input, Shared, StageDef};
-use super::{trainset, Ctx, LazyPhysics};
+use super::graph::{Input, StageDef};
+use super::{trainset, Ctx, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In, H5Out};

@@ -23,8 +23,8 @@ use crom_stages::snapshot::{Snapshot, SolveStats};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::graph::{Input, Shared, StageDef};
-use super::{Ctx, LazyPhysics, PointCounts};
+use super::graph::{Input, StageDef};
+use super::{Ctx, LazyPhysics, PointCounts, Shared};
 use crate::cache::{params, Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;

@@ -18,8 +18,8 @@ use crom_schemas::artifact::{trainset as names, ArtifactKind};
 use serde::Serialize;
 use serde_json::json;
 
-use super::graph::{Input, Shared, StageDef};
-use super::Ctx;
+use super::graph::{Input, StageDef};
+use super::{Ctx, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{H5In, H5Out};

@@ -26,8 +26,8 @@ use crom_schemas::artifact::{views as names, ArtifactKind};
 use serde::Serialize;
 use serde_json::json;
 
-use super::graph::{Input, Placement, Shared, StageDef};
-use super::Ctx;
+use super::graph::{Input, Placement, StageDef};
+use super::{Ctx, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{H5In, H5Out, VirtualPiece};

@@ -399,7 +399,14 @@ impl ReducedModel {
             if nat.is_none() && l.masters_all && !first && l.proofs() {
                 nat = l.certified_pair(s, xs, travel, node_norm, *master_norm);
             }
-            Switches::check_proved(l, s, xs, nat, |l| l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm));
+            // Tests only (`verifies` is a constant false otherwise): a proved pairing against a
+            // search at the same positions, with every master in place.
+            if let (Some(q), true) = (nat, l.switches.verifies()) {
+                if !l.masters_all {
+                    l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm);
+                }
+                assert_eq!(q, l.index.closest_point(xs, &l.xm), "slave {s}: proved pairing is not the search's");
+            }
             let p = match nat {
                 Some(nat) => l.ties.pair_known(s, nat, xs, &l.xm, l.count),
                 None => {

@@ -4,10 +4,7 @@
 //! and whose checks do nothing, so production builds compute exactly what they would without
 //! it. Every test-only switch of the reduced solve lives in this file.
 
-use super::linearise::LinState;
-use crate::contact::pairing::Pair;
-
-/// Test switches of a [`LinState`] (empty outside tests).
+/// Test switches of the linearisation (empty outside tests).
 #[cfg(not(test))]
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Switches;
@@ -30,15 +27,10 @@ impl Switches {
     #[inline]
     pub(super) fn check_master_path(&self, _s: usize, _xm: &[[f64; 2]], _master_path: f64, _at: f64) {}
 
-    /// Nothing to check outside tests (`place` is not called).
+    /// Proved pairings are not checked against searches outside tests.
     #[inline]
-    pub(super) fn check_proved(
-        _l: &mut LinState,
-        _s: usize,
-        _xs: [f64; 2],
-        _nat: Option<Pair>,
-        _place: impl FnOnce(&mut LinState),
-    ) {
+    pub(super) fn verifies(&self) -> bool {
+        false
     }
 
     /// Nothing to record outside tests.
@@ -46,7 +38,7 @@ impl Switches {
     pub(super) fn record_search(&mut self, _s: usize, _ns: usize, _xm: &[[f64; 2]]) {}
 }
 
-/// Test switches of a [`LinState`].
+/// Test switches of the linearisation.
 #[cfg(test)]
 #[derive(Debug, Clone, Default)]
 pub(super) struct Switches {
@@ -78,27 +70,16 @@ impl Switches {
     /// `s`'s search (`master_path` now, `at` then).
     pub(super) fn check_master_path(&self, s: usize, xm: &[[f64; 2]], master_path: f64, at: f64) {
         if self.verify {
-            let actual =
-                xm.iter().zip(&self.cert_xm[s]).map(|(&a, &b)| super::linearise::distance(a, b)).fold(0.0f64, f64::max);
+            // The Euclidean distance of each master from its place at the search.
+            let distance = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+            let actual = xm.iter().zip(&self.cert_xm[s]).map(|(&a, &b)| distance(a, b)).fold(0.0f64, f64::max);
             assert!(actual <= (master_path - at) * (1.0 + 1e-12) + 1e-15, "slave {s}: {actual} moved");
         }
     }
 
-    /// With `verify`: every proved pairing `nat` of slave `s` at `xs` against a search at the
-    /// same positions (`place` puts every master in place first if needed).
-    pub(super) fn check_proved(
-        l: &mut LinState,
-        s: usize,
-        xs: [f64; 2],
-        nat: Option<Pair>,
-        place: impl FnOnce(&mut LinState),
-    ) {
-        if let (Some(q), true) = (nat, l.switches.verify) {
-            if !l.masters_all {
-                place(l);
-            }
-            assert_eq!(q, l.index.closest_point(xs, &l.xm), "slave {s}: proved pairing is not the search's");
-        }
+    /// Whether every proved pairing is checked against a search at the same positions.
+    pub(super) fn verifies(&self) -> bool {
+        self.verify
     }
 
     /// With `verify`: record the masters `xm` at slave `s`'s search (`ns` slaves).
