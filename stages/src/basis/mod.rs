@@ -12,6 +12,7 @@ mod cpg;
 mod cpg_reference;
 mod frame;
 mod gram_condition;
+mod lazy;
 mod pod;
 
 pub use cpg::{
@@ -21,7 +22,7 @@ pub use cpg_reference::cpg_reference;
 pub use frame::{frame, frame_pays_up_to, frame_within, Frame, FRAME_BLOCK};
 pub use gram_condition::gram_condition_path;
 
-pub(crate) use cpg::LazyGreedy;
+pub(crate) use lazy::LazyGreedy;
 pub use pod::{
     numerical_rank, pod, pod_direct, pod_frame, pod_full, tail_energies, truncation_rank, Pod, PodError, PodParams,
     POD_FRAME_ABOVE,
