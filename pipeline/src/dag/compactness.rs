@@ -69,14 +69,14 @@ fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key, basis_key: &Key) -> Resul
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let scene = ctx.scene.scene.name.clone();
     let (progress, max_rank) = (ctx.progress, basis::max_rank(ctx));
-    let scene_cfg = ctx.scene.clone();
+    let tols = basis::cone_tols(ctx.scene);
     ctx.single(ArtifactKind::Compactness, "compactness", spec, |staging| {
         let set = loaded.set(store, train)?;
         let b = loaded.bases(store, basis_key)?;
         let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
         let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
         // C(m) of the stored cone basis: the prefix of the CPG path's curve (the same pass).
-        let path = basis::dual_path(progress, basis::cone_tols(&scene_cfg), train, &set.dual, max_rank)
+        let path = basis::dual_path(progress, tols, train, &set.dual, max_rank)
             .map_err(|message| CromError::Numerical { stage: "compactness", scene: scene.clone(), message })?;
         let cone = path.compactness[..=b.dual_cpg.cols.min(path.len())].to_vec();
         let mut t = Rows::default();

@@ -219,13 +219,12 @@ fn generalization(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key) -> Result<Key,
     let scene = ctx.scene.scene.name.clone();
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
-    let scene_cfg = ctx.scene.clone();
+    let tols = basis::cone_tols(ctx.scene);
     ctx.single(ArtifactKind::Generalization, "generalization", spec, |staging| {
         let set = loaded.set(store, train)?;
         let max_m = set.dual.cols.saturating_sub(1).min(max_rank);
         let fail = |e: String| numerical(&scene, "generalization", e);
-        let path =
-            basis::dual_path(progress, basis::cone_tols(&scene_cfg), train, &set.dual, max_rank).map_err(fail)?;
+        let path = basis::dual_path(progress, tols, train, &set.dual, max_rank).map_err(fail)?;
         let bar = Ticker::new(progress, "LOO folds", 3 * folds.len());
         let mut rows = CurveRows::default();
         for (field, s) in [("primal", &set.primal), ("dual", &set.dual)] {
@@ -291,11 +290,11 @@ fn specificity(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key, basis_key: &Key) 
     let scene = ctx.scene.scene.name.clone();
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
-    let scene_cfg = ctx.scene.clone();
+    let tols = basis::cone_tols(ctx.scene);
     ctx.single(ArtifactKind::Specificity, "specificity", spec, |staging| {
         let set = loaded.set(store, train)?;
         let b = loaded.bases(store, basis_key)?;
-        let path = basis::dual_path(progress, basis::cone_tols(&scene_cfg), train, &set.dual, max_rank)
+        let path = basis::dual_path(progress, tols, train, &set.dual, max_rank)
             .map_err(|e| numerical(&scene, "specificity", e))?;
         let pm = view(&b.primal_pod).subcols(0, b.primal_pod.cols.min(max_rank));
         let dm = view(&b.dual_pod).subcols(0, b.dual_pod.cols.min(max_rank));

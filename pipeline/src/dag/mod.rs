@@ -264,7 +264,7 @@ impl<'a> Ctx<'a> {
 /// nested points — and stop: `crom solve`. The other stages are left for `crom run`.
 pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
     let scene = ctx.scene;
-    let mut physics = LazyPhysics { scene, built: None };
+    let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene))?;
     for sweep in snapshots::sweeps(scene, &mesh_key) {
         snapshots::run(ctx, &mut physics, &mesh_key, &sweep)?;
@@ -276,7 +276,7 @@ pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
 /// what killed writers left in the scene's column family.
 pub fn prepare_sweeps(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
     let scene = ctx.scene;
-    let mut physics = LazyPhysics { scene, built: None };
+    let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene))?;
     let family = snapshots::scene_family(scene, &mesh_key);
     if let Some(f) = crate::store::columns::ColumnFamily::find(ctx.store.root(), &family)? {
@@ -290,7 +290,7 @@ pub fn prepare_sweeps(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
 /// and append their blocks. The mesh artifact is not written (the planner writes it).
 pub fn work_shard(ctx: &mut Ctx<'_>, k: usize, n: usize) -> Result<PointCounts, CromError> {
     let scene = ctx.scene;
-    let mut physics = LazyPhysics { scene, built: None };
+    let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::spec(scene).key();
     let sweeps = snapshots::sweeps(scene, &mesh_key);
     snapshots::work(ctx, &mut physics, &mesh_key, &sweeps, k, n)
@@ -417,18 +417,23 @@ pub(crate) struct Shared<'s> {
 impl<'s> Shared<'s> {
     /// Nothing built yet.
     pub(crate) fn new(scene: &'s SceneConfig) -> Self {
-        Self { physics: LazyPhysics { scene, built: None }, columns: BTreeMap::new(), online_base: None }
+        Self { physics: LazyPhysics::new(scene), columns: BTreeMap::new(), online_base: None }
     }
 }
 
 /// The high-fidelity model, built on first use: a fully cached run never meshes or factorises.
 #[derive(Debug)]
 pub(crate) struct LazyPhysics<'s> {
-    pub(crate) scene: &'s SceneConfig,
-    pub(crate) built: Option<Physics>,
+    scene: &'s SceneConfig,
+    built: Option<Physics>,
 }
 
-impl LazyPhysics<'_> {
+impl<'s> LazyPhysics<'s> {
+    /// Nothing built yet.
+    pub(crate) fn new(scene: &'s SceneConfig) -> Self {
+        Self { scene, built: None }
+    }
+
     /// The model, building it if needed.
     pub(crate) fn get(&mut self) -> Result<&Physics, CromError> {
         if self.built.is_none() {

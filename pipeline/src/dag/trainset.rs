@@ -52,7 +52,7 @@ pub(crate) use crate::io::snapshot_set::TrainingSet;
 
 /// The set's key spec: name, parameter values, snapshot keys. A scalar parameter keys its
 /// values as a flat list (as it always did).
-pub(crate) fn spec(set: &str, points: &[Vec<f64>], keys: &[&Key]) -> KeySpec {
+fn spec(set: &str, points: &[Vec<f64>], keys: &[&Key]) -> KeySpec {
     let values = if points.iter().all(|p| p.len() == 1) {
         Values::Scalar(points.iter().map(|p| p[0]).collect())
     } else {

@@ -264,17 +264,17 @@ fn write_series(
 }
 
 /// Key spec of the views of the snapshot set `set` stored as `set_key`.
-pub(crate) fn set_spec(set: &str, set_key: &Key, mesh: &Key) -> KeySpec {
+fn set_spec(set: &str, set_key: &Key, mesh: &Key) -> KeySpec {
     KeySpec::of(&ViewsKey { subject: "set", set: Some(set) }).input("set", set_key).input("mesh", mesh)
 }
 
 /// Key spec of the views of the basis artifact `basis`.
-pub(crate) fn basis_spec(basis: &Key, mesh: &Key) -> KeySpec {
+fn basis_spec(basis: &Key, mesh: &Key) -> KeySpec {
     KeySpec::of(&ViewsKey { subject: "basis", set: None }).input("basis", basis).input("mesh", mesh)
 }
 
 /// Key spec of the views of the online solutions.
-pub(crate) fn online_spec(rom: &Key, test: &Key, mesh: &Key) -> KeySpec {
+fn online_spec(rom: &Key, test: &Key, mesh: &Key) -> KeySpec {
     KeySpec::of(&ViewsKey { subject: "online", set: None }).input("rom", rom).input("test", test).input("mesh", mesh)
 }
 

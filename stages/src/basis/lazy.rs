@@ -76,13 +76,18 @@ impl WideCone {
     }
 
     fn theta(&self) -> MatRef<'_, f64> {
-        MatRef::from_column_major_slice(&self.data[..self.n * self.cols], self.n, self.cols)
+        columns(&self.data, self.n, self.cols)
     }
 
     fn push(&mut self, column: &[f64]) {
         self.data.extend_from_slice(column);
         self.cols += 1;
     }
+}
+
+/// The first `cols` columns of `n` rows stored column-major in `data`.
+fn columns(data: &[f64], n: usize, cols: usize) -> MatRef<'_, f64> {
+    MatRef::from_column_major_slice(&data[..n * cols], n, cols)
 }
 
 /// A lazily maintained greedy selection; see the module docs.
@@ -190,13 +195,9 @@ impl<'a> LazyGreedy<'a> {
     /// A projector (with its Gram matrix) onto the cone of the first `m` generators.
     pub(super) fn prefix(&self, m: usize) -> ConeProjector {
         match &self.wide {
-            Some(w) => ConeProjector::new(w.theta().subcols(0, m), self.projector_params()),
+            Some(w) => ConeProjector::new(w.theta().subcols(0, m), self.projector.params()),
             None => self.projector.prefix(m),
         }
-    }
-
-    fn projector_params(&self) -> NnlsParams {
-        self.projector.params()
     }
 
     /// Re-project candidate j on the current cone without its Gram matrix, warm-started from
@@ -205,7 +206,8 @@ impl<'a> LazyGreedy<'a> {
         let Some(wide) = self.wide.as_mut() else { unreachable!("refresh_wide on a Gram cone") };
         let m = wide.cols;
         copy_column(self.s, j, &mut self.lambda);
-        let theta = MatRef::from_column_major_slice(&wide.data[..wide.n * m], wide.n, m);
+        // `wide.theta()` would borrow the workspace `wide.nnls` projects with.
+        let theta = columns(&wide.data, wide.n, m);
         let err = wide.nnls.project(theta, &self.lambda, &mut self.coeffs[j]).map(|r| r / self.norms[j]);
         if let (Ok(err), Some(h)) = (&err, self.history.as_mut().filter(|_| m < self.record_below)) {
             let mut coeffs = vec![0.0; m];
