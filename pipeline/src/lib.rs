@@ -105,7 +105,7 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
 fn new_ctx<'a>(cli: &Cli, store: &'a Store, scene: &'a SceneConfig) -> dag::Ctx<'a> {
     dag::Ctx {
         store,
-        scene,
+        scene_name: scene.scene.name.clone(),
         command: std::env::args().collect::<Vec<_>>().join(" "),
         progress: Progress::new(cli.quiet),
         records: Vec::new(),
@@ -159,7 +159,7 @@ fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
     let scene = load_scene(cli, scene_arg)?;
     let store = Store::open(&cli.store)?;
     let mut ctx = new_ctx(cli, &store, &scene);
-    let result = dag::solve_points(&mut ctx);
+    let result = dag::solve_points(&mut ctx, &scene);
     summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok(), None);
     result
 }
@@ -183,7 +183,7 @@ fn work(cli: &Cli, scene_arg: &str, k: usize, n: usize) -> Result<(), CromError>
     for w in &ctx.warnings {
         eprintln!("warning: {w}");
     }
-    let result = dag::work_shard(&mut ctx, k, n);
+    let result = dag::work_shard(&mut ctx, &scene, k, n);
     let p = ctx.points;
     record.solved = p.solved;
     record.reused = p.reused;
@@ -215,7 +215,7 @@ fn slurm_sweep(cli: &Cli, scene_arg: &str, flags: &cli::SlurmFlags) -> Result<()
     match Store::open(&root) {
         Ok(store) => {
             let mut ctx = new_ctx(cli, &store, &scene);
-            dag::prepare_sweeps(&mut ctx)?;
+            dag::prepare_sweeps(&mut ctx, &scene)?;
         }
         // Workers of an earlier submission hold the store: wait for that job (sweep does).
         Err(CromError::Locked { .. })
@@ -240,7 +240,7 @@ fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput,
     let scene = load_scene(cli, scene_arg)?;
     let store = Store::open(&cli.store)?;
     let mut ctx = new_ctx(cli, &store, &scene);
-    let mut result = dag::run_scene(&mut ctx, online);
+    let mut result = dag::run_scene(&mut ctx, &scene, online);
     // A snapshot column that fails its checksum: move its block aside and run again, which
     // solves exactly that block's points and rewrites the sets that referred to it.
     if let Err(CromError::CorruptColumns { block, message, .. }) = &result {
@@ -248,7 +248,7 @@ fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput,
         ctx.warnings.push(format!("{message}; block moved to {} and its points solved again", to.display()));
         ctx.records.clear();
         ctx.points = dag::PointCounts::default();
-        result = dag::run_scene(&mut ctx, online);
+        result = dag::run_scene(&mut ctx, &scene, online);
     }
     // Only a finished run names its artifacts; a failed one leaves the previous names.
     if let Ok(out) = &result {

@@ -13,7 +13,7 @@ use crate::store::{catalog, Store};
 /// Output errors (a closed pipe) are ignored: the summary is informational.
 pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool, report: Option<&std::path::Path>) {
     let mut out = std::io::stdout().lock();
-    let name = &ctx.scene.scene.name;
+    let name = &ctx.scene_name;
     let _ = writeln!(out, "crom run {name}: {} in {seconds:.2} s", if ok { "done" } else { "stopped" });
     let _ = writeln!(out, "  {:<21} {:>9} {:>7}  artifact", "stage", "computed", "cached");
     for r in &ctx.records {

@@ -303,8 +303,14 @@ impl StudySpec {
             .loo_folds
             .unwrap_or(if n_snapshots <= DEFAULT_MAX_RANK { n_snapshots } else { DEFAULT_MAX_RANK })
             .min(n_snapshots);
-        (0..f).map(|k| k * n_snapshots / f).collect()
+        spaced_folds(f, n_snapshots)
     }
+}
+
+/// `f` evenly spaced leave-one-out folds of `n` snapshots, `i_k = floor(k n / f)`, k = 0..f
+/// (every fold when `f = n`): the folds of [`StudySpec::loo_folds_for`], from their count.
+pub fn spaced_folds(f: usize, n: usize) -> Vec<usize> {
+    (0..f).map(|k| k * n / f).collect()
 }
 
 impl SceneConfig {

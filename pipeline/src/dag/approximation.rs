@@ -20,7 +20,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::basis::Ticker;
-use super::comparison::{contact_x, item, THRESHOLDS};
+use super::comparison::{self, contact_x, item, THRESHOLDS};
 use super::convert::view;
 use super::graph::{Input, StageDef};
 use super::{Ctx, Shared};
@@ -31,10 +31,10 @@ use crate::io::table::{Column, Table};
 use crate::store::Staging;
 
 /// What determines one approximation's artifact besides its inputs.
-#[derive(Debug, Serialize)]
-struct ApproximationKey<'a> {
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct ApproximationKey {
     /// The approximation (a `local` entry with one cell count).
-    approximation: &'a ApproximationSpec,
+    approximation: ApproximationSpec,
     max_m: usize,
     loo_folds: usize,
     nnls: NnlsKey,
@@ -43,7 +43,7 @@ struct ApproximationKey<'a> {
     seed: u64,
 }
 
-impl StageKey for ApproximationKey<'_> {
+impl StageKey for ApproximationKey {
     const KIND: ArtifactKind = ArtifactKind::Approximation;
     /// Bump when a number of an approximation changes (2: the CPG floor).
     const ALGORITHM_VERSION: u32 = 2;
@@ -53,32 +53,40 @@ impl StageKey for ApproximationKey<'_> {
 /// run once, with all its atoms); `bases.h5` holds the basis of each.
 pub(crate) const ONLINE_MS: [usize; 7] = [1, 2, 3, 5, 8, 16, 32];
 
-/// The key spec of approximation `index` of the scene's comparison (in [`items`] order; None
-/// without `[comparison]` or past its end); `nested` are the nested levels' sets (level n at
+impl ApproximationKey {
+    /// The settings of approximation `index` of the scene's comparison (in
+    /// `comparison::items` order); None without `[comparison]` or past its end.
+    fn of(scene: &SceneConfig, index: usize) -> Option<Self> {
+        let (cmp, item) = item(scene, index)?;
+        Some(Self {
+            approximation: item.spec,
+            max_m: cmp.max_m,
+            loo_folds: cmp.loo_folds,
+            nnls: NnlsKey::used(),
+            specificity_samples: scene.study.specificity_samples,
+            seed: scene.study.seed,
+        })
+    }
+}
+
+/// The key spec of the approximation `key`; `nested` are the nested levels' sets (level n at
 /// index n - 1), for H(n).
-fn spec(scene: &SceneConfig, index: usize, train: &Key, test: &Key, mesh: &Key, nested: &[Key]) -> Option<KeySpec> {
-    let (cmp, item) = item(scene, index)?;
-    let key = ApproximationKey {
-        approximation: &item.spec,
-        max_m: cmp.max_m,
-        loo_folds: cmp.loo_folds,
-        nnls: NnlsKey::used(),
-        specificity_samples: scene.study.specificity_samples,
-        seed: scene.study.seed,
-    };
-    let mut spec = KeySpec::of(&key).input("train", train).input("test", test).input("mesh", mesh);
+fn spec(key: &ApproximationKey, train: &Key, test: &Key, mesh: &Key, nested: &[Key]) -> KeySpec {
+    let mut spec = KeySpec::of(key).input("train", train).input("test", test).input("mesh", mesh);
     for (i, k) in nested.iter().enumerate() {
         spec = spec.input(&format!("level{}", i + 1), k);
     }
-    Some(spec)
+    spec
 }
 
 /// Dual approximation `index` of the comparison (in `comparison::items` order), measured
-/// offline.
+/// offline, computed from its key ([`ApproximationKey`]).
 #[derive(Debug)]
 pub(crate) struct ApproximationStage {
     pub spec: KeySpec,
-    pub index: usize,
+    pub settings: ApproximationKey,
+    /// The scene's name, in the tables.
+    pub scene: String,
     pub train: Input,
     pub test: Input,
     pub mesh: Input,
@@ -97,8 +105,9 @@ impl ApproximationStage {
         nested: Vec<Input>,
     ) -> Option<Self> {
         let keys: Vec<Key> = nested.iter().map(|l| l.key.clone()).collect();
-        let spec = spec(scene, index, &train.key, &test.key, &mesh.key, &keys)?;
-        Some(Self { spec, index, train, test, mesh, nested })
+        let settings = ApproximationKey::of(scene, index)?;
+        let spec = spec(&settings, &train.key, &test.key, &mesh.key, &keys);
+        Some(Self { spec, settings, scene: scene.scene.name.clone(), train, test, mesh, nested })
     }
 }
 
@@ -116,40 +125,31 @@ impl StageDef for ApproximationStage {
     }
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         let keys: Vec<Key> = self.nested.iter().map(|l| l.key.clone()).collect();
-        run(ctx, &self.spec, self.index, &self.train.key, &self.test.key, &self.mesh.key, &keys)
+        run(ctx, &self.spec, (&self.settings, &self.scene), &self.train.key, &self.test.key, &self.mesh.key, &keys)
     }
 }
 
-/// Build and measure approximation `index`; returns the artifact's key.
+/// Build and measure the approximation `settings`; returns the artifact's key.
 fn run(
     ctx: &mut Ctx<'_>,
     spec: &KeySpec,
-    index: usize,
+    (settings, scene): (&ApproximationKey, &str),
     train: &Key,
     test: &Key,
     mesh: &Key,
     nested: &[Key],
 ) -> Result<Key, CromError> {
-    let scene_cfg = ctx.scene;
-    let found = item(scene_cfg, index).map(|(c, i)| (c.clone(), i));
-    let Some((cmp, item)) = found else {
-        return Err(CromError::artifact(
-            "comparison",
-            format!("the scene's [comparison] has no approximation number {index}"),
-            "run the scene's own plan (`crom run`), which lists its approximations",
-        ));
-    };
-    let scene = scene_cfg.scene.name.clone();
-    let (samples, seed) = (scene_cfg.study.specificity_samples, scene_cfg.study.seed);
+    let item = comparison::item_of(&settings.approximation);
+    let (samples, seed) = (settings.specificity_samples, settings.seed);
+    let (max_m, loo_folds) = (settings.max_m, settings.loo_folds);
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
     ctx.single(ArtifactKind::Approximation, "approximation", spec, |staging| {
         let set = loaded.set(store, train)?;
         let tset = loaded.set(store, test)?;
         let surface = contact_x(store, mesh)?;
         let n_train = set.parameters.len();
-        let ms = dual::m_grid(cmp.max_m.min(n_train));
-        let f = cmp.loo_folds.min(n_train);
-        let folds: Vec<usize> = (0..f).map(|k| k * n_train / f).collect();
+        let ms = dual::m_grid(max_m.min(n_train));
+        let folds = crom_schemas::scene::spaced_folds(loo_folds.min(n_train), n_train);
         let training = Training { snapshots: view(&set.dual), params: &set.parameters, surface: &surface, ms: &ms };
         // The nested levels' pressures and parameters (small: n_contact x (2^n + 1) each).
         let mut levels = Vec::new();
@@ -158,13 +158,13 @@ fn run(
             levels.push((set.dual, set.parameters));
         }
         let bar = Ticker::new(progress, &format!("approximation {}", item.name), folds.len() + 2);
-        let mut out = Rows { scene: scene.clone(), ..Rows::default() };
+        let mut out = Rows { scene: scene.to_string(), ..Rows::default() };
         {
             let a = &item.approach;
             let name = item.name.clone();
             let fail = |e: dual::DualError| CromError::Numerical {
                 stage: "approximation",
-                scene: scene.clone(),
+                scene: scene.to_string(),
                 message: format!("{name}: {e}"),
             };
             let t0 = Instant::now();
@@ -200,7 +200,7 @@ fn run(
             }
             for (n, pair) in levels.windows(2).enumerate() {
                 let (lo, hi) = (&pair[0], &pair[1]);
-                let lo_ms = dual::m_grid(cmp.max_m.min(lo.1.len()));
+                let lo_ms = dual::m_grid(max_m.min(lo.1.len()));
                 let lower = Training { snapshots: view(&lo.0), params: &lo.1, surface: &surface, ms: &lo_ms };
                 // A level too small for the approach (a local basis with more cells than the
                 // level has points) has no H(n): no row, counted in the facts.
@@ -228,7 +228,7 @@ fn run(
             }
             out.times.push((name.clone(), build_seconds, metrics_seconds));
             if !model.depends_on_mu() && a.has_cone_basis() && !matches!(a, Approach::Dictionary) {
-                write_bases(staging, &scene, model.as_ref(), &set.parameters[0])?;
+                write_bases(staging, scene, model.as_ref(), &set.parameters[0])?;
             }
         }
         bar.finish(&format!("{}, m <= {}", item.name, ms.last().copied().unwrap_or(0)));

@@ -34,7 +34,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::approximation::ONLINE_MS;
-use super::comparison::{contact_x, item};
+use super::comparison::{self, contact_x, item};
 use super::convert::view;
 use super::graph::{Input, StageDef};
 use super::rom::{dual_error, fastest, fom_seconds, response_basis};
@@ -45,9 +45,9 @@ use crate::io::h5::H5In;
 use crate::io::table::{Column, Table};
 
 /// What determines one approximation's online artifact besides its inputs.
-#[derive(Debug, Serialize)]
-struct OnlineApproximationKey<'a> {
-    approximation: &'a ApproximationSpec,
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct OnlineApproximationKey {
+    approximation: ApproximationSpec,
     max_m: usize,
     nnls: NnlsKey,
     max_iter: usize,
@@ -57,45 +57,42 @@ struct OnlineApproximationKey<'a> {
     ws_start: usize,
 }
 
-impl StageKey for OnlineApproximationKey<'_> {
+impl StageKey for OnlineApproximationKey {
     const KIND: ArtifactKind = ArtifactKind::OnlineApproximation;
     /// Bump when a number of the online solve changes (3: Newton-corrected re-pairing steps,
     /// design note 42).
     const ALGORITHM_VERSION: u32 = 3;
 }
 
-/// The key spec of approximation `index`'s online stage (None without `[comparison]`, past
-/// its end, or for an approximation without a non-negative basis); `approximation` is the key
-/// of its offline artifact.
-fn spec(
-    scene: &SceneConfig,
-    index: usize,
-    train: &Key,
-    test: &Key,
-    mesh: &Key,
-    approximation: &Key,
-) -> Option<KeySpec> {
-    let (cmp, item) = item(scene, index)?;
-    if !item.approach.has_cone_basis() {
-        return None;
+impl OnlineApproximationKey {
+    /// The settings of approximation `index`'s online stage (None without `[comparison]`, past
+    /// its end, or for an approximation without a non-negative basis).
+    fn of(scene: &SceneConfig, index: usize) -> Option<Self> {
+        let (cmp, item) = item(scene, index)?;
+        if !item.approach.has_cone_basis() {
+            return None;
+        }
+        let p = RomParams::default();
+        Some(Self {
+            approximation: item.spec,
+            max_m: cmp.max_m,
+            nnls: NnlsKey::used(),
+            max_iter: p.max_iter,
+            gap_tol: p.gap_tol,
+            u_tol: p.u_tol,
+            ws_start: WS_START,
+        })
     }
-    let p = RomParams::default();
-    let key = OnlineApproximationKey {
-        approximation: &item.spec,
-        max_m: cmp.max_m,
-        nnls: NnlsKey::used(),
-        max_iter: p.max_iter,
-        gap_tol: p.gap_tol,
-        u_tol: p.u_tol,
-        ws_start: WS_START,
-    };
-    Some(
-        KeySpec::of(&key)
-            .input("train", train)
-            .input("test", test)
-            .input("mesh", mesh)
-            .input("approximation", approximation),
-    )
+
+    /// The exact online solve's settings.
+    fn rom_params(&self) -> RomParams {
+        RomParams { algorithm: Algorithm::Exact, max_iter: self.max_iter, gap_tol: self.gap_tol, u_tol: self.u_tol }
+    }
+}
+
+/// The key spec of the online stage `key`; `approximation` is the key of its offline artifact.
+fn spec(key: &OnlineApproximationKey, train: &Key, test: &Key, mesh: &Key, approximation: &Key) -> KeySpec {
+    KeySpec::of(key).input("train", train).input("test", test).input("mesh", mesh).input("approximation", approximation)
 }
 
 /// What every approximation's online stage shares in one process: the primal basis and the
@@ -125,11 +122,14 @@ struct Query {
     nonzero: usize,
 }
 
-/// The online solve with dual approximation `index` (one with a non-negative basis).
+/// The online solve with dual approximation `index` (one with a non-negative basis), computed
+/// from its key ([`OnlineApproximationKey`]).
 #[derive(Debug)]
 pub(crate) struct OnlineApproximationStage {
     pub spec: KeySpec,
-    pub index: usize,
+    pub settings: OnlineApproximationKey,
+    /// The scene's name, in the tables.
+    pub scene: String,
     pub train: Input,
     pub test: Input,
     pub mesh: Input,
@@ -147,8 +147,9 @@ impl OnlineApproximationStage {
         mesh: Input,
         approximation: Input,
     ) -> Option<Self> {
-        let spec = spec(scene, index, &train.key, &test.key, &mesh.key, &approximation.key)?;
-        Some(Self { spec, index, train, test, mesh, approximation })
+        let settings = OnlineApproximationKey::of(scene, index)?;
+        let spec = spec(&settings, &train.key, &test.key, &mesh.key, &approximation.key);
+        Some(Self { spec, settings, scene: scene.scene.name.clone(), train, test, mesh, approximation })
     }
 }
 
@@ -164,11 +165,12 @@ impl StageDef for OnlineApproximationStage {
     }
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
         let keys = [&self.train.key, &self.test.key, &self.mesh.key, &self.approximation.key];
-        run(ctx, &mut shared.physics, &mut shared.online_base, &self.spec, self.index, keys)
+        let labelled = (&self.settings, self.scene.as_str());
+        run(ctx, &mut shared.physics, &mut shared.online_base, &self.spec, labelled, keys)
     }
 }
 
-/// Run the online solve with approximation `index`; returns the artifact's key. `shared` is
+/// Run the online solve with the approximation `settings`; returns the artifact's key. `shared` is
 /// the process's [`OnlineBase`] (built here on first use); `keys` are the training set's, the
 /// test set's, the mesh's and the offline approximation's.
 fn run(
@@ -176,18 +178,10 @@ fn run(
     physics: &mut LazyPhysics<'_>,
     shared: &mut Option<OnlineBase>,
     spec: &KeySpec,
-    index: usize,
+    (settings, scene): (&OnlineApproximationKey, &str),
     [train, test, mesh, approximation]: [&Key; 4],
 ) -> Result<Key, CromError> {
-    let scene_cfg = ctx.scene;
-    let found = item(scene_cfg, index).map(|(c, i)| (c.clone(), i));
-    let Some((cmp, item)) = found else {
-        return Err(CromError::artifact(
-            "online-approximation",
-            format!("the scene's [comparison] has no approximation number {index} with a non-negative basis"),
-            "run the scene's own plan (`crom run`), which lists its approximations",
-        ));
-    };
+    let item = comparison::item_of(&settings.approximation);
     let key = spec.key();
     let label = format!("online {}", item.name);
     if ctx.lookup(ArtifactKind::OnlineApproximation, &key)?.is_some() {
@@ -195,11 +189,10 @@ fn run(
         ctx.record("online-approximation", 0, 1, ctx.store.dir(ArtifactKind::OnlineApproximation, &key));
         return Ok(key);
     }
-    let scene = scene_cfg.scene.name.clone();
     let name = item.name.clone();
     let fail = |m: String| CromError::Numerical {
         stage: "online-approximation",
-        scene: scene.clone(),
+        scene: scene.to_string(),
         message: format!("{name}: {m}"),
     };
     let phys = physics.get()?;
@@ -219,7 +212,7 @@ fn run(
     }
     let Some(b) = shared.as_ref() else { return Err(fail("the shared reduced model was not built".into())) };
     let nc = test_set.dual.rows;
-    let params = RomParams { algorithm: Algorithm::Exact, ..RomParams::default() };
+    let params = settings.rom_params();
     let mut progress = ctx.progress.stage(&label, 1);
     let errors = |j: usize, rm: &ReducedModel, sol: &crom_stages::rom::ReducedSolution| {
         (b.errors.relative(j, &sol.u_hat), dual_error(op, rm, sol, &test_set, j))
@@ -228,7 +221,7 @@ fn run(
     let bases_path = ctx.store.dir(ArtifactKind::Approximation, approximation).join(names::BASES);
     if matches!(item.approach, Approach::Dictionary) {
         // Every training snapshot an atom, solved by a working set (column generation).
-        let ws = WorkingSet::new(view(&train_set.dual), &train_set.parameters, op.weights(), WS_START);
+        let ws = WorkingSet::new(view(&train_set.dual), &train_set.parameters, op.weights(), settings.ws_start);
         let queries = solve_dictionary(&ws, &b.model, &test_set.parameters, &params, errors);
         rows.push(&name, ws.len(), b.r_primal, &queries, b.fom_median);
     } else if bases_path.exists() {
@@ -245,7 +238,7 @@ fn run(
         }
     } else {
         let surface = contact_x(ctx.store, mesh)?;
-        let ms = dual::m_grid(cmp.max_m.min(train_set.parameters.len()));
+        let ms = dual::m_grid(settings.max_m.min(train_set.parameters.len()));
         let training =
             Training { snapshots: view(&train_set.dual), params: &train_set.parameters, surface: &surface, ms: &ms };
         let model = dual::build(&item.approach, &training).map_err(|e| fail(e.to_string()))?;
@@ -261,7 +254,7 @@ fn run(
         }
     }
     let staging = ctx.store.stage(spec)?;
-    let (results, times) = rows.tables(&scene);
+    let (results, times) = rows.tables(scene);
     results.write_parquet(&staging.path(names::ONLINE))?;
     times.write_parquet(&staging.path(names::ONLINE_TIMINGS))?;
     let summary = std::collections::BTreeMap::from([

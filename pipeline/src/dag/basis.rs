@@ -36,32 +36,36 @@ static DUAL_PATH: Mutex<Option<PathMemo>> = Mutex::new(None);
 struct PathMemo {
     train: String,
     max_rank: usize,
-    tols: [u64; 2],
+    tols: Vec<u64>,
     path: Arc<CpgPath>,
 }
 
 /// The CPG path of the dual snapshots `dual` of training set `train`, recording the metrics'
-/// data up to `max_rank`, with the cone tolerances `tols` (full, truncated): computed once per run (with a progress bar), then shared. Above
-/// `crom_stages::basis::DENSE_CURVE_MAX` snapshots its curve C(m) is on a rank grid, with the
-/// scene's two cone tolerances located exactly (so both bases are the whole curve's).
+/// data up to `max_rank`, with the cone tolerances `tols` located exactly: computed once per
+/// run (with a progress bar), then shared. Above `crom_stages::basis::DENSE_CURVE_MAX`
+/// snapshots its curve C(m) is on a rank grid, with each of `tols` located exactly (so the
+/// bases of the scene's two cone tolerances are the whole curve's). The tolerances change only
+/// those extra points of C(m), never the generators, the leave-one-out data or the coefficient
+/// ranges: a stage that reads none of C(m) asks with no tolerance and shares any path of the
+/// same training set and max rank.
 pub(crate) fn dual_path(
     ctx_progress: crate::progress::Progress,
-    tols: [f64; 2],
+    tols: &[f64],
     train: &Key,
     dual: &ColMatrix,
     max_rank: usize,
 ) -> Result<Arc<CpgPath>, String> {
-    let tol_bits = tols.map(f64::to_bits);
+    let tol_bits: Vec<u64> = tols.iter().map(|t| t.to_bits()).collect();
     let mut memo = DUAL_PATH.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(m) = memo.as_ref() {
-        if m.train == train.0 && m.max_rank == max_rank && m.tols == tol_bits {
+        if m.train == train.0 && m.max_rank == max_rank && tol_bits.iter().all(|t| m.tols.contains(t)) {
             return Ok(Arc::clone(&m.path));
         }
     }
     // One step per selected generator, one per rank of the compactness pass (k <= N each).
     let bar = Ticker::new(ctx_progress, "CPG path", 2 * dual.cols);
     let params = CpgPathParams { nnls: NnlsParams::default(), max_rank, ..CpgPathParams::default() };
-    let path = Arc::new(cpg_path_refined(view(dual), params, &tols, &|| bar.tick("steps")).map_err(|e| e.to_string())?);
+    let path = Arc::new(cpg_path_refined(view(dual), params, tols, &|| bar.tick("steps")).map_err(|e| e.to_string())?);
     bar.finish(&format!("{} generators", path.len()));
     *memo = Some(PathMemo { train: train.0.clone(), max_rank, tols: tol_bits, path: Arc::clone(&path) });
     Ok(path)
@@ -87,12 +91,6 @@ impl Ticker {
     }
 }
 
-/// The resolved `study.max_rank` of the scene (every m up to 256 training snapshots; the
-/// training set of a vector parameter is the whole tensor grid).
-pub(crate) fn max_rank(ctx: &Ctx<'_>) -> usize {
-    max_rank_of(ctx.scene)
-}
-
 /// How the greedy path of `n_train` snapshots selects, for the keys of the stages that read it:
 /// `None` for the selection with the Gram matrix, `"without-gram"` above
 /// `crom_stages::basis::DENSE_CURVE_MAX` snapshots (`CpgPathParams::wide_above`: the same
@@ -101,12 +99,8 @@ pub(crate) fn selection_of(n_train: usize) -> Option<&'static str> {
     (n_train > CpgPathParams::default().wide_above).then_some("without-gram")
 }
 
-/// The scene's cone tolerances (full, truncated), as the shared greedy path takes them.
-pub(crate) fn cone_tols(scene: &SceneConfig) -> [f64; 2] {
-    [scene.study.dual_cone_tol, scene.study.dual_cone_tol_truncated]
-}
-
-/// [`max_rank`] from the scene alone.
+/// The resolved `study.max_rank` of the scene (every m up to 256 training snapshots; the
+/// training set of a vector parameter is the whole tensor grid).
 pub(crate) fn max_rank_of(scene: &SceneConfig) -> usize {
     scene.study.max_rank_for(scene.parameter.train_points().len())
 }
@@ -145,6 +139,16 @@ impl StageKey for BasisKey {
 }
 
 impl BasisKey {
+    /// The cone tolerances (full, truncated), as the shared greedy path takes them.
+    pub(crate) fn cone_tols(&self) -> [f64; 2] {
+        [self.dual_cone_tol, self.dual_cone_tol_truncated]
+    }
+
+    /// The metrics' range recorded on the shared greedy path.
+    pub(crate) fn max_rank(&self) -> usize {
+        self.max_rank
+    }
+
     /// The scene's basis settings.
     fn of(scene: &SceneConfig) -> Self {
         let st = &scene.study;
@@ -202,7 +206,7 @@ impl StageDef for BasisStage {
 impl BasisStage {
     fn compute(&self, ctx: &mut Ctx<'_>) -> Result<Key, CromError> {
         let (st, train, scene) = (&self.settings, &self.train.key, &self.scene);
-        let tols = [st.dual_cone_tol, st.dual_cone_tol_truncated];
+        let tols = st.cone_tols();
         let progress = ctx.progress;
         let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
         let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
@@ -214,7 +218,7 @@ impl BasisStage {
                 || pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }),
                 || {
                     let dual = pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol });
-                    (dual, dual_path(progress, tols, train, &set.dual, st.max_rank))
+                    (dual, dual_path(progress, &tols, train, &set.dual, st.max_rank))
                 },
             );
             let primal = primal.map_err(|e| numerical(e.to_string()))?;

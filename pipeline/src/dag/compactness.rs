@@ -10,9 +10,10 @@ use crom_stages::metrics::compactness_orth;
 use serde::Serialize;
 use serde_json::json;
 
+use super::basis::{self, BasisKey};
 use super::convert::view;
 use super::graph::{Input, StageDef};
-use super::{basis, Ctx, Shared};
+use super::{Ctx, Labels, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::table::{Column, Table};
@@ -36,17 +37,21 @@ fn spec(train: &Key, basis_key: &Key) -> KeySpec {
     KeySpec::of(&CompactnessKey { nnls: NnlsKey::used() }).input("train", train).input("basis", basis_key)
 }
 
-/// C(m) of the training set on its bases.
+/// C(m) of the training set on its bases. The cone's curve is the basis stage's greedy path,
+/// read with the basis' own settings (`basis_settings`, the key struct its input key hashes).
 #[derive(Debug)]
 pub(crate) struct CompactnessStage {
     pub spec: KeySpec,
     pub train: Input,
     pub basis: Input,
+    pub basis_settings: BasisKey,
+    pub labels: Labels,
 }
 
 impl CompactnessStage {
-    pub(crate) fn plan(train: Input, basis: Input) -> Self {
-        Self { spec: spec(&train.key, &basis.key), train, basis }
+    pub(crate) fn plan(train: Input, basis: Input, basis_settings: &BasisKey, labels: &Labels) -> Self {
+        let spec = spec(&train.key, &basis.key);
+        Self { spec, train, basis, basis_settings: basis_settings.clone(), labels: labels.clone() }
     }
 }
 
@@ -61,32 +66,35 @@ impl StageDef for CompactnessStage {
         vec![&self.train, &self.basis]
     }
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
-        run(ctx, &self.spec, &self.train.key, &self.basis.key)
+        self.compute(ctx)
     }
 }
 
-fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
-    let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
-    let scene = ctx.scene.scene.name.clone();
-    let (progress, max_rank) = (ctx.progress, basis::max_rank(ctx));
-    let tols = basis::cone_tols(ctx.scene);
-    ctx.single(ArtifactKind::Compactness, "compactness", spec, |staging| {
-        let set = loaded.set(store, train)?;
-        let b = loaded.bases(store, basis_key)?;
-        let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
-        let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
-        // C(m) of the stored cone basis: the prefix of the CPG path's curve (the same pass).
-        let path = basis::dual_path(progress, tols, train, &set.dual, max_rank)
-            .map_err(|message| CromError::Numerical { stage: "compactness", scene: scene.clone(), message })?;
-        let cone = path.compactness[..=b.dual_cpg.cols.min(path.len())].to_vec();
-        let mut t = Rows::default();
-        t.push(&scene, "primal", "orth", &primal);
-        t.push(&scene, "dual", "orth", &dual);
-        t.push(&scene, "dual", "cone", &cone);
-        let rows = t.m.len();
-        t.table().write_parquet(&staging.path(names::FILE))?;
-        Ok(BTreeMap::from([("rows".to_string(), json!(rows))]))
-    })
+impl CompactnessStage {
+    fn compute(&self, ctx: &mut Ctx<'_>) -> Result<Key, CromError> {
+        let (spec, train, basis_key) = (&self.spec, &self.train.key, &self.basis.key);
+        let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
+        let scene = &self.labels.scene;
+        let (progress, max_rank) = (ctx.progress, self.basis_settings.max_rank());
+        let tols = self.basis_settings.cone_tols();
+        ctx.single(ArtifactKind::Compactness, "compactness", spec, |staging| {
+            let set = loaded.set(store, train)?;
+            let b = loaded.bases(store, basis_key)?;
+            let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
+            let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
+            // C(m) of the stored cone basis: the prefix of the CPG path's curve (the same pass).
+            let path = basis::dual_path(progress, &tols, train, &set.dual, max_rank)
+                .map_err(|message| CromError::Numerical { stage: "compactness", scene: scene.clone(), message })?;
+            let cone = path.compactness[..=b.dual_cpg.cols.min(path.len())].to_vec();
+            let mut t = Rows::default();
+            t.push(scene, "primal", "orth", &primal);
+            t.push(scene, "dual", "orth", &dual);
+            t.push(scene, "dual", "cone", &cone);
+            let rows = t.m.len();
+            t.table().write_parquet(&staging.path(names::FILE))?;
+            Ok(BTreeMap::from([("rows".to_string(), json!(rows))]))
+        })
+    }
 }
 
 #[derive(Default)]

@@ -40,11 +40,12 @@ pub(crate) struct Item {
 /// The approximations of a comparison, in table order (a `local` entry gives one per cell
 /// count).
 pub(crate) fn items(cmp: &ComparisonSpec) -> Vec<Item> {
-    cmp.approximations
-        .iter()
-        .flat_map(ApproximationSpec::expand)
-        .map(|spec| Item { approach: approach_of(&spec), name: spec.name(), spec })
-        .collect()
+    cmp.approximations.iter().flat_map(ApproximationSpec::expand).map(|spec| item_of(&spec)).collect()
+}
+
+/// The approximation an expanded entry (a `local` entry with one cell count) stands for.
+pub(crate) fn item_of(spec: &ApproximationSpec) -> Item {
+    Item { approach: approach_of(spec), name: spec.name(), spec: spec.clone() }
 }
 
 /// Plan-node name prefixes of an approximation's offline and online stages (`<prefix><name>`);

@@ -2,12 +2,20 @@
 //!
 //! A stage is a struct that [`super::plan::Plan::of`] builds from the scene once, holding
 //!
-//! - its key spec ([`KeySpec`]: the settings that determine its artifact and its inputs'
-//!   keys), computed at plan time and never again: the run writes the artifact under the
-//!   spec it was planned with;
+//! - its key struct (e.g. `BasisKey`, `GeneralizationKey`: the settings its compute uses) and
+//!   the key spec made of it and its inputs' keys ([`KeySpec`]), computed at plan time and
+//!   never again: the run writes the artifact under the spec it was planned with;
 //! - its inputs as named fields ([`Input`]: the node that makes each and that node's key), so a
-//!   stage reads `self.train`, not "input 0";
-//! - whatever else its compute needs from the scene, as plain fields beside the spec.
+//!   stage reads `self.train`, not "input 0"; where it reads an input with that input's own
+//!   settings, it holds the input stage's key struct too (the compactness holds the basis'
+//!   `BasisKey`), which that input's key hashes;
+//! - its [`Labels`](super::Labels): the scene's and the parameter's names, which label tables
+//!   and change no number.
+//!
+//! The run's context ([`Ctx`]) does not carry the scene, so a stage cannot read a setting that
+//! its key does not hold: "every setting a stage uses is in its key" holds by construction.
+//! The one door left is the high-fidelity model ([`super::LazyPhysics`]), built from the
+//! scene's model, which is the mesh's key and so every snapshot's.
 //!
 //! It implements [`StageDef`]: its artifact kind, its key, the nodes it reads, where it runs,
 //! and its compute. The executor ([`super::execute`]) is one loop over the plan's nodes that

@@ -66,7 +66,7 @@ mod tests {
     fn ctx<'a>(store: &'a Store, scene: &'a SceneConfig) -> Ctx<'a> {
         Ctx {
             store,
-            scene,
+            scene_name: scene.scene.name.clone(),
             command: "test".into(),
             progress: Progress::new(true),
             records: Vec::new(),
@@ -86,10 +86,10 @@ mod tests {
         let scene = SceneConfig::load(&root).expect("rope.toml");
         let store = Store::open(dir.path()).expect("store");
         let mut c = ctx(&store, &scene);
-        run_scene(&mut c, true).expect("cold run");
+        run_scene(&mut c, &scene, true).expect("cold run");
         assert_eq!(c.loaded.counts(), (2, 1));
         let mut c = ctx(&store, &scene);
-        run_scene(&mut c, true).expect("cached run");
+        run_scene(&mut c, &scene, true).expect("cached run");
         assert_eq!(c.loaded.counts(), (0, 0));
     }
 }

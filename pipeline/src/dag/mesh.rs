@@ -7,7 +7,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::graph::{Input, StageDef};
-use super::{Ctx, LazyPhysics, Shared};
+use super::{Ctx, Labels, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5Out;
@@ -34,11 +34,12 @@ pub(crate) fn spec(scene: &crom_schemas::SceneConfig) -> KeySpec {
 #[derive(Debug)]
 pub(crate) struct MeshStage {
     pub spec: KeySpec,
+    pub labels: Labels,
 }
 
 impl MeshStage {
     pub(crate) fn plan(scene: &crom_schemas::SceneConfig) -> Self {
-        Self { spec: spec(scene) }
+        Self { spec: spec(scene), labels: Labels::of(scene) }
     }
 }
 
@@ -53,20 +54,27 @@ impl StageDef for MeshStage {
         Vec::new()
     }
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
-        run(ctx, &mut shared.physics, &self.spec)
+        run(ctx, &mut shared.physics, &self.spec, &self.labels)
     }
 }
 
-pub(crate) fn run(ctx: &mut Ctx<'_>, physics: &mut LazyPhysics<'_>, spec: &KeySpec) -> Result<Key, CromError> {
+/// The mesh of the model `physics` builds, keyed `spec`; `physics` is built from the scene's
+/// model, which is the key.
+pub(crate) fn run(
+    ctx: &mut Ctx<'_>,
+    physics: &mut LazyPhysics<'_>,
+    spec: &KeySpec,
+    labels: &Labels,
+) -> Result<Key, CromError> {
     let key = spec.key();
-    let scene = ctx.scene.scene.name.clone();
+    let scene = &labels.scene;
     ctx.single(ArtifactKind::Mesh, "mesh", spec, |staging| {
         let phys = physics.get()?;
         let m = phys.mesh();
         let condition = phys.operator().stiffness_condition();
         let path = staging.path(names::FILE);
         let f = H5Out::create(&path)?;
-        f.attr_str("scene", &scene)?;
+        f.attr_str("scene", scene)?;
         f.attr_str("kind", "mesh")?;
         f.attr_u64("schema_version", u64::from(ArtifactKind::Mesh.schema_version()))?;
         f.attr_str("cache_key", &key.0)?;

@@ -18,7 +18,7 @@ use serde_json::json;
 use super::basis::Ticker;
 use super::convert::view;
 use super::graph::{Input, StageDef};
-use super::{basis, trainset, Ctx, Shared};
+use super::{basis, trainset, Ctx, Labels, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::h5::ColMatrix;
@@ -27,8 +27,8 @@ use crate::io::table::{Column, Table};
 /// Bump when a metric's numbers change.
 /// G(m): the rank range, the folds when only a sample of them is used, the NNLS settings of
 /// the cone folds.
-#[derive(Debug, Serialize)]
-struct GeneralizationKey {
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct GeneralizationKey {
     max_rank: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     folds: Option<usize>,
@@ -47,8 +47,8 @@ impl StageKey for GeneralizationKey {
 }
 
 /// S(m): samples, seed, rank range, NNLS settings of the cone projections.
-#[derive(Debug, Serialize)]
-struct SpecificityKey {
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct SpecificityKey {
     samples: usize,
     seed: u64,
     max_rank: usize,
@@ -78,8 +78,8 @@ impl StageKey for SpecificityKey {
 }
 
 /// H(n): the number of levels (their keys are inputs), the NNLS settings of the cone errors.
-#[derive(Debug, Serialize)]
-struct NestedKey {
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct NestedKey {
     levels: usize,
     nnls: NnlsKey,
 }
@@ -94,25 +94,32 @@ fn numerical(scene: &str, stage: &'static str, e: impl std::fmt::Display) -> Cro
     CromError::Numerical { stage, scene: scene.to_string(), message: e.to_string() }
 }
 
-/// The generalization artifact's key spec.
-fn generalization_spec(scene: &SceneConfig, train: &Key) -> KeySpec {
-    let max_rank = basis::max_rank_of(scene);
-    let n_train = scene.parameter.train_points().len();
-    let folds = scene.study.loo_folds_for(n_train);
-    // A sample of folds is part of the key; every fold is the default.
-    let sampled = (folds.len() != n_train).then_some(folds.len());
-    let selection = basis::selection_of(n_train);
-    KeySpec::of(&GeneralizationKey { max_rank, folds: sampled, nnls: NnlsKey::used(), selection }).input("train", train)
+impl GeneralizationKey {
+    /// The scene's G(m) settings.
+    fn of(scene: &SceneConfig) -> Self {
+        let max_rank = basis::max_rank_of(scene);
+        let n_train = scene.parameter.train_points().len();
+        let folds = scene.study.loo_folds_for(n_train);
+        // A sample of folds is part of the key; every fold is the default.
+        let sampled = (folds.len() != n_train).then_some(folds.len());
+        let selection = basis::selection_of(n_train);
+        Self { max_rank, folds: sampled, nnls: NnlsKey::used(), selection }
+    }
+
+    /// The folds of `n` training snapshots: every one, or the keyed sample of them
+    /// (`StudySpec::loo_folds_for`, from the count).
+    fn folds(&self, n: usize) -> Vec<usize> {
+        crom_schemas::scene::spaced_folds(self.folds.unwrap_or(n).min(n), n)
+    }
 }
 
-/// The specificity artifact's key spec.
-fn specificity_spec(scene: &SceneConfig, train: &Key, basis_key: &Key) -> KeySpec {
-    let st = &scene.study;
-    let max_rank = basis::max_rank_of(scene);
-    let dense_to = specificity_dense_to(scene);
-    let key =
-        SpecificityKey { samples: st.specificity_samples, seed: st.seed, max_rank, nnls: NnlsKey::used(), dense_to };
-    KeySpec::of(&key).input("train", train).input("basis", basis_key)
+impl SpecificityKey {
+    /// The scene's S(m) settings.
+    fn of(scene: &SceneConfig) -> Self {
+        let st = &scene.study;
+        let (max_rank, dense_to) = (basis::max_rank_of(scene), specificity_dense_to(scene));
+        Self { samples: st.specificity_samples, seed: st.seed, max_rank, nnls: NnlsKey::used(), dense_to }
+    }
 }
 
 /// The nested-error artifact's key spec for the nested sets `levels` (level n at index n-1).
@@ -124,16 +131,20 @@ fn nested_spec(levels: &[Key]) -> KeySpec {
     spec
 }
 
-/// G(m) of the training set (leave-one-out).
+/// G(m) of the training set (leave-one-out), computed from its key ([`GeneralizationKey`]).
 #[derive(Debug)]
 pub(crate) struct GeneralizationStage {
     pub spec: KeySpec,
+    pub settings: GeneralizationKey,
     pub train: Input,
+    pub labels: Labels,
 }
 
 impl GeneralizationStage {
-    pub(crate) fn plan(scene: &SceneConfig, train: Input) -> Self {
-        Self { spec: generalization_spec(scene, &train.key), train }
+    pub(crate) fn plan(scene: &SceneConfig, train: Input, labels: &Labels) -> Self {
+        let settings = GeneralizationKey::of(scene);
+        let spec = KeySpec::of(&settings).input("train", &train.key);
+        Self { spec, settings, train, labels: labels.clone() }
     }
 }
 
@@ -148,21 +159,25 @@ impl StageDef for GeneralizationStage {
         vec![&self.train]
     }
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
-        generalization(ctx, &self.spec, &self.train.key)
+        generalization(ctx, &self.spec, (&self.settings, &self.labels.scene), &self.train.key)
     }
 }
 
-/// S(m) of the training set's bases.
+/// S(m) of the training set's bases, computed from its key ([`SpecificityKey`]).
 #[derive(Debug)]
 pub(crate) struct SpecificityStage {
     pub spec: KeySpec,
+    pub settings: SpecificityKey,
     pub train: Input,
     pub basis: Input,
+    pub labels: Labels,
 }
 
 impl SpecificityStage {
-    pub(crate) fn plan(scene: &SceneConfig, train: Input, basis: Input) -> Self {
-        Self { spec: specificity_spec(scene, &train.key, &basis.key), train, basis }
+    pub(crate) fn plan(scene: &SceneConfig, train: Input, basis: Input, labels: &Labels) -> Self {
+        let settings = SpecificityKey::of(scene);
+        let spec = KeySpec::of(&settings).input("train", &train.key).input("basis", &basis.key);
+        Self { spec, settings, train, basis, labels: labels.clone() }
     }
 }
 
@@ -177,7 +192,7 @@ impl StageDef for SpecificityStage {
         vec![&self.train, &self.basis]
     }
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
-        specificity(ctx, &self.spec, &self.train.key, &self.basis.key)
+        specificity(ctx, &self.spec, (&self.settings, &self.labels.scene), &self.train.key, &self.basis.key)
     }
 }
 
@@ -186,12 +201,13 @@ impl StageDef for SpecificityStage {
 pub(crate) struct NestedStage {
     pub spec: KeySpec,
     pub levels: Vec<Input>,
+    pub labels: Labels,
 }
 
 impl NestedStage {
-    pub(crate) fn plan(levels: Vec<Input>) -> Self {
+    pub(crate) fn plan(levels: Vec<Input>, labels: &Labels) -> Self {
         let keys: Vec<Key> = levels.iter().map(|l| l.key.clone()).collect();
-        Self { spec: nested_spec(&keys), levels }
+        Self { spec: nested_spec(&keys), levels, labels: labels.clone() }
     }
 }
 
@@ -207,32 +223,35 @@ impl StageDef for NestedStage {
     }
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         let keys: Vec<Key> = self.levels.iter().map(|l| l.key.clone()).collect();
-        nested(ctx, &self.spec, &keys)
+        nested(ctx, &self.spec, &self.labels.scene, &keys)
     }
 }
 
 /// G(m) for primal orth, dual orth and dual cone, m = 1..=min(N - 1, max_rank).
-fn generalization(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key) -> Result<Key, CromError> {
-    let max_rank = basis::max_rank(ctx);
-    let n_train = ctx.scene.parameter.train_points().len();
-    let folds = ctx.scene.study.loo_folds_for(n_train);
-    let scene = ctx.scene.scene.name.clone();
+fn generalization(
+    ctx: &mut Ctx<'_>,
+    spec: &KeySpec,
+    (settings, scene): (&GeneralizationKey, &str),
+    train: &Key,
+) -> Result<Key, CromError> {
+    let max_rank = settings.max_rank;
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
-    let tols = basis::cone_tols(ctx.scene);
     ctx.single(ArtifactKind::Generalization, "generalization", spec, |staging| {
         let set = loaded.set(store, train)?;
+        let folds = settings.folds(set.dual.cols);
         let max_m = set.dual.cols.saturating_sub(1).min(max_rank);
-        let fail = |e: String| numerical(&scene, "generalization", e);
-        let path = basis::dual_path(progress, tols, train, &set.dual, max_rank).map_err(fail)?;
+        let fail = |e: String| numerical(scene, "generalization", e);
+        // G(m) reads the path's generators and leave-one-out data, not its C(m): no tolerance.
+        let path = basis::dual_path(progress, &[], train, &set.dual, max_rank).map_err(fail)?;
         let bar = Ticker::new(progress, "LOO folds", 3 * folds.len());
         let mut rows = CurveRows::default();
         for (field, s) in [("primal", &set.primal), ("dual", &set.dual)] {
             let curve = loo_orth(s, &folds, max_m, &|| bar.tick(&format!("{field} orth"))).map_err(fail)?;
-            rows.push(&scene, field, "orth", &curve);
+            rows.push(scene, field, "orth", &curve);
         }
         let curve = loo_cone(&set.dual, &path, &folds, max_m, &|| bar.tick("dual cone")).map_err(fail)?;
-        rows.push(&scene, "dual", "cone", &curve);
+        rows.push(scene, "dual", "cone", &curve);
         bar.finish(&format!("m <= {max_m}"));
         rows.table().write_parquet(&staging.path(names::GENERALIZATION))?;
         Ok(BTreeMap::from([
@@ -280,22 +299,27 @@ fn loo_cone(
 }
 
 /// S(m) for primal orth, dual orth and dual cone, on the stored bases, m = 1..=min(k, max_rank).
-fn specificity(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key, basis_key: &Key) -> Result<Key, CromError> {
+fn specificity(
+    ctx: &mut Ctx<'_>,
+    spec: &KeySpec,
+    (settings, scene): (&SpecificityKey, &str),
+    train: &Key,
+    basis_key: &Key,
+) -> Result<Key, CromError> {
     let params = SpecificityParams {
-        samples: ctx.scene.study.specificity_samples,
-        seed: ctx.scene.study.seed,
-        dense_to: specificity_dense_to(ctx.scene).unwrap_or(usize::MAX),
+        samples: settings.samples,
+        seed: settings.seed,
+        dense_to: settings.dense_to.unwrap_or(usize::MAX),
     };
-    let max_rank = basis::max_rank(ctx);
-    let scene = ctx.scene.scene.name.clone();
+    let max_rank = settings.max_rank;
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
-    let tols = basis::cone_tols(ctx.scene);
     ctx.single(ArtifactKind::Specificity, "specificity", spec, |staging| {
         let set = loaded.set(store, train)?;
         let b = loaded.bases(store, basis_key)?;
-        let path = basis::dual_path(progress, tols, train, &set.dual, max_rank)
-            .map_err(|e| numerical(&scene, "specificity", e))?;
+        // S(m) reads the path's generators and coefficient ranges, not its C(m): no tolerance.
+        let path = basis::dual_path(progress, &[], train, &set.dual, max_rank)
+            .map_err(|e| numerical(scene, "specificity", e))?;
         let pm = view(&b.primal_pod).subcols(0, b.primal_pod.cols.min(max_rank));
         let dm = view(&b.dual_pod).subcols(0, b.dual_pod.cols.min(max_rank));
         // The stored cone basis is a prefix of the path: the same m range as computing on it.
@@ -313,9 +337,9 @@ fn specificity(ctx: &mut Ctx<'_>, spec: &KeySpec, train: &Key, basis_key: &Key) 
         .into_flat();
         bar.finish(&format!("m <= {max_rank}"));
         let mut rows = CurveRows::default();
-        rows.push(&scene, "primal", "orth", &p);
-        rows.push(&scene, "dual", "orth", &d);
-        rows.push(&scene, "dual", "cone", &c);
+        rows.push(scene, "primal", "orth", &p);
+        rows.push(scene, "dual", "orth", &d);
+        rows.push(scene, "dual", "cone", &c);
         rows.table().write_parquet(&staging.path(names::SPECIFICITY))?;
         Ok(BTreeMap::from([
             ("samples".to_string(), json!(params.samples)),
@@ -336,8 +360,7 @@ impl<A, B, C> IntoFlat<A, B, C> for (A, (B, C)) {
 }
 
 /// H(n), n = 1..levels-1, from the nested sets (level n at index n-1).
-fn nested(ctx: &mut Ctx<'_>, spec: &KeySpec, levels: &[Key]) -> Result<Key, CromError> {
-    let scene = ctx.scene.scene.name.clone();
+fn nested(ctx: &mut Ctx<'_>, spec: &KeySpec, scene: &str, levels: &[Key]) -> Result<Key, CromError> {
     let store = ctx.store;
     let progress = ctx.progress;
     ctx.single(ArtifactKind::Nested, "nested", spec, |staging| {
@@ -362,7 +385,7 @@ fn nested(ctx: &mut Ctx<'_>, spec: &KeySpec, levels: &[Key]) -> Result<Key, Crom
                 },
                 || nested_error_cone(view(&lo_set.dual), view(&hi.dual), NnlsParams::default()),
             );
-            let fail = |e: String| numerical(&scene, "nested", e);
+            let fail = |e: String| numerical(scene, "nested", e);
             let v = [
                 po.map_err(|e| fail(e.to_string()))?,
                 dor.map_err(|e| fail(e.to_string()))?,
@@ -370,7 +393,7 @@ fn nested(ctx: &mut Ctx<'_>, spec: &KeySpec, levels: &[Key]) -> Result<Key, Crom
             ];
             let zero = (0..hi.dual.cols).filter(|&j| hi.dual.col(j).iter().all(|x| x.abs() <= 0.0)).count();
             for ((field, basis), value) in [("primal", "orth"), ("dual", "orth"), ("dual", "cone")].iter().zip(v) {
-                t.push(&scene, field, basis, i, value, hi.parameters.len(), if *field == "dual" { zero } else { 0 });
+                t.push(scene, field, basis, i, value, hi.parameters.len(), if *field == "dual" { zero } else { 0 });
             }
             bar.inc(&format!("H({i})"));
             lo = Some(hi);

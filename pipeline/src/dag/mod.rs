@@ -27,6 +27,7 @@ mod compactness;
 pub(crate) mod comparison;
 mod convert;
 mod graph;
+mod labels;
 mod loaded;
 mod mesh;
 mod metrics;
@@ -38,6 +39,7 @@ mod snapshots;
 pub(crate) mod trainset;
 mod views;
 
+pub(crate) use labels::Labels;
 pub(crate) use snapshots::{chunk_columns, shard_range};
 
 use std::collections::BTreeMap;
@@ -99,13 +101,15 @@ impl PointCounts {
     }
 }
 
-/// Everything a stage needs from the run.
+/// Everything a stage needs from the run. It does not carry the scene: a stage computes from
+/// its key struct, its inputs and its [`Labels`], all fixed at plan time, so a setting it uses
+/// cannot be missing from its key.
 #[derive(Debug)]
 pub struct Ctx<'a> {
     /// The open store.
     pub store: &'a Store,
-    /// The validated scene.
-    pub scene: &'a SceneConfig,
+    /// The scene's name, recorded in manifests.
+    pub scene_name: String,
     /// The command line, recorded in manifests.
     pub command: String,
     /// Progress display.
@@ -216,8 +220,7 @@ impl<'a> Ctx<'a> {
         wall_seconds: f64,
         summary: BTreeMap<String, serde_json::Value>,
     ) -> Result<Manifest, CromError> {
-        let prov =
-            Provenance { scene: self.scene.scene.name.clone(), command: self.command.clone(), wall_seconds, summary };
+        let prov = Provenance { scene: self.scene_name.clone(), command: self.command.clone(), wall_seconds, summary };
         staging.commit(self.store, prov)
     }
 
@@ -228,7 +231,7 @@ impl<'a> Ctx<'a> {
     fn beside(&self) -> Ctx<'a> {
         Ctx {
             store: self.store,
-            scene: self.scene,
+            scene_name: self.scene_name.clone(),
             command: self.command.clone(),
             progress: self.progress.silent(),
             records: Vec::new(),
@@ -262,22 +265,22 @@ impl<'a> Ctx<'a> {
 
 /// Solve (or find in the store) every snapshot of the scene's study — training, test and
 /// nested points — and stop: `crom solve`. The other stages are left for `crom run`.
-pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
-    let scene = ctx.scene;
+pub fn solve_points(ctx: &mut Ctx<'_>, scene: &SceneConfig) -> Result<(), CromError> {
     let mut physics = LazyPhysics::new(scene);
-    let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene))?;
+    let labels = Labels::of(scene);
+    let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene), &labels)?;
+    let family = snapshots::scene_family(scene, &mesh_key);
     for sweep in snapshots::sweeps(scene, &mesh_key) {
-        snapshots::run(ctx, &mut physics, &mesh_key, &sweep)?;
+        snapshots::run(ctx, &mut physics, &family, &labels, &sweep)?;
     }
     Ok(())
 }
 
 /// Before a sharded sweep (under the exclusive lock): the mesh artifact, and the clean-up of
 /// what killed writers left in the scene's column family.
-pub fn prepare_sweeps(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
-    let scene = ctx.scene;
+pub fn prepare_sweeps(ctx: &mut Ctx<'_>, scene: &SceneConfig) -> Result<(), CromError> {
     let mut physics = LazyPhysics::new(scene);
-    let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene))?;
+    let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene), &Labels::of(scene))?;
     let family = snapshots::scene_family(scene, &mesh_key);
     if let Some(f) = crate::store::columns::ColumnFamily::find(ctx.store.root(), &family)? {
         f.clean_orphans()?;
@@ -288,18 +291,18 @@ pub fn prepare_sweeps(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
 /// Shard `k` of `n` of the scene's snapshot sweeps, as one of many concurrent workers under the
 /// store's shared lock (`crom work --shard K/N`): solve the missing points of the shard's chunks
 /// and append their blocks. The mesh artifact is not written (the planner writes it).
-pub fn work_shard(ctx: &mut Ctx<'_>, k: usize, n: usize) -> Result<PointCounts, CromError> {
-    let scene = ctx.scene;
+pub fn work_shard(ctx: &mut Ctx<'_>, scene: &SceneConfig, k: usize, n: usize) -> Result<PointCounts, CromError> {
     let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::spec(scene).key();
     let sweeps = snapshots::sweeps(scene, &mesh_key);
-    snapshots::work(ctx, &mut physics, &mesh_key, &sweeps, k, n)
+    let family = snapshots::scene_family(scene, &mesh_key);
+    snapshots::work(ctx, &mut physics, &family, &Labels::of(scene), &sweeps, k, n)
 }
 
 /// Run every stage of the scene's study; with `online = false` stop before the online ROM
 /// and the report that shows it (`crom run --offline`).
-pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError> {
-    execute(ctx, &plan::Plan::of(ctx.scene), online)
+pub fn run_scene(ctx: &mut Ctx<'_>, scene: &SceneConfig, online: bool) -> Result<RunOutput, CromError> {
+    execute(ctx, scene, &plan::Plan::of(scene), online)
 }
 
 /// The local executor: walk the plan's nodes in order (each node's inputs come before it),
@@ -309,17 +312,24 @@ pub fn run_scene(ctx: &mut Ctx<'_>, online: bool) -> Result<RunOutput, CromError
 /// The views (XDMF over stored columns: HDF5 metadata, one core, no numerics) run on one
 /// worker beside the main loop ([`beside`]) as soon as their inputs exist: the heavy stages
 /// after them (the basis' greedy path is mostly sequential) leave a core idle.
-pub(crate) fn execute(ctx: &mut Ctx<'_>, plan: &plan::Plan, online: bool) -> Result<RunOutput, CromError> {
-    std::thread::scope(|scope| execute_in(scope, ctx, plan, online))
+/// `scene` builds the high-fidelity model on first use ([`LazyPhysics`]) and nothing else:
+/// the stages read their settings from the plan.
+pub(crate) fn execute(
+    ctx: &mut Ctx<'_>,
+    scene: &SceneConfig,
+    plan: &plan::Plan,
+    online: bool,
+) -> Result<RunOutput, CromError> {
+    std::thread::scope(|scope| execute_in(scope, ctx, scene, plan, online))
 }
 
 fn execute_in<'scope, 'env, 'a: 'env>(
     scope: &'scope std::thread::Scope<'scope, 'env>,
     ctx: &mut Ctx<'a>,
+    scene: &'env SceneConfig,
     plan: &'env plan::Plan,
     online: bool,
 ) -> Result<RunOutput, CromError> {
-    let scene = ctx.scene;
     let mut shared = Shared::new(scene);
     let mut keys: BTreeMap<&str, Key> = BTreeMap::new();
     let mut beside = beside::Beside::new(scope);

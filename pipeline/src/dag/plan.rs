@@ -31,6 +31,7 @@ use super::rom::RomStage;
 use super::snapshots::{self, Sweep, SweepStage};
 use super::trainset::SetStage;
 use super::views::{Subject, ViewsStage};
+use super::Labels;
 use crate::cache::Key;
 use crate::error::CromError;
 
@@ -118,6 +119,7 @@ impl Plan {
     /// The plan of `scene`'s study, in an order that respects every node's inputs.
     pub fn of(scene: &SceneConfig) -> Self {
         let mut nodes = Nodes::default();
+        let labels = Labels::of(scene);
         let mesh_stage = mesh::MeshStage::plan(scene);
         let mesh_key = mesh_stage.key();
         let mesh = nodes.add("mesh", false, mesh_stage);
@@ -125,27 +127,34 @@ impl Plan {
         let family = snapshots::scene_family(scene, &mesh_key);
         let mut sweep_nodes = Vec::new();
         for (number, sweep) in sweeps.iter().enumerate() {
-            let stage = SweepStage { number, sweep: sweep.clone(), mesh: mesh.clone(), family: family.clone() };
-            sweep_nodes.push(nodes.add(&format!("snapshots {}", sweep.name), false, stage));
+            let name = format!("snapshots {}", sweep.name);
+            let (sweep, mesh, family, labels) = (sweep.clone(), mesh.clone(), family.clone(), labels.clone());
+            sweep_nodes.push(nodes.add(&name, false, SweepStage { number, sweep, mesh, family, labels }));
         }
         let p = &scene.parameter;
         let (train_points, test_points) = (p.train_points(), p.test_points());
         let keys: Vec<&Key> = sweeps[0].keys.iter().collect();
         let (train_keys, test_keys) = keys.split_at(train_points.len());
         let set = |set: &str, points: &[Vec<f64>], keys: &[&Key], sweep: usize, start: usize| {
-            SetStage::plan(set, points, keys, sweep_nodes[sweep].clone(), sweep, start)
+            SetStage::plan(set, (points, keys), sweep_nodes[sweep].clone(), (sweep, start), &labels)
         };
         let train = nodes.add("trainset train", false, set("train", &train_points, train_keys, 0, 0));
         let test = nodes.add("trainset test", false, set("test", &test_points, test_keys, 0, train_points.len()));
         for (name, of) in [("train", &train), ("test", &test)] {
             let subject = Subject::Set { set: name.to_string(), of: of.clone() };
-            nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone()));
+            nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
         }
-        let basis = nodes.add("basis", false, BasisStage::plan(scene, train.clone()));
-        nodes.add("views basis", false, ViewsStage::plan(Subject::Basis { of: basis.clone() }, mesh.clone()));
-        let compactness = nodes.add("compactness", false, CompactnessStage::plan(train.clone(), basis.clone()));
-        let generalization = nodes.add("generalization", false, GeneralizationStage::plan(scene, train.clone()));
-        let specificity = nodes.add("specificity", false, SpecificityStage::plan(scene, train.clone(), basis.clone()));
+        let basis_stage = BasisStage::plan(scene, train.clone());
+        let basis_settings = basis_stage.settings.clone();
+        let basis = nodes.add("basis", false, basis_stage);
+        let views = ViewsStage::plan(Subject::Basis { of: basis.clone() }, mesh.clone(), &labels);
+        nodes.add("views basis", false, views);
+        let stage = CompactnessStage::plan(train.clone(), basis.clone(), &basis_settings, &labels);
+        let compactness = nodes.add("compactness", false, stage);
+        let stage = GeneralizationStage::plan(scene, train.clone(), &labels);
+        let generalization = nodes.add("generalization", false, stage);
+        let stage = SpecificityStage::plan(scene, train.clone(), basis.clone(), &labels);
+        let specificity = nodes.add("specificity", false, stage);
         let mut levels: Vec<Input> = Vec::new();
         if p.nested_levels > 0 {
             let mut at = 0;
@@ -156,11 +165,12 @@ impl Plan {
                 let level = nodes.add(&format!("trainset {name}"), false, set(&name, &pts, &keys, 1, at));
                 at += pts.len();
                 let subject = Subject::Set { set: name.clone(), of: level.clone() };
-                nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone()));
+                nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
                 levels.push(level);
             }
         }
-        let nested = (!levels.is_empty()).then(|| nodes.add("nested", false, NestedStage::plan(levels.clone())));
+        let nested =
+            (!levels.is_empty()).then(|| nodes.add("nested", false, NestedStage::plan(levels.clone(), &labels)));
         // The comparison: one node per approximation, then the side-by-side artifact; the same
         // online.
         let items = scene.comparison.as_ref().map(comparison::items).unwrap_or_default();
@@ -180,7 +190,7 @@ impl Plan {
             let stage = GatherStage::plan(ArtifactKind::Comparison, ArtifactKind::Approximation, parts.clone());
             nodes.add("comparison", false, stage)
         });
-        let rom = nodes.add("rom", true, RomStage::plan(scene, train.clone(), test.clone(), basis.clone()));
+        let rom = nodes.add("rom", true, RomStage::plan(scene, train.clone(), test.clone(), basis.clone(), &labels));
         let mut online_parts: Vec<(String, Input)> = Vec::new();
         for (i, item) in items.iter().enumerate() {
             let Some((_, offline)) = parts.iter().find(|(n, _)| *n == item.name) else { continue };
@@ -195,7 +205,7 @@ impl Plan {
             nodes.add("online-comparison", true, stage)
         });
         let subject = Subject::Online { of: rom.clone(), test: test.clone() };
-        nodes.add("views online", true, ViewsStage::plan(subject, mesh.clone()));
+        nodes.add("views online", true, ViewsStage::plan(subject, mesh.clone(), &labels));
         let shows = report::ReportInputs {
             mesh: mesh.key.clone(),
             train: train.key.clone(),
@@ -210,7 +220,7 @@ impl Plan {
         };
         let mut inputs = vec![mesh, train, basis, compactness, rom, generalization, specificity];
         inputs.extend([nested, comparison, online_comparison].into_iter().flatten());
-        nodes.add("report", true, ReportStage::plan(shows, inputs));
+        nodes.add("report", true, ReportStage::plan(scene, shows, inputs));
         Self { sweeps, family, nodes: nodes.0 }
     }
 

@@ -8,6 +8,7 @@ use crom_schemas::artifact::{
     basis as bnames, compactness as cnames, comparison as cmp_names, mesh as mnames, metrics as metric_names,
     rom as rnames, ArtifactKind,
 };
+use crom_schemas::SceneConfig;
 use serde_json::json;
 
 use super::graph::{Input, StageDef};
@@ -20,14 +21,18 @@ use crate::io::table::{read_parquet, Column, Table};
 use crate::report::{bodies, render, ComparisonData, ReportData};
 use crate::store::Store;
 
-/// The report is determined by its inputs alone.
-#[derive(Debug, serde::Serialize)]
-struct ReportKey {}
+/// The report is determined by its inputs and by the scene it shows: its name, description,
+/// parameter names and settings are text in the report, so an edit of any of them renders it
+/// again.
+#[derive(Debug, Clone, serde::Serialize)]
+pub(crate) struct ReportKey {
+    scene: SceneConfig,
+}
 
 impl StageKey for ReportKey {
     const KIND: ArtifactKind = ArtifactKind::Report;
     /// Bump when the report's content changes (10: the sampled-surface series of the trade-off
-    /// figure).
+    /// figure). The scene joined the key without a bump: the key changed with it.
     const ALGORITHM_VERSION: u32 = 10;
 }
 
@@ -56,9 +61,9 @@ pub struct ReportInputs {
     pub online_comparison: Option<Key>,
 }
 
-/// The report's key spec: every artifact it shows.
-fn spec(inputs: &ReportInputs) -> KeySpec {
-    let spec = KeySpec::of(&ReportKey {})
+/// The report's key spec: the scene and every artifact it shows.
+fn spec(key: &ReportKey, inputs: &ReportInputs) -> KeySpec {
+    let spec = KeySpec::of(key)
         .input("mesh", &inputs.mesh)
         .input("train", &inputs.train)
         .input("basis", &inputs.basis)
@@ -84,6 +89,7 @@ fn spec(inputs: &ReportInputs) -> KeySpec {
 #[derive(Debug)]
 pub(crate) struct ReportStage {
     pub spec: KeySpec,
+    pub settings: ReportKey,
     /// The artifacts shown, by role.
     pub shows: ReportInputs,
     /// The same, as the graph's inputs.
@@ -91,9 +97,10 @@ pub(crate) struct ReportStage {
 }
 
 impl ReportStage {
-    /// `inputs`: the nodes it reads (their keys are the ones in `shows`).
-    pub(crate) fn plan(shows: ReportInputs, inputs: Vec<Input>) -> Self {
-        Self { spec: spec(&shows), shows, inputs }
+    /// The report of `scene`; `inputs`: the nodes it reads (their keys are the ones in `shows`).
+    pub(crate) fn plan(scene: &SceneConfig, shows: ReportInputs, inputs: Vec<Input>) -> Self {
+        let settings = ReportKey { scene: scene.clone() };
+        Self { spec: spec(&settings, &shows), settings, shows, inputs }
     }
 }
 
@@ -108,17 +115,16 @@ impl StageDef for ReportStage {
         self.inputs.iter().collect()
     }
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
-        run(ctx, &self.spec, &self.shows)
+        run(ctx, &self.spec, &self.settings.scene, &self.shows)
     }
 }
 
-/// Build (or find) the report; returns its key.
-fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, inputs: &ReportInputs) -> Result<Key, CromError> {
-    let scene = ctx.scene.clone();
+/// Build (or find) the report of `scene`; returns its key.
+fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, scene: &SceneConfig, inputs: &ReportInputs) -> Result<Key, CromError> {
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     ctx.single(ArtifactKind::Report, "report", spec, |staging| {
         let data = gather(store, &loaded, inputs)?;
-        let figures = render(&scene, &data, &staging.path(""))?;
+        let figures = render(scene, &data, &staging.path(""))?;
         Ok(BTreeMap::from([("figures".to_string(), json!(figures))]))
     })
 }

@@ -41,7 +41,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::graph::{Input, StageDef};
-use super::{trainset, Ctx, LazyPhysics, Shared};
+use super::{trainset, Ctx, Labels, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In, H5Out};
@@ -50,18 +50,32 @@ use crate::physics::Physics;
 
 /// What determines the online stage's results besides its inputs (training set, test set,
 /// bases): the reduced solver's settings, shared by both algorithms.
-#[derive(Debug, Serialize)]
-struct RomKey<'a> {
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct RomKey {
     max_iter: usize,
     gap_tol: f64,
     u_tol: f64,
     /// The sampled-surface rows (absent from the key when not asked for, so the keys of
     /// scenes without them are unchanged).
     #[serde(skip_serializing_if = "Option::is_none")]
-    contact_sampling: Option<&'a ContactSamplingSpec>,
+    contact_sampling: Option<ContactSamplingSpec>,
 }
 
-impl StageKey for RomKey<'_> {
+impl RomKey {
+    /// The scene's online settings.
+    fn of(scene: &SceneConfig) -> Self {
+        let p = RomParams::default();
+        let contact_sampling = scene.study.contact_sampling.clone();
+        Self { max_iter: p.max_iter, gap_tol: p.gap_tol, u_tol: p.u_tol, contact_sampling }
+    }
+
+    /// The reduced solver's settings (the algorithm chosen per query).
+    fn params(&self) -> RomParams {
+        RomParams { max_iter: self.max_iter, gap_tol: self.gap_tol, u_tol: self.u_tol, ..RomParams::default() }
+    }
+}
+
+impl StageKey for RomKey {
     const KIND: ArtifactKind = ArtifactKind::Rom;
     /// Bump when the online stage changes its numbers (9: Type-1 warm starts from the nearest
     /// training point's active set — the same answers to round-off, fewer QP steps; 10:
@@ -123,27 +137,26 @@ fn subsample(points: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
 
 /// The online stage's key spec. The timing constants are not in the key: they change the
 /// times, not the results.
-fn spec(scene: &SceneConfig, train: &Key, test: &Key, basis: &Key) -> KeySpec {
-    let params = RomParams::default();
-    let contact_sampling = scene.study.contact_sampling.as_ref();
-    KeySpec::of(&RomKey { max_iter: params.max_iter, gap_tol: params.gap_tol, u_tol: params.u_tol, contact_sampling })
-        .input("train", train)
-        .input("test", test)
-        .input("basis", basis)
+fn spec(settings: &RomKey, train: &Key, test: &Key, basis: &Key) -> KeySpec {
+    KeySpec::of(settings).input("train", train).input("test", test).input("basis", basis)
 }
 
-/// The online reduced model, measured at the test points.
+/// The online reduced model, measured at the test points, computed from its key ([`RomKey`]).
 #[derive(Debug)]
 pub(crate) struct RomStage {
     pub spec: KeySpec,
+    pub settings: RomKey,
     pub train: Input,
     pub test: Input,
     pub basis: Input,
+    pub labels: Labels,
 }
 
 impl RomStage {
-    pub(crate) fn plan(scene: &SceneConfig, train: Input, test: Input, basis: Input) -> Self {
-        Self { spec: spec(scene, &train.key, &test.key, &basis.key), train, test, basis }
+    pub(crate) fn plan(scene: &SceneConfig, train: Input, test: Input, basis: Input, labels: &Labels) -> Self {
+        let settings = RomKey::of(scene);
+        let spec = spec(&settings, &train.key, &test.key, &basis.key);
+        Self { spec, settings, train, test, basis, labels: labels.clone() }
     }
 }
 
@@ -158,7 +171,8 @@ impl StageDef for RomStage {
         vec![&self.train, &self.test, &self.basis]
     }
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
-        run(ctx, &mut shared.physics, &self.spec, &self.train.key, &self.test.key, &self.basis.key)
+        let keys = [&self.train.key, &self.test.key, &self.basis.key];
+        run(ctx, &mut shared.physics, &self.spec, (&self.settings, &self.labels), keys)
     }
 }
 
@@ -166,18 +180,17 @@ fn run(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
     spec: &KeySpec,
-    train: &Key,
-    test: &Key,
-    basis: &Key,
+    (settings, labels): (&RomKey, &Labels),
+    [train, test, basis]: [&Key; 3],
 ) -> Result<Key, CromError> {
-    let params = RomParams::default();
+    let params = settings.params();
     let key = spec.key();
     if let Some(_m) = ctx.lookup(ArtifactKind::Rom, &key)? {
         ctx.progress.stage("online ROM", 1).finish("cached");
         ctx.record("rom", 0, 1, ctx.store.dir(ArtifactKind::Rom, &key));
         return Ok(key);
     }
-    let scene = ctx.scene.scene.name.clone();
+    let scene = labels.scene.clone();
     let fail = |m: String| CromError::Numerical { stage: "rom", scene: scene.clone(), message: m };
     let phys = physics.get()?;
     let (train_set, test_set) = (ctx.loaded.set(ctx.store, train)?, ctx.loaded.set(ctx.store, test)?);
@@ -190,7 +203,7 @@ fn run(
     let sweep = sweep_pairs(phi.cols, theta_full.cols, theta_trunc.cols);
     let queries = train_set.parameters.len() + test_set.parameters.len();
     let paper_pairs = sweep.iter().filter(|s| paper_pair(s, &sweep)).count();
-    let sampled_pairs = ctx.scene.study.contact_sampling.as_ref().map_or(0, |cs| cs.ranks.len());
+    let sampled_pairs = settings.contact_sampling.as_ref().map_or(0, |cs| cs.ranks.len());
     let mut progress = ctx
         .progress
         .stage("online ROM", 2 + 2 * ALGORITHMS.len() * queries + sweep.len() + paper_pairs + sampled_pairs);
@@ -244,7 +257,7 @@ fn run(
             }
         }
     }
-    if let Some(cs) = &ctx.scene.study.contact_sampling {
+    if let Some(cs) = &settings.contact_sampling {
         // the exact solve on a reduced quadrature of the contact constraints (design note 40),
         // fitted per rank pair to a subsample of the training points
         let p = RomParams { algorithm: Algorithm::Exact, ..params };
@@ -261,8 +274,7 @@ fn run(
             progress.inc(&format!("sampled ranks ({ru}, {rl})"));
         }
     }
-    let mut errors =
-        ErrorRows { names: ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect(), ..Default::default() };
+    let mut errors = ErrorRows { names: labels.names.clone(), ..Default::default() };
     // The solutions whose fields are stored (`online.h5`): exact, full ranks, full dual basis.
     let mut shown: Vec<ReducedSolution> = Vec::new();
     for (dual_basis, model) in [("full", &full), ("truncated", &trunc)] {

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::graph::{Input, StageDef};
-use super::{Ctx, LazyPhysics, PointCounts, Shared};
+use super::{Ctx, Labels, LazyPhysics, PointCounts, Shared};
 use crate::cache::{params, Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
@@ -193,6 +193,7 @@ pub(crate) struct SweepStage {
     pub sweep: Sweep,
     pub mesh: Input,
     pub family: Key,
+    pub labels: Labels,
 }
 
 impl StageDef for SweepStage {
@@ -206,22 +207,23 @@ impl StageDef for SweepStage {
         vec![&self.mesh]
     }
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
-        let columns = run(ctx, &mut shared.physics, &self.mesh.key, &self.sweep)?;
+        let columns = run(ctx, &mut shared.physics, &self.family, &self.labels, &self.sweep)?;
         shared.columns.insert(self.number, columns);
         Ok(self.family.clone())
     }
 }
 
-/// Ensure a stored column exists for every point of `sweep`; their index rows in its order.
-/// Holds the store's exclusive lock: cleans up after killed writers and compacts the index.
+/// Ensure a stored column exists for every point of `sweep` in the column family `fkey`; their
+/// index rows in its order. Holds the store's exclusive lock: cleans up after killed writers
+/// and compacts the index.
 pub(crate) fn run(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
-    mesh: &Key,
+    fkey: &Key,
+    labels: &Labels,
     sweep: &Sweep,
 ) -> Result<Columns, CromError> {
-    let fkey = scene_family(ctx.scene, mesh);
-    let (mut family, mut index) = load_index(ctx.store.root(), &fkey)?;
+    let (mut family, mut index) = load_index(ctx.store.root(), fkey)?;
     // Orphans (blocks without a fragment, temporary files) are never in the index: removing them
     // after reading it changes nothing it holds.
     if let Some(f) = &family {
@@ -238,7 +240,7 @@ pub(crate) fn run(
     let distinct: std::collections::HashSet<&Key> = sweep.keys.iter().collect();
     let reused = distinct.iter().filter(|k| index.rows.contains_key(**k)).count();
     let all: Vec<usize> = (0..sweep.chunks.len()).collect();
-    let done = solve_chunks(ctx, physics, &fkey, &mut family, &mut index, sweep, &all)?;
+    let done = solve_chunks(ctx, physics, (fkey, labels), &mut family, &mut index, sweep, &all)?;
     if let (Some(f), true) = (&family, done.committed + uncompacted > 0) {
         f.compact(&index)?;
     }
@@ -246,7 +248,7 @@ pub(crate) fn run(
     ctx.record("snapshot", done.solved, reused, dir);
     ctx.points.add(PointCounts { solved: done.solved, reused, failed: done.failures.len() });
     if !done.failures.is_empty() {
-        return Err(failure_error(ctx, &done.failures, sweep, done.solved + done.failures.len())?);
+        return Err(failure_error(ctx, labels, &done.failures, sweep, done.solved + done.failures.len())?);
     }
     let family = family.ok_or_else(|| {
         CromError::artifact(ctx.store.root(), "no snapshot was stored for this scene", "rerun the scene")
@@ -270,13 +272,13 @@ pub(crate) fn run(
 pub(crate) fn work(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
-    mesh: &Key,
+    fkey: &Key,
+    labels: &Labels,
     sweeps: &[Sweep],
     k: usize,
     n: usize,
 ) -> Result<PointCounts, CromError> {
-    let fkey = scene_family(ctx.scene, mesh);
-    let (mut family, mut index) = load_index(ctx.store.root(), &fkey)?;
+    let (mut family, mut index) = load_index(ctx.store.root(), fkey)?;
     let total: usize = sweeps.iter().map(|s| s.chunks.len()).sum();
     let mine = shard_range(total, k, n);
     let mut counts = PointCounts::default();
@@ -287,7 +289,7 @@ pub(crate) fn work(
         if ids.is_empty() {
             continue;
         }
-        let done = solve_chunks(ctx, physics, &fkey, &mut family, &mut index, sweep, &ids)?;
+        let done = solve_chunks(ctx, physics, (fkey, labels), &mut family, &mut index, sweep, &ids)?;
         counts.add(PointCounts { solved: done.solved, reused: done.cached, failed: done.failures.len() });
         ctx.record(
             "snapshot",
@@ -297,7 +299,7 @@ pub(crate) fn work(
         );
         if !done.failures.is_empty() {
             ctx.points.add(counts);
-            return Err(failure_error(ctx, &done.failures, sweep, done.solved + done.failures.len())?);
+            return Err(failure_error(ctx, labels, &done.failures, sweep, done.solved + done.failures.len())?);
         }
     }
     ctx.points.add(counts);
@@ -313,17 +315,17 @@ struct Done {
 }
 
 /// Solve the missing points of the chunks `ids` of `sweep` (in parallel), committing each
-/// chunk's block as soon as all its points are in.
+/// chunk's block to the family `fkey` as soon as all its points are in.
 fn solve_chunks(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
-    fkey: &Key,
+    (fkey, labels): (&Key, &Labels),
     family: &mut Option<ColumnFamily>,
     index: &mut Index,
     sweep: &Sweep,
     ids: &[usize],
 ) -> Result<Done, CromError> {
-    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+    let names = &labels.names;
     let (points, keys) = (&sweep.points, &sweep.keys);
     // Missing points per chunk (a point already in the index, or imported, is not solved).
     let mut cached = 0;
@@ -351,7 +353,7 @@ fn solve_chunks(
     let mut write_error: Option<CromError> = None;
     let mut committed = 0usize;
     let n_imported = imported.len();
-    let scene_name = ctx.scene.scene.name.clone();
+    let scene_name = labels.scene.clone();
     let root = ctx.store.root().to_path_buf();
     if n_missing > 0 || !imported.is_empty() {
         let phys = physics.get()?;
@@ -399,7 +401,7 @@ fn solve_chunks(
                 });
             });
             for (c, i, r, secs) in rx {
-                progress.inc(&point_label(&names, &points[i]));
+                progress.inc(&point_label(names, &points[i]));
                 let slot = pending.get_mut(&c).expect("a planned chunk");
                 slot.1 -= 1;
                 match r {
@@ -438,19 +440,20 @@ fn solve_chunks(
 /// run's failure table.
 fn failure_error(
     ctx: &Ctx<'_>,
+    labels: &Labels,
     failures: &[(usize, String)],
     sweep: &Sweep,
     attempted: usize,
 ) -> Result<CromError, CromError> {
-    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
-    let table_path = write_failures(ctx, failures, &sweep.points, &sweep.keys)?;
+    let names = &labels.names;
+    let table_path = write_failures(ctx, labels, failures, &sweep.points, &sweep.keys)?;
     let list = failures
         .iter()
-        .map(|(i, m)| format!("  {}: {m}", point_label(&names, &sweep.points[*i])))
+        .map(|(i, m)| format!("  {}: {m}", point_label(names, &sweep.points[*i])))
         .collect::<Vec<_>>()
         .join("\n");
     Ok(CromError::SolveFailures {
-        scene: ctx.scene.scene.name.clone(),
+        scene: labels.scene.clone(),
         failed: failures.len(),
         total: attempted,
         list,
@@ -519,17 +522,17 @@ fn import_old_layout(ctx: &mut Ctx<'_>, key: &Key, p: &[f64]) -> Option<PendingC
 /// cached: the next run tries those points again.
 fn write_failures(
     ctx: &Ctx<'_>,
+    labels: &Labels,
     failures: &[(usize, String)],
     points: &[Vec<f64>],
     keys: &[Key],
 ) -> Result<std::path::PathBuf, CromError> {
-    let dir = crate::store::fs::named_dir(ctx.store.root(), "runs", &ctx.scene.scene.name)?;
+    let dir = crate::store::fs::named_dir(ctx.store.root(), "runs", &labels.scene)?;
     std::fs::create_dir_all(&dir).map_err(|e| CromError::io(&dir, "creating the run directory", e))?;
     let n = failures.len();
-    let table = Table::default().with("scene", Column::Str(vec![ctx.scene.scene.name.clone(); n]));
-    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+    let table = Table::default().with("scene", Column::Str(vec![labels.scene.clone(); n]));
     let failed: Vec<&[f64]> = failures.iter().map(|f| points[f.0].as_slice()).collect();
-    let table = super::with_parameters(table, &names, &failed)
+    let table = super::with_parameters(table, &labels.names, &failed)
         .with("snapshot_key", Column::Str(failures.iter().map(|f| keys[f.0].0.clone()).collect()))
         .with("error", Column::Str(failures.iter().map(|f| f.1.clone()).collect()));
     // Workers on several hosts may write this at once: a name unique to host and process.

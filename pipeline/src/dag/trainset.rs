@@ -19,7 +19,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::graph::{Input, StageDef};
-use super::{Ctx, Shared};
+use super::{Ctx, Labels, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{H5In, H5Out};
@@ -75,19 +75,28 @@ pub(crate) struct SetStage {
     pub snapshots: Input,
     pub sweep: usize,
     pub start: usize,
+    pub labels: Labels,
 }
 
 impl SetStage {
-    /// The set `set` of `points`, whose snapshot keys are `keys`, from the sweep node `snapshots`.
+    /// The set `set` of `points`, whose snapshot keys are `keys`, from the sweep node `snapshots`
+    /// (its rows `start..`); `labels` name it.
     pub(crate) fn plan(
         set: &str,
-        points: &[Vec<f64>],
-        keys: &[&Key],
+        (points, keys): (&[Vec<f64>], &[&Key]),
         snapshots: Input,
-        sweep: usize,
-        start: usize,
+        (sweep, start): (usize, usize),
+        labels: &Labels,
     ) -> Self {
-        Self { spec: spec(set, points, keys), set: set.to_string(), points: points.to_vec(), snapshots, sweep, start }
+        Self {
+            spec: spec(set, points, keys),
+            set: set.to_string(),
+            points: points.to_vec(),
+            snapshots,
+            sweep,
+            start,
+            labels: labels.clone(),
+        }
     }
 }
 
@@ -110,14 +119,14 @@ impl StageDef for SetStage {
             )
         })?;
         let rows = &cols.rows[self.start..self.start + self.points.len()];
-        run(ctx, &self.spec, &self.set, &self.points, rows, cols.shape)
+        run(ctx, &self.spec, (&self.set, &self.labels), &self.points, rows, cols.shape)
     }
 }
 
 pub(crate) fn run(
     ctx: &mut Ctx<'_>,
     spec: &KeySpec,
-    set: &str,
+    (set, labels): (&str, &Labels),
     points: &[Vec<f64>],
     rows: &[IndexRow],
     shape: (usize, usize),
@@ -133,17 +142,15 @@ pub(crate) fn run(
         let _ = ctx.store.quarantine_dir(ArtifactKind::TrainingSet, &spec.key());
         ctx.warnings.push(format!("{set} set {} referred to moved columns; rewritten", spec.key().short()));
     }
-    let scene = ctx.scene.scene.name.clone();
-    let pname = ctx.scene.parameter.name.clone();
-    let names: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+    let (scene, pname, names) = (&labels.scene, &labels.parameter, &labels.names);
     let root = ctx.store.root().to_path_buf();
     ctx.single(ArtifactKind::TrainingSet, label, spec, |staging| {
         let path = staging.path(names::FILE);
         let f = H5Out::create(&path)?;
-        f.attr_str("scene", &scene)?;
+        f.attr_str("scene", scene)?;
         f.attr_str("kind", "trainset")?;
         f.attr_str("set", set)?;
-        f.attr_str("parameter_name", &pname)?;
+        f.attr_str("parameter_name", pname)?;
         f.attr_str("parameter_names", &names.join(","))?;
         f.attr_u64("schema_version", u64::from(ArtifactKind::TrainingSet.schema_version()))?;
         f.attr_str("cache_key", &staging.key().0)?;
@@ -153,14 +160,14 @@ pub(crate) fn run(
         f.virtual_columns(names::PRIMAL, "primal", shape.0, &src, &width, "primal field, one snapshot per column")?;
         f.virtual_columns(names::DUAL, "dual", shape.1, &src, &width, "contact pressure, one snapshot per column")?;
         if names.len() == 1 {
-            f.vec_f64(names::PARAMETERS, &points.iter().map(|p| p[0]).collect::<Vec<_>>(), &pname)?;
+            f.vec_f64(names::PARAMETERS, &points.iter().map(|p| p[0]).collect::<Vec<_>>(), pname)?;
         } else {
             let flat: Vec<f64> = points.iter().flatten().copied().collect();
             f.table_f64(names::PARAMETERS, points.len(), names.len(), &flat, &names.join(","))?;
         }
         drop(f);
-        stats_table(&scene, &names, points, rows).write_parquet(&staging.path(names::STATS))?;
-        timings_table(&scene, rows).write_parquet(&staging.path(names::TIMINGS))?;
+        stats_table(scene, names, points, rows).write_parquet(&staging.path(names::STATS))?;
+        timings_table(scene, rows).write_parquet(&staging.path(names::TIMINGS))?;
         Ok(BTreeMap::from([
             ("snapshots".to_string(), json!(points.len())),
             ("primal_shape".to_string(), json!([shape.0, rows.len()])),

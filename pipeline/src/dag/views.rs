@@ -27,7 +27,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::graph::{Input, Placement, StageDef};
-use super::{Ctx, Shared};
+use super::{Ctx, Labels, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{H5In, H5Out, VirtualPiece};
@@ -295,17 +295,19 @@ pub(crate) struct ViewsStage {
     pub spec: KeySpec,
     pub subject: Subject,
     pub mesh: Input,
+    /// The parameter's component names, in the steps' attributes.
+    pub names: Vec<String>,
 }
 
 impl ViewsStage {
     /// The views of `subject` on `mesh`.
-    pub(crate) fn plan(subject: Subject, mesh: Input) -> Self {
+    pub(crate) fn plan(subject: Subject, mesh: Input, labels: &Labels) -> Self {
         let spec = match &subject {
             Subject::Set { set, of } => set_spec(set, &of.key, &mesh.key),
             Subject::Basis { of } => basis_spec(&of.key, &mesh.key),
             Subject::Online { of, test } => online_spec(&of.key, &test.key, &mesh.key),
         };
-        Self { spec, subject, mesh }
+        Self { spec, subject, mesh, names: labels.names.clone() }
     }
 }
 
@@ -328,16 +330,21 @@ impl StageDef for ViewsStage {
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         let mesh = &self.mesh.key;
         match &self.subject {
-            Subject::Set { set: name, of } => set(ctx, &self.spec, name, &of.key, mesh),
+            Subject::Set { set: name, of } => set(ctx, &self.spec, (name, &self.names), &of.key, mesh),
             Subject::Basis { of } => basis(ctx, &self.spec, &of.key, mesh),
-            Subject::Online { of, test } => online(ctx, &self.spec, &of.key, &test.key, mesh),
+            Subject::Online { of, test } => online(ctx, &self.spec, &of.key, (&test.key, &self.names), mesh),
         }
     }
 }
 
 /// The views of the snapshot set `set` (train, test, nested-k) stored as `set_key`.
-fn set(ctx: &mut Ctx<'_>, spec: &KeySpec, set: &str, set_key: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let names_of: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+fn set(
+    ctx: &mut Ctx<'_>,
+    spec: &KeySpec,
+    (set, names_of): (&str, &[String]),
+    set_key: &Key,
+    mesh: &Key,
+) -> Result<Key, CromError> {
     let root = ctx.store.root().to_path_buf();
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::STATS);
     let mesh_facts = mesh_facts(ctx, mesh)?;
@@ -346,7 +353,7 @@ fn set(ctx: &mut Ctx<'_>, spec: &KeySpec, set: &str, set_key: &Key, mesh: &Key) 
         (f.shape(set_names::PRIMAL)?[0], f.shape(set_names::DUAL)?[0])
     };
     ctx.single(ArtifactKind::Views, "views", spec, |staging| {
-        let steps = set_steps(&root, &stats, &names_of, shape)?;
+        let steps = set_steps(&root, &stats, names_of, shape)?;
         write_series(staging, ("set", set), &mesh_facts, &steps, names::SET_XDMF, set)
     })
 }
@@ -404,8 +411,13 @@ fn basis(ctx: &mut Ctx<'_>, spec: &KeySpec, basis: &Key, mesh: &Key) -> Result<K
 /// The views of the online solutions (`online.h5` of the rom artifact `rom`) at the points of
 /// the test set `test`: per test point the online fields, their errors and the full-order
 /// fields (onto the snapshot columns), the parameter and whether the query converged.
-fn online(ctx: &mut Ctx<'_>, spec: &KeySpec, rom: &Key, test: &Key, mesh: &Key) -> Result<Key, CromError> {
-    let names_of: Vec<String> = ctx.scene.parameter.names().iter().map(|s| s.to_string()).collect();
+fn online(
+    ctx: &mut Ctx<'_>,
+    spec: &KeySpec,
+    rom: &Key,
+    (test, names_of): (&Key, &[String]),
+    mesh: &Key,
+) -> Result<Key, CromError> {
     let root = ctx.store.root().to_path_buf();
     let mesh_facts = mesh_facts(ctx, mesh)?;
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, test).join(set_names::STATS);
@@ -420,7 +432,7 @@ fn online(ctx: &mut Ctx<'_>, spec: &KeySpec, rom: &Key, test: &Key, mesh: &Key) 
         let converged = f.vec_u64("converged")?;
         drop(f);
         // The test set's own steps give the full-order fields, renamed, and the parameter.
-        let mut steps = set_steps(&root, &stats, &names_of, (n_dof, n_contact))?;
+        let mut steps = set_steps(&root, &stats, names_of, (n_dof, n_contact))?;
         if k != steps.len() || converged.len() != k {
             return Err(CromError::artifact(
                 &online_file,
