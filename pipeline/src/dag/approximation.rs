@@ -1,4 +1,4 @@
-//! Approximation stage (issue 15): one dual approximation of the scene's `[comparison]`
+//! Approximation stage: one dual approximation of the scene's `[comparison]`
 //! built from the training pressures and measured by the same metrics as every other —
 //! compactness C(m), leave-one-out G(m), the test-set error T(m), specificity S(m) and the
 //! nested error H(n) — through `crom_stages::dual`. One artifact per approximation: its key

@@ -1,4 +1,4 @@
-//! Online approximation stage (issue 15): the reduced solve of the online stage
+//! Online approximation stage: the reduced solve of the online stage
 //! ([`crom_stages::rom`], exact algorithm) with the dual basis of one approximation of the
 //! scene's `[comparison]` that has a non-negative one (CPG, Angle-Greedy, NNMF, local bases,
 //! the dictionary, registered CPG), at the full primal rank, for a few dual sizes m, at every

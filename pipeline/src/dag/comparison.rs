@@ -1,4 +1,4 @@
-//! The comparison (issue 15): the scene's `[comparison]` as a list of dual approximations,
+//! The comparison: the scene's `[comparison]` as a list of dual approximations,
 //! each its own stage ([`super::approximation`] offline, [`super::approximation_online`]
 //! online), and the two stages that put them side by side. A side-by-side artifact
 //! (`comparison`, `online-comparison`) holds every approximation's tables concatenated in the
