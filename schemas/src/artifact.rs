@@ -43,16 +43,16 @@ pub enum ArtifactKind {
     Specificity,
     /// Nested-training-set error H(n) (eq. 19): `nested.parquet`.
     Nested,
-    /// One dual approximation built and measured (issue 15): the [`comparison`] tables of that
+    /// One dual approximation built and measured: the [`comparison`] tables of that
     /// approximation alone, and `bases.h5` where its basis does not depend on the parameter.
     Approximation,
-    /// Dual approximations side by side (issue 15): the `approximation` artifacts' tables
+    /// Dual approximations side by side: the `approximation` artifacts' tables
     /// concatenated, `comparison.parquet` and the rest of [`comparison`].
     Comparison,
-    /// The online solve with one dual approximation (issue 15): [`comparison::ONLINE`] and
+    /// The online solve with one dual approximation: [`comparison::ONLINE`] and
     /// [`comparison::ONLINE_TIMINGS`] of that approximation alone.
     OnlineApproximation,
-    /// The online solve with each dual approximation (issue 15): the `online-approximation`
+    /// The online solve with each dual approximation: the `online-approximation`
     /// artifacts' tables concatenated, `online_comparison.parquet`.
     OnlineComparison,
     /// ParaView time series (XDMF) of a snapshot set or a basis: `*.xdmf` + `views.h5`.
@@ -157,7 +157,7 @@ pub const TIMING_FILES: [(&str, &str); 18] = [
     ("report", "fig_comparison_online.svg"),
 ];
 
-/// The comparison of dual approximations (issue 15; `crom_stages::dual`). Every table has a
+/// The comparison of dual approximations (`crom_stages::dual`). Every table has a
 /// `scene` and an `approximation` column (`pod`, `cpg`, `angle-greedy`, `nnmf`, `local-K`,
 /// `dictionary`, `registered-<map>-<basis>`), so a pandas user can rebuild any plot. Each
 /// approximation is its own artifact (kind `approximation`, and `online-approximation` for its
@@ -232,7 +232,7 @@ pub mod mesh {
     pub const NODE_BODY: &str = "node_body";
     /// Body id of each cell.
     pub const CELL_BODY: &str = "cell_body";
-    /// Root attributes (issue 16: conditioning in the artifacts): estimates of the largest and
+    /// Root attributes (the conditioning of the stiffness): estimates of the largest and
     /// smallest eigenvalue of the stiffness on the free dofs and their ratio, a lower bound on
     /// its 2-norm condition number, by power and inverse iteration with the solver's own factor
     /// (`crom_stages::condition`).
@@ -320,7 +320,7 @@ pub mod basis {
     pub const SELECTED: &str = "selected";
     /// Greedy compactness trace (CPG groups).
     pub const COMPACTNESS: &str = "compactness";
-    /// CPG groups (issue 16): after each selection t, the reciprocal of the estimated 1-norm
+    /// CPG groups: after each selection t, the reciprocal of the estimated 1-norm
     /// condition number of the Gram `G_t = B_tᵀ B_t` of the first t generators
     /// (`crom_stages::basis::gram_condition_path`; Hager's estimator on the MGS-twice factor).
     /// It bounds the conditioning of every NNLS Gram of that step (each is a principal
@@ -519,7 +519,7 @@ pub mod published {
     pub const LAYOUT_VERSION: u32 = 1;
     /// Directory of the nested levels' names.
     pub const NESTED_DIR: &str = "nested";
-    /// Directory of the comparison's tables (issue 15): `comparison/comparison.parquet` and the
+    /// Directory of the comparison's tables: `comparison/comparison.parquet` and the
     /// rest of [`super::comparison`], `comparison/online_comparison.parquet` and its timings.
     pub const COMPARISON_DIR: &str = "comparison";
     /// Name of the report directory link.

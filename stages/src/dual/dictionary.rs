@@ -198,7 +198,7 @@ mod tests {
 const WS_TOL: f64 = 1e-8;
 
 /// Size of the first working set: the atoms nearest to the query's parameter. Measured on
-/// ironing-fine (`bench_dictionary`, design note 34): with 16 a 4 097-atom dictionary needs a
+/// ironing-fine (`bench_dictionary`, docs/design-notes.md#dual-approximations): with 16 a 4 097-atom dictionary needs a
 /// second round at most test points (its 16 nearest atoms span a fraction of one node spacing
 /// of travel, and atoms up to one node spacing away are violated), with 32 one round suffices
 /// at the median and the 128-atom dictionary pays about 20 % more per query.

@@ -1,5 +1,5 @@
 //! Dual approximations: every way crom approximates the contact pressure, behind one interface
-//! (issue 15, "beyond the paper"). POD and the Cone-Projected Greedy basis of the paper are two
+//! ("beyond the paper"). POD and the Cone-Projected Greedy basis of the paper are two
 //! values of [`Approach`]; the others are the ones the paper names in its *Perspectives* or
 //! cites without measuring.
 //!
