@@ -5,8 +5,10 @@
 //! Bump a kind's `schema_version` whenever the layout of its files changes: the version is part of
 //! every cache key, so old artifacts are never read with a new layout.
 //!
-//! **Undefined values.** No table or array holds NaN or infinity. A float that is undefined is a
-//! Parquet null (every float column is nullable; pandas reads it as NaN, `Table::read_parquet` in
+//! The whole format is specified for readers in `docs/store-format.md`.
+//!
+//! **Undefined values.** No table or array holds NaN or infinity, except the cone curve of a
+//! large training set (see [`basis::COMPACTNESS`]). A float that is undefined is a Parquet null (every float column is nullable; pandas reads it as NaN, `Table::read_parquet` in
 //! crom too), and its reason is what the row says:
 //!
 //! | table | column | null when |
@@ -29,7 +31,9 @@
 pub enum ArtifactKind {
     /// The scene's discretisation: `mesh.h5` (+ `mesh.xdmf`).
     Mesh,
-    /// One high-fidelity solve at one parameter value: `snapshot.h5`.
+    /// One high-fidelity solve at one parameter value. The kind names snapshot and column-family
+    /// keys; snapshots are stored as columns of a column family (`columns/`), and a
+    /// `snapshot/<key>/snapshot.h5` directory is the former layout, read only to migrate it.
     Snapshot,
     /// A set of snapshots as matrices: `snapshots.h5` + `solver_stats.parquet`.
     TrainingSet,
@@ -216,7 +220,7 @@ pub const MANIFEST: &str = "manifest.json";
 /// `mesh.h5`: `/nodes` (n_nodes x dim), `/cells` (n_cells x nodes_per_cell, u64),
 /// `/contact_nodes` (u64, the potential-contact nodes, order of the dual field),
 /// `/node_body`, `/cell_body` (u64 body ids). Attributes: `scene`, `kind`, `schema_version`,
-/// `cache_key`, `command`.
+/// `cache_key`, `dofs_per_node` and the stiffness estimates below.
 pub mod mesh {
     /// HDF5 file.
     pub const FILE: &str = "mesh.h5";
@@ -243,7 +247,8 @@ pub mod mesh {
     pub const STIFFNESS_CONDITION: &str = "stiffness_condition";
 }
 
-/// `snapshot.h5`: `/u` (n_dof), `/pressure` (n_contact), attribute `parameter` and the solver
+/// `snapshot.h5` of the former one-directory-per-snapshot layout, read only to import it into a
+/// column family: `/u` (n_dof), `/pressure` (n_contact), attribute `parameter` and the solver
 /// statistics as attributes.
 pub mod snapshot {
     /// HDF5 file.
@@ -299,8 +304,9 @@ pub mod trainset {
 
 /// `basis.h5`: groups `/primal_pod`, `/dual_pod` with `modes` (n x m) and `singular_values`
 /// (all, descending); `/dual_cpg` with `modes` (n x m, unit columns, selection order),
-/// `selected` (u64 snapshot indices) and `compactness` (C(0..=m) of the greedy);
-/// `/dual_cpg_truncated` likewise at the truncation tolerance. Attributes: `tolerance`.
+/// `selected` (u64 snapshot indices), `compactness` (C(0..=m) of the greedy) and `gram_rcond`;
+/// `/dual_cpg_truncated` likewise at the truncation tolerance. Group attributes: `tolerance`,
+/// `rank` and, for the POD groups, `numerical_rank`.
 pub mod basis {
     /// HDF5 file.
     pub const FILE: &str = "basis.h5";
@@ -318,7 +324,9 @@ pub mod basis {
     pub const SINGULAR_VALUES: &str = "singular_values";
     /// Selected snapshot indices (CPG groups).
     pub const SELECTED: &str = "selected";
-    /// Greedy compactness trace (CPG groups).
+    /// Greedy compactness trace (CPG groups). Above 1 025 training snapshots it is evaluated on
+    /// a rank grid and NaN at the other ranks (the dataset's `units` attribute says so): the one
+    /// place an artifact holds NaN.
     pub const COMPACTNESS: &str = "compactness";
     /// CPG groups: after each selection t, the reciprocal of the estimated 1-norm
     /// condition number of the Gram `G_t = B_tᵀ B_t` of the first t generators
@@ -504,7 +512,7 @@ pub mod catalog {
 }
 
 /// Stable names of each scene's latest complete study: `scenes/<scene>` is a relative symbolic
-/// link to `scenes/.versions/<scene>.<stamp>/`, a directory of relative links to the
+/// link to `scenes/.versions/<scene>@<stamp>/`, a directory of relative links to the
 /// content-addressed files plus `study.json`; a successful run swaps the one link atomically.
 pub mod published {
     /// Directory under the store root.
