@@ -166,7 +166,7 @@ const ARENA_VAR: &str = "MALLOC_ARENA_MAX";
 const ARENAS: &str = "2";
 
 /// Start the process again (the same program, arguments and PID, `exec`) with glibc's malloc
-/// arenas bounded to [`ARENAS`], unless `MALLOC_ARENA_MAX` is already set; returns only when
+/// arenas bounded to `ARENAS`, unless `MALLOC_ARENA_MAX` is already set; returns only when
 /// nothing was started (already bounded, or the program cannot be found again: then the run goes
 /// on with glibc's default).
 ///

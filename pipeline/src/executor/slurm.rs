@@ -149,7 +149,7 @@ pub struct Submission<'a> {
     pub scene: &'a SceneConfig,
     /// Its plan.
     pub plan: &'a Plan,
-    /// Points per chunk ([`crate::dag::chunk_columns`]).
+    /// Points per chunk (`crate::dag::chunk_columns`).
     pub chunk_columns: usize,
     /// sbatch settings.
     pub options: SlurmSpec,

@@ -214,8 +214,8 @@ const WS_MAX_ROUNDS: usize = 64;
 /// (column generation): the reduced problem with all N atoms has one constraint
 /// `ĝ_a = sum_i theta_ia w_i g_i(û) >= 0` per atom. Start from the `start` atoms nearest to
 /// `mu` in the first parameter, solve the reduced problem on them
-/// ([`ReducedModel::solve_in`]), then compute the gap `g_i` of every paired node
-/// ([`ReducedModel::node_gaps`]) and the reduced gap of the atoms outside the set that touch a
+/// ([`crate::rom::ReducedModel::solve_in`]), then compute the gap `g_i` of every paired node
+/// ([`crate::rom::ReducedModel::node_gaps`]) and the reduced gap of the atoms outside the set that touch a
 /// node with a negative gap (an atom whose nodes all have `g >= 0` cannot be violated, since
 /// `theta >= 0`); add the most violated ones and solve again, until none is violated. The
 /// answer then satisfies the KKT conditions of the problem over all atoms (the atoms outside
