@@ -54,7 +54,7 @@ paraview SCENE SET="train" WARP="1" OUT="paraview.png":
     command -v pvbatch >/dev/null || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends paraview python3-paraview xvfb xauth)
     xvfb-run -a pvbatch scripts/render_paraview.py "${CROM_STORE:-data/store}/scenes/{{SCENE}}/{{SET}}.xdmf" {{OUT}} {{WARP}}
 
-# Only the online reduced-model targets (issue 10): speed-ups, convergence, mesh independence.
+# Only the online reduced-model targets: speed-ups, convergence, mesh independence.
 bench-rom:
     {{python}} scripts/bench_rom.py
 
@@ -62,11 +62,11 @@ bench-rom:
 bench-scale *WHICH:
     {{python}} scripts/bench_scale.py {{WHICH}}
 
-# Only the sharded-sweep overheads (issue 11): sbatch, worker start, block commit, index.
+# Only the sharded-sweep overheads: sbatch, worker start, block commit, index.
 bench-cluster:
     {{python}} scripts/bench_cluster.py
 
-# Issue 15's targets: the dual approximations side by side.
+# The dual approximations' targets, side by side.
 bench-comparison:
     {{python}} scripts/bench_comparison.py
 
@@ -78,7 +78,7 @@ slurm-up:
 slurm-down:
     bash scripts/slurm-up.sh stop
 
-# The stress matrix (issue 16): scenes pushed to the extremes, each answer verified or refused
+# The stress matrix: scenes pushed to the extremes, each answer verified or refused
 # with a reason; one row per case. `just stress --fast` is the subset CI runs.
 stress *ARGS:
     {{python}} scripts/stress.py {{ARGS}}

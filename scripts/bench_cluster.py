@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Per-task overheads of sharded sweeps (issue 11, item 4), release build, printed as a Markdown
-table. Part of `just bench`; not a test. The numbers feed design note 32 (what 10^5-10^6
-snapshots on 100 nodes would cost).
+"""Per-task overheads of sharded sweeps, release build, printed as a Markdown table. Part of
+`just bench`; not a test. The numbers feed
+docs/design-notes.md#what-limits-a-sweep-at-a-million-snapshots (what 10^5-10^6 snapshots on
+100 nodes would cost).
 
   1  sbatch: one job array of 100 tasks submitted (needs Slurm: `scripts/slurm-up.sh start`)
   2  worker start with nothing to do: process start, scene, plan (every key), index read

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Issue 15's targets for the dual approximations, measured, with the target beside each value.
+"""The targets for the dual approximations, measured, with the target beside each value.
 
 Runs `crom run` for ironing-fine and hertz (release build) into a fresh temporary store and
 reads the comparison artifacts (`comparison.parquet`, `comparison_timings.parquet`) and the

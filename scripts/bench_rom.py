@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Issue 10's targets for the online reduced model, measured, with the target beside each value.
+"""The targets for the online reduced model, measured, with the target beside each value.
 
 Runs `crom run` for rope, hertz and ironing-fine into a fresh temporary store (release build),
 reads each scene's `tradeoff.parquet` and the online stage's wall time from its manifest, then
@@ -24,7 +24,7 @@ import pandas as pd
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 CROM = REPO / "target" / "release" / "crom"
-# Relative residual of the reduced quadrature in the mesh table (design note 40).
+# Relative residual of the reduced quadrature in the mesh table (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints).
 SAMPLING_TOL = 3e-2
 
 
@@ -37,7 +37,7 @@ def run(store, scene):
                    stdout=subprocess.DEVNULL)
     rom = next((store / "rom").iterdir())
     keys = ["scene", "algorithm", "dual_basis", "r_primal", "r_dual"]
-    # Timings live apart from the results (byte-reproducible result files, design note 19).
+    # Timings live apart from the results (byte-reproducible result files, docs/design-notes.md#timings-apart-results-byte-reproducible).
     trade = pd.read_parquet(rom / "tradeoff.parquet").merge(pd.read_parquet(rom / "tradeoff_timings.parquet"),
                                                             on=keys, validate="one_to_one")
     seconds = json.loads((rom / "manifest.json").read_text())["wall_seconds"]
@@ -52,7 +52,7 @@ def pair(trade, alg, ru, rl):
 def main():
     subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
                    check=True)
-    print("| target (issue 10) | target | measured | met |")
+    print("| target | target value | measured | met |")
     print("|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         results, results_errors = {}, {}
@@ -83,7 +83,7 @@ def main():
             "Algorithm 1 converged, exact vs paper", "no worse (1 % allowance)", f"{ex_med:.3e} vs {pa_med:.3e}",
             ex_med <= pa_med * 1.01)
         row(f"ironing-fine ({ru}, {rl}): mean H1 error over every converged test point",
-            "<= 2.6e-3 (the issue's table)", f"{full.mean_primal_error:.2e}", full.mean_primal_error <= 2.6e-3)
+            "<= 2.6e-3 (the paper-scale target)", f"{full.mean_primal_error:.2e}", full.mean_primal_error <= 2.6e-3)
         for r in [ru, 32]:
             t = pair(trade, "exact", r, rt)
             row(f"ironing-fine ({r}, {rt}) truncated dual basis: speed-up", ">= 50x",
@@ -104,7 +104,7 @@ def main():
                             for r in ex.itertuples() if r.infeasible + r.failed > 0) or "none")
     print("\nOnline time against the mesh (same ranks; `cargo run --release --example bench_rom`). The"
           " sampled rows use a reduced quadrature of the contact constraints fitted to the training"
-          f" points at relative residual {SAMPLING_TOL} (design note 40; `study.contact_sampling` in a"
+          f" points at relative residual {SAMPLING_TOL} (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints; `study.contact_sampling` in a"
           " scene); their 'vs coarse' is against the coarse mesh's sampled model:\n")
     sys.stdout.flush()
     out = subprocess.run(["cargo", "run", "--release", "--quiet", "-p", "crom-stages", "--example", "bench_rom", "--",
@@ -114,7 +114,7 @@ def main():
     # the 'vs coarse' column of the 4x mesh's rows, exact and sampled
     ratios = {("sampled" in c[0]): float(c[5]) for c in
               (line.split("|")[1:-1] for line in out.splitlines() if line.startswith("| ironing 4x"))}
-    print("| target (issue 10) | target | measured | met |")
+    print("| target | target value | measured | met |")
     print("|---|---|---|---|")
     for sampled, what in [(False, "exact reduced model"), (True, "sampled surface (hyper-reduced)")]:
         if sampled in ratios:

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Scale benchmarks of issue 8 (release build, cold stores), printed as Markdown tables with
+"""Scale benchmarks (release build, cold stores), printed as Markdown tables with
 each target beside the measured value. Part of `just bench`; not a test.
 
   A  ironing-fine, the paper's study without the online stage        target <= 6 s cold
@@ -16,7 +16,7 @@ each target beside the measured value. Part of `just bench`; not a test.
      <= 1.5 GiB; level 14 <= 150 s, <= 2 GiB; growing <= 0.5 x cold.
 
 "Offline study" is `crom run --offline` (every stage but the online ROM and the report, whose
-speed is the subject of issue 10), timed with its peak RSS.
+speed `scripts/bench_rom.py` measures), timed with its peak RSS.
 
 Usage: scripts/bench_scale.py [A B C D E]   (default: all)
 """
@@ -65,13 +65,13 @@ def header(title):
 def bench_a(tmp):
     header("A. ironing-fine, the paper's study (cold)")
     store = pathlib.Path(tmp) / "a"
-    # The paper's study: the shipped scene without its [comparison] (issue 15's stages, timed by
+    # The paper's study: the shipped scene without its [comparison] (the comparison's stages, timed by
     # scripts/bench_comparison.py).
     scene = variant(tmp, "ironing-fine", "ironing-fine-paper", [], drop=["comparison"])
     wall, rss, _ = crom(store, "run", "--offline", scene)
     online, _, _ = crom(store, "run", scene)
     row("offline study (`crom run --offline`)", "<= 6 s", f"{wall:.1f} s", wall <= 6)
-    row("then the online ROM and the report", "(issue 10)", f"{online:.1f} s", True)
+    row("then the online ROM and the report", "(bench_rom.py)", f"{online:.1f} s", True)
     row("peak RSS, offline", "-", f"{rss / GIB:.2f} GiB", True)
 
 
@@ -89,7 +89,7 @@ def bench_b(tmp):
 def bench_c(tmp):
     header("C. ironing-fine, nested levels to 11, then grown to 12 (4 097 points)")
     store = pathlib.Path(tmp) / "c"
-    drop = ["comparison"]  # the paper's study (the comparison of issue 15 is not a scale case)
+    drop = ["comparison"]  # the paper's study (the comparison is not a scale case)
     s11 = variant(tmp, "ironing-fine", "ironing-fine-l11", [("nested_levels = 7", "nested_levels = 11")], drop)
     s12 = variant(tmp, "ironing-fine", "ironing-fine-l12", [("nested_levels = 7", "nested_levels = 12")], drop)
     w11, r11, _ = crom(store, "run", "--offline", s11)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The stress matrix (issue 16): scenes derived from the shipped ones, pushed to the extremes a
+"""The stress matrix: scenes derived from the shipped ones, pushed to the extremes a
 user pushes them to, each with an expectation that comes from outside the code under test (a
 formula, the geometry, the KKT conditions checked on the stored fields). Every case either
 passes its check or is refused with a reason (exit 2 naming the field, exit 1 naming the stage);
@@ -496,8 +496,8 @@ def main():
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="crom-stress-"))
     try:
         for i, (name, base, edits, command, check, _) in enumerate(cases(args.fast)):
-            # The matrix stresses the solver and the paper's bases; a shipped [comparison] (issue
-            # 15) is dropped, its settings being sized for the shipped training sets.
+            # The matrix stresses the solver and the paper's bases; a shipped [comparison] is
+            # dropped, its settings being sized for the shipped training sets.
             text = (REPO / "data" / "scenes" / f"{base}.toml").read_text()
             drop = ["comparison"] if "[comparison]" in text else []
             scene = variant(tmp, base, f"stress-{i}", edits, drop)

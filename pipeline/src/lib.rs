@@ -1,5 +1,67 @@
 //! crom: the contact low-rank study pipeline — store, cache, HDF5/Parquet I/O, the DAG of stages
 //! and the CLI. The numerics live in `crom-stages`; this crate does all the I/O.
+//!
+//! Every artifact is named by a content key ([`cache`]): blake3 of the canonical JSON of what
+//! determines it. A snapshot's key, for instance, is its parameter value and solver settings on
+//! its mesh — the recipe a reader of the store can reproduce (`docs/store-format.md`):
+//!
+//! ```
+//! use crom_pipeline::cache::{Key, KeySpec};
+//! use crom_schemas::artifact::ArtifactKind;
+//!
+//! let mesh = Key("ab".repeat(32));
+//! let params = serde_json::json!({ "parameter": 0.5, "solver": { "rel_tol": 1e-10, "max_iter": 100 } });
+//! let spec = KeySpec::new(ArtifactKind::Snapshot, 3, params).input("mesh", &mesh);
+//! // blake3 of {"stage":"snapshot","algorithm_version":3,"schema_version":1,"params":{...},"inputs":{"mesh":"abab…"}}
+//! assert_eq!(spec.key().0, "1a568b277142cd8d2282f6798fdf69e5eb18fe2e9865946860109ea8bd9bc6a5");
+//! ```
+//!
+//! [`main_with_args`] is the whole command line. A small rope study, run into a fresh store:
+//!
+//! ```
+//! let dir = tempfile::tempdir()?;
+//! let scene = dir.path().join("rope-small.toml");
+//! std::fs::write(
+//!     &scene,
+//!     r#"
+//! [scene]
+//! name = "rope-small"
+//! description = "a rope on a sloped obstacle"
+//! [model.rope]
+//! length = 1.0
+//! n_elements = 20
+//! nu = 30.0
+//! f = 250.0
+//! obstacle = { modes = [1.0, 3.0], amplitudes = [-0.2, 0.2], offset = -0.5 }
+//! [parameter]
+//! name = "gamma"
+//! description = "slope of the obstacle"
+//! min = -0.5
+//! max = 0.5
+//! n_train = 5
+//! [solver]
+//! rel_tol = 1e-10
+//! max_iter = 100
+//! [study]
+//! primal_tol = 0.0
+//! dual_orth_tol = 0.0
+//! dual_cone_tol = 0.0
+//! dual_cone_tol_truncated = 0.2
+//! specificity_samples = 100
+//! seed = 1
+//! "#,
+//! )?;
+//! let store = dir.path().join("store");
+//! let args = ["crom", "-q", "--store", store.to_str().unwrap(), "run", scene.to_str().unwrap()];
+//! assert_eq!(crom_pipeline::main_with_args(args.map(std::ffi::OsString::from)), 0);
+//! // The study's files under stable names, and the catalog of every artifact.
+//! assert!(store.join("scenes/rope-small/train.h5").exists());
+//! assert!(store.join("scenes/rope-small/report/index.html").exists());
+//! assert!(store.join("catalog.parquet").exists());
+//! // A second run finds everything in the store.
+//! assert_eq!(crom_pipeline::main_with_args(args.map(std::ffi::OsString::from)), 0);
+//! # Ok::<(), std::io::Error>(())
+//! ```
 
 pub mod cache;
 pub mod cli;

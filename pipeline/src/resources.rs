@@ -1,5 +1,5 @@
 //! The memory a scene needs, estimated from its file before anything is allocated or written
-//! (issue 9: a scene with `nx = 1000000000` must be refused with a message, not abort).
+//! (a scene with `nx = 1000000000` must be refused with a message, not abort).
 //!
 //! The estimate is the sum of what one run holds at its peak, each term from the scene's sizes
 //! (`n` displacement dofs, `c` contact dofs, `s` slaves, `N` training and `T` test points, `L`
@@ -13,8 +13,8 @@
 //!   dofs, `crom solve`, two threads) peaked at 0.33, 1.27 and 5.13 GiB, about 163 bytes per
 //!   `n log2 n` beyond the process's own 0.15 GiB. The first version took `f = 4 log2 n` and
 //!   12 bytes per entry, 2.5 times too little at 1.5 million dofs: a mesh that could not fit
-//!   would have been let through (found by the stress matrix's finest-mesh row, design note
-//!   33);
+//!   would have been let through (found by the stress matrix's finest-mesh row,
+//!   docs/design-notes.md#resource-limits-are-checked-from-the-scene-file);
 //! - the Delassus operator on the contact dofs, `8 c^2`, and one solver's condensed work
 //!   `8 (c s + s^2)` per thread (two threads);
 //! - the largest stage's snapshot matrices: the online stage's training and test sets plus
@@ -166,7 +166,7 @@ const ARENA_VAR: &str = "MALLOC_ARENA_MAX";
 const ARENAS: &str = "2";
 
 /// Start the process again (the same program, arguments and PID, `exec`) with glibc's malloc
-/// arenas bounded to [`ARENAS`], unless `MALLOC_ARENA_MAX` is already set; returns only when
+/// arenas bounded to `ARENAS`, unless `MALLOC_ARENA_MAX` is already set; returns only when
 /// nothing was started (already bounded, or the program cannot be found again: then the run goes
 /// on with glibc's default).
 ///

@@ -1,4 +1,4 @@
-//! End-to-end: many writers on one store (issue 11). Concurrent `crom work` shards — one of
+//! End-to-end: many writers on one store. Concurrent `crom work` shards — one of
 //! them killed mid-way and rerun — leave exactly the store a single local run writes, byte for
 //! byte, blocks included; `crom run --dry-run` writes nothing and `crom status` shows a killed
 //! worker and, after a run, nothing left to run (the plan's keys are the run's keys); and the

@@ -1,4 +1,4 @@
-//! The comparison of dual approximations (issue 15) end to end on the shipped hertz scene: the
+//! The comparison of dual approximations end to end on the shipped hertz scene: the
 //! artifact's tables have the documented columns and one row set per approximation, nothing
 //! non-finite except the documented nulls, a cached rerun recomputes nothing, and the Hertz
 //! contact registered by its half-width is nearly one-dimensional (Hertz theory: the pressure is

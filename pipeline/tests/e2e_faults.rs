@@ -1,4 +1,4 @@
-//! End-to-end faults (issue 9, item 7): a run killed (SIGKILL) during the metrics, the online
+//! End-to-end faults: a run killed (SIGKILL) during the metrics, the online
 //! stage or the report resumes to the same result files as an uninterrupted run; two `crom`
 //! processes racing on one store (same scene, other scene) — the second is refused with exit 3
 //! and changes nothing; a byte flipped in a basis and in a Parquet table and a truncated

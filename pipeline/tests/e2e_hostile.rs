@@ -1,4 +1,4 @@
-//! End-to-end: hostile scene files (issue 16, item 5). A scene name that tries to leave the
+//! End-to-end: hostile scene files. A scene name that tries to leave the
 //! store is refused before anything is written, even with a setting that makes every solve fail
 //! (which would otherwise write `runs/<name>/solver_failures.parquet`); HTML in the scene's
 //! strings reaches the report escaped.

@@ -298,12 +298,12 @@ fn offline_run_stops_before_the_online_stage() {
     assert_eq!(computed, ["views", "rom", "report"], "{}", text(&full));
 }
 
-/// Issue 9: a scene that parses and is within every bound but cannot fit in memory (an
+/// A scene that parses and is within every bound but cannot fit in memory (an
 /// ironing slab of 100 000 x 20 elements: 200 002 contact dofs, a Delassus operator of ~300
 /// GiB) is refused before anything is written, exit 2, naming the file, the field that drives
 /// the estimate, the estimate and the `--max-memory` fix; so is a small scene under a
-/// `--max-memory` below its estimate, while the same scene runs under a generous one. The
-/// issue's own example, `nx = 1000000000`, is out of the scene file's bounds (exit 2 too).
+/// `--max-memory` below its estimate, while the same scene runs under a generous one. An
+/// absurd size, `nx = 1000000000`, is out of the scene file's bounds (exit 2 too).
 #[test]
 fn scene_too_big_for_memory_exits_2_and_writes_nothing() {
     let tmp = tempfile::tempdir().expect("tempdir");

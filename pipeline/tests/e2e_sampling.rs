@@ -1,4 +1,4 @@
-//! The sampled surface (`study.contact_sampling`, design note 40) end to end on hertz: the
+//! The sampled surface (`study.contact_sampling`, docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints) end to end on hertz: the
 //! online stage adds one `exact-sampled` trade-off row per asked rank pair, every test point
 //! converges, and a quadrature fitted to zero residual is the full surface — its row's errors
 //! equal the exact solve's at the same ranks (the fit's unique solution is the tributary

@@ -9,7 +9,7 @@
     ts.primal.shape, ts.dual.shape          # (n_dof, N), (n_contact, N)
     sc.generalization(); sc.basis()["dual_cpg"].modes; sc.mesh().nodes; sc.report_dir
 
-The store (written by the Rust binary `crom`, see docs/user-guide.md, "The store"):
+The store (written by the Rust binary `crom`; specified in full in docs/store-format.md):
 
     STORE/catalog.parquet               one row per artifact and snapshot column family: stage, scene,
                                         set, bases, key, inputs (JSON), schema_version, algorithm_version,

@@ -324,7 +324,7 @@ class Scene:
         return self._with_timings("tradeoff", "tradeoff_timings", timings)
 
     def comparison(self, table: str = "comparison") -> pd.DataFrame:
-        """The dual approximations side by side (scenes with `[comparison]`; issue 15): `comparison`
+        """The dual approximations side by side (scenes with `[comparison]`): `comparison`
         (C, G, T and S curves), `comparison_nested`, `comparison_cells`, `comparison_reached`,
         `comparison_facts`, `comparison_timings`, and after an online run `online_comparison` and
         `online_comparison_timings`. Every table has an `approximation` column, in the scene

@@ -5,8 +5,10 @@
 //! Bump a kind's `schema_version` whenever the layout of its files changes: the version is part of
 //! every cache key, so old artifacts are never read with a new layout.
 //!
-//! **Undefined values.** No table or array holds NaN or infinity. A float that is undefined is a
-//! Parquet null (every float column is nullable; pandas reads it as NaN, `Table::read_parquet` in
+//! The whole format is specified for readers in `docs/store-format.md`.
+//!
+//! **Undefined values.** No table or array holds NaN or infinity, except the cone curve of a
+//! large training set (see [`basis::COMPACTNESS`]). A float that is undefined is a Parquet null (every float column is nullable; pandas reads it as NaN, `Table::read_parquet` in
 //! crom too), and its reason is what the row says:
 //!
 //! | table | column | null when |
@@ -29,7 +31,9 @@
 pub enum ArtifactKind {
     /// The scene's discretisation: `mesh.h5` (+ `mesh.xdmf`).
     Mesh,
-    /// One high-fidelity solve at one parameter value: `snapshot.h5`.
+    /// One high-fidelity solve at one parameter value. The kind names snapshot and column-family
+    /// keys; snapshots are stored as columns of a column family (`columns/`), and a
+    /// `snapshot/<key>/snapshot.h5` directory is the former layout, read only to migrate it.
     Snapshot,
     /// A set of snapshots as matrices: `snapshots.h5` + `solver_stats.parquet`.
     TrainingSet,
@@ -43,16 +47,16 @@ pub enum ArtifactKind {
     Specificity,
     /// Nested-training-set error H(n) (eq. 19): `nested.parquet`.
     Nested,
-    /// One dual approximation built and measured (issue 15): the [`comparison`] tables of that
+    /// One dual approximation built and measured: the [`comparison`] tables of that
     /// approximation alone, and `bases.h5` where its basis does not depend on the parameter.
     Approximation,
-    /// Dual approximations side by side (issue 15): the `approximation` artifacts' tables
+    /// Dual approximations side by side: the `approximation` artifacts' tables
     /// concatenated, `comparison.parquet` and the rest of [`comparison`].
     Comparison,
-    /// The online solve with one dual approximation (issue 15): [`comparison::ONLINE`] and
+    /// The online solve with one dual approximation: [`comparison::ONLINE`] and
     /// [`comparison::ONLINE_TIMINGS`] of that approximation alone.
     OnlineApproximation,
-    /// The online solve with each dual approximation (issue 15): the `online-approximation`
+    /// The online solve with each dual approximation: the `online-approximation`
     /// artifacts' tables concatenated, `online_comparison.parquet`.
     OnlineComparison,
     /// ParaView time series (XDMF) of a snapshot set or a basis: `*.xdmf` + `views.h5`.
@@ -157,7 +161,7 @@ pub const TIMING_FILES: [(&str, &str); 18] = [
     ("report", "fig_comparison_online.svg"),
 ];
 
-/// The comparison of dual approximations (issue 15; `crom_stages::dual`). Every table has a
+/// The comparison of dual approximations (`crom_stages::dual`). Every table has a
 /// `scene` and an `approximation` column (`pod`, `cpg`, `angle-greedy`, `nnmf`, `local-K`,
 /// `dictionary`, `registered-<map>-<basis>`), so a pandas user can rebuild any plot. Each
 /// approximation is its own artifact (kind `approximation`, and `online-approximation` for its
@@ -216,7 +220,7 @@ pub const MANIFEST: &str = "manifest.json";
 /// `mesh.h5`: `/nodes` (n_nodes x dim), `/cells` (n_cells x nodes_per_cell, u64),
 /// `/contact_nodes` (u64, the potential-contact nodes, order of the dual field),
 /// `/node_body`, `/cell_body` (u64 body ids). Attributes: `scene`, `kind`, `schema_version`,
-/// `cache_key`, `command`.
+/// `cache_key`, `dofs_per_node` and the stiffness estimates below.
 pub mod mesh {
     /// HDF5 file.
     pub const FILE: &str = "mesh.h5";
@@ -232,7 +236,7 @@ pub mod mesh {
     pub const NODE_BODY: &str = "node_body";
     /// Body id of each cell.
     pub const CELL_BODY: &str = "cell_body";
-    /// Root attributes (issue 16: conditioning in the artifacts): estimates of the largest and
+    /// Root attributes (the conditioning of the stiffness): estimates of the largest and
     /// smallest eigenvalue of the stiffness on the free dofs and their ratio, a lower bound on
     /// its 2-norm condition number, by power and inverse iteration with the solver's own factor
     /// (`crom_stages::condition`).
@@ -243,7 +247,8 @@ pub mod mesh {
     pub const STIFFNESS_CONDITION: &str = "stiffness_condition";
 }
 
-/// `snapshot.h5`: `/u` (n_dof), `/pressure` (n_contact), attribute `parameter` and the solver
+/// `snapshot.h5` of the former one-directory-per-snapshot layout, read only to import it into a
+/// column family: `/u` (n_dof), `/pressure` (n_contact), attribute `parameter` and the solver
 /// statistics as attributes.
 pub mod snapshot {
     /// HDF5 file.
@@ -299,8 +304,9 @@ pub mod trainset {
 
 /// `basis.h5`: groups `/primal_pod`, `/dual_pod` with `modes` (n x m) and `singular_values`
 /// (all, descending); `/dual_cpg` with `modes` (n x m, unit columns, selection order),
-/// `selected` (u64 snapshot indices) and `compactness` (C(0..=m) of the greedy);
-/// `/dual_cpg_truncated` likewise at the truncation tolerance. Attributes: `tolerance`.
+/// `selected` (u64 snapshot indices), `compactness` (C(0..=m) of the greedy) and `gram_rcond`;
+/// `/dual_cpg_truncated` likewise at the truncation tolerance. Group attributes: `tolerance`,
+/// `rank` and, for the POD groups, `numerical_rank`.
 pub mod basis {
     /// HDF5 file.
     pub const FILE: &str = "basis.h5";
@@ -318,9 +324,11 @@ pub mod basis {
     pub const SINGULAR_VALUES: &str = "singular_values";
     /// Selected snapshot indices (CPG groups).
     pub const SELECTED: &str = "selected";
-    /// Greedy compactness trace (CPG groups).
+    /// Greedy compactness trace (CPG groups). Above 1 025 training snapshots it is evaluated on
+    /// a rank grid and NaN at the other ranks (the dataset's `units` attribute says so): the one
+    /// place an artifact holds NaN.
     pub const COMPACTNESS: &str = "compactness";
-    /// CPG groups (issue 16): after each selection t, the reciprocal of the estimated 1-norm
+    /// CPG groups: after each selection t, the reciprocal of the estimated 1-norm
     /// condition number of the Gram `G_t = B_tᵀ B_t` of the first t generators
     /// (`crom_stages::basis::gram_condition_path`; Hager's estimator on the MGS-twice factor).
     /// It bounds the conditioning of every NNLS Gram of that step (each is a principal
@@ -504,7 +512,7 @@ pub mod catalog {
 }
 
 /// Stable names of each scene's latest complete study: `scenes/<scene>` is a relative symbolic
-/// link to `scenes/.versions/<scene>.<stamp>/`, a directory of relative links to the
+/// link to `scenes/.versions/<scene>@<stamp>/`, a directory of relative links to the
 /// content-addressed files plus `study.json`; a successful run swaps the one link atomically.
 pub mod published {
     /// Directory under the store root.
@@ -519,7 +527,7 @@ pub mod published {
     pub const LAYOUT_VERSION: u32 = 1;
     /// Directory of the nested levels' names.
     pub const NESTED_DIR: &str = "nested";
-    /// Directory of the comparison's tables (issue 15): `comparison/comparison.parquet` and the
+    /// Directory of the comparison's tables: `comparison/comparison.parquet` and the
     /// rest of [`super::comparison`], `comparison/online_comparison.parquet` and its timings.
     pub const COMPARISON_DIR: &str = "comparison";
     /// Name of the report directory link.

@@ -1,4 +1,4 @@
-//! `[comparison]`: the dual approximations a scene compares side by side (issue 15).
+//! `[comparison]`: the dual approximations a scene compares side by side.
 //!
 //! ```toml
 //! [comparison]

@@ -265,7 +265,7 @@ pub struct StudySpec {
     pub loo_folds: Option<usize>,
     /// A reduced quadrature of the contact constraints (hyper-reduction, optional; node-to-segment
     /// scenes only): the online stage adds trade-off rows of the exact solve on a sampled
-    /// surface at the given rank pairs (design note 40).
+    /// surface at the given rank pairs (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact_sampling: Option<ContactSamplingSpec>,
 }
@@ -276,7 +276,8 @@ pub struct StudySpec {
 #[serde(deny_unknown_fields)]
 pub struct ContactSamplingSpec {
     /// Relative residual at which the greedy non-negative fit stops, in `[0, 1)` (0 keeps the
-    /// exact sums; 3e-2 is the measured trade of design note 40).
+    /// exact sums; 3e-2 is the measured trade in
+    /// docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints).
     pub tol: f64,
     /// `[r_primal, r_dual]` pairs (each clipped to the bases' sizes), at least one.
     pub ranks: Vec<[usize; 2]>,

@@ -41,7 +41,7 @@ fn every_shipped_scene_loads_and_matches_scenes_md() {
                 assert_eq!((i.slab.nx, i.slab.ny, i.iron.nx, i.iron.ny), (200, 40, 60, 60));
             }
             (Model::Ironing(i), "ironing-fine-2d") => {
-                // The fine mesh, with d_y a parameter axis: 65 x 17 training points (issue 8).
+                // The fine mesh, with d_y a parameter axis: 65 x 17 training points.
                 assert_eq!((i.slab.nx, i.slab.ny, i.iron.nx, i.iron.ny), (200, 40, 60, 60));
                 assert_eq!((i.d_y, cfg.parameter.names()), (None, vec!["d_x", "d_y"]));
                 assert_eq!(cfg.parameter.train_points().len(), 65 * 17);
@@ -173,8 +173,8 @@ fn loo_folds_are_all_up_to_256_snapshots_then_an_even_sample() {
     assert_names(&load_err(&text), &["study.loo_folds", "is 0"]);
 }
 
-/// Every size in a scene file is bounded (issue 9): the issue's `nx = 1000000000` and its
-/// kin are refused with the field, the bound and a fix, before anything is allocated.
+/// Every size in a scene file is bounded: an absurd `nx = 1000000000` and its kin are
+/// refused with the field, the bound and a fix, before anything is allocated.
 #[test]
 fn every_size_is_bounded() {
     let ironing = std::fs::read_to_string(scenes_dir().join("ironing-coarse.toml")).expect("scene");

@@ -1,4 +1,4 @@
-//! Benchmark of the dictionary-sparse dual approximation online (issue 15): the online reduced
+//! Benchmark of the dictionary-sparse dual approximation online: the online reduced
 //! solve on ironing-fine with every training snapshot of a dictionary as a dual basis vector,
 //! for the 128-snapshot training set and the 4 097-snapshot nested level 12
 //! (`d_x = 3 k / 4096`), at the 127 test midpoints of the 128-point set.

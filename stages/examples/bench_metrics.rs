@@ -6,7 +6,7 @@
 //!
 //! A second table times the fast metric algorithms against the kept reference implementations
 //! at N = 128, 256, 512 (n = 101 and 201 rows, ironing-coarse / ironing-fine sized), single
-//! threaded, with the targets of issue 8, and the agreement of the numbers at N = 128.
+//! threaded, with the scale targets of results.md, and the agreement of the numbers at N = 128.
 //!
 //! `cargo run --release -p crom-stages --example bench_metrics` prints markdown tables
 //! (`-- scaling` prints only the second).

@@ -14,7 +14,7 @@
 //! H1 error, and converged points; first a row for the rope (full bases, 9 test points).
 //! `refinement` 0 runs only the rope, 1/2/4 only that mesh. A fifth argument `tol` adds, per
 //! mesh, the same model on a sampled surface (`ReducedModel::with_sampled_surface` fitted to
-//! the training points at relative residual `tol`; design note 40), its online time against
+//! the training points at relative residual `tol`; docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints), its online time against
 //! the coarse mesh's sampled model and its error against the full-order solves.
 
 use crom_stages::basis::{cpg, pod_full, CpgParams};
@@ -94,7 +94,7 @@ fn main() {
         let full = ReducedModel::new(&fm, &phi_c, ru, &columns(theta.basis.as_ref(), rl), rl).expect("K̂ SPD");
         let samples: Vec<Vec<f64>> = train.iter().map(|&d| vec![d]).collect();
         let rom = full.leading(r_p.min(ru), r_d.min(rl));
-        // the product's setting: warm starts from the training points (design note 41)
+        // the product's setting: warm starts from the training points (docs/design-notes.md#warm-starts)
         let rom = rom.with_warm_starts(&samples, &RomParams::default());
         let mut fom_t = Vec::new();
         let mut refs = Vec::new();

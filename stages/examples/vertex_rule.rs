@@ -1,5 +1,5 @@
 //! The vertex-zone rule measured against flip ties alone, on every training point of
-//! ironing-coarse, ironing-fine and hertz (issue 9): worst values of the geometric check
+//! ironing-coarse, ironing-fine and hertz: worst values of the geometric check
 //! (`contact::check`), points with tied slaves, and whether the state depends on the start
 //! (cold vs warm-started from the previous training point vs a perturbed first active set).
 //!

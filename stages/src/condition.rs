@@ -1,4 +1,4 @@
-//! Condition estimates of symmetric positive definite operators (issue 16: conditioning in the
+//! Condition estimates of symmetric positive definite operators (conditioning in the
 //! artifacts). For the stiffness `K` (free dofs) of a scene:
 //!
 //! ```text
@@ -15,7 +15,7 @@
 //! eigenvalue of the cluster is close to `lambda_max`, so the Rayleigh quotient is too (the
 //! tests bound both against exact spectra). Cost: `iterations` products and solves, `O(nnz(L))`
 //! each; no factorisation beyond the one the solver already has. A pivot ratio of the Cholesky
-//! factor was the issue's suggestion; faer's sparse factor does not expose its pivots, and the
+//! factor was the obvious alternative; faer's sparse factor does not expose its pivots, and the
 //! two-sided Rayleigh estimate is closer to `kappa_2` than a pivot ratio, which can be off by
 //! orders of magnitude in either direction.
 

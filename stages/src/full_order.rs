@@ -14,7 +14,7 @@
 //! - Type-2 (node-to-segment, Hertz and ironing): the pairing depends on the deformed
 //!   configuration, so the online solve needs the reference positions of the contact nodes
 //!   (slaves, then the master polyline) and their dofs; the gap row of a pairing is
-//!   [`crate::contact::GapRow`], the one the full-order solver uses.
+//!   [`crate::contact::pairing::GapRow`], the one the full-order solver uses.
 
 /// Full-order contact constraints linearised at one displacement: for each potential-contact node
 /// `i` with a partner, `gap_i(v) = sum_k coeffs[k] v[dofs[k]] + gap0[i]` over

@@ -1,4 +1,4 @@
-"""Degenerate study settings (issue 16, the fast subset of the stress matrix): each either gives
+"""Degenerate study settings (the fast subset of the stress matrix): each either gives
 answers that pass a check derived outside crom, or is refused with exit 2 naming the field.
 Variants of the rope scene, run with the real binary; artifacts read with pandas and h5py."""
 import pathlib

@@ -51,7 +51,7 @@ def test_snapshots_are_kkt_points(hertz_store):
     assert (stats["complementarity"] <= 1e-10).all()
     assert (stats["max_penetration"] <= 1e-10).all()
     assert (stats["min_lambda"] >= 0).all()
-    # The geometric check (design note 27), with the bound of the vertex-zone rule from the arc's
+    # The geometric check (docs/design-notes.md#the-vertex-zone-rule), with the bound of the vertex-zone rule from the arc's
     # geometry: a slave tied to a vertex within 2 % of a segment (the check's vertex radius) is
     # off either adjacent segment by at most 0.02 h sin(theta / 2), h = 2 sin(pi / 156) the
     # chord and theta = pi / 78 the turning angle of 78 segments on a half circle of radius 1;
@@ -117,10 +117,10 @@ def test_online_errors_and_report(hertz_store):
         assert row_times["median_online_seconds"].iloc[0] == times[int(np.ceil(0.5 * len(times))) - 1]
         assert row["points"].iloc[0] == len(test)
         assert row["converged"].iloc[0] == (test["outcome"] == "converged").sum()
-    # issue 10: the exact solve converges at every test point of every rank pair on hertz
+    # the exact solve converges at every test point of every rank pair on hertz
     exact = trade[trade.algorithm == "exact"]
     assert (exact["converged"] == exact["points"]).all(), exact[["r_primal", "r_dual", "converged"]]
-    # issue 16: the reduced inf-sup constant per rank pair (sampled test points; the unit test
+    # the reduced inf-sup constant per rank pair (sampled test points; the unit test
     # pins it against a reference assembled from the full-order linearisation): never negative,
     # positive with the full bases (unique multipliers), null only without a sampled point.
     beta = trade[["min_inf_sup", "median_inf_sup"]]
@@ -139,7 +139,7 @@ def test_online_errors_and_report(hertz_store):
 
 
 def test_conditioning_is_stored_and_checks_out_in_numpy(hertz_store):
-    """Issue 16, conditioning in the artifacts. The CPG Gram estimate per step (`gram_rcond`,
+    """Conditioning in the artifacts. The CPG Gram estimate per step (`gram_rcond`,
     1 / kappa_1 of the Gram of the first t generators) against numpy's exact kappa_1 of the same
     Gram: never above it, at least a third of it (Hager's estimator; the Rust unit test states
     why) while numpy's own kappa_1 is meaningful (below 1e8: the Gram formed explicitly loses

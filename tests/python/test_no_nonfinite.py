@@ -1,4 +1,4 @@
-"""No NaN or infinity in any artifact (issue 16, item 3): an undefined value is a Parquet null,
+"""No NaN or infinity in any artifact: an undefined value is a Parquet null,
 documented with its column (crom_schemas::artifact). Scans every Parquet table and every HDF5
 float dataset of the rope, hertz and ironing-fine stores, read with pyarrow and h5py (not with
 the code that wrote them)."""

@@ -160,7 +160,7 @@ def test_tables_equal_the_catalog_artifacts(ironing_fine_store, table):
 
 
 def test_comparison_tables_are_published(ironing_fine_store):
-    """Issue 15: the comparison's tables are published names, equal to the artifact read directly,
+    """The comparison's tables are published names, equal to the artifact read directly,
     with one block of rows per approximation in the scene file's order (a `local` entry gives
     one per cell count)."""
     sc = crom_data.open_store(ironing_fine_store).scene(SCENE)

@@ -1,4 +1,4 @@
-"""The fast subset of the stress matrix (issue 16; `scripts/stress.py --fast`, the whole matrix
+"""The fast subset of the stress matrix (`scripts/stress.py --fast`, the whole matrix
 is `just stress`): first touch and grazing contact, hertz against Hertz theory, a deep press
 near the sole's corners, a stiffness contrast of 1e6 and 1e-3, a 5 x 1 slab mesh run to the
 end, a mesh beyond the machine refused by the memory estimate, and the reduced solve on nearly

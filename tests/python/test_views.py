@@ -1,4 +1,4 @@
-"""The XDMF views (issue 12): every step of every collection, read with meshio's XDMF
+"""The XDMF views: every step of every collection, read with meshio's XDMF
 time-series reader (an independent XDMF reader), equals the same column read through h5py; the
 views refer to the stored columns instead of copying them; a malformed or stale XDMF is caught.
 

@@ -16,7 +16,7 @@
 //!    Otherwise `crom run` goes on locally, finds every snapshot stored, and runs the rest.
 //!
 //! The leave-one-out folds run in the local part: at the sizes this machine kind runs they
-//! take seconds (issue 8's scaled metrics); a second array for them is future work.
+//! take seconds (the metrics' rank grids and downdate folds); a second array for them is future work.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -149,7 +149,7 @@ pub struct Submission<'a> {
     pub scene: &'a SceneConfig,
     /// Its plan.
     pub plan: &'a Plan,
-    /// Points per chunk ([`crate::dag::chunk_columns`]).
+    /// Points per chunk (`crate::dag::chunk_columns`).
     pub chunk_columns: usize,
     /// sbatch settings.
     pub options: SlurmSpec,
@@ -280,7 +280,7 @@ fn wait(s: &Submission<'_>, job: &JobRecord, stored: usize, points: usize) -> Re
     let mut bar = s.progress.stage("slurm", points - stored);
     let mut shown = stored;
     // The index is read at most every 2 s, and never more than a tenth of the time: at 10^5
-    // and more snapshots a read takes seconds (design note 32).
+    // and more snapshots a read takes seconds (docs/design-notes.md#what-limits-a-sweep-at-a-million-snapshots).
     let mut last_index = Instant::now() - Duration::from_secs(60);
     let mut read_time = Duration::ZERO;
     loop {

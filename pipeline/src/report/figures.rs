@@ -1,4 +1,7 @@
-//! The paper's figures, from the artifacts.
+//! The paper's figures, from the artifacts. Every chart follows one recipe: fetch the table's
+//! columns (`Columns`, naming the file and the fix when one is missing), build the series
+//! (`per_approximation` for the comparison's one-curve-per-approximation figures), and `draw`
+//! them on their `Axes` with a caption.
 
 use std::path::Path;
 
@@ -13,6 +16,80 @@ use crate::io::table::Table;
 
 /// At most this many snapshot curves in one figure (every k-th otherwise).
 const MAX_CURVES: usize = 12;
+
+/// The axes of a chart: labels, scales and where the legend goes.
+struct Axes<'a> {
+    x: &'a str,
+    y: &'a str,
+    log_x: bool,
+    log_y: bool,
+    legend: Legend,
+}
+
+/// Render `series` on `axes` under `title` to `dir/stem.png` and `dir/stem.svg`; the figure with
+/// its caption.
+fn draw(
+    dir: &Path,
+    stem: &str,
+    title: String,
+    axes: Axes<'_>,
+    series: Vec<Series>,
+    caption: impl Into<String>,
+) -> Result<Figure, CromError> {
+    let chart = Chart {
+        title,
+        x_label: axes.x.into(),
+        y_label: axes.y.into(),
+        log_y: axes.log_y,
+        log_x: axes.log_x,
+        series,
+        legend: axes.legend,
+    };
+    render(&chart, dir, stem)?;
+    Ok(Figure { stem: stem.into(), caption: caption.into() })
+}
+
+/// The columns a figure reads from one table: a missing column is an error naming the file,
+/// the column and the fix.
+struct Columns<'t> {
+    table: &'t Table,
+    file: &'static str,
+    fix: &'static str,
+}
+
+impl<'t> Columns<'t> {
+    fn of(table: &'t Table, file: &'static str, fix: &'static str) -> Self {
+        Self { table, file, fix }
+    }
+
+    fn missing(&self, name: &str) -> CromError {
+        CromError::artifact(self.file, format!("lacks the column `{name}`"), self.fix)
+    }
+
+    fn strs(&self, name: &str) -> Result<&'t [String], CromError> {
+        self.table.strs(name).ok_or_else(|| self.missing(name))
+    }
+
+    fn u64s(&self, name: &str) -> Result<&'t [u64], CromError> {
+        self.table.u64s(name).ok_or_else(|| self.missing(name))
+    }
+
+    fn f64s(&self, name: &str) -> Result<&'t [f64], CromError> {
+        self.table.f64s(name).ok_or_else(|| self.missing(name))
+    }
+}
+
+/// One series per approximation of `names`, each in the colour it has in every comparison
+/// figure (its place in `all`), from its points `(x, y)`.
+fn per_approximation(names: &[String], all: &[String], points: impl Fn(&str) -> (Vec<f64>, Vec<f64>)) -> Vec<Series> {
+    names
+        .iter()
+        .map(|name| {
+            let (x, y) = points(name);
+            Series::line(name, x, y).color(all.iter().position(|m| m == name).unwrap_or(0))
+        })
+        .collect()
+}
 
 /// Draw every figure that applies to the scene into `dir`.
 pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec<Figure>, CromError> {
@@ -105,77 +182,45 @@ pub(super) fn names_of(t: &Table) -> Vec<String> {
 
 /// H(n) of every approximation against the level n.
 fn comparison_nested(scene: &SceneConfig, t: &Table, all: &[String], dir: &Path) -> Result<Figure, CromError> {
-    let (Some(a), Some(n), Some(v)) = (t.strs("approximation"), t.u64s("n"), t.f64s("value")) else {
-        return Err(CromError::artifact(
-            "comparison_nested.parquet",
-            "lacks a column of approximation, n, value",
-            "delete the comparison artifact and rerun",
-        ));
-    };
-    let names = names_of(t);
-    let series = names
-        .iter()
-        .map(|name| {
-            let (x, y): (Vec<f64>, Vec<f64>) =
-                (0..a.len()).filter(|&i| a[i] == **name).map(|i| (n[i] as f64, v[i])).unzip();
-            Series::line(name, x, y).color(all.iter().position(|m| m == name).unwrap_or(0))
-        })
-        .collect();
-    let chart = Chart {
-        title: format!("{}: nested error of each dual approximation", scene.scene.name),
-        x_label: "level n (2^n + 1 points)".into(),
-        y_label: "H(n) (eq. 19)".into(),
-        log_y: true,
-        log_x: false,
+    let c = Columns::of(t, "comparison_nested.parquet", "delete the comparison artifact and rerun");
+    let (a, n, v) = (c.strs("approximation")?, c.u64s("n")?, c.f64s("value")?);
+    let series = per_approximation(&names_of(t), all, |name| {
+        (0..a.len()).filter(|&i| a[i] == name).map(|i| (n[i] as f64, v[i])).unzip()
+    });
+    draw(
+        dir,
+        "fig_comparison_nested",
+        format!("{}: nested error of each dual approximation", scene.scene.name),
+        Axes { x: "level n (2^n + 1 points)", y: "H(n) (eq. 19)", log_x: false, log_y: true, legend: Legend::LowerLeft },
         series,
-        legend: Legend::LowerLeft,
-    };
-    let stem = "fig_comparison_nested";
-    render(&chart, dir, stem)?;
-    Ok(Figure {
-        stem: stem.into(),
-        caption: "Beyond the paper: nested error H(n) (eq. 19) of every dual approximation, built from level n with at most comparison.max_m modes and projecting level n + 1's snapshots, each at its own parameter.".into(),
-    })
+        "Beyond the paper: nested error H(n) (eq. 19) of every dual approximation, built from level n with at most comparison.max_m modes and projecting level n + 1's snapshots, each at its own parameter.",
+    )
 }
 
 /// The online trade of every approximation: median dual error (converged queries) against
 /// median online time, one point per dual size m, joined per approximation.
 fn comparison_online(scene: &SceneConfig, t: &Table, all: &[String], dir: &Path) -> Result<Figure, CromError> {
-    let (Some(a), Some(x), Some(y), Some(conv)) =
-        (t.strs("approximation"), t.f64s("median_online_ms"), t.f64s("median_dual_error"), t.u64s("converged"))
-    else {
-        return Err(CromError::artifact(
-            "online_comparison.parquet",
-            "lacks a column of approximation, median_online_ms, median_dual_error, converged",
-            "delete the online-comparison artifact and rerun",
-        ));
-    };
-    let names = names_of(t);
-    let series = names
-        .iter()
-        .map(|name| {
-            let rows = (0..a.len()).filter(|&i| a[i] == **name && conv[i] > 0 && x[i].is_finite() && y[i].is_finite());
-            let (xs, ys): (Vec<f64>, Vec<f64>) = rows.map(|i| (x[i], y[i])).unzip();
-            // The colour the approximation has in the other comparison figures.
-            let color = all.iter().position(|n| n == name).unwrap_or(0);
-            Series::line(name, xs, ys).color(color)
-        })
-        .collect();
-    let chart = Chart {
-        title: format!("{}: online solve with each dual approximation", scene.scene.name),
-        x_label: "median online time per query (ms)".into(),
-        y_label: "median relative dual error, converged test points".into(),
-        log_y: true,
-        log_x: true,
+    let c = Columns::of(t, "online_comparison.parquet", "delete the online-comparison artifact and rerun");
+    let (a, x, y) = (c.strs("approximation")?, c.f64s("median_online_ms")?, c.f64s("median_dual_error")?);
+    let conv = c.u64s("converged")?;
+    let series = per_approximation(&names_of(t), all, |name| {
+        let rows = (0..a.len()).filter(|&i| a[i] == name && conv[i] > 0 && x[i].is_finite() && y[i].is_finite());
+        rows.map(|i| (x[i], y[i])).unzip()
+    });
+    draw(
+        dir,
+        "fig_comparison_online",
+        format!("{}: online solve with each dual approximation", scene.scene.name),
+        Axes {
+            x: "median online time per query (ms)",
+            y: "median relative dual error, converged test points",
+            log_x: true,
+            log_y: true,
+            legend: Legend::LowerLeft,
+        },
         series,
-        legend: Legend::LowerLeft,
-    };
-    let stem = "fig_comparison_online";
-    render(&chart, dir, stem)?;
-    Ok(Figure {
-        stem: stem.into(),
-        caption: "Beyond the paper: the online reduced solve (exact algorithm, full primal basis) with each non-negative dual approximation, one point per dual size m (the dictionary: all atoms); errors over converged test points, times over all. Failures per row are in table_comparison_online.".into(),
-    })
+        "Beyond the paper: the online reduced solve (exact algorithm, full primal basis) with each non-negative dual approximation, one point per dual size m (the dictionary: all atoms); errors over converged test points, times over all. Failures per row are in table_comparison_online.",
+    )
 }
 
 /// One curve per approximation of the comparison table `t` for `metric`.
@@ -188,34 +233,27 @@ fn comparison(
     ylabel: &str,
     caption: &str,
 ) -> Result<Figure, CromError> {
-    let (Some(a), Some(k), Some(m), Some(y)) = (t.strs("approximation"), t.strs("metric"), t.u64s("m"), t.f64s("mean"))
-    else {
-        return Err(CromError::artifact(
-            "comparison.parquet",
-            "lacks a column of approximation, metric, m, mean",
-            "delete the comparison artifact and rerun",
-        ));
-    };
+    let c = Columns::of(t, "comparison.parquet", "delete the comparison artifact and rerun");
+    let (a, k, m, y) = (c.strs("approximation")?, c.strs("metric")?, c.u64s("m")?, c.f64s("mean")?);
     let names = names_of(t);
-    let series = names
-        .iter()
-        .map(|name| {
-            let rows = (0..a.len()).filter(|&i| a[i] == **name && k[i] == metric && y[i].is_finite());
-            let (x, v): (Vec<f64>, Vec<f64>) = rows.map(|i| (m[i] as f64, y[i])).unzip();
-            Series::line(name, x, v)
-        })
-        .collect();
-    let chart = Chart {
-        title: format!("{}: dual approximations, {metric}", scene.scene.name),
-        x_label: "modes / generators / active atoms m".into(),
-        y_label: ylabel.into(),
-        log_y: true,
-        log_x: true,
+    let series = per_approximation(&names, &names, |name| {
+        let rows = (0..a.len()).filter(|&i| a[i] == name && k[i] == metric && y[i].is_finite());
+        rows.map(|i| (m[i] as f64, y[i])).unzip()
+    });
+    draw(
+        dir,
+        stem,
+        format!("{}: dual approximations, {metric}", scene.scene.name),
+        Axes {
+            x: "modes / generators / active atoms m",
+            y: ylabel,
+            log_x: true,
+            log_y: true,
+            legend: Legend::LowerLeft,
+        },
         series,
-        legend: Legend::LowerLeft,
-    };
-    render(&chart, dir, stem)?;
-    Ok(Figure { stem: stem.into(), caption: caption.into() })
+        caption,
+    )
 }
 
 fn every(n: usize) -> usize {
@@ -239,20 +277,14 @@ fn rope_primal(scene: &SceneConfig, rope: &Rope, d: &ReportData, dir: &Path) -> 
         let g = d.line_x.iter().map(|&x| rope.obstacle(x, p[0])).collect();
         series.push(Series::line(&format!("obstacle g, {}", label(scene, p)), d.line_x.clone(), g).mark(Mark::Line));
     }
-    let chart = Chart {
-        title: format!("{}: deformation and obstacle snapshots", scene.scene.name),
-        x_label: "x".into(),
-        y_label: "u(x), g(x)".into(),
-        log_y: false,
-        log_x: false,
+    draw(
+        dir,
+        "fig02_primal_snapshots",
+        format!("{}: deformation and obstacle snapshots", scene.scene.name),
+        Axes { x: "x", y: "u(x), g(x)", log_x: false, log_y: false, legend: Legend::LowerRight },
         series,
-        legend: Legend::LowerRight,
-    };
-    render(&chart, dir, "fig02_primal_snapshots")?;
-    Ok(Figure {
-        stem: "fig02_primal_snapshots".into(),
-        caption: "Deformation u(x, γ) and obstacle g(x, γ) at training points (paper Fig. 2, left).".into(),
-    })
+        "Deformation u(x, γ) and obstacle g(x, γ) at training points (paper Fig. 2, left).",
+    )
 }
 
 fn deformed_bodies(
@@ -299,20 +331,20 @@ fn dual_snapshots(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Fig
             Series::line(&label(scene, p), xs.clone(), order.iter().map(|&i| col[i]).collect()).mark(Mark::Line)
         })
         .collect();
-    let chart = Chart {
-        title: format!("{}: contact pressure snapshots", scene.scene.name),
-        x_label: "x of the potential-contact node".into(),
-        y_label: "contact pressure λ".into(),
-        log_y: false,
-        log_x: false,
+    draw(
+        dir,
+        "fig_dual_snapshots",
+        format!("{}: contact pressure snapshots", scene.scene.name),
+        Axes {
+            x: "x of the potential-contact node",
+            y: "contact pressure λ",
+            log_x: false,
+            log_y: false,
+            legend: Legend::UpperRight,
+        },
         series,
-        legend: Legend::UpperRight,
-    };
-    render(&chart, dir, "fig_dual_snapshots")?;
-    Ok(Figure {
-        stem: "fig_dual_snapshots".into(),
-        caption: "Contact pressure snapshots at training points (paper Figs. 2 right, 6b, 12).".into(),
-    })
+        "Contact pressure snapshots at training points (paper Figs. 2 right, 6b, 12).",
+    )
 }
 
 fn singular_values(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
@@ -321,21 +353,14 @@ fn singular_values(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Fi
         Series::line(name, (1..=s.len()).map(|i| i as f64).collect(), s.iter().map(|v| v / s0).collect())
     };
     let (p, q) = (norm("primal σ_i / σ_1", &d.primal_sv), norm("dual σ_i / σ_1", &d.dual_sv));
-    let chart = Chart {
-        title: format!("{}: singular value decay", scene.scene.name),
-        x_label: "index i".into(),
-        y_label: "normalised singular value".into(),
-        log_y: true,
-        log_x: false,
-        series: vec![p, q],
-        legend: Legend::UpperRight,
-    };
-    render(&chart, dir, "fig04_singular_values")?;
-    Ok(Figure {
-        stem: "fig04_singular_values".into(),
-        caption: "Decay of the normalised singular values of the primal and dual snapshot matrices (paper Fig. 4)."
-            .into(),
-    })
+    draw(
+        dir,
+        "fig04_singular_values",
+        format!("{}: singular value decay", scene.scene.name),
+        Axes { x: "index i", y: "normalised singular value", log_x: false, log_y: true, legend: Legend::UpperRight },
+        vec![p, q],
+        "Decay of the normalised singular values of the primal and dual snapshot matrices (paper Fig. 4).",
+    )
 }
 
 fn sparsity(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
@@ -370,17 +395,14 @@ fn compactness(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure
                 .map(|v| Series::line(name, (0..v.len()).map(|m| m as f64).collect(), v.clone()))
         })
         .collect();
-    let chart = Chart {
-        title: format!("{}: compactness", scene.scene.name),
-        x_label: "rank m".into(),
-        y_label: "C(m) (eq. 16)".into(),
-        log_y: true,
-        log_x: false,
+    draw(
+        dir,
+        "fig09_compactness",
+        format!("{}: compactness", scene.scene.name),
+        Axes { x: "rank m", y: "C(m) (eq. 16)", log_x: false, log_y: true, legend: Legend::UpperRight },
         series,
-        legend: Legend::UpperRight,
-    };
-    render(&chart, dir, "fig09_compactness")?;
-    Ok(Figure { stem: "fig09_compactness".into(), caption: "Compactness C(m) of the primal POD, dual POD and dual CPG bases (paper Figs. 9, 14); values at 0 are drawn at the axis floor.".into() })
+        "Compactness C(m) of the primal POD, dual POD and dual CPG bases (paper Figs. 9, 14); values at 0 are drawn at the axis floor.",
+    )
 }
 
 /// Rows of the ROM error table for one set and dual basis: (parameter, primal error, dual error).
@@ -417,43 +439,28 @@ fn rom_errors(scene: &SceneConfig, d: &ReportData, dir: &Path, basis: &str) -> R
             bases.iter().position(|b| b == basis).map(|i| v[i])
         })
     };
-    let chart = Chart {
-        title: format!(
+    draw(
+        dir,
+        &format!("fig03_rom_errors_{basis}"),
+        format!(
             "{}: online reconstruction error, {basis} dual basis (r_u = {}, r_λ = {})",
             scene.scene.name,
             rank("r_primal").unwrap_or(0),
             rank("r_dual").unwrap_or(0)
         ),
-        x_label: scene.parameter.name.clone(),
-        y_label: "relative error".into(),
-        log_y: true,
-        log_x: false,
+        Axes { x: &scene.parameter.name, y: "relative error", log_x: false, log_y: true, legend: Legend::MiddleRight },
         series,
-        legend: Legend::MiddleRight,
-    };
-    let stem = format!("fig03_rom_errors_{basis}");
-    render(&chart, dir, &stem)?;
-    Ok(Figure {
-        stem,
-        caption: format!(
+        format!(
             "Relative errors of the online reduced solve (Algorithm 1) at training and test points with the {basis} CPG dual basis (paper Figs. 3, 7)."
         ),
-    })
+    )
 }
 
 fn tradeoff(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
     let t = &d.tradeoff;
-    let (Some(alg), Some(basis), Some(ru), Some(rl), Some(conv), Some(err), Some(sp)) = (
-        t.strs("algorithm"),
-        t.strs("dual_basis"),
-        t.u64s("r_primal"),
-        t.u64s("r_dual"),
-        t.u64s("converged"),
-        t.f64s("median_primal_error"),
-        t.f64s("speedup"),
-    ) else {
-        return Err(CromError::artifact(dir, "tradeoff table lacks columns", "delete the rom artifact and rerun"));
-    };
+    let c = Columns::of(t, "tradeoff.parquet", "delete the rom artifact and rerun");
+    let (alg, basis, ru, rl) = (c.strs("algorithm")?, c.strs("dual_basis")?, c.u64s("r_primal")?, c.u64s("r_dual")?);
+    let (conv, err, sp) = (c.u64s("converged")?, c.f64s("median_primal_error")?, c.f64s("speedup")?);
     let (points, inf, failed) = (t.u64s("points"), t.u64s("infeasible"), t.u64s("failed"));
     let (ru_max, rl_max) = (ru.iter().max().copied().unwrap_or(0), rl.iter().max().copied().unwrap_or(0));
     // a rank pair is drawn only from its converged points, and only if it has any
@@ -487,16 +494,6 @@ fn tradeoff(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, C
     if !x5.is_empty() {
         series.push(Series::line("exact on a sampled surface (study.contact_sampling)", x5, y5).mark(Mark::Points));
     }
-    let chart = Chart {
-        title: format!("{}: speed/accuracy trade over the test points (converged points only)", scene.scene.name),
-        x_label: "median speed-up over the full-order solve".into(),
-        y_label: "median relative primal error (H1)".into(),
-        log_y: true,
-        log_x: true,
-        series,
-        legend: Legend::LowerRight,
-    };
-    render(&chart, dir, "fig_tradeoff")?;
     let mut notes: Vec<String> = Vec::new();
     if let (Some(points), Some(inf), Some(failed)) = (points, inf, failed) {
         for i in 0..ru.len() {
@@ -518,10 +515,20 @@ fn tradeoff(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, C
     } else {
         format!("Queries not drawn (ranks r_u, r_λ): {}.", notes.join("; "))
     };
-    Ok(Figure {
-        stem: "fig_tradeoff".into(),
-        caption: format!("Pareto view of the speed/accuracy trade: each point is one (primal rank, dual rank) pair, median error over its converged test points against its median speed-up (full-order solve timed in the same process).{sampled} {failures}"),
-    })
+    draw(
+        dir,
+        "fig_tradeoff",
+        format!("{}: speed/accuracy trade over the test points (converged points only)", scene.scene.name),
+        Axes {
+            x: "median speed-up over the full-order solve",
+            y: "median relative primal error (H1)",
+            log_x: true,
+            log_y: true,
+            legend: Legend::LowerRight,
+        },
+        series,
+        format!("Pareto view of the speed/accuracy trade: each point is one (primal rank, dual rank) pair, median error over its converged test points against its median speed-up (full-order solve timed in the same process).{sampled} {failures}"),
+    )
 }
 
 const FIELDS: [(&str, &str, &str); 3] =
@@ -561,17 +568,14 @@ fn curve(
             Series::line(name, x, y).band(lo, hi)
         })
         .collect();
-    let chart = Chart {
-        title: format!("{}: {}", scene.scene.name, ylabel.split(' ').next().unwrap_or(ylabel)),
-        x_label: "rank m".into(),
-        y_label: ylabel.into(),
-        log_y: true,
-        log_x: false,
+    draw(
+        dir,
+        stem,
+        format!("{}: {}", scene.scene.name, ylabel.split(' ').next().unwrap_or(ylabel)),
+        Axes { x: "rank m", y: ylabel, log_x: false, log_y: true, legend: Legend::UpperRight },
         series,
-        legend: Legend::UpperRight,
-    };
-    render(&chart, dir, stem)?;
-    Ok(Figure { stem: stem.into(), caption: format!("{caption} Bands below the axis floor are clipped.") })
+        format!("{caption} Bands below the axis floor are clipped."),
+    )
 }
 
 fn nested(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figure, CromError> {
@@ -582,18 +586,18 @@ fn nested(scene: &SceneConfig, t: &Table, dir: &Path) -> Result<Figure, CromErro
             Series::line(name, x, y)
         })
         .collect();
-    let chart = Chart {
-        title: format!("{}: nested training-set error", scene.scene.name),
-        x_label: "level n (2^n + 1 points)".into(),
-        y_label: "H(n) (eq. 19)".into(),
-        log_y: true,
-        log_x: false,
+    draw(
+        dir,
+        "fig15_nested",
+        format!("{}: nested training-set error", scene.scene.name),
+        Axes {
+            x: "level n (2^n + 1 points)",
+            y: "H(n) (eq. 19)",
+            log_x: false,
+            log_y: true,
+            legend: Legend::LowerLeft,
+        },
         series,
-        legend: Legend::LowerLeft,
-    };
-    render(&chart, dir, "fig15_nested")?;
-    Ok(Figure {
-        stem: "fig15_nested".into(),
-        caption: "Projection error of level n+1 snapshots on the span / cone of level n (paper Fig. 15).".into(),
-    })
+        "Projection error of level n+1 snapshots on the span / cone of level n (paper Fig. 15).",
+    )
 }

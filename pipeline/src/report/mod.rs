@@ -1,6 +1,6 @@
 //! The report's content: every paper figure that applies to the scene (PNG + SVG), the tables
 //! (CSV + Markdown) and an `index.html` showing them with the run's key numbers, rendered from
-//! [`ReportData`]. The stage that keys it and reads its inputs is `dag::report`; this module
+//! `ReportData`. The stage that keys it and reads its inputs is `dag::report`; this module
 //! reads no artifact.
 
 pub(crate) mod bodies;

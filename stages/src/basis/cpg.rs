@@ -77,7 +77,7 @@ pub struct Cpg {
 /// solver's rel_tol (1e-10) the greedy selected 1 025 and 924 of them, each a snapshot sticking
 /// out of the others' cone by noise, at C(m) < 1e-10 for the last 349 and 248; at 1e-8 it
 /// selects 21. In every shipped scene each selection happens at an error above 1e-3, so the
-/// floor changes none of their numbers (design note 37).
+/// floor changes none of their numbers (docs/design-notes.md#a-floor-under-the-cone-greedy).
 pub const CPG_FLOOR: f64 = 1e-8;
 
 /// Relative tie tolerance between two candidates' errors (and norms).

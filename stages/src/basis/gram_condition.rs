@@ -1,4 +1,4 @@
-//! Conditioning of a greedy cone basis as it grows (issue 16): at each step t, an estimate of
+//! Conditioning of a greedy cone basis as it grows: at each step t, an estimate of
 //! the 1-norm condition number of the Gram matrix `G_t = B_tᵀ B_t` of the first t generators.
 //! Every NNLS of a CPG step factors the Gram of a subset of these generators (its passive set),
 //! a principal submatrix of `G_t`, whose 2-norm condition is at most `kappa_2(G_t)` (Cauchy

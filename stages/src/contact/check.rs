@@ -1,4 +1,4 @@
-//! The geometric check of a converged contact state (issue 9), computed from the recovered
+//! The geometric check of a converged contact state, computed from the recovered
 //! displacement alone — not from the pairing the solver used — so that it tests the solver's
 //! bookkeeping instead of repeating it.
 //!

@@ -260,7 +260,7 @@ const CHUNK: usize = 8;
 const PRUNE_MARGIN: f64 = 1e-12;
 
 /// A bounding-volume hierarchy over a master polyline, rebuilt for every configuration: the
-/// leaves are chunks of [`CHUNK`] consecutive segments (with their vertices), the inner nodes
+/// leaves are chunks of `CHUNK` consecutive segments (with their vertices), the inner nodes
 /// the boxes of consecutive chunk ranges (an implicit binary tree; consecutive segments of a
 /// polyline are close, so the boxes are tight). [`MasterIndex::closest_point`] returns exactly
 /// what [`closest_point`] returns (same arithmetic per candidate, same tie rule: lowest segment

@@ -318,7 +318,7 @@ fn master_geometry(fm: &FactoredModel) -> (f64, f64) {
 }
 
 /// The geometric check (`contact::check`) on every training point of ironing-coarse,
-/// ironing-fine and hertz (issue 9), with tolerances from the geometry of the rule, not from the
+/// ironing-fine and hertz, with tolerances from the geometry of the rule, not from the
 /// solver: a slave tied to vertex `v` is constrained along the averaged normal, so at tangential
 /// distance `t` from `x_v` it is off each adjacent segment's line by at most
 /// `t sin(theta / 2)`; the check counts it as a vertex contact within `CHECK_ZONE h` of the
@@ -351,13 +351,13 @@ fn geometric_check_on_every_training_point() {
             assert_eq!(st.vertex_nodes.split_whitespace().count(), st.vertex_ties, "{name} at {mu}");
             tied += usize::from(st.vertex_ties > 0);
         }
-        // the rule is exercised on every scene (issue 9 saw near-vertex slaves on ~5 % of the
+        // the rule is exercised on every scene (near-vertex slaves occur at ~5 % of the
         // ironing-coarse points; hertz's matching arcs put slaves near vertices everywhere)
         assert!(tied > 0, "{name}: no point needed the vertex rule");
     }
 }
 
-/// History independence (issue 9): the same point solved cold, warm-started from the previous
+/// History independence: the same point solved cold, warm-started from the previous
 /// training point's snapshot, and from a perturbed first active set (every third slave's flag
 /// flipped) returns the same state to 1e-12 relative in the displacement and the pressure, on
 /// every ironing-coarse training point and every hertz training point. With flip ties alone

@@ -33,13 +33,13 @@
 //! is not its own unknown but a dual basis vector's value, so a slave with an open gap can
 //! carry pressure, and its row enters the reduced constraint only while it is paired; the
 //! reduced constraint then jumps with the pairing, and the re-pairing can cycle between two
-//! states with no fixed point (measured on ironing-fine, design note 36).
+//! states with no fixed point (measured on ironing-fine, docs/design-notes.md#end-ties).
 
 use super::pairing::{end_pair, vertex_pair, Certificate, MasterIndex, Pair, PairKind};
 
 /// Radius of a vertex's zone, relative to the shorter segment at the vertex: 1 %, five times
 /// the 0.2 % within which an independent implementation and crom settled ironing-coarse slaves
-/// on different sides of a sole vertex (issue 9), so that both of those states put the slave in
+/// on different sides of a sole vertex, so that both of those states put the slave in
 /// the same zone.
 pub const VERTEX_ZONE: f64 = 0.01;
 

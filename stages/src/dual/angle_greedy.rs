@@ -1,5 +1,5 @@
 //! Angle-Greedy snapshot selection (Burkovska, Haasdonk, Salomon and Wohlmuth 2015, the
-//! paper's ref. [10]).
+//! paper's ref. \[10\]).
 //!
 //! With `V_0 = {0}` and `V_t = span(s_{j_1}, .., s_{j_t})`, step t picks the snapshot at the
 //! largest angle to the span of those already chosen:

@@ -198,7 +198,7 @@ mod tests {
 const WS_TOL: f64 = 1e-8;
 
 /// Size of the first working set: the atoms nearest to the query's parameter. Measured on
-/// ironing-fine (`bench_dictionary`, design note 34): with 16 a 4 097-atom dictionary needs a
+/// ironing-fine (`bench_dictionary`, docs/design-notes.md#dual-approximations): with 16 a 4 097-atom dictionary needs a
 /// second round at most test points (its 16 nearest atoms span a fraction of one node spacing
 /// of travel, and atoms up to one node spacing away are violated), with 32 one round suffices
 /// at the median and the 128-atom dictionary pays about 20 % more per query.
@@ -214,8 +214,8 @@ const WS_MAX_ROUNDS: usize = 64;
 /// (column generation): the reduced problem with all N atoms has one constraint
 /// `ĝ_a = sum_i theta_ia w_i g_i(û) >= 0` per atom. Start from the `start` atoms nearest to
 /// `mu` in the first parameter, solve the reduced problem on them
-/// ([`ReducedModel::solve_in`]), then compute the gap `g_i` of every paired node
-/// ([`ReducedModel::node_gaps`]) and the reduced gap of the atoms outside the set that touch a
+/// ([`crate::rom::ReducedModel::solve_in`]), then compute the gap `g_i` of every paired node
+/// ([`crate::rom::ReducedModel::node_gaps`]) and the reduced gap of the atoms outside the set that touch a
 /// node with a negative gap (an atom whose nodes all have `g >= 0` cannot be violated, since
 /// `theta >= 0`); add the most violated ones and solve again, until none is violated. The
 /// answer then satisfies the KKT conditions of the problem over all atoms (the atoms outside

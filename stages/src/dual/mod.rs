@@ -1,5 +1,5 @@
 //! Dual approximations: every way crom approximates the contact pressure, behind one interface
-//! (issue 15, "beyond the paper"). POD and the Cone-Projected Greedy basis of the paper are two
+//! ("beyond the paper"). POD and the Cone-Projected Greedy basis of the paper are two
 //! values of [`Approach`]; the others are the ones the paper names in its *Perspectives* or
 //! cites without measuring.
 //!
@@ -13,14 +13,14 @@
 //! * **POD** (eq. 9): the leading left singular vectors; `Pi_m` is the orthogonal projection.
 //! * **CPG** (Sec. 2.3.1, eq. 12): the tolerance-0 greedy cone basis; `Pi_m` is the projection
 //!   onto the cone of the first m generators (non-negative coefficients, NNLS).
-//! * **Angle-Greedy** (Burkovska, Haasdonk, Salomon and Wohlmuth 2015, the paper's ref. [10]):
+//! * **Angle-Greedy** (Burkovska, Haasdonk, Salomon and Wohlmuth 2015, the paper's ref. \[10\]):
 //!   the greedy selection by the *angle* to the linear span of the snapshots already chosen,
 //!   `j_m = argmax_j ||s_j - P_{V_{m-1}} s_j|| / ||s_j||` ([`angle_greedy`]). Its basis is
 //!   the chosen snapshots themselves (non-negative), and the online solve keeps the dual
 //!   coefficients non-negative, so `Pi_m` is the cone projection on them, as for CPG: the
 //!   two differ only in which snapshots they pick.
-//! * **NNMF** of rank m (Lee and Seung 1999; Balajewicz, Amsallem and Farhat 2016, refs. [25],
-//!   [11]): `S ~ W H`, `W >= 0` (n x m), `H >= 0`, by hierarchical alternating least squares
+//! * **NNMF** of rank m (Lee and Seung 1999; Balajewicz, Amsallem and Farhat 2016, refs. \[25\],
+//!   \[11\]): `S ~ W H`, `W >= 0` (n x m), `H >= 0`, by hierarchical alternating least squares
 //!   from the NNDSVD start ([`nnmf`]); `Pi_m` is the cone projection on the columns of the
 //!   rank-m `W`. Not nested: one factorisation per m.
 //! * **Local bases** ([`local`]): the parameter range cut into K cells (with an overlap), one
@@ -67,7 +67,7 @@ pub enum Approach {
     Pod,
     /// Cone-Projected Greedy basis at tolerance 0 (Sec. 2.3.1).
     Cpg,
-    /// Angle-Greedy snapshot selection (ref. [10]), cone projection on the chosen snapshots.
+    /// Angle-Greedy snapshot selection (ref. \[10\]), cone projection on the chosen snapshots.
     AngleGreedy,
     /// Non-negative matrix factorisation of rank m, `iterations` HALS sweeps at most.
     Nnmf {

@@ -1,4 +1,4 @@
-//! The metrics of every dual approximation, by one code path (issue 15):
+//! The metrics of every dual approximation, by one code path:
 //!
 //! * compactness `C(m) = sqrt(sum_j ||s_j - Pi_m(s_j; mu_j)||^2) / ||S||_F` over the training
 //!   set (eq. 16; for a parameter-dependent approximation each snapshot at its own `mu_j`);
@@ -6,7 +6,7 @@
 //!   again from the other snapshots and `s_i` is projected at `mu_i`; mean, population standard
 //!   deviation and count of `||s_i - Pi_m(s_i)|| / ||s_i||` over the folds;
 //! * the test error `T(m)`: the same relative error for each test snapshot at its own `mu`,
-//!   with the approximation built from the whole training set (the issue's target measure);
+//!   with the approximation built from the whole training set (the comparison's headline measure);
 //! * the nested error `H(n)` (eq. 19): built from level n, the relative Frobenius error of
 //!   level n + 1's snapshots, at the largest m of the grid (the same budget for every
 //!   approach: the paper's H uses the whole span or cone of level n, the same where level n

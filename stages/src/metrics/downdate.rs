@@ -26,8 +26,8 @@
 //! # Accuracy
 //!
 //! An eigen-downdate written on `σ^2` (the Gram) resolves eigenvalues to `eps σ_1^2` only, so it
-//! loses every singular value below `sqrt(eps) σ_1` — where the primal curves live (design note
-//! 17). Here each root is found relative to its nearer pole `σ_o`: `ω = σ_o + τ`, with
+//! loses every singular value below `sqrt(eps) σ_1`, where the primal curves live
+//! (docs/design-notes.md#orthogonal-folds-by-a-column-downdate). Here each root is found relative to its nearer pole `σ_o`: `ω = σ_o + τ`, with
 //! `σ_k - ω = (σ_k - σ_o) - τ` and `σ_k + ω = (σ_k + σ_o) + τ` formed separately, so τ is found
 //! to relative accuracy and no difference of squares is ever formed (the device of LAPACK's
 //! `dlasd4`, which solves the updating case). And f is evaluated relative to its value at 0,

@@ -65,7 +65,7 @@
 //! one SVD `R = U Σ V^T` and gets each fold by a column downdate ([`ColumnDowndate`], O(N^2)
 //! per fold instead of O(N^3)): the fold's singular values are the roots of a secular equation
 //! and `s_i`'s squared coefficients on the fold's modes are its weights. The two agree to
-//! round-off (design note 38); the SVD is kept where it is cheap so that the published curves
+//! round-off (docs/design-notes.md#orthogonal-folds-by-a-column-downdate); the SVD is kept where it is cheap so that the published curves
 //! up to 256 snapshots stay bit for bit. The numerical rank uses the cut of the full-size fold,
 //! `max(n, N - 1) eps s_max`. [`LooOrth::fold_reference`] (an SVD of `R \ r_i` with both vector
 //! sets) and [`loo_fold_orth`] (POD of the n x (N - 1) fold, the definition) are kept as
@@ -186,7 +186,7 @@ pub fn loo_fold_orth(s: MatRef<'_, f64>, i: usize, max_m: usize) -> Result<Optio
 }
 
 /// How [`LooOrth`] computes a fold; both give the errors of `s_i` on the POD modes of
-/// `S \ s_i` (they agree to round-off: design note 38).
+/// `S \ s_i` (they agree to round-off: docs/design-notes.md#orthogonal-folds-by-a-column-downdate).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FoldMethod {
     /// An SVD of the q x (N - 1) matrix `R \ r_i` (left vectors only), O(N^3) per fold.
@@ -197,7 +197,7 @@ pub enum FoldMethod {
 
 impl FoldMethod {
     /// Up to this many snapshots a fold is its own SVD (every fold is computed, and the
-    /// curves are the ones published since issue 8 bit for bit); beyond, the downdate.
+    /// curves of the paper-sized studies stay the same bit for bit); beyond, the downdate.
     pub const SVD_MAX_SNAPSHOTS: usize = 256;
 
     /// The method [`LooOrth::new`] uses for N snapshots.

@@ -1,5 +1,5 @@
 //! The curvature of the node-to-segment gaps in the reduced coordinates, for a Newton step of the
-//! Type-2 re-pairing (design note 42).
+//! Type-2 re-pairing (docs/design-notes.md#newton-corrected-re-pairing-steps).
 //!
 //! The exact online solve linearises every paired slave's gap at the current iterate `y_k` and
 //! solves the QP `min |y|^2 / 2  s.t.  Ĉ_k y + ĝ0_k >= 0` exactly. The gap rows are the gaps'
@@ -29,7 +29,7 @@
 //!   `v`, held fixed (the tie's model: its force acts along `n̄` on the slave and on `x_v`).
 //!   Only `n̄` moves the row: `δn̄ = -t̄ (A·δ)`, `A·δ = Σ_i (t̄ · t_i) n_i · δe_i / (L_i |m|)`,
 //!   so `∂r/∂y = -B Aᵀ` with `B·δ = t̄ · (δx_s - δx_v)` — one of the two cross terms;
-//! - a slave tied to an end of the master (design note 36) gets no term.
+//! - a slave tied to an end of the master (docs/design-notes.md#end-ties) gets no term.
 //!
 //! Each `A`, `B` is a combination of at most four contact nodes' rows of `Psi_c`, so
 //!

@@ -41,11 +41,11 @@
 //!
 //! **Exact solve** ([`Algorithm::Exact`]). For a fixed linearisation the reduced problem is the
 //! strictly convex QP `min 1/2 ûᵀK̂û s.t. Ĉû + ĝ0 >= 0`, whose KKT conditions are eq. 13 plus
-//! sign conditions; [`qp`] solves it by a dual active-set method with finite termination that
+//! sign conditions; `qp` ([`solve_qp`]) solves it by a dual active-set method with finite termination that
 //! also proves infeasibility (a primal basis too small for the dual one is refused with that
 //! reason, not iterated). Type-2 wraps it in an outer loop: re-pair at `u0 + Phi û`, rebuild
 //! the rows, solve again, until the pairing repeats and `û` stops moving. Once the pairing has
-//! settled, each step is Newton-corrected for the gaps' curvature ([`curvature`]: the term of
+//! settled, each step is Newton-corrected for the gaps' curvature (`curvature`: the term of
 //! the Lagrangian's Hessian the fixed-point iteration drops), which turns its linear rate of
 //! about 1e-2 into about 2e-4 and leaves the fixed point unchanged. A slave is searched
 //! again only when it may have moved by its safe radius since its last search (budgets along

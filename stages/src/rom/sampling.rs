@@ -7,7 +7,7 @@
 //! ```
 //!
 //! so every linearisation of an online query positions, pairs and assembles every supported
-//! slave: work that follows the number of contact nodes, not the ranks (design note 40). A
+//! slave: work that follows the number of contact nodes, not the ranks (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints). A
 //! reduced quadrature keeps a subset `E` of the slaves with non-negative weights `xi_s`,
 //!
 //! ```text

@@ -89,7 +89,7 @@ impl ReducedModel {
     /// started from the previous round's answer and active set instead of from the cold start
     /// the full-order solver uses (a tied slave moves by less than 1 % of a segment). Where the
     /// re-pairing has one fixed point with those ties, as the rule makes it for the full-order
-    /// problem (design note 27), that is the cold round's answer: the full-basis reproduction
+    /// problem (docs/design-notes.md#the-vertex-zone-rule), that is the cold round's answer: the full-basis reproduction
     /// of every hertz training snapshot (each has tied slaves) to 1e-9 tests it. Where a
     /// truncated reduced problem has several nearby fixed points, which one a start reaches
     /// is a property of the start, cold or resumed alike (measured with other starts on
@@ -104,7 +104,7 @@ impl ReducedModel {
     /// point, as the full-order solver does. A decision taken `ZONE_PROBE` from the fixed
     /// point differs from the one at it only for a slave within that distance of a zone's
     /// edge (measured on ironing-fine's 127 test points at five rank pairs: the same answers
-    /// to 2.1e-11, design note 41).
+    /// to 2.1e-11, docs/design-notes.md#certificates-instead-of-searches).
     fn solve_exact(
         &self,
         mu: &[f64],
@@ -214,7 +214,7 @@ impl ReducedModel {
         solve_qp(Factor::Identity, self.r_u, &mut oracle, tol, max_steps, warm, x, qp)
     }
 
-    /// The Newton correction of a re-pairing step (design note 42, [`crate::rom::curvature`]):
+    /// The Newton correction of a re-pairing step (docs/design-notes.md#newton-corrected-re-pairing-steps, [`crate::rom::curvature`]):
     /// with `x` the QP's answer at the linearisation `y_k = û` and `A` its active set,
     ///
     /// ```text
@@ -391,7 +391,7 @@ mod tests {
         assert!(failed.is_empty(), "{failed:?}");
     }
 
-    /// Newton-corrected re-pairing steps (design note 42) change the path, not the answer:
+    /// Newton-corrected re-pairing steps (docs/design-notes.md#newton-corrected-re-pairing-steps) change the path, not the answer:
     /// ironing-coarse, 17 training points, 48 test points between them, full bases and a
     /// truncated pair, cold and warm-started: the answers equal those of plain steps to 1e-8
     /// relative (each solve stops within `u_tol` = 1e-10 of the fixed point; measured 8.0e-11),

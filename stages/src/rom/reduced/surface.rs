@@ -71,7 +71,7 @@ impl ReducedModel {
     }
 
     /// A Type-2 model whose reduced constraints sum over a reduced quadrature of the slaves
-    /// ([`crate::rom::sampling`], design note 40): at each of `samples` (typically the
+    /// ([`crate::rom::sampling`], docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints): at each of `samples` (typically the
     /// training parameters) the exact online solve of this model is run, and at its lift state
     /// (`û = 0`) and its converged state every paired supported slave's contributions to the
     /// reduced gaps `ŝ_a` and to their derivatives along [`SAMPLING_DIRECTIONS`] fixed
@@ -206,8 +206,8 @@ mod tests {
     use crate::rom::{RomOutcome, RomParams, RomWork};
     use crate::testing::{ironing_coarse, TOL};
 
-    /// The reduced quadrature of the contact constraints (`with_sampled_surface`, design note
-    /// 40) on ironing-coarse with 17 training points and full bases.
+    /// The reduced quadrature of the contact constraints (`with_sampled_surface`,
+    /// docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints) on ironing-coarse with 17 training points and full bases.
     ///
     /// * Fitted to zero residual it is the full surface: the fit reproduces the exact sums on 34
     ///   training states (values and 3 derivative directions of 17 dual vectors: 2 312 rows for

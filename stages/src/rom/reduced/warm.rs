@@ -31,7 +31,7 @@ impl ReducedModel {
     /// when the nearest sample's set is right. A Type-2 re-pairing converges to the same fixed
     /// point from either start wherever it has one (full bases: the full-order solution;
     /// measured on ironing-fine with 128 training points, before the interpolated starts and
-    /// Newton-corrected steps of design note 42: cold and warm agree to 1e-10 at
+    /// Newton-corrected steps (docs/design-notes.md#newton-corrected-re-pairing-steps): cold and warm agree to 1e-10 at
     /// every test point for ranks from (16, 60) to (128, 128)); where a truncated reduced
     /// problem has several, the start picks one (there: 1 of 127 points at (128, 16) and 4 at
     /// (8, 8) moved, by at most 2.7e-5 relative, against median model errors of 4.7e-3 and
@@ -72,7 +72,7 @@ impl ReducedModel {
     /// parameter, the neighbour on the other side): `y = y_k + t (y_o - y_k)`,
     /// `t = (mu - mu_k)·(mu_o - mu_k) / |mu_o - mu_k|²` in `(0, 1]`. Between two neighbouring
     /// training points of ironing-fine this starts 2.5x closer to the answer than the nearest
-    /// sample (relative distance 1.7e-2 against 4.3e-2; design note 42). Only the path
+    /// sample (relative distance 1.7e-2 against 4.3e-2; docs/design-notes.md#newton-corrected-re-pairing-steps). Only the path
     /// changes: the re-pairing converges to the same fixed point wherever it has one.
     pub(super) fn seed_warm(&self, mu: &[f64], w: &mut RomWork) {
         w.warm.clear();
@@ -119,7 +119,7 @@ mod tests {
     use crate::rom::{RomParams, RomWork};
     use crate::testing::ironing_coarse;
 
-    /// Type-2 warm starts (design note 41) change the steps, not the answer, where the
+    /// Type-2 warm starts (docs/design-notes.md#warm-starts) change the steps, not the answer, where the
     /// re-pairing has one fixed point: ironing-coarse, 17 training points, full bases, 48 test
     /// points between them: warm-started answers equal the cold ones to 1e-8 relative (each
     /// solve stops within `u_tol` = 1e-10 of the fixed point; measured 6.7e-11), and the warm
