@@ -60,7 +60,7 @@ pub(crate) struct OnlineApproximationKey {
 impl StageKey for OnlineApproximationKey {
     const KIND: ArtifactKind = ArtifactKind::OnlineApproximation;
     /// Bump when a number of the online solve changes (3: Newton-corrected re-pairing steps,
-    /// design note 42).
+    /// docs/design-notes.md#newton-corrected-re-pairing-steps).
     const ALGORITHM_VERSION: u32 = 3;
 }
 

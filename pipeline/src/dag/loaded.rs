@@ -2,7 +2,7 @@
 //! from the store (verifying every column), and every later stage of the run shares that copy
 //! instead of reading the HDF5 files again. Only stages that compute (cache misses) ask, so a
 //! fully cached run reads nothing. Nested levels are not kept (the nested stage holds two
-//! levels at a time, design note 18).
+//! levels at a time, docs/design-notes.md#the-nested-error-keeps-two-levels-in-memory).
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};

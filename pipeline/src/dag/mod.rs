@@ -14,10 +14,10 @@
 //! ```
 //!
 //! [`plan::Plan::of`] builds the graph from the scene file alone: each node is a typed stage
-//! ([`graph::StageDef`]) holding its key spec and its named inputs, so the key of every
+//! (`graph::StageDef`) holding its key spec and its named inputs, so the key of every
 //! artifact is known before anything runs. Each stage is named by the content hash of its
 //! parameters and inputs ([`crate::cache`]); a stage whose artifact is in the store and
-//! verifies is not run again. [`execute`] runs the nodes in order with no stage-specific code.
+//! verifies is not run again. `execute` runs the nodes in order with no stage-specific code.
 
 mod approximation;
 mod approximation_online;
@@ -102,7 +102,7 @@ impl PointCounts {
 }
 
 /// Everything a stage needs from the run. It does not carry the scene: a stage computes from
-/// its key struct, its inputs and its [`Labels`], all fixed at plan time, so a setting it uses
+/// its key struct, its inputs and its `Labels`, all fixed at plan time, so a setting it uses
 /// cannot be missing from its key.
 #[derive(Debug)]
 pub struct Ctx<'a> {

@@ -5,8 +5,8 @@
 //! from the same `spec` function its stage computes with, so the plan and the run cannot
 //! disagree (the e2e test `e2e_cluster` checks that a finished run leaves nothing to run).
 //!
-//! Each node holds its stage as a typed value ([`super::graph::StageDef`]): its key spec,
-//! computed here once, and its inputs as named fields. The local executor ([`super::execute`])
+//! Each node holds its stage as a typed value (`graph::StageDef`): its key spec,
+//! computed here once, and its inputs as named fields. The local executor (`dag::execute`)
 //! walks the nodes in order and runs each node's stage; `crom run --dry-run` prints the plan against the store
 //! (what is stored, what would run); `crom status` prints it for a run in progress or
 //! finished, with the sharded workers' records ([`crate::executor`]); the Slurm executor

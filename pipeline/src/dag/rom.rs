@@ -80,8 +80,9 @@ impl StageKey for RomKey {
     /// Bump when the online stage changes its numbers (9: Type-1 warm starts from the nearest
     /// training point's active set — the same answers to round-off, fewer QP steps; 10:
     /// Type-2 warm starts, the vertex-zone rule asked before the round's fixed point, a dot
-    /// product summed in another order — design note 41; 11: Newton-corrected re-pairing
-    /// steps and interpolated warm starts, the same answers to 1e-10 — design note 42).
+    /// product summed in another order — docs/design-notes.md#certificates-instead-of-searches;
+    /// 11: Newton-corrected re-pairing steps and interpolated warm starts, the same answers to
+    /// 1e-10 — docs/design-notes.md#newton-corrected-re-pairing-steps).
     const ALGORITHM_VERSION: u32 = 11;
 }
 
@@ -258,8 +259,8 @@ fn run(
         }
     }
     if let Some(cs) = &settings.contact_sampling {
-        // the exact solve on a reduced quadrature of the contact constraints (design note 40),
-        // fitted per rank pair to a subsample of the training points
+        // the exact solve on a reduced quadrature of the contact constraints
+        // (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints), fitted per rank pair to a subsample of the training points
         let p = RomParams { algorithm: Algorithm::Exact, ..params };
         let fit_points = subsample(&train_set.parameters, SAMPLING_FIT_POINTS);
         for &[ru, rl] in &cs.ranks {

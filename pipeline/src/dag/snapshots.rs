@@ -35,7 +35,7 @@ use crate::store::columns::{
 use crate::store::Lookup;
 
 /// Bump when the solvers change the numbers they produce.
-/// 2: the vertex-zone rule (design note 27) changes the snapshots near sole vertices, and the
+/// 2: the vertex-zone rule (docs/design-notes.md#the-vertex-zone-rule) changes the snapshots near sole vertices, and the
 /// index gains the geometric check.
 /// 3: the stored equilibrium residual of the 2-D scenes is a backward error (`contact::solve`).
 const ALGORITHM_VERSION: u32 = 3;
