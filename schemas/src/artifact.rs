@@ -354,6 +354,10 @@ pub mod metrics {
     pub const SPECIFICITY: &str = "specificity.parquet";
     /// Columns of the G(m) and S(m) tables.
     pub const CURVE_COLUMNS: [&str; 9] = ["scene", "field", "basis", "m", "mean", "std", "count", "padded", "n_zero"];
+    /// The column a G(m) table from a sample of folds adds after [`CURVE_COLUMNS`]: the
+    /// half-width of the 95 % interval of each `mean` as an estimate of the mean over every
+    /// fold (NaN where fewer than two folds count at that m).
+    pub const INTERVAL: &str = "ci95";
     /// H(n) table.
     pub const NESTED: &str = "nested.parquet";
     /// Columns of the H(n) table.

@@ -8,8 +8,8 @@ use crom_schemas::artifact::{metrics as names, ArtifactKind};
 use crom_schemas::SceneConfig;
 use crom_stages::cone::NnlsParams;
 use crom_stages::metrics::{
-    combine_folds, loo_fold_cone, nested_error_cone, nested_error_orth, specificity_cone_path, specificity_orth,
-    LooOrth, MetricCurve, SpecificityParams,
+    combine_folds, loo_fold_cone, mean_interval95, nested_error_cone, nested_error_orth, specificity_cone_path,
+    specificity_orth, LooOrth, MetricCurve, SpecificityParams,
 };
 use rayon::prelude::*;
 use serde::Serialize;
@@ -37,6 +37,11 @@ pub(crate) struct GeneralizationKey {
     /// selection of up to `DENSE_CURVE_MAX` snapshots.
     #[serde(skip_serializing_if = "Option::is_none")]
     selection: Option<&'static str>,
+    /// The interval column of a sample of folds (`ci95`, see
+    /// `crom_stages::metrics::mean_interval95`); absent (and not in the key) when every fold
+    /// is in.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    interval: Option<&'static str>,
 }
 
 impl StageKey for GeneralizationKey {
@@ -103,7 +108,8 @@ impl GeneralizationKey {
         // A sample of folds is part of the key; every fold is the default.
         let sampled = (folds.len() != n_train).then_some(folds.len());
         let selection = basis::selection_of(n_train);
-        Self { max_rank, folds: sampled, nnls: NnlsKey::used(), selection }
+        let interval = sampled.map(|_| names::INTERVAL);
+        Self { max_rank, folds: sampled, nnls: NnlsKey::used(), selection, interval }
     }
 
     /// The folds of `n` training snapshots: every one, or the keyed sample of them
@@ -245,7 +251,9 @@ fn generalization(
         // G(m) reads the path's generators and leave-one-out data, not its C(m): no tolerance.
         let path = basis::dual_path(progress, &[], train, &set.dual, max_rank).map_err(fail)?;
         let bar = Ticker::new(progress, "LOO folds", 3 * folds.len());
-        let mut rows = CurveRows::default();
+        // A sample of folds: each mean with its interval over all N folds.
+        let population = settings.interval.map(|_| set.dual.cols);
+        let mut rows = CurveRows { population, ..CurveRows::default() };
         for (field, s) in [("primal", &set.primal), ("dual", &set.dual)] {
             let curve = loo_orth(s, &folds, max_m, &|| bar.tick(&format!("{field} orth"))).map_err(fail)?;
             rows.push(scene, field, "orth", &curve);
@@ -411,6 +419,10 @@ struct CurveRows {
     mean: Vec<f64>,
     std: Vec<f64>,
     ints: [Vec<u64>; 3],
+    /// The means are over a sample of this many folds' population: each row carries the
+    /// half-width of its 95 % interval (`ci95`).
+    population: Option<usize>,
+    ci95: Vec<f64>,
 }
 
 impl CurveRows {
@@ -425,13 +437,16 @@ impl CurveRows {
             self.ints[0].push(c.count[k] as u64);
             self.ints[1].push(c.padded[k] as u64);
             self.ints[2].push(c.n_zero as u64);
+            if let Some(n) = self.population {
+                self.ci95.push(mean_interval95(c.std[k], c.count[k], n));
+            }
         }
     }
 
     fn table(self) -> Table {
         let [scene, field, basis] = self.s;
         let [count, padded, n_zero] = self.ints;
-        Table::default()
+        let t = Table::default()
             .with("scene", Column::Str(scene))
             .with("field", Column::Str(field))
             .with("basis", Column::Str(basis))
@@ -440,7 +455,11 @@ impl CurveRows {
             .with("std", Column::F64(self.std))
             .with("count", Column::U64(count))
             .with("padded", Column::U64(padded))
-            .with("n_zero", Column::U64(n_zero))
+            .with("n_zero", Column::U64(n_zero));
+        match self.population {
+            Some(_) => t.with(names::INTERVAL, Column::F64(self.ci95)),
+            None => t,
+        }
     }
 }
 
@@ -475,5 +494,56 @@ impl NestedRows {
             .with("value", Column::F64(self.value))
             .with("snapshots", Column::U64(self.snaps))
             .with("n_zero", Column::U64(self.zero))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn curve() -> MetricCurve {
+        MetricCurve {
+            mean: vec![0.5, 0.25],
+            std: vec![0.2, 0.1],
+            count: vec![16, 16],
+            padded: vec![0, 0],
+            n_zero: 0,
+            skipped: vec![false, false],
+        }
+    }
+
+    /// Every fold: the table has exactly the contract's columns (the layout of every store so
+    /// far); a sample of folds adds `ci95`, each row's interval by `mean_interval95`.
+    #[test]
+    fn a_sample_of_folds_adds_its_interval_column() {
+        let cols = |t: &Table| t.columns.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
+        let mut every = CurveRows::default();
+        every.push("s", "dual", "orth", &curve());
+        assert_eq!(cols(&every.table()), names::CURVE_COLUMNS);
+        let mut sampled = CurveRows { population: Some(513), ..CurveRows::default() };
+        sampled.push("s", "dual", "orth", &curve());
+        let t = sampled.table();
+        let mut expected: Vec<String> = names::CURVE_COLUMNS.iter().map(|c| c.to_string()).collect();
+        expected.push(names::INTERVAL.to_string());
+        assert_eq!(cols(&t), expected);
+        let want = [mean_interval95(0.2, 16, 513), mean_interval95(0.1, 16, 513)];
+        assert_eq!(t.f64s(names::INTERVAL).expect("ci95"), &want[..]);
+    }
+
+    /// The interval is keyed exactly when the folds are a sample, so the keys of scenes that
+    /// run every fold are unchanged.
+    #[test]
+    fn the_interval_is_keyed_only_for_a_sample_of_folds() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes/rope.toml");
+        let text = std::fs::read_to_string(path).expect("rope.toml");
+        let every = SceneConfig::from_toml_str(&text, std::path::Path::new("rope.toml")).expect("scene");
+        let key = serde_json::to_value(GeneralizationKey::of(&every)).expect("json");
+        assert!(key.get("interval").is_none() && key.get("folds").is_none(), "{key}");
+        let sampled_text = text.replacen("[study]", "[study]\nloo_folds = 4", 1);
+        assert_ne!(sampled_text, text, "rope.toml has a [study] table");
+        let sampled = SceneConfig::from_toml_str(&sampled_text, std::path::Path::new("rope.toml")).expect("scene");
+        let key = serde_json::to_value(GeneralizationKey::of(&sampled)).expect("json");
+        assert_eq!(key["interval"], names::INTERVAL);
+        assert_eq!(key["folds"], 4);
     }
 }

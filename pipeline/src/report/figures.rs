@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use crom_schemas::artifact::metrics as metric_names;
 use crom_schemas::scene::Model;
 use crom_schemas::SceneConfig;
 use crom_stages::rope::{Rope, RopeParams};
@@ -110,7 +111,7 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
         dir,
         "fig10_generalization",
         "G(m) (eq. 17)",
-        "Generalization ability by leave-one-out, mean ± 1σ over the left-out snapshots (paper Figs. 10, 16 left).",
+        &generalization_caption(&d.generalization),
     )?);
     figs.push(curve(
         scene,
@@ -549,6 +550,21 @@ fn metric_rows(t: &Table, field: &str, basis: &str, xcol: &str, ycol: &str) -> (
         }
     }
     out
+}
+
+/// The G(m) caption; a sample of folds (the table's `ci95` column) says how many and where the
+/// interval of each mean is.
+fn generalization_caption(t: &Table) -> String {
+    let base =
+        "Generalization ability by leave-one-out, mean ± 1σ over the left-out snapshots (paper Figs. 10, 16 left).";
+    match (t.f64s(metric_names::INTERVAL), t.u64s("count")) {
+        (Some(_), Some(count)) => format!(
+            "{base} The folds are a sample: {} evenly spaced left-out snapshots of the training set; the half-width of \
+             each mean's 95 % interval over every fold is the ci95 column of generalization.parquet.",
+            count.iter().max().copied().unwrap_or(0)
+        ),
+        _ => base.to_string(),
+    }
 }
 
 fn curve(

@@ -39,4 +39,4 @@ pub use specificity::{
 };
 
 pub use specificity::stream as specificity_stream;
-pub use stats::{on_rank_grid, MetricCurve, RunningStats};
+pub use stats::{mean_interval95, on_rank_grid, MetricCurve, RunningStats};

@@ -4,6 +4,16 @@
 //! The standard deviation is the population one, `sqrt(sum (x - mean)^2 / count)` (numpy's
 //! default `ddof = 0`): the paper's ±1σ bars (Figs. 10 and 16) describe the spread of the
 //! per-snapshot (or per-sample) values themselves ([`RunningStats`], Welford's update).
+//!
+//! **A mean from a sample of folds.** Leave-one-out over `f` of the `N` training snapshots
+//! estimates the mean over all `N` folds. [`mean_interval95`] is the half-width of its 95 %
+//! interval under simple random sampling without replacement,
+//! `h = z s / sqrt(f) * sqrt(1 - f / N)`, `z = 1.959964` (the normal 97.5 % quantile), `s` the
+//! sample standard deviation (`ddof = 1`, from the population one as `σ sqrt(f / (f - 1))`) and
+//! `sqrt(1 - f / N)` the finite-population correction (`h = 0` when every fold is in). The folds
+//! are evenly spaced over the parameter-ordered training set (systematic sampling): for an error
+//! that varies smoothly with the parameter, that is a stratified sample whose variance is at most
+//! the random sample's, so the interval is conservative.
 
 pub use crate::running_stats::RunningStats;
 
@@ -56,6 +66,24 @@ impl MetricCurve {
     }
 }
 
+/// The normal distribution's 97.5 % quantile (two-sided 95 % interval).
+const Z_95: f64 = 1.959_963_984_540_054;
+
+/// Half-width of the 95 % interval of a population mean estimated from `count` of its
+/// `population` values whose population standard deviation (`ddof = 0`) is `std` (module docs):
+/// 0 when the whole population is in, NaN below two values.
+pub fn mean_interval95(std: f64, count: usize, population: usize) -> f64 {
+    if count >= population {
+        return 0.0;
+    }
+    if count < 2 {
+        return f64::NAN;
+    }
+    let f = count as f64;
+    let sample_std = std * (f / (f - 1.0)).sqrt();
+    Z_95 * sample_std / f.sqrt() * (1.0 - f / population as f64).sqrt()
+}
+
 /// Whether rank m (1-based) of a curve over m = 1..=k is evaluated when every rank up to
 /// `dense_to` is and, beyond, only the quarter-octave grid `round(dense_to * 2^(i/4))`, i >= 1,
 /// and k itself (about 4 ranks per doubling: a log-scale plot's resolution). A metric whose cost
@@ -103,6 +131,18 @@ mod tests {
         // Welford on equal values: delta is exactly 0 after the first push, so std is exactly 0.
         assert_close!(same.std(), 0.0, Tol::abs(0.0));
         assert_close!(same.mean(), 0.1, Tol::abs(0.0));
+    }
+
+    #[test]
+    fn interval_of_a_sampled_mean_by_hand() {
+        // Values 2, 4, 4, 4, 5, 5, 7, 9 (population std 2, sample std 2 sqrt(8/7)) drawn from a
+        // population of 80: h = 1.959964 * 2 sqrt(8/7) / sqrt(8) * sqrt(1 - 8/80).
+        let h = 1.959_963_984_540_054 * 2.0 * (8.0f64 / 7.0).sqrt() / 8f64.sqrt() * 0.9f64.sqrt();
+        assert_close!(mean_interval95(2.0, 8, 80), h, Tol::rel(1e-15)); // same operations, reordered
+        assert_close!(mean_interval95(2.0, 80, 80), 0.0, Tol::abs(0.0)); // the whole population: the mean is exact
+        assert!(mean_interval95(2.0, 1, 80).is_nan(), "one value has no spread estimate");
+        // The correction shrinks the interval as the sample covers more of the population.
+        assert!(mean_interval95(2.0, 40, 80) < mean_interval95(2.0, 40, 8000));
     }
 
     #[test]
