@@ -68,9 +68,39 @@ pub(crate) fn render(root: &Path, scene: &crom_schemas::SceneConfig, view: View)
         stages.len()
     );
     if view == View::Status {
+        levels(&mut out, root, scene)?;
         workers(&mut out, root, name)?;
     }
     Ok(out)
+}
+
+/// A scene whose training set is a nested level (`train_level = k`): one line per level
+/// 1..=k — its training points, its study's snapshot points stored and its offline stages
+/// stored — so a study grown level by level shows which levels it has.
+fn levels(out: &mut String, root: &Path, scene: &crom_schemas::SceneConfig) -> Result<(), CromError> {
+    let Some(k) = scene.parameter.train_level else { return Ok(()) };
+    let _ = writeln!(out, "  levels (train_level = {k}; each level's study as a scene with that train_level):");
+    for level in 1..=k {
+        let mut at = scene.clone();
+        at.parameter.train_level = Some(level);
+        let plan = Plan::of(&at);
+        let state = plan.snapshot_state(root)?;
+        let offline: Vec<_> = plan.nodes.iter().filter(|n| !n.is_sweep() && !n.online).collect();
+        let done = offline.iter().filter(|n| stored(root, n)).count();
+        let study = if done == offline.len() {
+            "studied".to_string()
+        } else {
+            format!("{done} of {} offline stages stored", offline.len())
+        };
+        let _ = writeln!(
+            out,
+            "    level {level:>2}: {:>6} training points; {} of {} points stored; {study}",
+            at.parameter.train_points().len(),
+            state.stored,
+            state.points,
+        );
+    }
+    Ok(())
 }
 
 /// The worker records and the Slurm job of `scene`.

@@ -45,6 +45,19 @@ fn growing_a_study_by_one_level_solves_only_the_new_points() {
     // 16 new midpoints: exactly those are solved.
     assert_eq!(stage_counts(&second, "snapshot"), (16, 17), "{}", text(&second));
     assert!(text(&second).contains("16 solved, 17 reused"), "{}", text(&second));
+    // `crom status` has a line per level: levels 3 and 4 studied, 1 and 2 not (their points are
+    // all stored, as points of level 3, but no study of them ran).
+    let status = crom(&store, &["status", hi.to_str().expect("utf8")]);
+    assert!(status.status.success(), "{}", text(&status));
+    let out = text(&status);
+    let line = |k: u32| {
+        out.lines().find(|l| l.trim_start().starts_with(&format!("level {k:>2}:"))).unwrap_or_else(|| panic!("{out}"))
+    };
+    assert!(line(4).contains("17 training points; 33 of 33 points stored; studied"), "{out}");
+    assert!(line(3).contains("9 training points; 17 of 17 points stored; studied"), "{out}");
+    for k in [1, 2] {
+        assert!(line(k).contains("offline stages stored") && !line(k).contains("studied"), "{out}");
+    }
 }
 
 /// Result files that carry no wall-clock time and no storage layout: must be byte-identical.
