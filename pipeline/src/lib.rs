@@ -6,6 +6,7 @@ pub mod cli;
 pub mod dag;
 pub mod error;
 pub mod executor;
+pub mod external;
 pub mod io;
 pub mod physics;
 pub mod progress;
@@ -68,7 +69,9 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
         }
         Command::Work { scene, shard } => work(cli, scene, shard.0, shard.1),
         Command::Status { scene } => {
-            let scene = SceneConfig::load(&scenes::resolve(scene, &cli.scenes)?)?;
+            let path = scenes::resolve(scene, &cli.scenes)?;
+            let mut scene = SceneConfig::load(&path)?;
+            external::resolve(&mut scene, &path)?;
             print!("{}", status::render(&cli.store, &scene, status::View::Status)?);
             Ok(())
         }
@@ -119,7 +122,8 @@ fn new_ctx<'a>(cli: &Cli, store: &'a Store, scene: &'a SceneConfig) -> dag::Ctx<
 /// exceeds the limit ([`resources`]).
 fn load_scene(cli: &Cli, scene_arg: &str) -> Result<SceneConfig, CromError> {
     let path = scenes::resolve(scene_arg, &cli.scenes)?;
-    let scene = SceneConfig::load(&path)?;
+    let mut scene = SceneConfig::load(&path)?;
+    external::resolve(&mut scene, &path)?;
     let limit = match cli.max_memory {
         Some(b) => Some((b, "the --max-memory setting allows")),
         None => resources::available_bytes().map(|b| (b, "are available on this machine (MemAvailable)")),

@@ -27,6 +27,7 @@ mod compactness;
 pub(crate) mod comparison;
 mod convert;
 mod graph;
+mod import;
 mod loaded;
 mod mesh;
 mod metrics;
@@ -123,8 +124,8 @@ pub struct Ctx<'a> {
 /// The keys of a finished run, for callers and tests.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunOutput {
-    /// Mesh artifact.
-    pub mesh: Key,
+    /// Mesh artifact (none for an external scene).
+    pub mesh: Option<Key>,
     /// Snapshot artifacts of the training points, in order.
     pub train_snapshots: Vec<Key>,
     /// Training-set artifact.
@@ -264,6 +265,7 @@ impl<'a> Ctx<'a> {
 /// nested points — and stop: `crom solve`. The other stages are left for `crom run`.
 pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
     let scene = ctx.scene;
+    external_has_no_sweep(scene, "crom solve")?;
     let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene))?;
     for sweep in snapshots::sweeps(scene, &mesh_key) {
@@ -276,6 +278,7 @@ pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
 /// what killed writers left in the scene's column family.
 pub fn prepare_sweeps(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
     let scene = ctx.scene;
+    external_has_no_sweep(scene, "crom run --executor slurm")?;
     let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene))?;
     let family = snapshots::scene_family(scene, &mesh_key);
@@ -290,10 +293,25 @@ pub fn prepare_sweeps(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
 /// and append their blocks. The mesh artifact is not written (the planner writes it).
 pub fn work_shard(ctx: &mut Ctx<'_>, k: usize, n: usize) -> Result<PointCounts, CromError> {
     let scene = ctx.scene;
+    external_has_no_sweep(scene, "crom work")?;
     let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::spec(scene).key();
     let sweeps = snapshots::sweeps(scene, &mesh_key);
     snapshots::work(ctx, &mut physics, &mesh_key, &sweeps, k, n)
+}
+
+/// An external scene solves nothing: the commands that only solve refuse it.
+fn external_has_no_sweep(scene: &SceneConfig, command: &str) -> Result<(), CromError> {
+    if scene.model.external().is_none() {
+        return Ok(());
+    }
+    Err(CromError::Usage {
+        message: format!(
+            "`{command}` solves snapshots, and scene `{}` is external (it has none to solve)",
+            scene.scene.name
+        ),
+        fix: "use `crom run` (locally), which imports the scene's snapshots".into(),
+    })
 }
 
 /// Run every stage of the scene's study; with `online = false` stop before the online ROM
@@ -320,6 +338,9 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     online: bool,
 ) -> Result<RunOutput, CromError> {
     let scene = ctx.scene;
+    if plan.is_external() {
+        ctx.progress.note(plan::EXTERNAL_SKIPS);
+    }
     let mut shared = Shared::new(scene);
     let mut keys: BTreeMap<&str, Key> = BTreeMap::new();
     let mut beside = beside::Beside::new(scope);
@@ -355,7 +376,7 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     let nested_sets: Vec<Key> =
         plan.node("nested").map(|n| n.inputs.iter().map(|i| keys[i.as_str()].clone()).collect()).unwrap_or_default();
     Ok(RunOutput {
-        mesh: k("mesh"),
+        mesh: keys.get("mesh").cloned(),
         train_snapshots: shared.columns[&0].rows[..n_train].iter().map(|r| r.key.clone()).collect(),
         train: k("trainset train"),
         test: k("trainset test"),

@@ -24,6 +24,7 @@ use super::basis::BasisStage;
 use super::compactness::CompactnessStage;
 use super::comparison::{self, GatherStage};
 use super::graph::{Input, StageDef};
+use super::import::ImportStage;
 use super::mesh;
 use super::metrics::{GeneralizationStage, NestedStage, SpecificityStage};
 use super::report::{self, ReportStage};
@@ -99,6 +100,9 @@ impl Nodes {
     }
 }
 
+/// The one line an external scene's run prints about the stages it does not have.
+pub const EXTERNAL_SKIPS: &str = "external scene: the views, the comparison, the online reduced solve, the trade-off and the report need the full-order model or a mesh, which an external scene does not have; skipped";
+
 /// Where the snapshot sweeps stand in a store.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SnapshotState {
@@ -117,6 +121,9 @@ pub struct SnapshotState {
 impl Plan {
     /// The plan of `scene`'s study, in an order that respects every node's inputs.
     pub fn of(scene: &SceneConfig) -> Self {
+        if let Some(import) = ImportStage::plan(scene) {
+            return Self::of_external(scene, import);
+        }
         let mut nodes = Nodes::default();
         let mesh_stage = mesh::MeshStage::plan(scene);
         let mesh_key = mesh_stage.key();
@@ -212,6 +219,34 @@ impl Plan {
         inputs.extend([nested, comparison, online_comparison].into_iter().flatten());
         nodes.add("report", true, ReportStage::plan(shows, inputs));
         Self { sweeps, family, nodes: nodes.0 }
+    }
+
+    /// The plan of an external scene: its import in place of the mesh and the sweeps, then the
+    /// sets, the basis and the metrics as for a native scene. What needs the full-order model
+    /// or a mesh (the views, the comparison, the online stage, the report) is not planned
+    /// ([`EXTERNAL_SKIPS`]).
+    fn of_external(scene: &SceneConfig, import: ImportStage) -> Self {
+        let mut nodes = Nodes::default();
+        let (train_keys, test_keys) = (import.keys().0.to_vec(), import.keys().1.to_vec());
+        let family = import.key();
+        let sweep = nodes.add("import", false, import);
+        let p = &scene.parameter;
+        let (train_points, test_points) = (p.train_points(), p.test_points());
+        let tk: Vec<&Key> = train_keys.iter().collect();
+        let sk: Vec<&Key> = test_keys.iter().collect();
+        let train =
+            nodes.add("trainset train", false, SetStage::plan("train", &train_points, &tk, sweep.clone(), 0, 0));
+        nodes.add("trainset test", false, SetStage::plan("test", &test_points, &sk, sweep, 0, train_points.len()));
+        let basis = nodes.add("basis", false, BasisStage::plan(scene, train.clone()));
+        nodes.add("compactness", false, CompactnessStage::plan(train.clone(), basis.clone()));
+        nodes.add("generalization", false, GeneralizationStage::plan(scene, train.clone()));
+        nodes.add("specificity", false, SpecificityStage::plan(scene, train, basis));
+        Self { sweeps: Vec::new(), family, nodes: nodes.0 }
+    }
+
+    /// Whether this is an external scene's plan (no mesh: its snapshots were imported).
+    pub fn is_external(&self) -> bool {
+        self.node("import").is_some()
     }
 
     /// The node named `name`.
