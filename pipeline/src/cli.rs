@@ -66,7 +66,8 @@ pub enum Command {
         scene: String,
     },
     /// Solve every snapshot of a scene's study (training, test and nested points) into the
-    /// store and stop; `crom run` then finds them there.
+    /// store and stop; `crom run` then finds them there. An external scene's snapshots are
+    /// imported.
     Solve {
         /// Scene name or path to a scene TOML file.
         scene: String,

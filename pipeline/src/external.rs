@@ -17,7 +17,6 @@ use crom_schemas::{Model, SceneConfig};
 
 use crate::error::CromError;
 use crate::io::source::{locate, read_parameters, SnapshotArray};
-use crate::store::manifest::hash_file;
 
 /// Resolve `scene`'s external data (a native scene is left as it is); `path` is the scene file.
 pub fn resolve(scene: &mut SceneConfig, path: &Path) -> Result<(), CromError> {
@@ -54,9 +53,46 @@ struct Files {
     points: Vec<Vec<f64>>,
 }
 
-fn array(base: &Path, src: &crom_schemas::external::ArraySource, field: &str) -> Result<ResolvedArray, CromError> {
+/// blake3 of a file's bytes, each file hashed once per load (primal and dual are often one
+/// HDF5 file).
+#[derive(Default)]
+struct Hashes(std::collections::HashMap<std::path::PathBuf, String>);
+
+impl Hashes {
+    fn of(&mut self, path: &Path) -> Result<String, CromError> {
+        if let Some(h) = self.0.get(path) {
+            return Ok(h.clone());
+        }
+        let h = hash_file(path).map_err(|e| CromError::io(path, "hashing a data file", e))?;
+        self.0.insert(path.to_path_buf(), h.clone());
+        Ok(h)
+    }
+}
+
+/// blake3 of the bytes of the file at `path`, read in large pieces.
+fn hash_file(path: &Path) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path)?;
+    let mut h = blake3::Hasher::new();
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let n = f.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+    }
+    Ok(h.finalize().to_hex().to_string())
+}
+
+fn array(
+    base: &Path,
+    src: &crom_schemas::external::ArraySource,
+    field: &str,
+    hashes: &mut Hashes,
+) -> Result<ResolvedArray, CromError> {
     let a = SnapshotArray::open(base, src, field)?;
-    let (_, blake3) = hash_file(a.path()).map_err(|e| CromError::io(a.path(), "hashing a data file", e))?;
+    let blake3 = hashes.of(a.path())?;
     Ok(ResolvedArray {
         path: a.path().to_path_buf(),
         dataset: src.dataset.clone(),
@@ -73,9 +109,10 @@ fn files(
     dual: &crom_schemas::external::ArraySource,
     primal: Option<&crom_schemas::external::ArraySource>,
     params: &crom_schemas::external::ParameterSource,
+    hashes: &mut Hashes,
 ) -> Result<Files, CromError> {
-    let dual = array(base, dual, &format!("{at}.dual"))?;
-    let primal = primal.map(|p| array(base, p, &format!("{at}.primal"))).transpose()?;
+    let dual = array(base, dual, &format!("{at}.dual"), hashes)?;
+    let primal = primal.map(|p| array(base, p, &format!("{at}.primal"), hashes)).transpose()?;
     let points = read_parameters(base, params, &format!("{at}.parameters"))?;
     let fix = "give primal, dual and parameters one snapshot each, in the same order";
     if let Some(p) = &primal {
@@ -142,14 +179,16 @@ fn set(f: &Files, columns: Vec<usize>, field: &str) -> Result<ResolvedSet, CromE
 
 fn resolve_spec(ext: &ExternalSpec, base: &Path) -> Result<ResolvedExternal, CromError> {
     let at = "model.external";
-    let main = files(base, at, &ext.dual, ext.primal.as_ref(), &ext.parameters)?;
+    let mut hashes = Hashes::default();
+    let main = files(base, at, &ext.dual, ext.primal.as_ref(), &ext.parameters, &mut hashes)?;
     let (train, test) = match (&ext.test, &ext.test_files) {
         (Some(test), _) => {
             let train = ext.train.clone().unwrap_or_default();
             (set(&main, train, &format!("{at}.train"))?, set(&main, test.clone(), &format!("{at}.test"))?)
         }
         (None, Some(tf)) => {
-            let other = files(base, &format!("{at}.test_files"), &tf.dual, tf.primal.as_ref(), &tf.parameters)?;
+            let other =
+                files(base, &format!("{at}.test_files"), &tf.dual, tf.primal.as_ref(), &tf.parameters, &mut hashes)?;
             for (a, b, what) in
                 [(Some(&main.dual), Some(&other.dual), "dual"), (main.primal.as_ref(), other.primal.as_ref(), "primal")]
             {

@@ -20,7 +20,9 @@ pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool, report: Option<&s
         let _ = writeln!(out, "  {:<21} {:>9} {:>7}  {}", r.stage, r.computed, r.cached, r.dir.display());
     }
     let p = ctx.points;
-    if p.solved + p.reused + p.failed > 0 {
+    if ctx.scene.model.external().is_some() {
+        let _ = writeln!(out, "  snapshots: {} imported, {} reused from the store", p.solved, p.reused);
+    } else if p.solved + p.reused + p.failed > 0 {
         let _ = writeln!(
             out,
             "  snapshots: {} solved, {} reused from the store, {} missing (failed; retried by the next run)",

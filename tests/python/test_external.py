@@ -5,6 +5,7 @@ import copies f64 values exactly and every metric is a deterministic function of
 and test sets). The native study's nested levels are not compared: an external scene has none
 yet. Bad data files (on the rope's arrays, which are small) are refused with exit 2, the file,
 the dataset or field and the fix, and nothing stored."""
+import os
 import pathlib
 import subprocess
 
@@ -164,9 +165,10 @@ test = {list(range(n_train, n))}
 {extra}"""
 
 
-def refused(tmp_path, scene_body, *needles):
+def refused(tmp_path, scene_body, *needles, env=None):
     store = tmp_path / "store"
-    done = crom(store, "run", str(scene(tmp_path, "bad", scene_body)))
+    done = subprocess.run([str(crom_bin()), "--store", str(store), "run", str(scene(tmp_path, "bad", scene_body))],
+                          cwd=REPO, capture_output=True, text=True, env=env)
     assert done.returncode == 2, (done.returncode, done.stderr)
     for needle in [*needles, "fix:"]:
         assert needle in done.stderr, (needle, done.stderr)
@@ -203,6 +205,35 @@ def test_a_nonfinite_value_is_reported_with_its_column_and_row(files):
     dual[2, 5] = np.inf  # a later column: not the first
     write(tmp_path, primal, dual, mu)
     refused(tmp_path, body(n_train, dual.shape[1]), "dual.npy", "column 3, row 7 is NaN")
+
+
+def test_a_nonfinite_primal_value_takes_back_the_blocks_already_stored(files):
+    tmp_path, primal, dual, mu, n_train = files
+    n = dual.shape[1]
+    store = tmp_path / "store"
+    # A good import first: the bad one below goes to the same column family, which must be left
+    # exactly as it was.
+    write(tmp_path, primal, dual, mu)
+    good = crom(store, "--quiet", "run", str(scene(tmp_path, "good", body(n_train, n))))
+    assert good.returncode == 0, good.stderr
+    before = sorted(p.relative_to(store) for p in (store / "columns").rglob("*"))
+    primal[5, n_train + 2] = -np.inf  # a test column: the training set's blocks are stored first
+    np.save(tmp_path / "primal.npy", primal)
+    # Two columns per block, so that several blocks are committed before the bad value is read.
+    env = {**os.environ, "CROM_BLOCK_COLUMNS": "2"}
+    done = subprocess.run([str(crom_bin()), "--store", str(store), "run", str(scene(tmp_path, "bad", body(n_train, n)))],
+                          cwd=REPO, capture_output=True, text=True, env=env)
+    assert done.returncode == 2, done.stderr
+    assert f"column {n_train + 2}, row 5 is -inf" in done.stderr and "primal.npy" in done.stderr, done.stderr
+    assert sorted(p.relative_to(store) for p in (store / "columns").rglob("*")) == before
+
+
+def test_a_nonfinite_primal_value_in_a_fresh_store_leaves_no_column_family(files):
+    tmp_path, primal, dual, mu, n_train = files
+    primal[3, 1] = np.nan
+    write(tmp_path, primal, dual, mu)
+    env = {**os.environ, "CROM_BLOCK_COLUMNS": "1"}
+    refused(tmp_path, body(n_train, dual.shape[1]), "primal.npy", "column 1, row 3 is NaN", env=env)
 
 
 def test_negative_pressures_are_refused_unless_clipped(files):

@@ -192,11 +192,11 @@ impl ImportStage {
         }
         let per_block = super::snapshots::chunk_columns(ctx.scene);
         let mut progress = ctx.progress.stage("import", 2 * todo.len());
-        // Pass 1: check every value before anything is stored.
+        // Pass 1: the pressures (small: n_contact rows), checked before anything is stored.
         let mut negative: Vec<(usize, f64)> = Vec::new();
         for set in 0..2 {
             let mine: Vec<Todo> = todo.iter().copied().filter(|t| t.set == set).collect();
-            self.stream(set, &mine, per_block, |t, _primal, dual| {
+            self.stream(set, &mine, per_block, false, |t, _primal, dual| {
                 progress.inc("checked");
                 if let Some(v) = self.most_negative(dual) {
                     negative.push((self.sets[set].0.columns[t.at], v));
@@ -204,30 +204,72 @@ impl ImportStage {
                 Ok(())
             })?;
             if !negative.is_empty() && !self.clip {
-                let s = &self.sets[set].0;
-                let list: Vec<String> = negative.iter().take(20).map(|(j, v)| format!("{j} ({v:.3e})")).collect();
-                return Err(CromError::input(
-                    &s.dual.path,
-                    s.dual.dataset.clone().unwrap_or_else(|| "the dual array".to_string()),
-                    format!(
-                        "{} column(s) hold pressures below -{:e} x max |column| (the cone methods assume non-negative multipliers): columns (most negative value) {}{}",
-                        negative.len(),
-                        self.tolerance,
-                        list.join(", "),
-                        if negative.len() > 20 { ", ..." } else { "" }
-                    ),
-                    "check the sign convention of the pressures (compression positive); or set model.external.clip_negative = true to set negative values to zero on import, or raise model.external.negative_tolerance",
-                ));
+                return Err(self.negative_error(set, &negative));
             }
             negative.clear();
         }
-        // Pass 2: store them, one block of the family per read block.
-        let mut committed = 0;
+        // Pass 2: every field, one block of the family per read block; a non-finite primal value
+        // takes back the blocks this pass committed, so a refusal leaves nothing stored.
+        let mut committed: Vec<String> = Vec::new();
+        let created = family.is_none();
+        let stored =
+            self.store_all(ctx, &root, &todo, per_block, &mut family, &mut index, &mut committed, &mut progress);
+        if let Err(e) = stored {
+            if let Some(f) = &family {
+                for block in &committed {
+                    f.uncommit(block)?;
+                }
+                if created {
+                    let dir = f.dir();
+                    std::fs::remove_dir_all(dir)
+                        .map_err(|e| CromError::io(dir, "removing an empty column family", e))?;
+                }
+            }
+            return Err(e);
+        }
+        let committed = committed.len();
+        if let (Some(f), true) = (&family, committed + uncompacted > 0) {
+            f.compact(&index)?;
+        }
+        progress.finish(&format!("{} imported, {reused} reused", todo.len()));
+        let dir = family.as_ref().map(|f| f.dir().to_path_buf()).unwrap_or_default();
+        ctx.record("snapshot", todo.len(), reused, dir);
+        ctx.points.add(PointCounts { solved: todo.len(), reused, failed: 0 });
+        let family = family.ok_or_else(|| {
+            CromError::artifact(ctx.store.root(), "no snapshot was stored for this scene", "rerun the scene")
+        })?;
+        let rows = self
+            .sets
+            .iter()
+            .flat_map(|(_, keys)| keys.iter())
+            .map(|k| {
+                index.rows.get(k).cloned().ok_or_else(|| {
+                    CromError::artifact(family.dir(), format!("snapshot {} is not in the index", k.short()), "rerun")
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Columns { rows, shape: (self.n_dof, self.n_contact) })
+    }
+
+    /// Pass 2 of [`Self::import`]: read, check and commit the columns `todo`; the blocks
+    /// committed go to `committed`.
+    #[allow(clippy::too_many_arguments)]
+    fn store_all(
+        &self,
+        ctx: &Ctx<'_>,
+        root: &std::path::Path,
+        todo: &[Todo],
+        per_block: usize,
+        family: &mut Option<ColumnFamily>,
+        index: &mut crate::store::columns::Index,
+        committed: &mut Vec<String>,
+        progress: &mut crate::progress::StageProgress,
+    ) -> Result<(), CromError> {
         for set in 0..2 {
             let mine: Vec<Todo> = todo.iter().copied().filter(|t| t.set == set).collect();
             let mut pending: Vec<PendingColumn> = Vec::new();
             for chunk in mine.chunks(per_block) {
-                self.stream(set, chunk, per_block, |t, primal, dual| {
+                self.stream(set, chunk, per_block, true, |t, primal, dual| {
                     progress.inc("stored");
                     let s = &self.sets[set];
                     let mut dual = dual.to_vec();
@@ -254,37 +296,38 @@ impl ImportStage {
                         parameter_names: self.names.clone(),
                         units: self.units.clone(),
                     };
-                    family = Some(ColumnFamily::open(&root, meta)?);
+                    *family = Some(ColumnFamily::open(root, meta)?);
                 }
                 let fam = family.as_ref().expect("opened above");
-                for row in fam.commit_block(&pending)? {
+                let rows = fam.commit_block(&pending)?;
+                if let Some(r) = rows.first() {
+                    committed.push(r.block.clone());
+                }
+                for row in rows {
                     index.rows.insert(row.key.clone(), row);
                 }
-                committed += 1;
                 pending.clear();
             }
         }
-        if let (Some(f), true) = (&family, committed + uncompacted > 0) {
-            f.compact(&index)?;
-        }
-        progress.finish(&format!("{} imported, {reused} reused", todo.len()));
-        let dir = family.as_ref().map(|f| f.dir().to_path_buf()).unwrap_or_default();
-        ctx.record("snapshot", todo.len(), reused, dir);
-        ctx.points.add(PointCounts { solved: todo.len(), reused, failed: 0 });
-        let family = family.ok_or_else(|| {
-            CromError::artifact(ctx.store.root(), "no snapshot was stored for this scene", "rerun the scene")
-        })?;
-        let rows = self
-            .sets
-            .iter()
-            .flat_map(|(_, keys)| keys.iter())
-            .map(|k| {
-                index.rows.get(k).cloned().ok_or_else(|| {
-                    CromError::artifact(family.dir(), format!("snapshot {} is not in the index", k.short()), "rerun")
-                })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(Columns { rows, shape: (self.n_dof, self.n_contact) })
+        Ok(())
+    }
+
+    /// The refusal of the columns of set `set` with pressures below the tolerance.
+    fn negative_error(&self, set: usize, negative: &[(usize, f64)]) -> CromError {
+        let s = &self.sets[set].0;
+        let list: Vec<String> = negative.iter().take(20).map(|(j, v)| format!("{j} ({v:.3e})")).collect();
+        CromError::input(
+            &s.dual.path,
+            s.dual.dataset.clone().unwrap_or_else(|| "the dual array".to_string()),
+            format!(
+                "{} column(s) hold pressures below -{:e} x max |column| (the cone methods assume non-negative multipliers): columns (most negative value) {}{}",
+                negative.len(),
+                self.tolerance,
+                list.join(", "),
+                if negative.len() > 20 { ", ..." } else { "" }
+            ),
+            "check the sign convention of the pressures (compression positive); or set model.external.clip_negative = true to set negative values to zero on import, or raise model.external.negative_tolerance",
+        )
     }
 
     /// The most negative value of a pressure column if it is below `-tol max |column|`.
@@ -296,12 +339,13 @@ impl ImportStage {
 
     /// Read the columns `todo` of set `set` (sorted by source column) in blocks of at most
     /// `per_block` source columns, checking that every value is finite, and hand each to `f`
-    /// as (primal, dual).
+    /// as (primal, dual); without `with_primal` the primal is not read (an empty slice).
     fn stream(
         &self,
         set: usize,
         todo: &[Todo],
         per_block: usize,
+        with_primal: bool,
         mut f: impl FnMut(Todo, &[f64], &[f64]) -> Result<(), CromError>,
     ) -> Result<(), CromError> {
         if todo.is_empty() {
@@ -314,10 +358,10 @@ impl ImportStage {
                 dataset: a.dataset.clone(),
                 layout: a.layout,
             };
-            SnapshotArray::open(std::path::Path::new("/"), &src, field)
+            SnapshotArray::open(std::path::Path::new(""), &src, field)
         };
         let dual = open(&s.dual, "model.external.dual")?;
-        let primal = s.primal.as_ref().map(|p| open(p, "model.external.primal")).transpose()?;
+        let primal = s.primal.as_ref().filter(|_| with_primal).map(|p| open(p, "model.external.primal")).transpose()?;
         // Source columns in file order, so that each block is one range read.
         let mut order: Vec<Todo> = todo.to_vec();
         order.sort_by_key(|t| s.columns[t.at]);
@@ -332,7 +376,7 @@ impl ImportStage {
             let j1 = s.columns[order[end - 1].at] + 1;
             let d = dual.block(j0, j1)?;
             let p = primal.as_ref().map(|p| p.block(j0, j1)).transpose()?;
-            let (nc, nd) = (self.n_contact, self.n_dof);
+            let (nc, nd) = (self.n_contact, primal.as_ref().map_or(0, |p| p.rows));
             for t in &order[i..end] {
                 let k = s.columns[t.at] - j0;
                 let dcol = &d[k * nc..(k + 1) * nc];

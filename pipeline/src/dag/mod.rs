@@ -262,10 +262,14 @@ impl<'a> Ctx<'a> {
 }
 
 /// Solve (or find in the store) every snapshot of the scene's study — training, test and
-/// nested points — and stop: `crom solve`. The other stages are left for `crom run`.
+/// nested points — and stop: `crom solve` (for an external scene: import its snapshots). The other stages are left for `crom run`.
 pub fn solve_points(ctx: &mut Ctx<'_>) -> Result<(), CromError> {
     let scene = ctx.scene;
-    external_has_no_sweep(scene, "crom solve")?;
+    // An external scene's snapshots are imported, not solved.
+    if let Some(import) = import::ImportStage::plan(scene) {
+        use graph::StageDef as _;
+        return import.run(ctx, &mut Shared::new(scene)).map(|_| ());
+    }
     let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene))?;
     for sweep in snapshots::sweeps(scene, &mesh_key) {

@@ -74,6 +74,8 @@ pub struct Plan {
     pub(crate) sweeps: Vec<Sweep>,
     /// The column family the snapshots go to.
     pub family: Key,
+    /// An external scene's imported columns (training, then test; none for a native scene).
+    pub(crate) imported: Vec<Key>,
     /// Every stage, in an order that respects their inputs.
     pub nodes: Vec<Node>,
 }
@@ -218,7 +220,7 @@ impl Plan {
         let mut inputs = vec![mesh, train, basis, compactness, rom, generalization, specificity];
         inputs.extend([nested, comparison, online_comparison].into_iter().flatten());
         nodes.add("report", true, ReportStage::plan(shows, inputs));
-        Self { sweeps, family, nodes: nodes.0 }
+        Self { sweeps, family, nodes: nodes.0, imported: Vec::new() }
     }
 
     /// The plan of an external scene: its import in place of the mesh and the sweeps, then the
@@ -241,7 +243,8 @@ impl Plan {
         nodes.add("compactness", false, CompactnessStage::plan(train.clone(), basis.clone()));
         nodes.add("generalization", false, GeneralizationStage::plan(scene, train.clone()));
         nodes.add("specificity", false, SpecificityStage::plan(scene, train, basis));
-        Self { sweeps: Vec::new(), family, nodes: nodes.0 }
+        let imported = train_keys.into_iter().chain(test_keys).collect();
+        Self { sweeps: Vec::new(), family, nodes: nodes.0, imported }
     }
 
     /// Whether this is an external scene's plan (no mesh: its snapshots were imported).
@@ -263,6 +266,12 @@ impl Plan {
     pub fn snapshot_state(&self, root: &Path) -> Result<SnapshotState, CromError> {
         let (_, index) = snapshots::load_index(root, &self.family)?;
         let mut state = SnapshotState { chunks: self.chunks(), ..SnapshotState::default() };
+        if !self.imported.is_empty() {
+            let distinct: std::collections::HashSet<&Key> = self.imported.iter().collect();
+            state.points = distinct.len();
+            state.stored = distinct.iter().filter(|k| index.rows.contains_key(**k)).count();
+            state.sweeps.push(("import".to_string(), state.points, state.stored));
+        }
         let mut first = 0;
         for sweep in &self.sweeps {
             let (mut points, mut stored_points) = (0, 0);
