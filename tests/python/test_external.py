@@ -136,6 +136,13 @@ parameters = { file = "test_mu.parquet", names = ["d_x"] }""", like="ironing-coa
     done = crom(store, "run", str(path))
     assert done.returncode == 0, done.stderr
     assert_same_tables(native_store, store, "ironing-h5", "ironing-coarse")
+    # The Python reader opens the external scene like a native one.
+    import crom_data
+    sc = crom_data.open_store(store).scene("ironing-h5")
+    ts = sc.trainset("test")
+    assert np.array_equal(ts.dual, sd) and np.array_equal(ts.primal, sp)
+    assert ts.parameter_names == ["d_x"] and np.array_equal(ts.parameters, sm)
+    assert sorted(sc.compactness().columns) == sorted(pd.read_parquet(store / "scenes" / "ironing-h5" / "compactness.parquet").columns)
 
 
 # --- bad input: exit 2, the file and the dataset or field named, a fix, nothing stored ---------
