@@ -195,6 +195,9 @@ def test_a_missing_file_and_a_missing_dataset_are_named(files):
         f["dual"] = dual
     refused(tmp_path, body(n_train, n, dual='{ file = "d.h5", dataset = "pressure" }'), "d.h5", "dataset pressure",
             "does not exist", "model.external.dual.dataset")
+    # A compressed .npz cannot be read block by block: refused, with the way out.
+    np.savez_compressed(tmp_path / "d.npz", dual=dual)
+    refused(tmp_path, body(n_train, n, dual='{ file = "d.npz" }'), "d.npz", "a compressed .npz is not read")
 
 
 def test_mismatched_column_counts_are_refused(files):
