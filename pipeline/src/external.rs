@@ -212,7 +212,14 @@ fn resolve_spec(ext: &ExternalSpec, base: &Path) -> Result<ResolvedExternal, Cro
             let all = (0..other.dual.cols).collect();
             (set(&main, train, &format!("{at}.train"))?, set(&other, all, &format!("{at}.test_files"))?)
         }
-        (None, None) => unreachable!("validation requires test or test_files"),
+        (None, None) => {
+            return Err(CromError::input(
+                locate(base, &ext.dual.file),
+                format!("{at}.test"),
+                "no test points: neither `test` columns nor `test_files` are given",
+                "give `test = [columns]` or a [model.external.test_files] table",
+            ))
+        }
     };
     if train.columns.len() < 2 {
         return Err(CromError::input(
@@ -276,8 +283,8 @@ fn check_distinct(ext: &ExternalSpec, base: &Path, train: &ResolvedSet, test: &R
     Ok(())
 }
 
-/// The contact nodes' coordinates: `n_contact` rows of `d` values (shape `(n_contact, d)`,
-/// or `(d, n_contact)` with `layout = "rows"`... as for snapshots, one node per "snapshot").
+/// The contact nodes' coordinates: an `(n_contact, d)` array, one row per dual entry (with
+/// `layout = "rows"`, its transpose `(d, n_contact)`).
 fn coordinates(
     base: &Path,
     src: &crom_schemas::external::ArraySource,
