@@ -59,6 +59,9 @@ pub enum Command {
         #[arg(long, value_parser = parse_shard)]
         shard: (usize, usize),
     },
+    /// Write an external scene file from snapshot arrays computed elsewhere, after checking
+    /// them as `crom run` would (nothing is stored).
+    Import(crate::import_scene::ImportArgs),
     /// Show where a scene's study stands: each stage stored or not, the snapshot points stored,
     /// the sharded workers (done, failed, killed) and the Slurm job's queue.
     Status {

@@ -7,6 +7,7 @@ pub mod dag;
 pub mod error;
 pub mod executor;
 pub mod external;
+pub mod import_scene;
 pub mod io;
 pub mod physics;
 pub mod progress;
@@ -76,6 +77,11 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
             Ok(())
         }
         Command::Solve { scene } => solve_scene(cli, scene),
+        Command::Import(args) => {
+            let path = import_scene::run(args, &Progress::new(cli.quiet))?;
+            println!("{}\n  run it with: crom run {}", path.display(), path.display());
+            Ok(())
+        }
         Command::Report { scene } => {
             let out = run_scene(cli, scene, true)?;
             if let Some(report) = &out.report {

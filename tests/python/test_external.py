@@ -276,3 +276,36 @@ def test_duplicate_parameter_values_and_a_single_snapshot_are_refused(files):
     mu[n_train + 1] = 0.123456
     write(tmp_path, primal, dual, mu)
     refused(tmp_path, body(n_train, n, train=[0]), "model.external.train", "1 snapshot(s)", "at least 2")
+
+
+def test_crom_import_writes_a_scene_that_runs_and_refuses_bad_arrays(files):
+    tmp_path, primal, dual, mu, n_train = files
+    with h5py.File(tmp_path / "s.h5", "w") as f:
+        f["fields/dual"] = dual.T  # one snapshot per row
+        f["fields/primal"] = primal.T
+    pd.DataFrame({"gamma": mu}).to_parquet(tmp_path / "mu.parquet")
+    out = tmp_path / "imported.toml"
+    args = ["import", "--name", "imported", "--dual", f"{tmp_path / 's.h5'}:fields/dual", "--primal",
+            f"{tmp_path / 's.h5'}:fields/primal", "--rows", "--parameters", str(tmp_path / "mu.parquet"), "--names",
+            "gamma", "--test-every", "3", "-o", str(out)]
+    done = crom(tmp_path / "unused-store", *args)
+    assert done.returncode == 0, done.stderr
+    assert not (tmp_path / "unused-store").exists(), "crom import stores nothing"
+    n = dual.shape[1]
+    text = out.read_text()
+    assert f"test = [{', '.join(str(j) for j in range(2, n, 3))}]" in text, text
+    store = tmp_path / "store"
+    run = crom(store, "--quiet", "run", str(out))
+    assert run.returncode == 0, run.stderr
+    with h5py.File(store / "scenes" / "imported" / "test.h5") as f:
+        assert np.array_equal(f["dual"][()], dual[:, 2::3])
+    # A non-finite value anywhere: exit 2, no scene file.
+    primal[4, 7] = np.nan
+    with h5py.File(tmp_path / "s.h5", "w") as f:
+        f["fields/dual"] = dual.T
+        f["fields/primal"] = primal.T
+    out.unlink()
+    bad = crom(tmp_path / "unused-store", *args)
+    assert bad.returncode == 2, bad.stderr
+    assert "row 7, column 4 is NaN" in bad.stderr and "fields/primal" in bad.stderr, bad.stderr
+    assert not out.exists()

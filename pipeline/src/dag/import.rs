@@ -330,6 +330,30 @@ impl ImportStage {
         )
     }
 
+    /// Read every column of both sets and check its values (finite; pressures not below the
+    /// tolerance unless clipped), storing nothing: `crom import`'s check.
+    pub(crate) fn check_all(&self, progress: &crate::progress::Progress) -> Result<(), CromError> {
+        let per_block = 128;
+        let n: usize = self.sets.iter().map(|s| s.0.columns.len()).sum();
+        let mut bar = progress.stage("check", n);
+        for set in 0..2 {
+            let all: Vec<Todo> = (0..self.sets[set].0.columns.len()).map(|at| Todo { set, at }).collect();
+            let mut negative: Vec<(usize, f64)> = Vec::new();
+            self.stream(set, &all, per_block, true, |t, _primal, dual| {
+                bar.inc("checked");
+                if let Some(v) = self.most_negative(dual) {
+                    negative.push((self.sets[set].0.columns[t.at], v));
+                }
+                Ok(())
+            })?;
+            if !negative.is_empty() && !self.clip {
+                return Err(self.negative_error(set, &negative));
+            }
+        }
+        bar.finish("every value checked");
+        Ok(())
+    }
+
     /// The most negative value of a pressure column if it is below `-tol max |column|`.
     fn most_negative(&self, dual: &[f64]) -> Option<f64> {
         let scale = dual.iter().fold(0.0f64, |a, v| a.max(v.abs()));

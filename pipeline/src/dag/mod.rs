@@ -304,6 +304,14 @@ pub fn work_shard(ctx: &mut Ctx<'_>, k: usize, n: usize) -> Result<PointCounts, 
     snapshots::work(ctx, &mut physics, &mesh_key, &sweeps, k, n)
 }
 
+/// Check every value of a resolved external scene's snapshots, storing nothing (`crom import`).
+pub fn check_external_values(scene: &SceneConfig, progress: &Progress) -> Result<(), CromError> {
+    match import::ImportStage::plan(scene) {
+        Some(import) => import.check_all(progress),
+        None => Ok(()),
+    }
+}
+
 /// An external scene solves nothing: the commands that only solve refuse it.
 fn external_has_no_sweep(scene: &SceneConfig, command: &str) -> Result<(), CromError> {
     if scene.model.external().is_none() {
