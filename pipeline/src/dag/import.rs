@@ -10,11 +10,14 @@
 //! and the parameter names, so the columns of several external scenes of the same
 //! discretisation share it.
 //!
-//! **Two passes.** The columns missing from the store are read twice, block by block (at most
-//! [`super::snapshots::chunk_columns`]-sized blocks of `n_dof + n_contact` values in memory):
-//! first to check every value (finite; pressures not below `-tol max |column|` unless the scene
-//! clips them), then to store them. A refusal therefore leaves nothing in the store. Stored
-//! values are the files' values bit for bit (converted to f64), except clipped negatives.
+//! **Two passes.** The columns missing from the store are read block by block (at most
+//! [`super::snapshots::chunk_columns`] columns of `n_dof + n_contact` values in memory). The
+//! first pass reads the pressures alone (`n_contact` rows: cheap) and checks them — finite, not
+//! below `-tol max |column|` unless the scene clips them — before anything is written. The
+//! second reads every field and stores it, checking the displacements as it goes; a non-finite
+//! one takes back the blocks this pass committed ([`ColumnFamily::uncommit`]) and the family if
+//! this pass created it. A refusal therefore leaves the store as it was. Stored values are the
+//! files' values bit for bit (converted to f64), except clipped negatives.
 
 use std::collections::HashSet;
 
