@@ -14,9 +14,9 @@ fi
 
 PY=${PYTHON:-python3}
 PIP=("$PY" -m pip install -q --disable-pip-version-check --root-user-action=ignore)
-if ! command -v just >/dev/null 2>&1 || ! "$PY" -c "import h5py, pandas, pyarrow, numpy, scipy, pytest, matplotlib, nbclient, nbformat, ipykernel, meshio, blake3" >/dev/null 2>&1; then
+if ! command -v just >/dev/null 2>&1 || ! "$PY" -c "import h5py, pandas, pyarrow, numpy, scipy, pytest, matplotlib, nbclient, nbformat, ipykernel, meshio, blake3, skfem" >/dev/null 2>&1; then
   echo "setup: installing just and the Python environment (PyPI)"
-  "${PIP[@]}" rust-just h5py pandas pyarrow numpy scipy pytest matplotlib nbclient nbformat ipykernel meshio blake3
+  "${PIP[@]}" rust-just h5py pandas pyarrow numpy scipy pytest matplotlib nbclient nbformat ipykernel meshio blake3 scikit-fem
   hash -r
 fi
 

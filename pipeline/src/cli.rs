@@ -59,6 +59,9 @@ pub enum Command {
         #[arg(long, value_parser = parse_shard)]
         shard: (usize, usize),
     },
+    /// Write an external scene file from snapshot arrays computed elsewhere, after checking
+    /// them as `crom run` would (nothing is stored).
+    Import(crate::import_scene::ImportArgs),
     /// Show where a scene's study stands: each stage stored or not, the snapshot points stored,
     /// the sharded workers (done, failed, killed) and the Slurm job's queue.
     Status {
@@ -66,7 +69,8 @@ pub enum Command {
         scene: String,
     },
     /// Solve every snapshot of a scene's study (training, test and nested points) into the
-    /// store and stop; `crom run` then finds them there.
+    /// store and stop; `crom run` then finds them there. An external scene's snapshots are
+    /// imported.
     Solve {
         /// Scene name or path to a scene TOML file.
         scene: String,

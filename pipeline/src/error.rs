@@ -92,6 +92,19 @@ pub enum CromError {
         /// How to fix it.
         fix: String,
     },
+    /// An external scene's data file that cannot be used as given: missing, of the wrong
+    /// shape, or with values the study cannot take (exit 2). Nothing was stored.
+    #[error("{path}: {what}: {message}\n  fix: {fix}")]
+    Input {
+        /// The data file.
+        path: PathBuf,
+        /// The dataset, field or column in it.
+        what: String,
+        /// What is wrong.
+        message: String,
+        /// How to fix it.
+        fix: String,
+    },
     /// A reduction stage failed numerically (exit 1).
     #[error("stage `{stage}` of scene `{scene}` failed: {message}")]
     Numerical {
@@ -108,7 +121,10 @@ impl CromError {
     /// Process exit code: 2 for bad user input, 3 for a busy store, 1 otherwise.
     pub fn exit_code(&self) -> u8 {
         match self {
-            CromError::Scene(_) | CromError::UnknownScene { .. } | CromError::Usage { .. } => 2,
+            CromError::Scene(_)
+            | CromError::UnknownScene { .. }
+            | CromError::Usage { .. }
+            | CromError::Input { .. } => 2,
             CromError::Locked { .. } => 3,
             _ => 1,
         }
@@ -117,6 +133,16 @@ impl CromError {
     /// An [`CromError::Io`] at `path`.
     pub fn io(path: impl Into<PathBuf>, action: &'static str, source: std::io::Error) -> Self {
         CromError::Io { path: path.into(), action, source }
+    }
+
+    /// An [`CromError::Input`] about `what` in the data file `path`.
+    pub fn input(
+        path: impl Into<PathBuf>,
+        what: impl Into<String>,
+        message: impl Into<String>,
+        fix: impl Into<String>,
+    ) -> Self {
+        CromError::Input { path: path.into(), what: what.into(), message: message.into(), fix: fix.into() }
     }
 
     /// An [`CromError::Artifact`] from an HDF5 or Parquet library error.

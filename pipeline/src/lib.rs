@@ -68,6 +68,8 @@ pub mod cli;
 pub mod dag;
 pub mod error;
 pub mod executor;
+pub mod external;
+pub mod import_scene;
 pub mod io;
 pub mod physics;
 pub mod progress;
@@ -130,11 +132,18 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
         }
         Command::Work { scene, shard } => work(cli, scene, shard.0, shard.1),
         Command::Status { scene } => {
-            let scene = SceneConfig::load(&scenes::resolve(scene, &cli.scenes)?)?;
+            let path = scenes::resolve(scene, &cli.scenes)?;
+            let mut scene = SceneConfig::load(&path)?;
+            external::resolve(&mut scene, &path)?;
             print!("{}", status::render(&cli.store, &scene, status::View::Status)?);
             Ok(())
         }
         Command::Solve { scene } => solve_scene(cli, scene),
+        Command::Import(args) => {
+            let path = import_scene::run(args, &Progress::new(cli.quiet))?;
+            println!("{}\n  run it with: crom run {}", path.display(), path.display());
+            Ok(())
+        }
         Command::Report { scene } => {
             let out = run_scene(cli, scene, true)?;
             if let Some(report) = &out.report {
@@ -181,7 +190,8 @@ fn new_ctx<'a>(cli: &Cli, store: &'a Store, scene: &'a SceneConfig) -> dag::Ctx<
 /// exceeds the limit ([`resources`]).
 fn load_scene(cli: &Cli, scene_arg: &str) -> Result<SceneConfig, CromError> {
     let path = scenes::resolve(scene_arg, &cli.scenes)?;
-    let scene = SceneConfig::load(&path)?;
+    let mut scene = SceneConfig::load(&path)?;
+    external::resolve(&mut scene, &path)?;
     let limit = match cli.max_memory {
         Some(b) => Some((b, "the --max-memory setting allows")),
         None => resources::available_bytes().map(|b| (b, "are available on this machine (MemAvailable)")),
@@ -222,7 +232,7 @@ fn solve_scene(cli: &Cli, scene_arg: &str) -> Result<(), CromError> {
     let store = Store::open(&cli.store)?;
     let mut ctx = new_ctx(cli, &store, &scene);
     let result = dag::solve_points(&mut ctx, &scene);
-    summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok(), None);
+    summary::print_run(&ctx, &scene, start.elapsed().as_secs_f64(), result.is_ok(), None);
     result
 }
 
@@ -327,6 +337,6 @@ fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput,
         .ok()
         .and_then(|o| o.report.as_ref())
         .map(|r| store.dir(crom_schemas::artifact::ArtifactKind::Report, r));
-    summary::print_run(&ctx, start.elapsed().as_secs_f64(), result.is_ok(), report.as_deref());
+    summary::print_run(&ctx, &scene, start.elapsed().as_secs_f64(), result.is_ok(), report.as_deref());
     result
 }

@@ -64,6 +64,9 @@ impl Physics {
             )),
             Model::Hertz(h) => contact(build_hertz(&HertzParams::from(h)), scene),
             Model::Ironing(i) => contact(build_ironing(&IroningParams::from(i)), scene),
+            Model::External(_) => {
+                Err("an external scene has no full-order model (its snapshots come from files)".to_string())
+            }
         }
     }
 

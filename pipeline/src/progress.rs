@@ -31,6 +31,13 @@ impl Progress {
         }
     }
 
+    /// A line of its own about the run (not about one stage).
+    pub fn note(&self, text: &str) {
+        if !self.quiet {
+            eprintln!("{text}");
+        }
+    }
+
     /// Start a stage of `len` items.
     pub fn stage(&self, name: &str, len: usize) -> StageProgress {
         let bar = if self.tty && !self.quiet {

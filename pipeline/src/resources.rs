@@ -48,6 +48,9 @@ pub struct Term {
 /// The estimated peak memory of a run of `scene`, term by term (floats: sizes of absurd scenes
 /// overflow integers).
 pub fn estimate(scene: &SceneConfig) -> Vec<Term> {
+    if let Model::External(_) = &scene.model {
+        return external_estimate(scene);
+    }
     let (n, c, s, mesh_field, contact_field) = sizes(scene);
     let p = &scene.parameter;
     let n_train: f64 = p.train_points().len() as f64;
@@ -84,6 +87,27 @@ pub fn estimate(scene: &SceneConfig) -> Vec<Term> {
     terms
 }
 
+/// An external scene holds no operator: its training set and the POD's working copy of it
+/// (`16 (n + c) N`), and the metrics' Gram matrices (`32 N^2`) up to the Gram limit. The import
+/// itself holds one block at a time.
+fn external_estimate(scene: &SceneConfig) -> Vec<Term> {
+    let (n, c, ..) = sizes(scene);
+    let n_train = scene.parameter.train_points().len() as f64;
+    let mut terms = vec![Term {
+        field: "model.external.train",
+        what: "training set and the POD's working copy",
+        bytes: 8.0 * 2.0 * (n + c) * n_train,
+    }];
+    if n_train <= GRAM_LIMIT {
+        terms.push(Term {
+            field: "model.external.train",
+            what: "Gram matrices of the metrics",
+            bytes: 32.0 * n_train * n_train,
+        });
+    }
+    terms
+}
+
 /// Rows of one snapshot column from the scene alone (no meshing): displacement dofs and
 /// contact dofs as [`estimate`] counts them. Used to size snapshot blocks before any solve.
 pub fn snapshot_rows(scene: &SceneConfig) -> (f64, f64) {
@@ -115,6 +139,11 @@ fn sizes(scene: &SceneConfig) -> (f64, f64, f64, &'static str, &'static str) {
             };
             let contact_field = if snx >= inx { "model.ironing.slab.nx" } else { "model.ironing.iron.nx" };
             (2.0 * (slab + iron), 2.0 * (snx + inx + 2.0), snx + 1.0, mesh_field, contact_field)
+        }
+        Model::External(e) => {
+            // From the files' headers (read when the scene was loaded).
+            let (n, c) = e.resolved.as_ref().map_or((0.0, 0.0), |r| (r.n_dof as f64, r.n_contact as f64));
+            (n, c, c, "model.external.primal", "model.external.dual")
         }
     }
 }

@@ -32,7 +32,7 @@ pub const LOCKING_RATIO: f64 = 49.0;
 pub fn warnings(scene: &crom_schemas::SceneConfig) -> Vec<String> {
     use crom_schemas::scene::{Integration, Model};
     let bodies: Vec<(&str, &crom_schemas::scene::MaterialSpec)> = match &scene.model {
-        Model::Rope(_) => vec![],
+        Model::Rope(_) | Model::External(_) => vec![],
         Model::Hertz(h) => vec![("model.hertz.material", &h.material)],
         Model::Ironing(i) => {
             vec![("model.ironing.slab.material", &i.slab.material), ("model.ironing.iron.material", &i.iron.material)]

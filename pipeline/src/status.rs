@@ -38,7 +38,8 @@ pub(crate) fn render(root: &Path, scene: &crom_schemas::SceneConfig, view: View)
         let what = if done == points {
             "stored".to_string()
         } else if matches!(view, View::DryRun { .. }) {
-            format!("{} would be solved", points - done)
+            let verb = if sweep == "import" { "imported" } else { "solved" };
+            format!("{} would be {verb}", points - done)
         } else {
             format!("{} missing", points - done)
         };

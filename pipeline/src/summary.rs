@@ -11,7 +11,13 @@ use crate::store::{catalog, Store};
 
 /// The closing summary of `crom run`: what ran, what came from cache, where the artifacts are.
 /// Output errors (a closed pipe) are ignored: the summary is informational.
-pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool, report: Option<&std::path::Path>) {
+pub(crate) fn print_run(
+    ctx: &Ctx<'_>,
+    scene: &crom_schemas::SceneConfig,
+    seconds: f64,
+    ok: bool,
+    report: Option<&std::path::Path>,
+) {
     let mut out = std::io::stdout().lock();
     let name = &ctx.scene_name;
     let _ = writeln!(out, "crom run {name}: {} in {seconds:.2} s", if ok { "done" } else { "stopped" });
@@ -20,7 +26,9 @@ pub(crate) fn print_run(ctx: &Ctx<'_>, seconds: f64, ok: bool, report: Option<&s
         let _ = writeln!(out, "  {:<21} {:>9} {:>7}  {}", r.stage, r.computed, r.cached, r.dir.display());
     }
     let p = ctx.points;
-    if p.solved + p.reused + p.failed > 0 {
+    if scene.model.external().is_some() {
+        let _ = writeln!(out, "  snapshots: {} imported, {} reused from the store", p.solved, p.reused);
+    } else if p.solved + p.reused + p.failed > 0 {
         let _ = writeln!(
             out,
             "  snapshots: {} solved, {} reused from the store, {} missing (failed; retried by the next run)",

@@ -61,6 +61,7 @@
 pub mod artifact;
 pub mod comparison;
 pub mod error;
+pub mod external;
 pub mod parameter;
 pub mod scene;
 mod validate;

@@ -40,6 +40,20 @@ pub struct ParameterSpec {
     /// test midpoints, nested levels), the first axis varying fastest.
     #[serde(default)]
     pub axes: Vec<AxisSpec>,
+    /// Points read from files rather than drawn from grids (an external scene's, filled by the
+    /// pipeline when it loads the scene; never in the scene file). When set, the training and
+    /// test points are these, and there are no nested levels.
+    #[serde(skip)]
+    pub explicit: Option<ExplicitPoints>,
+}
+
+/// The training and test points of an external scene, one value per component each.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ExplicitPoints {
+    /// Training points, in the training set's order.
+    pub train: Vec<Vec<f64>>,
+    /// Test points, in the test set's order.
+    pub test: Vec<Vec<f64>>,
 }
 
 /// One further axis of a vector parameter: the same grid rules as the first axis.
@@ -153,40 +167,92 @@ impl ParameterSpec {
         std::iter::once(self.name.as_str()).chain(self.axes.iter().map(|a| a.name.as_str())).collect()
     }
 
-    /// Number of training points along the first axis.
+    /// Number of training points along the first axis (explicit points: all of them).
     pub fn train_count(&self) -> usize {
-        self.grid().train_count()
+        match &self.explicit {
+            Some(e) => e.train.len(),
+            None => self.grid().train_count(),
+        }
     }
 
-    /// Training points of every axis (tensor grid).
+    /// Training points of every axis (tensor grid), or the explicit ones.
     pub fn train_points(&self) -> Vec<Vec<f64>> {
-        tensor(&self.grids().iter().map(Grid::train).collect::<Vec<_>>())
+        match &self.explicit {
+            Some(e) => e.train.clone(),
+            None => tensor(&self.grids().iter().map(Grid::train).collect::<Vec<_>>()),
+        }
     }
 
-    /// Test points: the tensor grid of every axis' midpoints.
+    /// Test points: the tensor grid of every axis' midpoints, or the explicit ones.
     pub fn test_points(&self) -> Vec<Vec<f64>> {
-        tensor(&self.grids().iter().map(Grid::test).collect::<Vec<_>>())
+        match &self.explicit {
+            Some(e) => e.test.clone(),
+            None => tensor(&self.grids().iter().map(Grid::test).collect::<Vec<_>>()),
+        }
     }
 
-    /// Nested level `level` of every axis (tensor grid of `2^level + 1` points per axis).
+    /// Nested level `level` of every axis (tensor grid of `2^level + 1` points per axis; none
+    /// for explicit points).
     pub fn nested_points(&self, level: u32) -> Vec<Vec<f64>> {
+        if self.explicit.is_some() {
+            return Vec::new();
+        }
         tensor(&self.grids().iter().map(|g| g.nested(level)).collect::<Vec<_>>())
     }
 
     /// The training points of the first axis.
     pub fn train(&self) -> Vec<f64> {
-        self.grid().train()
+        match &self.explicit {
+            Some(e) => e.train.iter().map(|p| p[0]).collect(),
+            None => self.grid().train(),
+        }
     }
 
     /// The test points of the first axis: midpoints of consecutive training points (with
     /// `train_level = k`, the odd points of level k + 1, the same values bit for bit).
     pub fn test(&self) -> Vec<f64> {
-        self.grid().test()
+        match &self.explicit {
+            Some(e) => e.test.iter().map(|p| p[0]).collect(),
+            None => self.grid().test(),
+        }
     }
 
     /// The points of nested level `level` of the first axis (`2^level + 1` points).
     pub fn nested(&self, level: u32) -> Vec<f64> {
+        if self.explicit.is_some() {
+            return Vec::new();
+        }
         self.grid().nested(level)
+    }
+
+    /// The stand-in of an external scene, which has no `[parameter]` table (its names and
+    /// points come from its files): empty name, no grid. A native scene without `[parameter]`
+    /// is refused by validation ([`Self::is_unset`]).
+    pub fn unset() -> Self {
+        ParameterSpec {
+            name: String::new(),
+            description: String::new(),
+            min: 0.0,
+            max: 0.0,
+            n_train: None,
+            train_level: None,
+            nested_levels: 0,
+            axes: Vec::new(),
+            explicit: None,
+        }
+    }
+
+    /// Whether this is [`Self::unset`] (the scene file has no `[parameter]`).
+    pub fn is_unset(&self) -> bool {
+        let u = Self::unset();
+        self.name == u.name
+            && self.description == u.description
+            && self.min.to_bits() == u.min.to_bits()
+            && self.max.to_bits() == u.max.to_bits()
+            && self.n_train.is_none()
+            && self.train_level.is_none()
+            && self.nested_levels == 0
+            && self.axes.is_empty()
     }
 }
 
@@ -204,6 +270,7 @@ mod tests {
             train_level: None,
             nested_levels: 3,
             axes: Vec::new(),
+            explicit: None,
         }
     }
 

@@ -5,7 +5,7 @@
 //! [scene]
 //! name = "rope"
 //! description = "..."
-//! [model.rope]          # exactly one of model.rope / model.hertz / model.ironing
+//! [model.rope]          # exactly one of model.rope / model.hertz / model.ironing / model.external
 //! ...
 //! [parameter]           # the scalar parameter and its training grid
 //! [solver]              # high-fidelity solver settings
@@ -26,9 +26,12 @@ pub struct SceneConfig {
     pub scene: SceneMeta,
     /// The physical model.
     pub model: Model,
-    /// The parameter μ (a scalar, or a vector on a tensor grid).
+    /// The parameter μ (a scalar, or a vector on a tensor grid). An external scene has none
+    /// (its parameter values come from its files): [`ParameterSpec::unset`].
+    #[serde(default = "ParameterSpec::unset")]
     pub parameter: ParameterSpec,
-    /// High-fidelity solver settings.
+    /// High-fidelity solver settings. An external scene has none: [`SolverSpec::unset`].
+    #[serde(default = "SolverSpec::unset")]
     pub solver: SolverSpec,
     /// Reduced-basis and metric settings.
     pub study: StudySpec,
@@ -90,6 +93,8 @@ pub enum Model {
     Hertz(HertzSpec),
     /// An iron sliding on a slab (Type-2, paper Sec. 5.2).
     Ironing(IroningSpec),
+    /// Snapshots computed elsewhere, read from files ([`crate::external`]).
+    External(Box<crate::external::ExternalSpec>),
 }
 
 impl Model {
@@ -99,6 +104,15 @@ impl Model {
             Model::Rope(_) => "rope",
             Model::Hertz(_) => "hertz",
             Model::Ironing(_) => "ironing",
+            Model::External(_) => "external",
+        }
+    }
+
+    /// The external scene's description, if this is one.
+    pub fn external(&self) -> Option<&crate::external::ExternalSpec> {
+        match self {
+            Model::External(e) => Some(e.as_ref()),
+            _ => None,
         }
     }
 }
@@ -237,6 +251,19 @@ pub struct SolverSpec {
     pub max_iter: usize,
 }
 
+impl SolverSpec {
+    /// The stand-in of an external scene, which solves nothing (no `[solver]` table): zeros,
+    /// which validation refuses for a native scene ([`Self::is_unset`]).
+    pub fn unset() -> Self {
+        SolverSpec { rel_tol: 0.0, max_iter: 0 }
+    }
+
+    /// Whether this is [`Self::unset`].
+    pub fn is_unset(&self) -> bool {
+        self.rel_tol.to_bits() == 0 && self.max_iter == 0
+    }
+}
+
 /// Reduced-basis and metric settings (docs/scenes.md#study-settings).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -340,7 +367,7 @@ fn parse_fix(message: &str) -> String {
     } else if message.contains("missing field") {
         "add the missing key; see data/scenes/*.toml for complete examples".into()
     } else if message.contains("unknown variant") {
-        "use exactly one of [model.rope], [model.hertz], [model.ironing]".into()
+        "use exactly one of [model.rope], [model.hertz], [model.ironing], [model.external]".into()
     } else if message.contains("invalid type") {
         "give the value the type named above (numbers for numeric fields, integers without a decimal point for counts)"
             .into()

@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use crate::comparison::{ApproximationSpec, ComparisonSpec, InterpolationSpec, MapSpec};
+use crate::external::{ArraySource, ExternalSpec, ParameterSource};
 use crate::scene::{
     ContactSamplingSpec, HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec, SceneConfig, SolverSpec, StudySpec,
 };
@@ -140,6 +141,23 @@ impl SceneConfig {
                 "use a plain name such as \"ironing-fine-2\"",
             ));
         }
+        if let Model::External(e) = &self.model {
+            return self.check_external(&c, e);
+        }
+        if self.parameter.is_unset() {
+            return Err(c.fail(
+                "parameter",
+                "is missing".into(),
+                "add a [parameter] table (name, description, min, max, n_train); see data/scenes/rope.toml",
+            ));
+        }
+        if self.solver.is_unset() {
+            return Err(c.fail(
+                "solver",
+                "is missing".into(),
+                "add a [solver] table (rel_tol, max_iter); see data/scenes/rope.toml",
+            ));
+        }
         self.check_parameter(&c)?;
         check_solver(&c, &self.solver)?;
         check_study(&c, &self.study)?;
@@ -156,6 +174,7 @@ impl SceneConfig {
             Model::Rope(r) => check_rope(&c, r),
             Model::Hertz(h) => check_hertz(&c, h),
             Model::Ironing(i) => check_ironing(&c, i),
+            Model::External(_) => unreachable!("returned above"),
         }
     }
 
@@ -177,6 +196,7 @@ impl SceneConfig {
             Model::Rope(_) => &[&["gamma"]],
             Model::Hertz(_) => &[&["d"]],
             Model::Ironing(_) => &[&["d_x"], &["d_x", "d_y"]],
+            Model::External(_) => return Ok(()),
         };
         if !allowed.contains(&names.as_slice()) {
             let field = if names.len() > 1 { "parameter.axes" } else { "parameter.name" };
@@ -237,6 +257,171 @@ impl SceneConfig {
         }
         Ok(())
     }
+}
+
+impl SceneConfig {
+    /// An external scene: no `[parameter]`, `[solver]`, `[comparison]` or contact sampling
+    /// (its parameter comes from its files, it solves nothing, and the comparison and the
+    /// sampling need the full-order model); its files named, its column lists consistent.
+    fn check_external(&self, c: &Checker<'_>, e: &ExternalSpec) -> Result<(), SceneError> {
+        let has = "an external scene reads its snapshots and parameter values from files";
+        if !self.parameter.is_unset() {
+            return Err(c.fail(
+                "parameter",
+                format!("is given, but {has}"),
+                "remove [parameter]; name the components in model.external.parameters.names",
+            ));
+        }
+        if !self.solver.is_unset() {
+            return Err(c.fail("solver", format!("is given, but {has} and solves nothing"), "remove [solver]"));
+        }
+        if self.comparison.is_some() {
+            return Err(c.fail(
+                "comparison",
+                "is given, but the dual approximations' comparison does not run on external scenes yet".into(),
+                "remove [comparison]",
+            ));
+        }
+        if self.study.contact_sampling.is_some() {
+            return Err(c.fail(
+                "study.contact_sampling",
+                "is set, but the contact quadrature needs the full-order contact operator, which an external scene does not have".into(),
+                "remove study.contact_sampling",
+            ));
+        }
+        check_study(c, &self.study)?;
+        if let Some(x) = &self.executor {
+            check_slurm(c, &x.slurm)?;
+        }
+        let at = "model.external";
+        check_array(c, &format!("{at}.dual"), &e.dual)?;
+        if let Some(p) = &e.primal {
+            check_array(c, &format!("{at}.primal"), p)?;
+        }
+        if let Some(p) = &e.coordinates {
+            check_array(c, &format!("{at}.coordinates"), p)?;
+        }
+        check_parameters(c, &format!("{at}.parameters"), &e.parameters)?;
+        if let Some(t) = &e.negative_tolerance {
+            c.non_negative(&format!("{at}.negative_tolerance"), *t)?;
+        }
+        match (&e.test, &e.test_files) {
+            (Some(_), Some(_)) | (None, None) => {
+                return Err(c.fail(
+                    &format!("{at}.test"),
+                    "and model.external.test_files: exactly one of them names the test points".into(),
+                    "give `test = [columns]` (with `train = [columns]`) or a [model.external.test_files] table",
+                ))
+            }
+            (Some(test), None) => {
+                let Some(train) = &e.train else {
+                    return Err(c.fail(
+                        &format!("{at}.train"),
+                        "is missing; with `test` columns the training columns are listed too".into(),
+                        "give `train = [columns]`",
+                    ));
+                };
+                check_columns(c, &format!("{at}.train"), train)?;
+                check_columns(c, &format!("{at}.test"), test)?;
+                if let Some(j) = train.iter().find(|j| test.contains(j)) {
+                    return Err(c.fail(
+                        &format!("{at}.test"),
+                        format!("lists column {j}, which is also a training column"),
+                        "list every column in at most one of `train` and `test`",
+                    ));
+                }
+            }
+            (None, Some(files)) => {
+                if let Some(train) = &e.train {
+                    check_columns(c, &format!("{at}.train"), train)?;
+                }
+                let tf = format!("{at}.test_files");
+                check_array(c, &format!("{tf}.dual"), &files.dual)?;
+                match (&e.primal, &files.primal) {
+                    (Some(_), None) | (None, Some(_)) => {
+                        return Err(c.fail(
+                            &format!("{tf}.primal"),
+                            "must be given exactly when model.external.primal is".into(),
+                            "give primal snapshots for both sets, or for neither",
+                        ))
+                    }
+                    (Some(_), Some(p)) => check_array(c, &format!("{tf}.primal"), p)?,
+                    (None, None) => {}
+                }
+                check_parameters(c, &format!("{tf}.parameters"), &files.parameters)?;
+                if files.parameters.names != e.parameters.names {
+                    return Err(c.fail(
+                        &format!("{tf}.parameters.names"),
+                        format!("is {:?}, the training set's are {:?}", files.parameters.names, e.parameters.names),
+                        "give both sets the same parameter names in the same order",
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn check_array(c: &Checker<'_>, at: &str, a: &ArraySource) -> Result<(), SceneError> {
+    if a.file.as_os_str().is_empty() {
+        return Err(c.fail(&format!("{at}.file"), "is empty".into(), "give the path of an HDF5 or .npy file"));
+    }
+    if a.dataset.as_deref().is_some_and(|d| d.trim().is_empty()) {
+        return Err(c.fail(&format!("{at}.dataset"), "is empty".into(), "give the dataset's path, e.g. \"/dual\""));
+    }
+    Ok(())
+}
+
+fn check_parameters(c: &Checker<'_>, at: &str, p: &ParameterSource) -> Result<(), SceneError> {
+    if p.file.as_os_str().is_empty() {
+        return Err(c.fail(
+            &format!("{at}.file"),
+            "is empty".into(),
+            "give the path of a CSV, Parquet, .npy or HDF5 file",
+        ));
+    }
+    if p.names.is_empty() {
+        return Err(c.fail(&format!("{at}.names"), "is empty".into(), "name each component, e.g. names = [\"d_x\"]"));
+    }
+    for (i, n) in p.names.iter().enumerate() {
+        let plain = !n.trim().is_empty() && n.chars().all(|ch| ch.is_ascii_alphanumeric() || ch == '_');
+        if !plain {
+            return Err(c.fail(
+                &format!("{at}.names[{i}]"),
+                format!("is {n:?}; a component's name is a table column, so letters, digits and '_' only"),
+                "use a plain name such as \"d_x\"",
+            ));
+        }
+        if p.names[..i].contains(n) {
+            return Err(c.fail(
+                &format!("{at}.names[{i}]"),
+                format!("repeats {n:?}"),
+                "give each component its own name",
+            ));
+        }
+        // Names the tables already use for other columns.
+        if ["parameter", "scene", "index", "snapshot_key", "m"].contains(&n.as_str()) {
+            return Err(c.fail(
+                &format!("{at}.names[{i}]"),
+                format!("is {n:?}, a column name crom's tables use"),
+                "rename the component",
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn check_columns(c: &Checker<'_>, at: &str, cols: &[usize]) -> Result<(), SceneError> {
+    if cols.is_empty() {
+        return Err(c.fail(at, "is empty".into(), "list at least one column (0-based)"));
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    for j in cols {
+        if !seen.insert(j) {
+            return Err(c.fail(at, format!("lists column {j} twice"), "list each column once"));
+        }
+    }
+    Ok(())
 }
 
 /// One axis of the parameter: name, finite non-empty range, exactly one of n_train / train_level.

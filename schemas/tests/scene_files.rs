@@ -283,3 +283,51 @@ fn contact_sampling_is_checked() {
         assert_names(&load_err(&text), &[field]);
     }
 }
+
+/// An external scene: `[scene]`, `[model.external]` and `[study]` (the rope's).
+fn external_text(model: &str) -> String {
+    let rope = rope_text();
+    let study = &rope[rope.find("[study]").expect("rope has [study]")..];
+    format!("[scene]\nname = \"ext\"\ndescription = \"d\"\n\n[model.external]\n{model}\n{study}")
+}
+
+const EXTERNAL: &str = "dual = { file = \"d.h5\", dataset = \"/dual\" }\n\
+                        parameters = { file = \"mu.csv\", names = [\"mu\"] }\n\
+                        train = [0, 1, 2]\ntest = [3]\n";
+
+#[test]
+fn an_external_scene_has_no_parameter_or_solver_and_a_native_one_needs_both() {
+    let ext = SceneConfig::from_toml_str(&external_text(EXTERNAL), Path::new("ext.toml")).expect("external scene");
+    assert!(ext.parameter.is_unset() && ext.solver.is_unset());
+    let e = ext.model.external().expect("external");
+    assert_eq!((e.train.as_deref(), e.test.as_deref()), (Some(&[0, 1, 2][..]), Some(&[3][..])));
+    // A native scene without [solver] or [parameter] is refused by name, not by a stand-in value.
+    let rope = rope_text();
+    let solver = rope.find("[solver]").expect("[solver]");
+    let study = rope.find("[study]").expect("[study]");
+    let no_solver = format!("{}{}", &rope[..solver], &rope[study..]);
+    assert_names(&load_err(&no_solver), &["`solver`", "is missing"]);
+    let param = rope.find("[parameter]").expect("[parameter]");
+    let no_param = format!("{}{}", &rope[..param], &rope[solver..]);
+    assert_names(&load_err(&no_param), &["`parameter`", "is missing"]);
+}
+
+#[test]
+fn external_scene_mistakes_are_named() {
+    let with = |extra: &str| load_err(&format!("{}{extra}", external_text(EXTERNAL)));
+    assert_names(
+        &with("\n[parameter]\nname = \"mu\"\ndescription = \"\"\nmin = 0.0\nmax = 1.0\nn_train = 2\n"),
+        &["`parameter`", "is given"],
+    );
+    assert_names(&with("\n[solver]\nrel_tol = 1e-10\nmax_iter = 10\n"), &["`solver`", "is given"]);
+    let both = EXTERNAL.to_string() + "[model.external.test_files]\ndual = { file = \"t.npy\" }\nparameters = { file = \"t.csv\", names = [\"mu\"] }\n";
+    assert_names(&load_err(&external_text(&both)), &["model.external.test", "exactly one"]);
+    let overlap = EXTERNAL.replace("test = [3]", "test = [2, 3]");
+    assert_names(&load_err(&external_text(&overlap)), &["model.external.test", "column 2"]);
+    let twice = EXTERNAL.replace("train = [0, 1, 2]", "train = [0, 1, 1]");
+    assert_names(&load_err(&external_text(&twice)), &["model.external.train", "twice"]);
+    let names = EXTERNAL.replace("names = [\"mu\"]", "names = [\"mu\", \"mu\"]");
+    assert_names(&load_err(&external_text(&names)), &["model.external.parameters.names[1]", "repeats"]);
+    let tol = EXTERNAL.to_string() + "negative_tolerance = -1.0\n";
+    assert_names(&load_err(&external_text(&tol)), &["model.external.negative_tolerance"]);
+}

@@ -22,7 +22,7 @@ fn model(name: &str) -> ContactModel {
     match &scene.model {
         Model::Hertz(h) => build_hertz(&HertzParams::from(h)).expect("hertz scene"),
         Model::Ironing(i) => build_ironing(&IroningParams::from(i)).expect("ironing scene"),
-        Model::Rope(_) => panic!("{name} is not a 2-D scene"),
+        Model::Rope(_) | Model::External(_) => panic!("{name} is not a 2-D scene"),
     }
 }
 

@@ -17,7 +17,7 @@ fn factored(name: &str) -> (FactoredModel, Vec<f64>) {
     let fm = match &scene.model {
         Model::Hertz(h) => build_hertz(&HertzParams::from(h)).expect("hertz"),
         Model::Ironing(i) => build_ironing(&IroningParams::from(i)).expect("ironing"),
-        Model::Rope(_) => panic!("{name} is not a 2-D scene"),
+        Model::Rope(_) | Model::External(_) => panic!("{name} is not a 2-D scene"),
     }
     .factor()
     .expect("factor");

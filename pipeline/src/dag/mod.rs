@@ -27,6 +27,7 @@ mod compactness;
 pub(crate) mod comparison;
 mod convert;
 mod graph;
+mod import;
 mod labels;
 mod loaded;
 mod mesh;
@@ -127,8 +128,8 @@ pub struct Ctx<'a> {
 /// The keys of a finished run, for callers and tests.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunOutput {
-    /// Mesh artifact.
-    pub mesh: Key,
+    /// Mesh artifact (none for an external scene).
+    pub mesh: Option<Key>,
     /// Snapshot artifacts of the training points, in order.
     pub train_snapshots: Vec<Key>,
     /// Training-set artifact.
@@ -264,8 +265,14 @@ impl<'a> Ctx<'a> {
 }
 
 /// Solve (or find in the store) every snapshot of the scene's study — training, test and
-/// nested points — and stop: `crom solve`. The other stages are left for `crom run`.
+/// nested points — and stop: `crom solve` (for an external scene: import its snapshots). The
+/// other stages are left for `crom run`.
 pub fn solve_points(ctx: &mut Ctx<'_>, scene: &SceneConfig) -> Result<(), CromError> {
+    // An external scene's snapshots are imported, not solved.
+    if let Some(import) = import::ImportStage::plan(scene) {
+        use graph::StageDef as _;
+        return import.run(ctx, &mut Shared::new(scene)).map(|_| ());
+    }
     let mut physics = LazyPhysics::new(scene);
     let labels = Labels::of(scene);
     let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene), &labels)?;
@@ -279,6 +286,7 @@ pub fn solve_points(ctx: &mut Ctx<'_>, scene: &SceneConfig) -> Result<(), CromEr
 /// Before a sharded sweep (under the exclusive lock): the mesh artifact, and the clean-up of
 /// what killed writers left in the scene's column family.
 pub fn prepare_sweeps(ctx: &mut Ctx<'_>, scene: &SceneConfig) -> Result<(), CromError> {
+    external_has_no_sweep(scene, "crom run --executor slurm")?;
     let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::run(ctx, &mut physics, &mesh::spec(scene), &Labels::of(scene))?;
     let family = snapshots::scene_family(scene, &mesh_key);
@@ -292,11 +300,34 @@ pub fn prepare_sweeps(ctx: &mut Ctx<'_>, scene: &SceneConfig) -> Result<(), Crom
 /// store's shared lock (`crom work --shard K/N`): solve the missing points of the shard's chunks
 /// and append their blocks. The mesh artifact is not written (the planner writes it).
 pub fn work_shard(ctx: &mut Ctx<'_>, scene: &SceneConfig, k: usize, n: usize) -> Result<PointCounts, CromError> {
+    external_has_no_sweep(scene, "crom work")?;
     let mut physics = LazyPhysics::new(scene);
     let mesh_key = mesh::spec(scene).key();
     let sweeps = snapshots::sweeps(scene, &mesh_key);
     let family = snapshots::scene_family(scene, &mesh_key);
     snapshots::work(ctx, &mut physics, &family, &Labels::of(scene), &sweeps, k, n)
+}
+
+/// Check every value of a resolved external scene's snapshots, storing nothing (`crom import`).
+pub fn check_external_values(scene: &SceneConfig, progress: &Progress) -> Result<(), CromError> {
+    match import::ImportStage::plan(scene) {
+        Some(import) => import.check_all(progress),
+        None => Ok(()),
+    }
+}
+
+/// An external scene solves nothing: the commands that only solve refuse it.
+fn external_has_no_sweep(scene: &SceneConfig, command: &str) -> Result<(), CromError> {
+    if scene.model.external().is_none() {
+        return Ok(());
+    }
+    Err(CromError::Usage {
+        message: format!(
+            "`{command}` solves snapshots, and scene `{}` is external (it has none to solve)",
+            scene.scene.name
+        ),
+        fix: "use `crom run` (locally), which imports the scene's snapshots".into(),
+    })
 }
 
 /// Run every stage of the scene's study; with `online = false` stop before the online ROM
@@ -330,6 +361,9 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     plan: &'env plan::Plan,
     online: bool,
 ) -> Result<RunOutput, CromError> {
+    if plan.is_external() {
+        ctx.progress.note(plan::EXTERNAL_SKIPS);
+    }
     let mut shared = Shared::new(scene);
     let mut keys: BTreeMap<&str, Key> = BTreeMap::new();
     let mut beside = beside::Beside::new(scope);
@@ -365,7 +399,7 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     let nested_sets: Vec<Key> =
         plan.node("nested").map(|n| n.inputs.iter().map(|i| keys[i.as_str()].clone()).collect()).unwrap_or_default();
     Ok(RunOutput {
-        mesh: k("mesh"),
+        mesh: keys.get("mesh").cloned(),
         train_snapshots: shared.columns[&0].rows[..n_train].iter().map(|r| r.key.clone()).collect(),
         train: k("trainset train"),
         test: k("trainset test"),

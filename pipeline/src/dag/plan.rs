@@ -24,6 +24,7 @@ use super::basis::BasisStage;
 use super::compactness::CompactnessStage;
 use super::comparison::{self, GatherStage};
 use super::graph::{Input, StageDef};
+use super::import::ImportStage;
 use super::mesh;
 use super::metrics::{GeneralizationStage, NestedStage, SpecificityStage};
 use super::report::{self, ReportStage};
@@ -74,6 +75,8 @@ pub struct Plan {
     pub(crate) sweeps: Vec<Sweep>,
     /// The column family the snapshots go to.
     pub family: Key,
+    /// An external scene's imported columns (training, then test; none for a native scene).
+    pub(crate) imported: Vec<Key>,
     /// Every stage, in an order that respects their inputs.
     pub nodes: Vec<Node>,
 }
@@ -100,6 +103,9 @@ impl Nodes {
     }
 }
 
+/// The one line an external scene's run prints about the stages it does not have.
+pub const EXTERNAL_SKIPS: &str = "external scene: the views, the comparison, the online reduced solve, the trade-off and the report need the full-order model or a mesh, which an external scene does not have; skipped";
+
 /// Where the snapshot sweeps stand in a store.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SnapshotState {
@@ -118,6 +124,9 @@ pub struct SnapshotState {
 impl Plan {
     /// The plan of `scene`'s study, in an order that respects every node's inputs.
     pub fn of(scene: &SceneConfig) -> Self {
+        if let Some(import) = ImportStage::plan(scene) {
+            return Self::of_external(scene, import);
+        }
         let mut nodes = Nodes::default();
         let labels = Labels::of(scene);
         let mesh_stage = mesh::MeshStage::plan(scene);
@@ -221,7 +230,42 @@ impl Plan {
         let mut inputs = vec![mesh, train, basis, compactness, rom, generalization, specificity];
         inputs.extend([nested, comparison, online_comparison].into_iter().flatten());
         nodes.add("report", true, ReportStage::plan(scene, shows, inputs));
-        Self { sweeps, family, nodes: nodes.0 }
+        Self { sweeps, family, nodes: nodes.0, imported: Vec::new() }
+    }
+
+    /// The plan of an external scene: its import in place of the mesh and the sweeps, then the
+    /// sets, the basis and the metrics as for a native scene. What needs the full-order model
+    /// or a mesh (the views, the comparison, the online stage, the report) is not planned
+    /// ([`EXTERNAL_SKIPS`]).
+    fn of_external(scene: &SceneConfig, import: ImportStage) -> Self {
+        let mut nodes = Nodes::default();
+        let labels = Labels::of(scene);
+        let (train_keys, test_keys) = (import.keys().0.to_vec(), import.keys().1.to_vec());
+        let family = import.key();
+        let sweep = nodes.add("import", false, import);
+        let p = &scene.parameter;
+        let (train_points, test_points) = (p.train_points(), p.test_points());
+        let tk: Vec<&Key> = train_keys.iter().collect();
+        let sk: Vec<&Key> = test_keys.iter().collect();
+        let set = |name: &str, points: &[Vec<f64>], keys: &[&Key], start: usize| {
+            SetStage::plan(name, (points, keys), sweep.clone(), (0, start), &labels)
+        };
+        let train = nodes.add("trainset train", false, set("train", &train_points, &tk, 0));
+        nodes.add("trainset test", false, set("test", &test_points, &sk, train_points.len()));
+        let basis_stage = BasisStage::plan(scene, train.clone());
+        let basis_settings = basis_stage.settings.clone();
+        let basis = nodes.add("basis", false, basis_stage);
+        let stage = CompactnessStage::plan(train.clone(), basis.clone(), &basis_settings, &labels);
+        nodes.add("compactness", false, stage);
+        nodes.add("generalization", false, GeneralizationStage::plan(scene, train.clone(), &labels));
+        nodes.add("specificity", false, SpecificityStage::plan(scene, train, basis, &labels));
+        let imported = train_keys.into_iter().chain(test_keys).collect();
+        Self { sweeps: Vec::new(), family, nodes: nodes.0, imported }
+    }
+
+    /// Whether this is an external scene's plan (no mesh: its snapshots were imported).
+    pub fn is_external(&self) -> bool {
+        self.node("import").is_some()
     }
 
     /// The node named `name`.
@@ -238,6 +282,12 @@ impl Plan {
     pub fn snapshot_state(&self, root: &Path) -> Result<SnapshotState, CromError> {
         let (_, index) = snapshots::load_index(root, &self.family)?;
         let mut state = SnapshotState { chunks: self.chunks(), ..SnapshotState::default() };
+        if !self.imported.is_empty() {
+            let distinct: std::collections::HashSet<&Key> = self.imported.iter().collect();
+            state.points = distinct.len();
+            state.stored = distinct.iter().filter(|k| index.rows.contains_key(**k)).count();
+            state.sweeps.push(("import".to_string(), state.points, state.stored));
+        }
         let mut first = 0;
         for sweep in &self.sweeps {
             let (mut points, mut stored_points) = (0, 0);

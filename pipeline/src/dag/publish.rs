@@ -19,8 +19,10 @@ pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
     let mut put = |name: String, kind: K, key: &crate::cache::Key, file: Option<&str>| {
         e.insert(name, Entry::new(kind, key, file));
     };
-    put("mesh.h5".into(), K::Mesh, &out.mesh, Some(a::mesh::FILE));
-    put("mesh.xdmf".into(), K::Mesh, &out.mesh, Some(a::mesh::XDMF));
+    if let Some(mesh) = &out.mesh {
+        put("mesh.h5".into(), K::Mesh, mesh, Some(a::mesh::FILE));
+        put("mesh.xdmf".into(), K::Mesh, mesh, Some(a::mesh::XDMF));
+    }
     for (set, key) in [("train", &out.train), ("test", &out.test)] {
         put(format!("{set}.h5"), K::TrainingSet, key, Some(a::trainset::FILE));
         put(format!("{set}_solver_stats.parquet"), K::TrainingSet, key, Some(a::trainset::STATS));

@@ -2,6 +2,8 @@
 //! pipeline does I/O; stages never open a file.
 
 pub mod h5;
+pub mod npy;
 pub(crate) mod snapshot_set;
+pub mod source;
 pub mod table;
 pub mod xdmf;

@@ -1,0 +1,314 @@
+//! Loading an external scene (`[model.external]`, [`crom_schemas::external`]): open its data
+//! files, check what can be checked without reading the snapshots (the files and datasets
+//! exist, the arrays are 2-D, the column counts of primal, dual and parameters agree, the column
+//! lists are in range, no two points share a parameter value, at least two training
+//! snapshots), hash the snapshot files (blake3 of their bytes: the snapshots' keys), and record
+//! it all in the scene ([`ResolvedExternal`], the parameter's explicit points), so that the plan
+//! is known before anything is imported. The values themselves (NaN, infinities, negative
+//! pressures) are checked by the import ([`crate::dag`]'s import stage) before it stores
+//! anything. Every refusal is [`CromError::Input`] (exit 2) naming the file, the dataset or
+//! field, and the fix.
+
+use std::path::Path;
+
+use crom_schemas::external::{ExternalSpec, ResolvedArray, ResolvedExternal, ResolvedSet};
+use crom_schemas::parameter::{AxisSpec, ExplicitPoints};
+use crom_schemas::{Model, SceneConfig};
+
+use crate::error::CromError;
+use crate::io::source::{locate, read_parameters, SnapshotArray};
+
+/// Resolve `scene`'s external data (a native scene is left as it is); `path` is the scene file.
+pub fn resolve(scene: &mut SceneConfig, path: &Path) -> Result<(), CromError> {
+    let Model::External(ext) = &scene.model else { return Ok(()) };
+    let base = path.parent().unwrap_or(Path::new("."));
+    let resolved = resolve_spec(ext, base)?;
+    let names = &ext.parameters.names;
+    let p = &mut scene.parameter;
+    p.name = names[0].clone();
+    p.description = ext.parameters.description.clone();
+    p.axes = names[1..]
+        .iter()
+        .map(|n| AxisSpec {
+            name: n.clone(),
+            description: String::new(),
+            min: 0.0,
+            max: 0.0,
+            n_train: None,
+            train_level: None,
+        })
+        .collect();
+    p.explicit = Some(ExplicitPoints { train: resolved.train.points.clone(), test: resolved.test.points.clone() });
+    if let Model::External(e) = &mut scene.model {
+        e.resolved = Some(resolved);
+    }
+    Ok(())
+}
+
+/// One pair of arrays (dual, optional primal) and their parameter values, checked against each
+/// other.
+struct Files {
+    dual: ResolvedArray,
+    primal: Option<ResolvedArray>,
+    points: Vec<Vec<f64>>,
+}
+
+/// blake3 of a file's bytes, each file hashed once per load (primal and dual are often one
+/// HDF5 file).
+#[derive(Default)]
+struct Hashes(std::collections::HashMap<std::path::PathBuf, String>);
+
+impl Hashes {
+    fn of(&mut self, path: &Path) -> Result<String, CromError> {
+        if let Some(h) = self.0.get(path) {
+            return Ok(h.clone());
+        }
+        let h = hash_file(path).map_err(|e| CromError::io(path, "hashing a data file", e))?;
+        self.0.insert(path.to_path_buf(), h.clone());
+        Ok(h)
+    }
+}
+
+/// blake3 of the bytes of the file at `path`, read in large pieces.
+fn hash_file(path: &Path) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path)?;
+    let mut h = blake3::Hasher::new();
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let n = f.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+    }
+    Ok(h.finalize().to_hex().to_string())
+}
+
+fn array(
+    base: &Path,
+    src: &crom_schemas::external::ArraySource,
+    field: &str,
+    hashes: &mut Hashes,
+) -> Result<ResolvedArray, CromError> {
+    let a = SnapshotArray::open(base, src, field)?;
+    let blake3 = hashes.of(a.path())?;
+    Ok(ResolvedArray {
+        path: a.path().to_path_buf(),
+        dataset: src.dataset.clone(),
+        layout: src.layout,
+        blake3,
+        rows: a.rows,
+        cols: a.cols,
+    })
+}
+
+fn files(
+    base: &Path,
+    at: &str,
+    dual: &crom_schemas::external::ArraySource,
+    primal: Option<&crom_schemas::external::ArraySource>,
+    params: &crom_schemas::external::ParameterSource,
+    hashes: &mut Hashes,
+) -> Result<Files, CromError> {
+    let dual = array(base, dual, &format!("{at}.dual"), hashes)?;
+    let primal = primal.map(|p| array(base, p, &format!("{at}.primal"), hashes)).transpose()?;
+    let points = read_parameters(base, params, &format!("{at}.parameters"))?;
+    let fix = "give primal, dual and parameters one snapshot each, in the same order";
+    if let Some(p) = &primal {
+        if p.cols != dual.cols {
+            return Err(CromError::input(
+                &p.path,
+                p.dataset.clone().unwrap_or_else(|| format!("{at}.primal")),
+                format!("holds {} snapshots, and {} holds {}", p.cols, dual.path.display(), dual.cols),
+                fix,
+            ));
+        }
+    }
+    if points.len() != dual.cols {
+        return Err(CromError::input(
+            locate(base, &params.file),
+            format!("{at}.parameters"),
+            format!(
+                "holds {} parameter values, and {} holds {} snapshots",
+                points.len(),
+                dual.path.display(),
+                dual.cols
+            ),
+            fix,
+        ));
+    }
+    if let Some((i, c)) =
+        points.iter().enumerate().find_map(|(i, p)| p.iter().position(|v| !v.is_finite()).map(|c| (i, c)))
+    {
+        return Err(CromError::input(
+            locate(base, &params.file),
+            format!("{at}.parameters, row {i}, component {}", params.names[c]),
+            format!("is {}, not a finite number", points[i][c]),
+            "give every snapshot a finite parameter value",
+        ));
+    }
+    if dual.rows == 0 {
+        return Err(CromError::input(
+            &dual.path,
+            format!("{at}.dual"),
+            "has no rows",
+            "give one row per contact entry",
+        ));
+    }
+    Ok(Files { dual, primal, points })
+}
+
+/// A set: the columns `columns` of `f` (each checked to be in range; `field` names the list).
+fn set(f: &Files, columns: Vec<usize>, field: &str) -> Result<ResolvedSet, CromError> {
+    if let Some(j) = columns.iter().find(|&&j| j >= f.dual.cols) {
+        return Err(CromError::input(
+            &f.dual.path,
+            field.to_string(),
+            format!(
+                "lists column {j}, and the file holds {} snapshots (columns 0 to {})",
+                f.dual.cols,
+                f.dual.cols.saturating_sub(1)
+            ),
+            format!("list columns below {} in {field}", f.dual.cols),
+        ));
+    }
+    let points = columns.iter().map(|&j| f.points[j].clone()).collect();
+    Ok(ResolvedSet { dual: f.dual.clone(), primal: f.primal.clone(), columns, points })
+}
+
+fn resolve_spec(ext: &ExternalSpec, base: &Path) -> Result<ResolvedExternal, CromError> {
+    let at = "model.external";
+    let mut hashes = Hashes::default();
+    let main = files(base, at, &ext.dual, ext.primal.as_ref(), &ext.parameters, &mut hashes)?;
+    let (train, test) = match (&ext.test, &ext.test_files) {
+        (Some(test), _) => {
+            let train = ext.train.clone().unwrap_or_default();
+            (set(&main, train, &format!("{at}.train"))?, set(&main, test.clone(), &format!("{at}.test"))?)
+        }
+        (None, Some(tf)) => {
+            let other =
+                files(base, &format!("{at}.test_files"), &tf.dual, tf.primal.as_ref(), &tf.parameters, &mut hashes)?;
+            for (a, b, what) in
+                [(Some(&main.dual), Some(&other.dual), "dual"), (main.primal.as_ref(), other.primal.as_ref(), "primal")]
+            {
+                if let (Some(a), Some(b)) = (a, b) {
+                    if a.rows != b.rows {
+                        return Err(CromError::input(
+                            &b.path,
+                            format!("{at}.test_files.{what}"),
+                            format!(
+                                "has {} entries per snapshot, the training file {} has {}",
+                                b.rows,
+                                a.path.display(),
+                                a.rows
+                            ),
+                            "give both sets snapshots of the same discretisation",
+                        ));
+                    }
+                }
+            }
+            let train = ext.train.clone().unwrap_or_else(|| (0..main.dual.cols).collect());
+            let all = (0..other.dual.cols).collect();
+            (set(&main, train, &format!("{at}.train"))?, set(&other, all, &format!("{at}.test_files"))?)
+        }
+        (None, None) => {
+            return Err(CromError::input(
+                locate(base, &ext.dual.file),
+                format!("{at}.test"),
+                "no test points: neither `test` columns nor `test_files` are given",
+                "give `test = [columns]` or a [model.external.test_files] table",
+            ))
+        }
+    };
+    if train.columns.len() < 2 {
+        return Err(CromError::input(
+            &train.dual.path,
+            format!("{at}.train"),
+            format!(
+                "makes a training set of {} snapshot(s); a reduced basis and its leave-one-out need at least 2",
+                train.columns.len()
+            ),
+            "give at least two training snapshots",
+        ));
+    }
+    if test.columns.is_empty() {
+        return Err(CromError::input(
+            &test.dual.path,
+            format!("{at}.test_files"),
+            "holds no snapshot",
+            "give at least one test snapshot",
+        ));
+    }
+    check_distinct(ext, base, &train, &test)?;
+    let coordinates = match &ext.coordinates {
+        None => None,
+        Some(src) => Some(coordinates(base, src, main.dual.rows)?),
+    };
+    Ok(ResolvedExternal {
+        n_dof: train.primal.as_ref().map_or(0, |p| p.rows),
+        n_contact: train.dual.rows,
+        train,
+        test,
+        coordinates,
+    })
+}
+
+/// No two snapshots of the study may share a parameter value (bit for bit): a duplicate
+/// makes the leave-one-out and the nested levels meaningless, and is most often a column
+/// listed twice or a parameter file out of step with the snapshots.
+fn check_distinct(ext: &ExternalSpec, base: &Path, train: &ResolvedSet, test: &ResolvedSet) -> Result<(), CromError> {
+    let mut seen: std::collections::HashMap<Vec<u64>, (&str, usize)> = std::collections::HashMap::new();
+    for (name, s) in [("train", train), ("test", test)] {
+        for (k, p) in s.points.iter().enumerate() {
+            let bits: Vec<u64> = p.iter().map(|v| v.to_bits()).collect();
+            if let Some((other, j)) = seen.insert(bits, (name, s.columns[k])) {
+                let file = if name == "test" && ext.test_files.is_some() {
+                    &ext.test_files.as_ref().map(|t| t.parameters.file.clone()).unwrap_or_default()
+                } else {
+                    &ext.parameters.file
+                };
+                return Err(CromError::input(
+                    locate(base, file),
+                    "the parameter values",
+                    format!(
+                        "{name} column {} has the parameter value {p:?}, as {other} column {j} does",
+                        s.columns[k]
+                    ),
+                    "give every snapshot its own parameter value (drop the duplicate column from the set lists, or correct the parameter file)",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The contact nodes' coordinates: an `(n_contact, d)` array, one row per dual entry (with
+/// `layout = "rows"`, its transpose `(d, n_contact)`).
+fn coordinates(
+    base: &Path,
+    src: &crom_schemas::external::ArraySource,
+    n_contact: usize,
+) -> Result<Vec<Vec<f64>>, CromError> {
+    let field = "model.external.coordinates";
+    // One node per row of the file: read it as `d` entries x `n_contact` "snapshots" transposed.
+    let flipped = crom_schemas::external::ArraySource {
+        layout: match src.layout {
+            crom_schemas::external::Layout::Columns => crom_schemas::external::Layout::Rows,
+            crom_schemas::external::Layout::Rows => crom_schemas::external::Layout::Columns,
+        },
+        ..src.clone()
+    };
+    let a = SnapshotArray::open(base, &flipped, field)?;
+    if a.cols != n_contact {
+        return Err(CromError::input(
+            a.path(),
+            a.what().to_string(),
+            format!("holds {} nodes, the dual snapshots have {n_contact} entries", a.cols),
+            "give one row of coordinates per contact entry, in the dual snapshots' order",
+        ));
+    }
+    let d = a.rows;
+    let block = a.block(0, n_contact)?;
+    Ok((0..n_contact).map(|i| block[i * d..(i + 1) * d].to_vec()).collect())
+}

@@ -1,0 +1,332 @@
+"""External scenes: crom's own ironing-coarse study (128 training and 127 test snapshots of 6 164
++ 101 rows; about 15 s offline) exported to plain .npy / CSV and HDF5 / Parquet files, imported
+back as an external scene, must give the native study's metric tables and bases bit for bit (the
+import copies f64 values exactly and every metric is a deterministic function of the training
+and test sets). The native study's nested levels are not compared: an external scene has none
+yet. Bad data files (on the rope's arrays, which are small) are refused with exit 2, the file,
+the dataset or field and the fix, and nothing stored."""
+import os
+import pathlib
+import subprocess
+
+import h5py
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import REPO, crom_bin
+
+def study(scene_name):
+    """The [study] table of a shipped scene, as the external scene must repeat it."""
+    text = (REPO / "data" / "scenes" / f"{scene_name}.toml").read_text()
+    table = text[text.index("[study]"):]
+    # The contact quadrature needs the full-order operator: not for an external scene.
+    return "\n".join(line for line in table.splitlines() if not line.startswith(("contact_sampling", "#")))
+
+TABLES = ["compactness", "generalization", "specificity"]
+
+
+def crom(store, *args):
+    return subprocess.run([str(crom_bin()), "--store", str(store), *args], cwd=REPO, capture_output=True, text=True)
+
+
+def native_study(tmp_path_factory, name):
+    """A native study (offline) and its training and test sets as arrays."""
+    store = tmp_path_factory.mktemp(f"native-{name}")
+    done = crom(store, "--quiet", "run", name, "--offline")
+    assert done.returncode == 0, done.stderr
+    sets = {}
+    for s in ["train", "test"]:
+        with h5py.File(store / "scenes" / name / f"{s}.h5") as f:
+            sets[s] = (f["primal"][()], f["dual"][()], f["parameters"][()])
+    return store, sets
+
+
+@pytest.fixture(scope="module")
+def native(tmp_path_factory):
+    return native_study(tmp_path_factory, "rope")
+
+
+@pytest.fixture(scope="module")
+def ironing(tmp_path_factory):
+    return native_study(tmp_path_factory, "ironing-coarse")
+
+
+def scene(dir: pathlib.Path, name: str, body: str, like: str = "rope") -> pathlib.Path:
+    path = dir / f"{name}.toml"
+    path.write_text(f'[scene]\nname = "{name}"\ndescription = "{like} read back"\n\n[model.external]\n{body}\n'
+                    f'{study(like)}\n')
+    return path
+
+
+def all_columns(sets):
+    """Training then test columns side by side, and the parameter values."""
+    (tp, td, tm), (sp, sd, sm) = sets["train"], sets["test"]
+    return np.hstack([tp, sp]), np.hstack([td, sd]), np.concatenate([tm, sm]), tp.shape[1]
+
+
+def assert_same_tables(native_store, store, name, like):
+    for t in TABLES:
+        a = pd.read_parquet(native_store / "scenes" / like / f"{t}.parquet").drop(columns="scene")
+        b = pd.read_parquet(store / "scenes" / name / f"{t}.parquet").drop(columns="scene")
+        # Exact: the same f64 inputs through the same deterministic algorithms.
+        pd.testing.assert_frame_equal(a, b, check_exact=True)
+    with h5py.File(native_store / "scenes" / like / "basis.h5") as a, h5py.File(store / "scenes" / name / "basis.h5") as b:
+        def walk(g, h, path=""):
+            for k in g:
+                if isinstance(g[k], h5py.Dataset):
+                    assert np.array_equal(g[k][()], h[k][()]), f"basis {path}/{k}"
+                else:
+                    walk(g[k], h[k], f"{path}/{k}")
+        walk(a, b)
+
+
+def test_npy_and_csv_with_column_lists_round_trip_bit_for_bit(ironing, tmp_path):
+    native_store, sets = ironing
+    primal, dual, mu, n_train = all_columns(sets)
+    np.save(tmp_path / "primal.npy", np.asfortranarray(primal))  # one snapshot per column, Fortran order
+    np.save(tmp_path / "dual.npy", np.ascontiguousarray(dual.T))  # one snapshot per row
+    # repr() of a float64 is its shortest round-trip decimal: the CSV holds the exact values.
+    pd.DataFrame({"d_x": mu}).to_csv(tmp_path / "mu.csv", index=False, float_format=lambda v: repr(float(v)))
+    n = dual.shape[1]
+    path = scene(tmp_path, "ironing-npy", f"""dual = {{ file = "dual.npy", layout = "rows" }}
+primal = {{ file = "primal.npy" }}
+parameters = {{ file = "mu.csv", names = ["d_x"] }}
+train = {list(range(n_train))}
+test = {list(range(n_train, n))}""", like="ironing-coarse")
+    store = tmp_path / "store"
+    first = crom(store, "run", str(path))
+    assert first.returncode == 0, first.stderr
+    assert "external scene" in first.stderr and "skipped" in first.stderr
+    assert_same_tables(native_store, store, "ironing-npy", "ironing-coarse")
+    # A re-run with unchanged files imports nothing and computes nothing.
+    again = crom(store, "run", str(path))
+    assert again.returncode == 0, again.stderr
+    assert f"0 imported, {n} reused" in again.stderr, again.stderr
+    assert "computed" not in again.stderr, again.stderr
+    # A changed dual file is imported again (new keys), and the sets are rebuilt.
+    d2 = dual.copy()
+    d2[:, 0] *= 2.0
+    np.save(tmp_path / "dual.npy", np.ascontiguousarray(d2.T))
+    changed = crom(store, "run", str(path))
+    assert changed.returncode == 0, changed.stderr
+    assert f"{n} imported, 0 reused" in changed.stderr, changed.stderr
+
+
+def test_hdf5_with_a_second_pair_of_files_round_trips(ironing, tmp_path):
+    native_store, sets = ironing
+    (tp, td, tm), (sp, sd, sm) = sets["train"], sets["test"]
+    with h5py.File(tmp_path / "train.h5", "w") as f:
+        f["fields/primal"] = tp
+        f["fields/dual"] = td
+        f["mu"] = tm
+    with h5py.File(tmp_path / "test.h5", "w") as f:
+        f["fields/primal"] = sp.T  # rows
+        f["fields/dual"] = sd
+    pd.DataFrame({"d_x": sm}).to_parquet(tmp_path / "test_mu.parquet")
+    path = scene(tmp_path, "ironing-h5", """dual = { file = "train.h5", dataset = "fields/dual" }
+primal = { file = "train.h5", dataset = "fields/primal" }
+parameters = { file = "train.h5", dataset = "mu", names = ["d_x"] }
+
+[model.external.test_files]
+dual = { file = "test.h5", dataset = "fields/dual" }
+primal = { file = "test.h5", dataset = "fields/primal", layout = "rows" }
+parameters = { file = "test_mu.parquet", names = ["d_x"] }""", like="ironing-coarse")
+    store = tmp_path / "store"
+    done = crom(store, "run", str(path))
+    assert done.returncode == 0, done.stderr
+    assert_same_tables(native_store, store, "ironing-h5", "ironing-coarse")
+    # The Python reader opens the external scene like a native one.
+    import crom_data
+    sc = crom_data.open_store(store).scene("ironing-h5")
+    ts = sc.trainset("test")
+    assert np.array_equal(ts.dual, sd) and np.array_equal(ts.primal, sp)
+    assert ts.parameter_names == ["d_x"] and np.array_equal(ts.parameters, sm)
+    assert sorted(sc.compactness().columns) == sorted(pd.read_parquet(store / "scenes" / "ironing-h5" / "compactness.parquet").columns)
+
+
+# --- bad input: exit 2, the file and the dataset or field named, a fix, nothing stored ---------
+
+
+@pytest.fixture()
+def files(native, tmp_path):
+    """Writable copies of the rope's arrays as .npy (snapshots as columns) and a CSV."""
+    _, sets = native
+    primal, dual, mu, n_train = all_columns(sets)
+    return tmp_path, primal.copy(), dual.copy(), mu.copy(), n_train
+
+
+def write(tmp_path, primal, dual, mu):
+    np.save(tmp_path / "primal.npy", primal)
+    np.save(tmp_path / "dual.npy", dual)
+    pd.DataFrame({"gamma": mu}).to_csv(tmp_path / "mu.csv", index=False)
+
+
+def body(n_train, n, extra="", train=None, dual='{ file = "dual.npy" }'):
+    train = list(range(n_train)) if train is None else train
+    return f"""dual = {dual}
+primal = {{ file = "primal.npy" }}
+parameters = {{ file = "mu.csv", names = ["gamma"] }}
+train = {train}
+test = {list(range(n_train, n))}
+{extra}"""
+
+
+def refused(tmp_path, scene_body, *needles, env=None):
+    store = tmp_path / "store"
+    done = subprocess.run([str(crom_bin()), "--store", str(store), "run", str(scene(tmp_path, "bad", scene_body))],
+                          cwd=REPO, capture_output=True, text=True, env=env)
+    assert done.returncode == 2, (done.returncode, done.stderr)
+    for needle in [*needles, "fix:"]:
+        assert needle in done.stderr, (needle, done.stderr)
+    # Nothing was stored: no column family, no set.
+    assert not (store / "columns").exists() or not any((store / "columns").iterdir()), done.stderr
+    assert not (store / "trainset").exists() or not any((store / "trainset").iterdir()), done.stderr
+    return done.stderr
+
+
+def test_a_missing_file_and_a_missing_dataset_are_named(files):
+    tmp_path, primal, dual, mu, n_train = files
+    write(tmp_path, primal, dual, mu)
+    n = dual.shape[1]
+    refused(tmp_path, body(n_train, n, dual='{ file = "nowhere.npy" }'), "nowhere.npy", "model.external.dual",
+            "does not exist")
+    with h5py.File(tmp_path / "d.h5", "w") as f:
+        f["dual"] = dual
+    refused(tmp_path, body(n_train, n, dual='{ file = "d.h5", dataset = "pressure" }'), "d.h5", "dataset pressure",
+            "does not exist", "model.external.dual.dataset")
+    # A compressed .npz cannot be read block by block: refused, with the way out.
+    np.savez_compressed(tmp_path / "d.npz", dual=dual)
+    refused(tmp_path, body(n_train, n, dual='{ file = "d.npz" }'), "d.npz", "a compressed .npz is not read")
+
+
+def test_mismatched_column_counts_are_refused(files):
+    tmp_path, primal, dual, mu, n_train = files
+    n = dual.shape[1]
+    write(tmp_path, primal[:, :-1], dual, mu)
+    refused(tmp_path, body(n_train, n), "primal.npy", f"holds {n - 1} snapshots", f"holds {n}")
+    write(tmp_path, primal, dual, mu[:-1])
+    refused(tmp_path, body(n_train, n), "mu.csv", f"holds {n - 1} parameter values")
+
+
+def test_a_nonfinite_value_is_reported_with_its_column_and_row(files):
+    tmp_path, primal, dual, mu, n_train = files
+    dual[7, 3] = np.nan
+    dual[2, 5] = np.inf  # a later column: not the first
+    write(tmp_path, primal, dual, mu)
+    refused(tmp_path, body(n_train, dual.shape[1]), "dual.npy", "column 3, row 7 is NaN")
+
+
+def test_a_nonfinite_primal_value_takes_back_the_blocks_already_stored(files):
+    tmp_path, primal, dual, mu, n_train = files
+    n = dual.shape[1]
+    store = tmp_path / "store"
+    # A good import first: the bad one below goes to the same column family, which must be left
+    # exactly as it was.
+    write(tmp_path, primal, dual, mu)
+    good = crom(store, "--quiet", "run", str(scene(tmp_path, "good", body(n_train, n))))
+    assert good.returncode == 0, good.stderr
+    before = sorted(p.relative_to(store) for p in (store / "columns").rglob("*"))
+    primal[5, n_train + 2] = -np.inf  # a test column: the training set's blocks are stored first
+    np.save(tmp_path / "primal.npy", primal)
+    # Two columns per block, so that several blocks are committed before the bad value is read.
+    env = {**os.environ, "CROM_BLOCK_COLUMNS": "2"}
+    done = subprocess.run([str(crom_bin()), "--store", str(store), "run", str(scene(tmp_path, "bad", body(n_train, n)))],
+                          cwd=REPO, capture_output=True, text=True, env=env)
+    assert done.returncode == 2, done.stderr
+    assert f"column {n_train + 2}, row 5 is -inf" in done.stderr and "primal.npy" in done.stderr, done.stderr
+    assert sorted(p.relative_to(store) for p in (store / "columns").rglob("*")) == before
+
+
+def test_a_nonfinite_primal_value_in_a_fresh_store_leaves_no_column_family(files):
+    tmp_path, primal, dual, mu, n_train = files
+    primal[3, 1] = np.nan
+    write(tmp_path, primal, dual, mu)
+    env = {**os.environ, "CROM_BLOCK_COLUMNS": "1"}
+    refused(tmp_path, body(n_train, dual.shape[1]), "primal.npy", "column 1, row 3 is NaN", env=env)
+
+
+def test_negative_pressures_are_refused_unless_clipped(files):
+    tmp_path, primal, dual, mu, n_train = files
+    scale = np.abs(dual[:, 4]).max()
+    dual[10, 4] = -1e-3 * scale  # far beyond the default tolerance 1e-10
+    dual[11, 6] = -1e-14 * np.abs(dual[:, 6]).max()  # within it: kept as is
+    write(tmp_path, primal, dual, mu)
+    n = dual.shape[1]
+    err = refused(tmp_path, body(n_train, n), "dual.npy", "1 column(s)", "columns (most negative value) 4 (",
+                  "clip_negative")
+    assert " 6 (" not in err
+    store = tmp_path / "store"
+    done = crom(store, "--quiet", "run", str(scene(tmp_path, "clipped", body(n_train, n, "clip_negative = true"))))
+    assert done.returncode == 0, done.stderr
+    with h5py.File(store / "scenes" / "clipped" / "train.h5") as f:
+        stored = f["dual"][()]
+    assert stored[10, 4] == 0.0
+    expect = dual[:, :n_train].copy()
+    expect[expect < 0] = 0.0
+    assert np.array_equal(stored, expect)
+
+
+def test_duplicate_parameter_values_and_a_single_snapshot_are_refused(files):
+    tmp_path, primal, dual, mu, n_train = files
+    mu[n_train + 1] = mu[2]
+    write(tmp_path, primal, dual, mu)
+    n = dual.shape[1]
+    refused(tmp_path, body(n_train, n), "mu.csv", f"test column {n_train + 1}", "as train column 2")
+    mu[n_train + 1] = 0.123456
+    write(tmp_path, primal, dual, mu)
+    refused(tmp_path, body(n_train, n, train=[0]), "model.external.train", "1 snapshot(s)", "at least 2")
+
+
+def test_crom_import_writes_a_scene_that_runs_and_refuses_bad_arrays(files):
+    tmp_path, primal, dual, mu, n_train = files
+    with h5py.File(tmp_path / "s.h5", "w") as f:
+        f["fields/dual"] = dual.T  # one snapshot per row
+        f["fields/primal"] = primal.T
+    pd.DataFrame({"gamma": mu}).to_parquet(tmp_path / "mu.parquet")
+    out = tmp_path / "imported.toml"
+    args = ["import", "--name", "imported", "--dual", f"{tmp_path / 's.h5'}:fields/dual", "--primal",
+            f"{tmp_path / 's.h5'}:fields/primal", "--rows", "--parameters", str(tmp_path / "mu.parquet"), "--names",
+            "gamma", "--test-every", "3", "-o", str(out)]
+    done = crom(tmp_path / "unused-store", *args)
+    assert done.returncode == 0, done.stderr
+    assert not (tmp_path / "unused-store").exists(), "crom import stores nothing"
+    n = dual.shape[1]
+    text = out.read_text()
+    assert f"test = [{', '.join(str(j) for j in range(2, n, 3))}]" in text, text
+    store = tmp_path / "store"
+    run = crom(store, "--quiet", "run", str(out))
+    assert run.returncode == 0, run.stderr
+    with h5py.File(store / "scenes" / "imported" / "test.h5") as f:
+        assert np.array_equal(f["dual"][()], dual[:, 2::3])
+    # A non-finite value anywhere: exit 2, no scene file.
+    primal[4, 7] = np.nan
+    with h5py.File(tmp_path / "s.h5", "w") as f:
+        f["fields/dual"] = dual.T
+        f["fields/primal"] = primal.T
+    out.unlink()
+    bad = crom(tmp_path / "unused-store", *args)
+    assert bad.returncode == 2, bad.stderr
+    assert "row 7, column 4 is NaN" in bad.stderr and "fields/primal" in bad.stderr, bad.stderr
+    assert not out.exists()
+
+
+def test_without_primal_snapshots_the_dual_study_is_the_native_one(native, tmp_path):
+    native_store, sets = native
+    primal, dual, mu, n_train = all_columns(sets)
+    np.save(tmp_path / "dual.npy", dual)
+    pd.DataFrame({"gamma": mu}).to_csv(tmp_path / "mu.csv", index=False, float_format=lambda v: repr(float(v)))
+    n = dual.shape[1]
+    path = scene(tmp_path, "dual-only", f"""dual = {{ file = "dual.npy" }}
+parameters = {{ file = "mu.csv", names = ["gamma"] }}
+train = {list(range(n_train))}
+test = {list(range(n_train, n))}""")
+    store = tmp_path / "store"
+    done = crom(store, "--quiet", "run", str(path))
+    assert done.returncode == 0, done.stderr
+    for t in TABLES:
+        a = pd.read_parquet(native_store / "scenes" / "rope" / f"{t}.parquet").drop(columns="scene")
+        b = pd.read_parquet(store / "scenes" / "dual-only" / f"{t}.parquet").drop(columns="scene")
+        # The dual rows exactly as the native study's (same inputs, deterministic algorithms).
+        pd.testing.assert_frame_equal(a[a.field == "dual"].reset_index(drop=True),
+                                      b[b.field == "dual"].reset_index(drop=True), check_exact=True)
