@@ -244,7 +244,7 @@ impl ReducedModel {
             return Err(bad("theta_value", "zeros or repeated columns in the compressed rows".into()));
         }
         let points = p.float("warm_points").to_vec();
-        let n_warm = if dim == 0 { 0 } else { points.len() / dim };
+        let n_warm = points.len().checked_div(dim).unwrap_or(0);
         if n_warm * dim != points.len() {
             return Err(bad("warm_points", format!("{} values are not points of {dim} components", points.len())));
         }
