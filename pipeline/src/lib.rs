@@ -71,6 +71,7 @@ pub mod executor;
 pub mod io;
 pub mod physics;
 pub mod progress;
+pub mod query;
 pub mod report;
 pub mod resources;
 pub mod scenes;
@@ -135,6 +136,17 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
             Ok(())
         }
         Command::Solve { scene } => solve_scene(cli, scene),
+        Command::Query { scene, at, points, out, check, allow_extrapolation } => {
+            let config = SceneConfig::load(&scenes::resolve(scene, &cli.scenes)?)?;
+            let req = query::Request {
+                at: at.clone(),
+                points: points.clone(),
+                out: out.clone(),
+                check: *check,
+                allow_extrapolation: *allow_extrapolation,
+            };
+            query::run(&cli.store, &config, scene, &req)
+        }
         Command::Report { scene } => {
             let out = run_scene(cli, scene, true)?;
             if let Some(report) = &out.report {

@@ -2,6 +2,7 @@
 //! pipeline does I/O; stages never open a file.
 
 pub mod h5;
+pub mod model;
 pub(crate) mod snapshot_set;
 pub mod table;
 pub mod xdmf;
