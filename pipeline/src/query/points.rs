@@ -113,17 +113,17 @@ impl Domain {
             self.names.join(", "),
             names.join(", ")
         );
-        for n in &names {
-            if !self.names.iter().any(|m| m == n) {
-                return Err(usage(format!("{}: column `{n}` is not a parameter of the model", path.display()), fix));
-            }
-        }
         let mut order = Vec::with_capacity(self.names.len());
         for n in &self.names {
             match names.iter().filter(|m| *m == n).count() {
                 1 => order.push(names.iter().position(|m| m == n).unwrap_or(0)),
                 0 => return Err(usage(format!("{}: no column `{n}`", path.display()), fix)),
                 _ => return Err(usage(format!("{}: column `{n}` appears twice", path.display()), fix)),
+            }
+        }
+        for n in &names {
+            if !self.names.iter().any(|m| m == n) {
+                return Err(usage(format!("{}: column `{n}` is not a parameter of the model", path.display()), fix));
             }
         }
         let rows = columns.first().map_or(0, |(_, v)| v.len());
