@@ -2,10 +2,12 @@
 //!
 //! **Which model.** The one the online stage measured as most accurate among those that
 //! converged at every test point: of the rows of its `tradeoff.parquet` with algorithm `exact`
-//! (or `exact-sampled`, a sampled contact surface, when the scene asks for it) and
-//! `converged == points`, the least median dual (pressure) error, then the least median primal
-//! error, then the fewest modes `r_primal + r_dual`, then the table's order (a row's defined
-//! error beats an undefined one). The choice reads results only, never timings, so the artifact is
+//! (or `exact-sampled`, a sampled contact surface, when the scene asks for it), the fewest
+//! test points not converged (none, wherever some row converged everywhere), then the least
+//! median dual (pressure) error, then the least median primal error, then the fewest modes
+//! `r_primal + r_dual`, then the table's order (a defined error beats an undefined one). A
+//! table without such rows (no dual mode at all: a scene without contact) keeps the model of
+//! the full bases, with nothing measured (`measured_points = 0`). The choice reads results only, never timings, so the artifact is
 //! byte-identical run to run. Its measured accuracy is stored beside it (`model.h5`'s
 //! `measured_*` attributes) and its measured speed in `model_speed.parquet` (a timing file).
 //!
@@ -122,10 +124,8 @@ impl StageDef for ModelStage {
             let rom_dir = store.dir(ArtifactKind::Rom, rom);
             let trade = read_parquet(&rom_dir.join(rom_names::TRADEOFF))?;
             let times = read_parquet(&rom_dir.join(rom_names::TRADEOFF_TIMINGS))?;
-            let row = choose(&trade).ok_or_else(|| {
-                fail("no rank pair of the exact online solve converged at every test point: no model to keep".into())
-            })?;
-            let pick = Pick::of(&trade, row);
+            let row = choose(&trade);
+            let pick = row.map_or_else(Pick::full_bases, |row| Pick::of(&trade, row));
             let phys = physics.get()?;
             let op = phys.operator();
             let train_set = loaded.set(store, train)?;
@@ -167,7 +167,7 @@ impl StageDef for ModelStage {
             let terms = op.lift_terms();
             let lift = ColMatrix::from_columns(phi.rows, &terms.iter().map(Vec::as_slice).collect::<Vec<_>>());
             Reconstruction { phi: phi_r, lift }.write(&staging.path(names::RECONSTRUCTION), &key)?;
-            let f = |c: &str| times.f64s(c).map_or(f64::NAN, |v| v[row]);
+            let f = |c: &str| row.and_then(|row| times.f64s(c).map(|v| v[row])).unwrap_or(f64::NAN);
             Table::default()
                 .with(names::SPEED_COLUMNS[0], Column::F64(vec![f("median_online_seconds")]))
                 .with(names::SPEED_COLUMNS[1], Column::F64(vec![f("median_fom_seconds")]))
@@ -194,6 +194,22 @@ struct Pick {
 }
 
 impl Pick {
+    /// Nothing measured: the full bases (`usize::MAX` ranks are clipped to the bases').
+    fn full_bases() -> Self {
+        Self {
+            algorithm: Algorithm::Exact.name().into(),
+            dual_basis: "full".into(),
+            r_primal: usize::MAX,
+            r_dual: usize::MAX,
+            measured: Measured {
+                median_primal_error: f64::NAN,
+                p95_primal_error: f64::NAN,
+                median_dual_error: f64::NAN,
+                ..Measured::default()
+            },
+        }
+    }
+
     fn of(t: &Table, row: usize) -> Self {
         let s = |c: &str| t.strs(c).map_or(String::new(), |v| v[row].clone());
         let u = |c: &str| t.u64s(c).map_or(0, |v| v[row]);
@@ -214,24 +230,23 @@ impl Pick {
     }
 }
 
-/// The row of `tradeoff.parquet` to keep (see the module doc), if any row qualifies.
+/// The row of `tradeoff.parquet` to keep (see the module doc), if the table has rows of the
+/// exact solve.
 pub(crate) fn choose(t: &Table) -> Option<usize> {
     let (alg, points, conv) = (t.strs("algorithm")?, t.u64s("points")?, t.u64s("converged")?);
     let (ru, rl) = (t.u64s("r_primal")?, t.u64s("r_dual")?);
     let (dual, primal) = (t.f64s("median_dual_error")?, t.f64s("median_primal_error")?);
     // an undefined error ranks after every defined one
     let rank = |x: f64| if x.is_nan() { f64::INFINITY } else { x };
-    (0..t.rows())
-        .filter(|&i| {
-            (alg[i] == Algorithm::Exact.name() || alg[i] == rom_names::SAMPLED) && points[i] > 0 && conv[i] == points[i]
-        })
-        .min_by(|&a, &b| {
-            rank(dual[a])
-                .total_cmp(&rank(dual[b]))
-                .then(rank(primal[a]).total_cmp(&rank(primal[b])))
-                .then((ru[a] + rl[a]).cmp(&(ru[b] + rl[b])))
-                .then(a.cmp(&b))
-        })
+    (0..t.rows()).filter(|&i| alg[i] == Algorithm::Exact.name() || alg[i] == rom_names::SAMPLED).min_by(|&a, &b| {
+        let missed = |i: usize| points[i].saturating_sub(conv[i]);
+        missed(a)
+            .cmp(&missed(b))
+            .then(rank(dual[a]).total_cmp(&rank(dual[b])))
+            .then(rank(primal[a]).total_cmp(&rank(primal[b])))
+            .then((ru[a] + rl[a]).cmp(&(ru[b] + rl[b])))
+            .then(a.cmp(&b))
+    })
 }
 
 #[cfg(test)]
@@ -253,8 +268,9 @@ mod tests {
             .with("median_primal_error", col(&|r| r.5))
     }
 
-    /// The choice: every point converged, exact algorithms only, least dual error, then least
-    /// primal error, then fewest modes; undefined errors last; nothing when no row qualifies.
+    /// The choice: exact algorithms only, the fewest points not converged, then the least dual
+    /// error, then the least primal error, then the fewest modes; undefined errors last;
+    /// nothing without a row of the exact solve.
     #[test]
     fn choose_prefers_converged_accurate_small_models() {
         let t = table(&[
@@ -267,7 +283,9 @@ mod tests {
         assert_eq!(choose(&t), Some(3));
         let t = table(&[("exact", 2, 2, 10, f64::NAN, 1e-4), ("exact-sampled", 2, 2, 10, f64::NAN, 1e-5)]);
         assert_eq!(choose(&t), Some(1));
-        let t = table(&[("exact", 2, 2, 9, 1e-3, 1e-3), ("paper", 2, 2, 10, 1e-3, 1e-3)]);
-        assert_eq!(choose(&t), None);
+        let t =
+            table(&[("exact", 2, 2, 8, 1e-4, 1e-4), ("exact", 2, 2, 9, 1e-3, 1e-3), ("paper", 2, 2, 10, 1e-3, 1e-3)]);
+        assert_eq!(choose(&t), Some(1), "the most converged when none converged everywhere");
+        assert_eq!(choose(&table(&[("paper", 2, 2, 10, 1e-3, 1e-3)])), None);
     }
 }
