@@ -10,6 +10,9 @@
 //!   compared to 1e-9 relative: the online stage evaluates it from precomputed projections, the
 //!   query from the reconstructed field (the same quantity, summed in another order; measured
 //!   differences are ~1e-13 relative).
+//! * A scene that asks for the full ranks (`study.model_ranks`) gets the model whose every test
+//!   point the online stage tabled (`rom_errors.parquet`, exact, full CPG basis): point by
+//!   point, the query's outcome, steps, indicator terms and dual error have the same bits.
 //! * Bad input — an unknown parameter, a malformed `--at`, a point outside the training domain,
 //!   a points file without the parameter's column, a stale model (the scene changed) — exits 2
 //!   naming the field and the fix, and leaves the store as it was.
@@ -139,4 +142,55 @@ fn query_answers_as_the_online_stage_measured_and_refuses_bad_input() {
     assert!(String::from_utf8_lossy(&o.stdout).lines().nth(1).is_some_and(|l| l.starts_with("0.6,true,")));
     assert_eq!(listing(&store), before, "a query wrote to the store");
     check_against_the_online_stage(&store, "hertz", "d", tmp.path());
+}
+
+#[test]
+fn a_model_at_the_full_ranks_answers_every_test_point_as_the_online_stage() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let scene = common::variant(
+        tmp.path(),
+        "rope",
+        "rope-full-model.toml",
+        &[("seed = 20231", "seed = 20231\nmodel_ranks = [1000, 1000]")],
+    );
+    let scene = scene.to_str().expect("utf8");
+    let o = crom(&store, &["--quiet", "run", scene]);
+    assert!(o.status.success(), "{}", text(&o));
+    let errors = read_parquet(&store.join("scenes/rope/rom_errors.parquet")).expect("errors");
+    let (set, alg, basis) = (
+        errors.strs("set").expect("set"),
+        errors.strs("algorithm").expect("alg"),
+        errors.strs("dual_basis").expect("b"),
+    );
+    let rows: Vec<usize> =
+        (0..errors.rows()).filter(|&i| set[i] == "test" && alg[i] == "exact" && basis[i] == "full").collect();
+    let mu = errors.f64s("parameter").expect("parameter");
+    let csv =
+        std::iter::once("gamma".to_string()).chain(rows.iter().map(|&i| format!("{}", mu[i]))).collect::<Vec<_>>();
+    let points = tmp.path().join("points.csv");
+    std::fs::write(&points, csv.join("\n")).expect("points");
+    let out = tmp.path().join("answers.parquet");
+    let o = crom(
+        &store,
+        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let q = read_parquet(&out).expect("answers");
+    let ranks = (errors.u64s("r_primal").expect("ru")[rows[0]], errors.u64s("r_dual").expect("rl")[rows[0]]);
+    assert_eq!(
+        (q.u64s("r_primal").expect("ru")[0], q.u64s("r_dual").expect("rl")[0]),
+        ranks,
+        "clipped to the full ranks"
+    );
+    for (j, &i) in rows.iter().enumerate() {
+        assert_eq!(q.strs("outcome").expect("o")[j], errors.strs("outcome").expect("o")[i], "point {j}");
+        for c in ["iterations", "linearizations", "nonzero_dual"] {
+            assert_eq!(q.u64s(c).expect(c)[j], errors.u64s(c).expect(c)[i], "{c} at point {j}");
+        }
+        for c in ["indicator", "penetration", "complementarity", "unpaired_force", "dual_error"] {
+            let (a, b) = (q.f64s(c).expect(c)[j], errors.f64s(c).expect(c)[i]);
+            assert_eq!(a.to_bits(), b.to_bits(), "{c} at point {j}: {a:e} vs {b:e}");
+        }
+    }
 }

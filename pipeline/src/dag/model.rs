@@ -7,7 +7,9 @@
 //! median dual (pressure) error, then the least median primal error, then the fewest modes
 //! `r_primal + r_dual`, then the table's order (a defined error beats an undefined one). A
 //! table without such rows (no dual mode at all: a scene without contact) keeps the model of
-//! the full bases, with nothing measured (`measured_points = 0`). The choice reads results only, never timings, so the artifact is
+//! the full bases, with nothing measured (`measured_points = 0`). A scene may ask for other
+//! ranks (`study.model_ranks`, clipped to the bases): the exact solve at those ranks, with the
+//! row the online stage measured there, or nothing measured where it did not sweep them. The choice reads results only, never timings, so the artifact is
 //! byte-identical run to run. Its measured accuracy is stored beside it (`model.h5`'s
 //! `measured_*` attributes) and its measured speed in `model_speed.parquet` (a timing file).
 //!
@@ -50,6 +52,9 @@ struct ModelKey<'a> {
     u_tol: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
     contact_sampling: Option<&'a ContactSamplingSpec>,
+    /// `study.model_ranks` (absent from the key when not asked for).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    model_ranks: Option<[usize; 2]>,
     scene: &'a str,
     parameter_names: Vec<&'a str>,
     parameter_min: Vec<f64>,
@@ -78,6 +83,7 @@ fn spec(scene: &SceneConfig, train: &Key, basis: &Key, rom: &Key) -> KeySpec {
         gap_tol: params.gap_tol,
         u_tol: params.u_tol,
         contact_sampling: scene.study.contact_sampling.as_ref(),
+        model_ranks: scene.study.model_ranks,
         scene: &scene.scene.name,
         parameter_names,
         parameter_min,
@@ -124,8 +130,6 @@ impl StageDef for ModelStage {
             let rom_dir = store.dir(ArtifactKind::Rom, rom);
             let trade = read_parquet(&rom_dir.join(rom_names::TRADEOFF))?;
             let times = read_parquet(&rom_dir.join(rom_names::TRADEOFF_TIMINGS))?;
-            let row = choose(&trade);
-            let pick = row.map_or_else(Pick::full_bases, |row| Pick::of(&trade, row));
             let phys = physics.get()?;
             let op = phys.operator();
             let train_set = loaded.set(store, train)?;
@@ -133,6 +137,14 @@ impl StageDef for ModelStage {
             let theta = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
             drop(bfile);
             let phi = response_basis(op, &train_set).map_err(fail)?;
+            let row = match scene.study.model_ranks {
+                Some([ru, rl]) => at_ranks(&trade, ru.min(phi.cols) as u64, rl.min(theta.cols) as u64),
+                None => choose(&trade),
+            };
+            let mut pick = row.map_or_else(Pick::full_bases, |row| Pick::of(&trade, row));
+            if let (Some([ru, rl]), None) = (scene.study.model_ranks, row) {
+                (pick.r_primal, pick.r_dual) = (ru, rl);
+            }
             let params = RomParams { algorithm: Algorithm::Exact, ..RomParams::default() };
             // the online stage's steps for this row (`rom.rs`)
             let full =
@@ -228,6 +240,13 @@ impl Pick {
             },
         }
     }
+}
+
+/// The row of `tradeoff.parquet` of the exact solve (full surface) at ranks `(ru, rl)`, if the
+/// online stage measured them.
+fn at_ranks(t: &Table, ru: u64, rl: u64) -> Option<usize> {
+    let (alg, r_primal, r_dual) = (t.strs("algorithm")?, t.u64s("r_primal")?, t.u64s("r_dual")?);
+    (0..t.rows()).find(|&i| alg[i] == Algorithm::Exact.name() && r_primal[i] == ru && r_dual[i] == rl)
 }
 
 /// The row of `tradeoff.parquet` to keep (see the module doc), if the table has rows of the
