@@ -86,8 +86,13 @@ impl Domain {
         let columns: Vec<(String, Vec<f64>)> = match ext {
             "csv" => read_csv(path)?,
             "parquet" => {
-                let t = read_parquet(path)
-                    .map_err(|e| usage(e.to_string(), "give a Parquet file of float columns".into()))?;
+                let t = read_parquet(path).map_err(|e| {
+                    let why = match e {
+                        CromError::Artifact { message, .. } => message,
+                        other => other.to_string(),
+                    };
+                    usage(format!("--points {}: {why}", path.display()), "give a Parquet file of float columns".into())
+                })?;
                 t.columns
                     .into_iter()
                     .map(|(n, c)| match c {
