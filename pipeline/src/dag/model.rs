@@ -35,7 +35,7 @@ use serde_json::json;
 
 use super::graph::{Input, StageDef};
 use super::rom::{response_basis, subsample, SAMPLING_FIT_POINTS};
-use super::{Ctx, Shared};
+use super::{Ctx, Labels, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In};
@@ -43,28 +43,49 @@ use crate::io::model::{Measured, Reconstruction, StoredModel};
 use crate::io::table::{read_parquet, Column, Table};
 
 /// What determines the model artifact besides its inputs (training set, bases, the online
-/// stage's measurements): the solver settings it stores, the sampled surface's settings, and
-/// the scene's name and parameter domain, which the file records.
-#[derive(Debug, Serialize)]
-struct ModelKey<'a> {
+/// stage's measurements): the solver settings it stores, the sampled surface's settings, the
+/// ranks a scene asks for, and the parameter's training domain, which the file records. The
+/// scene's and the parameter's names label the file and are not in the key ([`Labels`]).
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct ModelKey {
     max_iter: usize,
     gap_tol: f64,
     u_tol: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
-    contact_sampling: Option<&'a ContactSamplingSpec>,
+    contact_sampling: Option<ContactSamplingSpec>,
     /// `study.model_ranks` (absent from the key when not asked for).
     #[serde(skip_serializing_if = "Option::is_none")]
     model_ranks: Option<[usize; 2]>,
-    scene: &'a str,
-    parameter_names: Vec<&'a str>,
     parameter_min: Vec<f64>,
     parameter_max: Vec<f64>,
 }
 
-impl StageKey for ModelKey<'_> {
+impl StageKey for ModelKey {
     const KIND: ArtifactKind = ArtifactKind::Model;
     /// Bump when the stored model or the choice of it changes.
     const ALGORITHM_VERSION: u32 = 1;
+}
+
+impl ModelKey {
+    /// The scene's settings of the stored model.
+    fn of(scene: &SceneConfig) -> Self {
+        let params = RomParams::default();
+        let (_, parameter_min, parameter_max) = domain(scene);
+        Self {
+            max_iter: params.max_iter,
+            gap_tol: params.gap_tol,
+            u_tol: params.u_tol,
+            contact_sampling: scene.study.contact_sampling.clone(),
+            model_ranks: scene.study.model_ranks,
+            parameter_min,
+            parameter_max,
+        }
+    }
+
+    /// The exact solve's settings.
+    fn params(&self) -> RomParams {
+        RomParams { algorithm: Algorithm::Exact, max_iter: self.max_iter, gap_tol: self.gap_tol, u_tol: self.u_tol }
+    }
 }
 
 /// The training domain of the scene's parameter: (names, lower bounds, upper bounds).
@@ -75,37 +96,22 @@ pub(crate) fn domain(scene: &SceneConfig) -> (Vec<&str>, Vec<f64>, Vec<f64>) {
     (p.names(), lo, hi)
 }
 
-fn spec(scene: &SceneConfig, train: &Key, basis: &Key, rom: &Key) -> KeySpec {
-    let params = RomParams::default();
-    let (parameter_names, parameter_min, parameter_max) = domain(scene);
-    KeySpec::of(&ModelKey {
-        max_iter: params.max_iter,
-        gap_tol: params.gap_tol,
-        u_tol: params.u_tol,
-        contact_sampling: scene.study.contact_sampling.as_ref(),
-        model_ranks: scene.study.model_ranks,
-        scene: &scene.scene.name,
-        parameter_names,
-        parameter_min,
-        parameter_max,
-    })
-    .input("train", train)
-    .input("basis", basis)
-    .input("rom", rom)
-}
-
 /// The reduced model a user runs.
 #[derive(Debug)]
 pub(crate) struct ModelStage {
     spec: KeySpec,
+    settings: ModelKey,
+    labels: Labels,
     train: Input,
     basis: Input,
     rom: Input,
 }
 
 impl ModelStage {
-    pub(crate) fn plan(scene: &SceneConfig, train: Input, basis: Input, rom: Input) -> Self {
-        Self { spec: spec(scene, &train.key, &basis.key, &rom.key), train, basis, rom }
+    pub(crate) fn plan(scene: &SceneConfig, train: Input, basis: Input, rom: Input, labels: &Labels) -> Self {
+        let settings = ModelKey::of(scene);
+        let spec = KeySpec::of(&settings).input("train", &train.key).input("basis", &basis.key).input("rom", &rom.key);
+        Self { spec, settings, labels: labels.clone(), train, basis, rom }
     }
 }
 
@@ -121,12 +127,12 @@ impl StageDef for ModelStage {
     }
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
         let (train, basis, rom) = (&self.train.key, &self.basis.key, &self.rom.key);
-        let scene = ctx.scene;
+        let (settings, labels) = (&self.settings, &self.labels);
         let store = ctx.store;
         let loaded = std::sync::Arc::clone(&ctx.loaded);
         let physics = &mut shared.physics;
         ctx.single(ArtifactKind::Model, "model", &self.spec, |staging| {
-            let fail = |m: String| CromError::Numerical { stage: "model", scene: scene.scene.name.clone(), message: m };
+            let fail = |m: String| CromError::Numerical { stage: "model", scene: labels.scene.clone(), message: m };
             let rom_dir = store.dir(ArtifactKind::Rom, rom);
             let trade = read_parquet(&rom_dir.join(rom_names::TRADEOFF))?;
             let times = read_parquet(&rom_dir.join(rom_names::TRADEOFF_TIMINGS))?;
@@ -137,39 +143,38 @@ impl StageDef for ModelStage {
             let theta = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
             drop(bfile);
             let phi = response_basis(op, &train_set).map_err(fail)?;
-            let row = match scene.study.model_ranks {
+            let row = match settings.model_ranks {
                 Some([ru, rl]) => at_ranks(&trade, ru.min(phi.cols) as u64, rl.min(theta.cols) as u64),
                 None => choose(&trade),
             };
             let mut pick = row.map_or_else(Pick::full_bases, |row| Pick::of(&trade, row));
-            if let (Some([ru, rl]), None) = (scene.study.model_ranks, row) {
+            if let (Some([ru, rl]), None) = (settings.model_ranks, row) {
                 (pick.r_primal, pick.r_dual) = (ru, rl);
             }
-            let params = RomParams { algorithm: Algorithm::Exact, ..RomParams::default() };
+            let params = settings.params();
             // the online stage's steps for this row (`rom.rs`)
             let full =
                 ReducedModel::new(op, &phi.data, phi.cols, &theta.data, theta.cols).map_err(|e| fail(e.to_string()))?;
             let mut model = full.leading(pick.r_primal.min(phi.cols), pick.r_dual.min(theta.cols));
             if pick.algorithm == rom_names::SAMPLED {
-                let cs = scene.study.contact_sampling.as_ref().ok_or_else(|| {
+                let cs = settings.contact_sampling.as_ref().ok_or_else(|| {
                     fail("the trade-off has sampled rows but the scene has no study.contact_sampling".into())
                 })?;
                 let fit_points = subsample(&train_set.parameters, SAMPLING_FIT_POINTS);
                 model = model.with_sampled_surface(&fit_points, &params, cs.tol).map_err(|e| fail(e.to_string()))?.0;
             }
             let model = model.with_warm_starts(&train_set.parameters, &params);
-            let (parameter_names, parameter_min, parameter_max) = domain(scene);
             let stored = StoredModel {
                 parts: model.parts(),
-                scene: scene.scene.name.clone(),
+                scene: labels.scene.clone(),
                 algorithm: pick.algorithm.clone(),
                 dual_basis: pick.dual_basis.clone(),
                 max_iter: params.max_iter as u64,
                 gap_tol: params.gap_tol,
                 u_tol: params.u_tol,
-                parameter_names: parameter_names.iter().map(|s| s.to_string()).collect(),
-                parameter_min,
-                parameter_max,
+                parameter_names: labels.names.clone(),
+                parameter_min: settings.parameter_min.clone(),
+                parameter_max: settings.parameter_max.clone(),
                 measured: pick.measured.clone(),
             };
             let key = staging.key().0.clone();

@@ -192,7 +192,7 @@ impl Plan {
             nodes.add("comparison", false, stage)
         });
         let rom = nodes.add("rom", true, RomStage::plan(scene, train.clone(), test.clone(), basis.clone(), &labels));
-        nodes.add("model", true, ModelStage::plan(scene, train.clone(), basis.clone(), rom.clone()));
+        nodes.add("model", true, ModelStage::plan(scene, train.clone(), basis.clone(), rom.clone(), &labels));
         let mut online_parts: Vec<(String, Input)> = Vec::new();
         for (i, item) in items.iter().enumerate() {
             let Some((_, offline)) = parts.iter().find(|(n, _)| *n == item.name) else { continue };
