@@ -75,6 +75,30 @@ pub enum Command {
         /// Scene name or path to a scene TOML file.
         scene: String,
     },
+    /// Solve the scene's stored reduced model at new parameter points (without running the
+    /// pipeline; `crom run SCENE` stores the model): one row per point — coefficients'
+    /// and pressure summaries, error indicator, outcome, iterations, time — as CSV on standard
+    /// output, or into --out.
+    Query {
+        /// Scene name or path to a scene TOML file.
+        scene: String,
+        /// One point: `NAME=VALUE[,NAME=VALUE…]`, every parameter component once (e.g. `d_x=1.2345`).
+        #[arg(long, conflicts_with = "points")]
+        at: Option<String>,
+        /// A file of points: CSV with a header line of parameter names, or Parquet.
+        #[arg(long)]
+        points: Option<PathBuf>,
+        /// Write the rows to this `.csv` or `.parquet` file instead of standard output.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Also run the full-order solve at each point and report the true errors.
+        #[arg(long)]
+        check: bool,
+        /// Solve points outside the training domain too (their rows say `extrapolated`);
+        /// without it they are refused.
+        #[arg(long)]
+        allow_extrapolation: bool,
+    },
     /// Bring a scene's study up to date (cached stages are not recomputed) and print where its
     /// report is.
     Report {

@@ -73,6 +73,7 @@ pub mod import_scene;
 pub mod io;
 pub mod physics;
 pub mod progress;
+pub mod query;
 pub mod report;
 pub mod resources;
 pub mod scenes;
@@ -143,6 +144,17 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
             let path = import_scene::run(args, &Progress::new(cli.quiet))?;
             println!("{}\n  run it with: crom run {}", path.display(), path.display());
             Ok(())
+        }
+        Command::Query { scene, at, points, out, check, allow_extrapolation } => {
+            let config = SceneConfig::load(&scenes::resolve(scene, &cli.scenes)?)?;
+            let req = query::Request {
+                at: at.clone(),
+                points: points.clone(),
+                out: out.clone(),
+                check: *check,
+                allow_extrapolation: *allow_extrapolation,
+            };
+            query::run(&cli.store, &config, scene, &req)
         }
         Command::Report { scene } => {
             let out = run_scene(cli, scene, true)?;

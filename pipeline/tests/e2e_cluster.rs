@@ -87,9 +87,9 @@ fn workers_by_hand_share_a_store_and_write_what_one_process_writes() {
     assert!(run.contains("snapshots: 0 solved"), "{run}");
     let after = run_ok(with_blocks(crom_cmd(&store, &["status", scene])), "status after");
     // Every stage of the offline study is stored under the key the plan predicted; only the
-    // online stages (rom, its views, the report) are not.
+    // online stages (rom, the model, the online views, the report) are not.
     assert!(after.contains("381 of 381 snapshot points stored"), "{after}");
-    assert!(after.contains("3 of 28 stages not stored"), "{after}");
+    assert!(after.contains("4 of 29 stages not stored"), "{after}");
     assert_same_results(&reference(tmp.path(), scene), &store, "four workers, one killed, vs one local run");
 }
 

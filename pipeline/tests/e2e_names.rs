@@ -109,9 +109,19 @@ fn ls_in_every_format_agrees_with_the_catalog() {
     let names: Vec<&str> = catalog.columns.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(names, COLUMNS);
     // 1 column family + mesh, train, test, their views and the basis's, basis, compactness,
-    // generalization, specificity, rom, report: counted from the stage directories.
-    let stages =
-        ["mesh", "trainset", "views", "basis", "compactness", "generalization", "specificity", "rom", "report"];
+    // generalization, specificity, rom, model, report: counted from the stage directories.
+    let stages = [
+        "mesh",
+        "trainset",
+        "views",
+        "basis",
+        "compactness",
+        "generalization",
+        "specificity",
+        "rom",
+        "model",
+        "report",
+    ];
     let expected = 1 + stages.iter().map(|s| artifacts(&store, s)).sum::<usize>();
     assert_eq!(catalog.rows(), expected);
 

@@ -67,6 +67,7 @@ fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
             "generalization",
             "specificity",
             "rom",
+            "model",
             "report"
         ]
     );
@@ -74,7 +75,8 @@ fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
     assert_eq!(rows[1], ("snapshot".to_string(), 19, 0));
     assert!(rows.iter().all(|r| r.2 == 0), "nothing cached on a fresh store");
 
-    for stage in ["mesh", "trainset", "views", "basis", "compactness", "generalization", "specificity", "rom", "report"]
+    for stage in
+        ["mesh", "trainset", "views", "basis", "compactness", "generalization", "specificity", "rom", "model", "report"]
     {
         for dir in artifact_dirs(&store, stage) {
             let manifest: serde_json::Value =
@@ -184,9 +186,9 @@ fn ls_lists_every_artifact() {
     let out = crom(&store, &["ls"]);
     assert!(out.status.success());
     // mesh + train + test + 4 views (train, test, basis, online) + basis + compactness + G + S
-    // + rom + report, and one column family
+    // + rom + model + report, and one column family
     let listing = String::from_utf8_lossy(&out.stdout);
-    assert!(listing.contains("13 artifacts"), "{}", text(&out));
+    assert!(listing.contains("14 artifacts"), "{}", text(&out));
     assert!(listing.contains("19 snapshots (201 x 201) in 1 blocks"), "{}", text(&out));
 }
 
@@ -291,11 +293,12 @@ fn offline_run_stops_before_the_online_stage() {
     let off = crom(&store, &["run", "--offline", "rope"]);
     assert!(off.status.success(), "{}", text(&off));
     assert!(artifact_dirs(&store, "rom").is_empty() && artifact_dirs(&store, "report").is_empty());
+    assert!(artifact_dirs(&store, "model").is_empty());
     let full = crom(&store, &["run", "rope"]);
     assert!(full.status.success(), "{}", text(&full));
     let computed: Vec<String> = summary(&full).into_iter().filter(|r| r.1 > 0).map(|r| r.0).collect();
     // The online views (one XDMF per test point's online solution) come with the rom stage.
-    assert_eq!(computed, ["views", "rom", "report"], "{}", text(&full));
+    assert_eq!(computed, ["views", "rom", "model", "report"], "{}", text(&full));
 }
 
 /// A scene that parses and is within every bound but cannot fit in memory (an

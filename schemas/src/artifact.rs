@@ -63,13 +63,16 @@ pub enum ArtifactKind {
     Views,
     /// Online reduced solves: errors and timings (`rom_errors.parquet`, `tradeoff.parquet`).
     Rom,
+    /// The reduced model a user runs (`crom query`): [`model::FILE`], everything the online
+    /// solve reads, and [`model::RECONSTRUCTION`], the bases that turn its answers into fields.
+    Model,
     /// Figures, tables and `index.html` of a scene's study.
     Report,
 }
 
 impl ArtifactKind {
     /// Every kind, in DAG order.
-    pub const ALL: [ArtifactKind; 15] = [
+    pub const ALL: [ArtifactKind; 16] = [
         ArtifactKind::Mesh,
         ArtifactKind::Snapshot,
         ArtifactKind::TrainingSet,
@@ -84,6 +87,7 @@ impl ArtifactKind {
         ArtifactKind::OnlineComparison,
         ArtifactKind::Views,
         ArtifactKind::Rom,
+        ArtifactKind::Model,
         ArtifactKind::Report,
     ];
 
@@ -104,6 +108,7 @@ impl ArtifactKind {
             ArtifactKind::OnlineComparison => "online-comparison",
             ArtifactKind::Views => "views",
             ArtifactKind::Rom => "rom",
+            ArtifactKind::Model => "model",
             ArtifactKind::Report => "report",
         }
     }
@@ -130,6 +135,7 @@ impl ArtifactKind {
             ArtifactKind::OnlineComparison => 1,
             ArtifactKind::Views => 1,
             ArtifactKind::Rom => 4,
+            ArtifactKind::Model => 1,
             ArtifactKind::Report => 1,
         }
     }
@@ -140,7 +146,7 @@ impl ArtifactKind {
 /// the same build (tested), and so are the snapshot blocks. Store metadata — manifests, the
 /// columns' `index.parquet` (which records solve times), `catalog.parquet`, `study.json` —
 /// records when and how long, and is not a result.
-pub const TIMING_FILES: [(&str, &str); 18] = [
+pub const TIMING_FILES: [(&str, &str); 19] = [
     ("trainset", trainset::TIMINGS),
     ("approximation", comparison::TIMINGS),
     ("comparison", comparison::TIMINGS),
@@ -148,6 +154,7 @@ pub const TIMING_FILES: [(&str, &str); 18] = [
     ("online-comparison", comparison::ONLINE_TIMINGS),
     ("rom", rom::TIMINGS),
     ("rom", rom::TRADEOFF_TIMINGS),
+    ("model", model::SPEED),
     ("report", "index.html"),
     ("report", "fig_tradeoff.png"),
     ("report", "fig_tradeoff.svg"),
@@ -370,6 +377,26 @@ pub mod metrics {
 /// (n_dof x n_test, `u0(mu) + Phi û`), `dual` (n_contact x n_test, `Theta λ̂`), their pointwise
 /// errors against the test snapshots `primal_error`, `dual_error` (reduced minus full order),
 /// `parameters`, and `converged` (1 where the query converged).
+/// The reduced model a user runs (`crom query`; layout in `docs/store-format.md`).
+pub mod model {
+    /// Everything the online solve reads: the reduced operators, the contact-surface rows and
+    /// pairing geometry, the dual basis, the warm starts (datasets named as in
+    /// `crom_stages::rom::ModelParts`), the solver settings, the parameter's names and domain,
+    /// and the accuracy the study measured (attributes). Its size does not depend on `n_dof`.
+    pub const FILE: &str = "model.h5";
+    /// Optional part: the primal basis `phi` (`n_dof x r_primal`) and the lift's affine terms
+    /// `lift` (`n_dof x (1 + dim)`), for `u(mu) = lift[:, 0] + sum_k mu_k lift[:, k + 1] + phi u_hat`.
+    pub const RECONSTRUCTION: &str = "reconstruction.h5";
+    /// The speed the study measured for this model (one row: `median_online_seconds`,
+    /// `median_fom_seconds`, `speedup`), apart from the results: a timing.
+    pub const SPEED: &str = "model_speed.parquet";
+    /// Columns of [`SPEED`].
+    pub const SPEED_COLUMNS: [&str; 3] = ["median_online_seconds", "median_fom_seconds", "speedup"];
+    /// The schema version written into [`FILE`] as its `schema_version` attribute (the
+    /// kind's), which `crom query` checks before reading.
+    pub const SCHEMA_VERSION: u32 = 1;
+}
+
 pub mod rom {
     /// Online solution fields at the test points.
     pub const ONLINE: &str = "online.h5";

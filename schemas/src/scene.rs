@@ -295,6 +295,12 @@ pub struct StudySpec {
     /// surface at the given rank pairs (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact_sampling: Option<ContactSamplingSpec>,
+    /// The ranks `[r_primal, r_dual]` of the reduced model the study stores for `crom query`
+    /// (each >= 1, clipped to the bases' sizes; optional): the exact solve with the leading
+    /// modes of the primal POD and the full CPG basis. Default: the most accurate model of the
+    /// exact solve that converged at every test point.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_ranks: Option<[usize; 2]>,
 }
 
 /// `study.contact_sampling`: the quadrature's fit tolerance and the rank pairs it is measured

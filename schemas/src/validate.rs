@@ -170,6 +170,11 @@ impl SceneConfig {
         if let Some(cs) = &self.study.contact_sampling {
             check_contact_sampling(&c, cs, &self.model)?;
         }
+        if let Some(r) = &self.study.model_ranks {
+            for (v, what) in r.iter().zip(["r_primal", "r_dual"]) {
+                c.between(&format!("study.model_ranks ({what})"), *v, 1, MAX_COUNT)?;
+            }
+        }
         match &self.model {
             Model::Rope(r) => check_rope(&c, r),
             Model::Hertz(h) => check_hertz(&c, h),

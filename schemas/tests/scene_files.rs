@@ -331,3 +331,15 @@ fn external_scene_mistakes_are_named() {
     let tol = EXTERNAL.to_string() + "negative_tolerance = -1.0\n";
     assert_names(&load_err(&external_text(&tol)), &["model.external.negative_tolerance"]);
 }
+
+/// `study.model_ranks`: accepted as `[r_primal, r_dual]`, each at least 1; a zero or a wrong
+/// shape is refused naming the field.
+#[test]
+fn model_ranks_are_checked() {
+    let with = |setting: &str| rope_text().replace("[study]\n", &format!("[study]\nmodel_ranks = {setting}\n"));
+    let cfg = SceneConfig::from_toml_str(&with("[4, 7]"), Path::new("ok.toml")).expect("a valid setting");
+    assert_eq!(cfg.study.model_ranks, Some([4, 7]));
+    assert_names(&load_err(&with("[0, 7]")), &["study.model_ranks (r_primal)"]);
+    assert_names(&load_err(&with("[4, 0]")), &["study.model_ranks (r_dual)"]);
+    assert_names(&load_err(&with("[4]")), &["model_ranks"]);
+}

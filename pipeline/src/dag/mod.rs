@@ -9,6 +9,7 @@
 //!   trainset nested-1..K ─► nested
 //!   trainset train, test, mesh (+ nested) ─► approximation <name> … ─► comparison
 //!   trainset train, test, basis ─► rom ─► views online                       (online)
+//!   trainset train, basis, rom ─► model (the reduced model `crom query` runs)  (online)
 //!   approximation <name> ─► online-approximation <name> … ─► online-comparison (online)
 //!   mesh, train, basis, the metrics, rom, comparisons ─► report             (online)
 //! ```
@@ -32,6 +33,7 @@ mod labels;
 mod loaded;
 mod mesh;
 mod metrics;
+pub(crate) mod model;
 pub mod plan;
 pub mod publish;
 mod report;
@@ -41,6 +43,7 @@ pub(crate) mod trainset;
 mod views;
 
 pub(crate) use labels::Labels;
+pub(crate) use rom::relative_dual_error;
 pub(crate) use snapshots::{chunk_columns, shard_range};
 
 use std::collections::BTreeMap;

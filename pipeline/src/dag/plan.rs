@@ -27,6 +27,7 @@ use super::graph::{Input, StageDef};
 use super::import::ImportStage;
 use super::mesh;
 use super::metrics::{GeneralizationStage, NestedStage, SpecificityStage};
+use super::model::ModelStage;
 use super::report::{self, ReportStage};
 use super::rom::RomStage;
 use super::snapshots::{self, Sweep, SweepStage};
@@ -200,6 +201,7 @@ impl Plan {
             nodes.add("comparison", false, stage)
         });
         let rom = nodes.add("rom", true, RomStage::plan(scene, train.clone(), test.clone(), basis.clone(), &labels));
+        nodes.add("model", true, ModelStage::plan(scene, train.clone(), basis.clone(), rom.clone(), &labels));
         let mut online_parts: Vec<(String, Input)> = Vec::new();
         for (i, item) in items.iter().enumerate() {
             let Some((_, offline)) = parts.iter().find(|(n, _)| *n == item.name) else { continue };

@@ -126,10 +126,10 @@ const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];
 /// Training points the sampled surface is fitted to, at most (evenly spaced, ends included):
 /// the fit's rows grow as points x 2 states x r_dual x 4 (values and three derivative
 /// directions), 32 x 2 x 60 x 4 = 15 360 rows of 143 slaves at ironing-fine's (128, 60).
-const SAMPLING_FIT_POINTS: usize = 32;
+pub(crate) const SAMPLING_FIT_POINTS: usize = 32;
 
 /// At most `n` of `points`, evenly spaced with both ends.
-fn subsample(points: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
+pub(crate) fn subsample(points: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
     if points.len() <= n || n < 2 {
         return points.to_vec();
     }
@@ -433,9 +433,12 @@ pub(crate) fn dual_error(
     set: &trainset::TrainingSet,
     j: usize,
 ) -> f64 {
-    let w = op.weights();
-    let lam = set.dual.col(j);
-    let p = model.pressure(&sol.lambda_hat);
+    relative_dual_error(op.weights(), &model.pressure(&sol.lambda_hat), set.dual.col(j))
+}
+
+/// Relative tributary-weighted L2 distance of the pressure `p` to `lam` (weights `w`; `NaN`
+/// where `lam` is zero): the dual error of every online table and of `crom query --check`.
+pub(crate) fn relative_dual_error(w: &[f64], p: &[f64], lam: &[f64]) -> f64 {
     let ln: f64 = lam.iter().zip(w).map(|(l, w)| w * l * l).sum();
     let dn: f64 = p.iter().zip(lam).zip(w).map(|((a, b), w)| w * (a - b) * (a - b)).sum();
     if ln > 0.0 {

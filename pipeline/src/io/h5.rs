@@ -351,6 +351,13 @@ impl H5In {
         a.read_scalar::<u64>().map_err(|e| rerr(&self.path, name, e))
     }
 
+    /// A string attribute of the root group.
+    pub fn attr_str(&self, name: &str) -> Result<String, CromError> {
+        let a = self.file.attr(name).map_err(|e| rerr(&self.path, name, e))?;
+        let v = a.read_scalar::<VarLenUnicode>().map_err(|e| rerr(&self.path, name, e))?;
+        Ok(v.as_str().to_string())
+    }
+
     /// A float attribute of the root group.
     pub fn attr_f64(&self, name: &str) -> Result<f64, CromError> {
         let a = self.file.attr(name).map_err(|e| rerr(&self.path, name, e))?;

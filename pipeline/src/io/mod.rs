@@ -2,6 +2,7 @@
 //! pipeline does I/O; stages never open a file.
 
 pub mod h5;
+pub mod model;
 pub mod npy;
 pub(crate) mod snapshot_set;
 pub mod source;

@@ -105,6 +105,12 @@ impl Store {
         }
     }
 
+    /// Verify a stored artifact without moving anything (for readers such as `crom query`):
+    /// its manifest, or what is wrong with it.
+    pub fn verify(&self, kind: ArtifactKind, key: &Key) -> Result<Manifest, String> {
+        verify(&self.dir(kind, key), kind, key)
+    }
+
     /// Move an artifact directory to `<root>/.quarantine/` (never deleted); its new path.
     pub fn quarantine_dir(&self, kind: ArtifactKind, key: &Key) -> Result<PathBuf, CromError> {
         let dir = self.dir(kind, key);

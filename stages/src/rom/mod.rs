@@ -70,6 +70,8 @@ mod error;
 mod la;
 mod qp;
 mod reduced;
+#[cfg(test)]
+pub(crate) use reduced::test_support;
 mod saddle;
 pub mod sampling;
 
@@ -78,7 +80,7 @@ pub use error::PrimalErrors;
 pub use la::Factor;
 pub use qp::{solve_qp, DenseConstraints, QpConstraints, QpOutcome, QpWork};
 pub use reduced::{
-    Algorithm, Indicator, ReducedModel, ReducedSolution, RomError, RomOutcome, RomParams, RomWork, SolveInfo,
-    SAMPLING_DIRECTIONS, WARM_START_SAMPLES,
+    Algorithm, Indicator, ModelParts, ReducedModel, ReducedSolution, RomError, RomOutcome, RomParams, RomWork,
+    SolveInfo, SAMPLING_DIRECTIONS, WARM_START_SAMPLES,
 };
 pub use saddle::solve_saddle;

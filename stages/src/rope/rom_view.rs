@@ -180,6 +180,24 @@ mod tests {
         }
     }
 
+    /// Type-1: the full model, a truncated one with warm starts each survive a round trip
+    /// through their parts (`ReducedModel::parts`) bit for bit, at the training points and 20
+    /// points between and beyond them, with both algorithms.
+    #[test]
+    fn models_round_trip_bit_for_bit() {
+        let rope = paper_rope();
+        let (gammas, _, _, _) = training(&rope);
+        let (full, _) = full_model(&rope);
+        let samples: Vec<Vec<f64>> = gammas.iter().map(|&g| vec![g]).collect();
+        let (lo, hi) = (gammas[0], gammas[gammas.len() - 1]);
+        let mut at: Vec<Vec<f64>> = (0..20).map(|k| vec![lo + (hi - lo) * (k as f64 - 1.5) / 16.0]).collect();
+        at.extend(samples.iter().cloned());
+        let warm = full.leading(4, 3).with_warm_starts(&samples, &RomParams::default());
+        for model in [&full, &warm] {
+            crate::rom::test_support::assert_round_trip(model, &at);
+        }
+    }
+
     /// Truncating the primal basis makes the indicator grow: at rank 2 of 10 its residual is
     /// above 1e-3 at every training point whose true H1 error is above 1e-3 (a residual of
     /// the size of the error, not a rounding artefact).

@@ -34,7 +34,7 @@ fn compress(outer: usize, inner: usize, value: impl Fn(usize, usize) -> f64) -> 
 
 /// Per contact node the Frobenius norm of its two rows of `Phi_c` (row-major `n_cd x r`), and
 /// the largest over the masters (nodes `ns..`).
-fn node_norms(phi_c: &[f64], r: usize, ns: usize) -> (Vec<f64>, f64) {
+pub(super) fn node_norms(phi_c: &[f64], r: usize, ns: usize) -> (Vec<f64>, f64) {
     let norms: Vec<f64> = phi_c.chunks(2 * r.max(1)).map(|rows| dot(rows, rows).sqrt()).collect();
     let master = norms[ns.min(norms.len())..].iter().fold(0.0f64, |m, v| m.max(*v));
     (norms, master)

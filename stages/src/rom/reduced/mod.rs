@@ -8,6 +8,7 @@
 //! - `build`: the offline build ([`ReducedModel::new`]), leading ranks and storage;
 //! - `dual_basis`: replacing the dual basis per query, and the gaps a growing one checks;
 //! - `surface`: the offline data of the contact surface and its reduced quadrature;
+//! - `parts`: the model as named arrays (what a file stores) and back;
 //! - `warm`: the warm-start library of the exact solve;
 //! - `work`: the buffers of online queries ([`RomWork`]);
 //! - `solve`: the query and the exact solve (QP per linearisation, re-pairing, zone rule);
@@ -23,6 +24,7 @@ mod indicator;
 mod linearise;
 mod oracle;
 mod paper;
+mod parts;
 mod solve;
 mod surface;
 mod switches;
@@ -34,6 +36,7 @@ mod work;
 pub(crate) mod test_support;
 
 pub use indicator::Indicator;
+pub use parts::ModelParts;
 pub use surface::SAMPLING_DIRECTIONS;
 pub use types::{Algorithm, ReducedSolution, RomError, RomOutcome, RomParams, SolveInfo};
 pub use warm::WARM_START_SAMPLES;

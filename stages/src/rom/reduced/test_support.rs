@@ -114,3 +114,24 @@ pub(crate) fn reproduce(fm: &FactoredModel, mus: &[f64], algorithm: Algorithm) -
         })
         .collect()
 }
+
+/// `model` written as parts and read back: the parts are identical, and at every point of
+/// `at`, with both algorithms, the loaded model's answer (coordinates, outcome, steps) and its
+/// indicator have the same bits as the original's — `==` on floats on purpose: the loaded
+/// model must be the same data, not a close one.
+pub(crate) fn assert_round_trip(model: &ReducedModel, at: &[Vec<f64>]) {
+    let parts = model.parts();
+    let loaded = ReducedModel::from_parts(&parts).expect("parts make a model");
+    assert_eq!(loaded.parts(), parts, "parts differ after a round trip");
+    let (mut wa, mut wb) = (RomWork::default(), RomWork::default());
+    for algorithm in [Algorithm::Exact, Algorithm::Paper] {
+        let p = RomParams { algorithm, ..RomParams::default() };
+        for mu in at {
+            let (a, b) = (model.solve(mu, &p, &mut wa), loaded.solve(mu, &p, &mut wb));
+            assert_eq!(a, b, "{algorithm:?} at {mu:?}");
+            let (ia, ib) = (model.indicator(mu, &mut wa), loaded.indicator(mu, &mut wb));
+            assert!(ia.residual.to_bits() == ib.residual.to_bits(), "indicator at {mu:?}: {ia:?} vs {ib:?}");
+            assert!(ia.penetration.to_bits() == ib.penetration.to_bits(), "indicator at {mu:?}");
+        }
+    }
+}

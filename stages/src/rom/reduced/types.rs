@@ -112,4 +112,8 @@ pub enum RomError {
     /// The reduced quadrature's NNLS failed.
     #[error("the reduced quadrature of the contact constraints failed: {0}")]
     Sampling(String),
+    /// Stored parts ([`ModelParts`](super::ModelParts)) that do not make a model: the array
+    /// and what is wrong with it.
+    #[error("the stored reduced model is not consistent: {0}")]
+    Parts(String),
 }

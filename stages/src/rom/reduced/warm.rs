@@ -7,11 +7,11 @@ use super::{Algorithm, ReducedModel, RomOutcome, RomParams, RomWork, SurfaceData
 /// a Type-1 query starts the QP from the set of the nearest sample.
 #[derive(Debug, Clone, Default)]
 pub(super) struct WarmStarts {
-    dim: usize,
-    points: Vec<f64>,
-    sets: Vec<Vec<usize>>,
+    pub(super) dim: usize,
+    pub(super) points: Vec<f64>,
+    pub(super) sets: Vec<Vec<usize>>,
     /// Type-2: the answers `y` at the samples (`r_u` each), where a query's re-pairing starts.
-    ys: Vec<Vec<f64>>,
+    pub(super) ys: Vec<Vec<f64>>,
 }
 
 /// At most this many samples in a warm-start library (evenly spaced among those offered), so

@@ -1,0 +1,196 @@
+//! End-to-end: `crom query` on the stored reduced model of the rope (Type-1) and hertz (Type-2).
+//!
+//! * Before a run there is no model: exit 2, the fix names `crom run`, and nothing is written.
+//! * After `crom run`, the model queried at the scene's test points with `--check` reproduces
+//!   what the online stage measured for the same model (`tradeoff.parquet`, the row of the
+//!   model's algorithm and ranks): the same number of converged points and, bit for bit, the
+//!   median dual error (the same solve, the same pressure, the same full-order solution and the
+//!   same error sum — any changed bit of one point's answer near the median shows) and the
+//!   indicator's Spearman rank correlation with the primal error. The median primal error is
+//!   compared to 1e-9 relative: the online stage evaluates it from precomputed projections, the
+//!   query from the reconstructed field (the same quantity, summed in another order; measured
+//!   differences are ~1e-13 relative).
+//! * A scene that asks for the full ranks (`study.model_ranks`) gets the model whose every test
+//!   point the online stage tabled (`rom_errors.parquet`, exact, full CPG basis): point by
+//!   point, the query's outcome, steps, indicator terms and dual error have the same bits.
+//! * Bad input — an unknown parameter, a malformed `--at`, a point outside the training domain,
+//!   a points file without the parameter's column, a stale model (the scene changed) — exits 2
+//!   naming the field and the fix, and leaves the store as it was.
+
+mod common;
+
+use std::path::Path;
+
+use common::{crom, text};
+use crom_pipeline::io::table::read_parquet;
+use crom_stages::metrics::order::{quantile, spearman};
+
+/// Every file of the store with its size (a query must change none).
+fn listing(store: &Path) -> Vec<(String, u64)> {
+    let mut out = Vec::new();
+    let mut visit = vec![store.to_path_buf()];
+    while let Some(dir) = visit.pop() {
+        for e in std::fs::read_dir(&dir).expect("read_dir").flatten() {
+            if e.file_type().expect("type").is_dir() {
+                visit.push(e.path());
+            } else {
+                out.push((e.path().display().to_string(), e.metadata().expect("meta").len()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+fn check_against_the_online_stage(store: &Path, scene: &str, param: &str, tmp: &Path) {
+    let published = store.join("scenes").join(scene);
+    let errors = read_parquet(&published.join("rom_errors.parquet")).expect("errors");
+    let (set, alg, basis) = (
+        errors.strs("set").expect("set"),
+        errors.strs("algorithm").expect("alg"),
+        errors.strs("dual_basis").expect("b"),
+    );
+    let mu = errors.f64s("parameter").expect("parameter");
+    let tests: Vec<f64> = (0..errors.rows())
+        .filter(|&i| set[i] == "test" && alg[i] == "exact" && basis[i] == "full")
+        .map(|i| mu[i])
+        .collect();
+    assert!(tests.len() >= 5, "{scene}: {} test points", tests.len());
+    // `{}` prints the shortest decimal that parses back to the same f64
+    let csv =
+        std::iter::once(param.to_string()).chain(tests.iter().map(|x| format!("{x}"))).collect::<Vec<_>>().join("\n");
+    let points = tmp.join(format!("{scene}-points.csv"));
+    std::fs::write(&points, csv).expect("points");
+    let out = tmp.join(format!("{scene}-answers.parquet"));
+    let before = listing(store);
+    let o = crom(
+        store,
+        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(listing(store), before, "{scene}: the query wrote to the store");
+    let q = read_parquet(&out).expect("answers");
+    assert_eq!(q.rows(), tests.len());
+    assert_eq!(q.f64s(param).expect("param"), tests.as_slice(), "rows in input order");
+    let (ru, rl) = (q.u64s("r_primal").expect("ru")[0], q.u64s("r_dual").expect("rl")[0]);
+    let trade = read_parquet(&published.join("tradeoff.parquet")).expect("tradeoff");
+    let row = (0..trade.rows())
+        .find(|&i| {
+            trade.strs("algorithm").expect("a")[i] == "exact"
+                && trade.u64s("r_primal").expect("ru")[i] == ru
+                && trade.u64s("r_dual").expect("rl")[i] == rl
+        })
+        .expect("the model's row of the trade-off");
+    let outcome = q.strs("outcome").expect("outcome");
+    let conv: Vec<usize> = (0..q.rows()).filter(|&j| outcome[j] == "converged").collect();
+    assert_eq!(conv.len() as u64, trade.u64s("converged").expect("c")[row], "{scene}: converged points");
+    assert_eq!(conv.len(), q.rows(), "{scene}: the stored model is one that converged everywhere");
+    let pick = |c: &str| -> Vec<f64> { conv.iter().map(|&j| q.f64s(c).expect(c)[j]).collect() };
+    let (perr, derr, ind) = (pick("primal_error"), pick("dual_error"), pick("indicator"));
+    let stored = |c: &str| trade.f64s(c).expect(c)[row];
+    let dual_median = quantile(&derr, 0.5);
+    assert_eq!(dual_median.to_bits(), stored("median_dual_error").to_bits(), "{scene}: {dual_median:e}");
+    let rho = spearman(&ind, &perr);
+    assert_eq!(rho.to_bits(), stored("indicator_spearman").to_bits(), "{scene}: spearman {rho}");
+    let (pm, pm_stored) = (quantile(&perr, 0.5), stored("median_primal_error"));
+    assert!((pm - pm_stored).abs() <= 1e-9 * pm_stored, "{scene}: median primal error {pm:e} vs {pm_stored:e}");
+}
+
+#[test]
+fn query_answers_as_the_online_stage_measured_and_refuses_bad_input() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    // no model yet: a usage error, the fix, nothing created
+    let o = crom(&store, &["query", "rope", "--at", "gamma=0.1"]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("run `crom run rope` first"), "{}", text(&o));
+    assert!(!store.exists(), "a query created the store");
+    for scene in ["rope", "hertz"] {
+        let o = crom(&store, &["--quiet", "run", scene]);
+        assert!(o.status.success(), "{}", text(&o));
+    }
+    check_against_the_online_stage(&store, "rope", "gamma", tmp.path());
+    // one point, printed: a header and one row
+    let o = crom(&store, &["query", "hertz", "--at", "d=0.1"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert_eq!(stdout.lines().count(), 2, "{stdout}");
+    assert!(stdout.starts_with("d,extrapolated,outcome,"), "{stdout}");
+    // bad input
+    let before = listing(&store);
+    let bad_file = tmp.path().join("bad.csv");
+    std::fs::write(&bad_file, "gamma_x\n0.1\n").expect("write");
+    let stale = common::variant(tmp.path(), "rope", "rope-stale.toml", &[("n_train = 10", "n_train = 12")]);
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["query", "rope", "--at", "gam=0.1"], "no parameter `gam`"),
+        (vec!["query", "rope", "--at", "gamma"], "not NAME=VALUE"),
+        (vec!["query", "rope", "--at", "gamma=inf"], "not a finite number"),
+        (vec!["query", "rope", "--at", "gamma=7"], "outside the training domain"),
+        (vec!["query", "rope", "--points", bad_file.to_str().expect("utf8")], "no column `gamma`"),
+        (vec!["query", "rope"], "--at NAME=VALUE"),
+        (vec!["query", stale.to_str().expect("utf8"), "--at", "gamma=0.1"], "crom run"),
+    ];
+    for (args, says) in cases {
+        let o = crom(&store, &args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", text(&o));
+        let t = text(&o);
+        assert!(t.contains(says) && t.contains("fix:"), "{args:?}: {t}");
+    }
+    // extrapolation when asked for: answered, and flagged
+    let o = crom(&store, &["query", "rope", "--at", "gamma=0.6", "--allow-extrapolation"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).lines().nth(1).is_some_and(|l| l.starts_with("0.6,true,")));
+    assert_eq!(listing(&store), before, "a query wrote to the store");
+    check_against_the_online_stage(&store, "hertz", "d", tmp.path());
+}
+
+#[test]
+fn a_model_at_the_full_ranks_answers_every_test_point_as_the_online_stage() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let scene = common::variant(
+        tmp.path(),
+        "rope",
+        "rope-full-model.toml",
+        &[("seed = 20231", "seed = 20231\nmodel_ranks = [1000, 1000]")],
+    );
+    let scene = scene.to_str().expect("utf8");
+    let o = crom(&store, &["--quiet", "run", scene]);
+    assert!(o.status.success(), "{}", text(&o));
+    let errors = read_parquet(&store.join("scenes/rope/rom_errors.parquet")).expect("errors");
+    let (set, alg, basis) = (
+        errors.strs("set").expect("set"),
+        errors.strs("algorithm").expect("alg"),
+        errors.strs("dual_basis").expect("b"),
+    );
+    let rows: Vec<usize> =
+        (0..errors.rows()).filter(|&i| set[i] == "test" && alg[i] == "exact" && basis[i] == "full").collect();
+    let mu = errors.f64s("parameter").expect("parameter");
+    let csv =
+        std::iter::once("gamma".to_string()).chain(rows.iter().map(|&i| format!("{}", mu[i]))).collect::<Vec<_>>();
+    let points = tmp.path().join("points.csv");
+    std::fs::write(&points, csv.join("\n")).expect("points");
+    let out = tmp.path().join("answers.parquet");
+    let o = crom(
+        &store,
+        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let q = read_parquet(&out).expect("answers");
+    let ranks = (errors.u64s("r_primal").expect("ru")[rows[0]], errors.u64s("r_dual").expect("rl")[rows[0]]);
+    assert_eq!(
+        (q.u64s("r_primal").expect("ru")[0], q.u64s("r_dual").expect("rl")[0]),
+        ranks,
+        "clipped to the full ranks"
+    );
+    for (j, &i) in rows.iter().enumerate() {
+        assert_eq!(q.strs("outcome").expect("o")[j], errors.strs("outcome").expect("o")[i], "point {j}");
+        for c in ["iterations", "linearizations", "nonzero_dual"] {
+            assert_eq!(q.u64s(c).expect(c)[j], errors.u64s(c).expect(c)[i], "{c} at point {j}");
+        }
+        for c in ["indicator", "penetration", "complementarity", "unpaired_force", "dual_error"] {
+            let (a, b) = (q.f64s(c).expect(c)[j], errors.f64s(c).expect(c)[i]);
+            assert_eq!(a.to_bits(), b.to_bits(), "{c} at point {j}: {a:e} vs {b:e}");
+        }
+    }
+}

@@ -1,0 +1,385 @@
+//! The reduced model as named flat arrays ([`ModelParts`]): what a file stores, and the model
+//! rebuilt from them ([`ReducedModel::from_parts`]) exactly — the same bits in every array the
+//! online solve reads, so a loaded model answers every query with the same bits as the model it
+//! was written from.
+//!
+//! Layout (`r_u`, `r_l`: primal and dual ranks; `nc`: potential-contact nodes; `t = 1 + dim`:
+//! affine terms of the lift, `dim` the parameter's components; matrices row- or column-major as
+//! stated, flattened):
+//!
+//! | name | type | length | meaning |
+//! |---|---|---|---|
+//! | `khat_l` | f64 | `r_u²` | Cholesky factor `L` of `K̂ = Φᵀ K Φ`, column-major |
+//! | `u_of_y` | f64 | `r_u²` | `L⁻ᵀ`, column-major: `û = L⁻ᵀ y` |
+//! | `weights` | f64 | `nc` | tributary lengths of the contact nodes |
+//! | `theta_start` | u64 | `nc + 1` | `Θ[:, :r_l]` by node (CSR): row starts |
+//! | `theta_column`, `theta_value` | u64, f64 | nnz | its column indices and values |
+//! | `warm_points` | f64 | `n_warm · dim` | warm-start sample parameters, row-major |
+//! | `warm_set_start`, `warm_set` | u64 | `n_warm + 1`, … | their active sets (CSR) |
+//! | `warm_y` | f64 | `n_warm · r_u` or 0 | Type-2: their answers `y` |
+//!
+//! Type-1 (`surface = 0`, fixed pairs): `cphi` (`nc · r_u`, `C Ψ` row-major), `cu0`
+//! (`t · nc`, affine terms of `C u0(μ) + g0(μ)`), `paired` (u64 0/1, `nc`), `chat`
+//! (`r_l · r_u`, `Ĉ` row-major), `ghat` (`t · r_l`, affine terms of `ĝ0(μ)`), `cwc`
+//! (`nc²`, `C W Cᵀ`).
+//!
+//! Type-2 (`surface = 1`, node-to-segment; `nn = ns + nm` contact nodes, slaves first):
+//! `x_ref` (`2 nn`, reference positions), `slave_fixed` (u64 0/1, `ns`), `phi_c` (`2 nn · r_u`,
+//! `Ψ` on the contact dofs, row-major), `a_terms` (`t · 2 nn`, affine terms of the lift on the
+//! contact dofs), `supp` (u64, the slaves the reduced constraints sum over), `quad` (`nc`, a
+//! sampled surface's quadrature weights, absent — length 0 — for the full surface), `w_c`
+//! (`(2 nn)²`, the compliance on the contact dofs, row-major).
+//!
+//! Scalars: `surface`, `r_primal`, `r_dual`, `n_contact`, `lift_terms`, `warm_dim`, and for
+//! Type-2 `n_slaves`, `n_masters`. `Θ` by column and the per-node norms of `phi_c` are derived
+//! on load (by the same code that derives them offline). No array's length depends on the
+//! number of dofs of the full-order model.
+
+use super::build::{csr, node_norms, Compressed};
+use super::{ReducedModel, RomError, SurfaceData, WarmStarts};
+
+/// A reduced model as named arrays (see the module doc for the names and shapes).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ModelParts {
+    /// Integer scalars.
+    pub scalars: Vec<(&'static str, u64)>,
+    /// Float arrays.
+    pub floats: Vec<(&'static str, Vec<f64>)>,
+    /// Integer arrays.
+    pub ints: Vec<(&'static str, Vec<u64>)>,
+}
+
+impl ModelParts {
+    /// Names of the integer scalars, in the order [`ReducedModel::parts`] gives them.
+    pub const SCALARS: [&str; 8] =
+        ["surface", "r_primal", "r_dual", "n_contact", "lift_terms", "warm_dim", "n_slaves", "n_masters"];
+    /// Names of the float arrays.
+    pub const FLOATS: [&str; 16] = [
+        "khat_l",
+        "u_of_y",
+        "weights",
+        "theta_value",
+        "warm_points",
+        "warm_y",
+        "cphi",
+        "cu0",
+        "chat",
+        "ghat",
+        "cwc",
+        "x_ref",
+        "phi_c",
+        "a_terms",
+        "quad",
+        "w_c",
+    ];
+    /// Names of the integer arrays.
+    pub const INTS: [&str; 7] =
+        ["theta_start", "theta_column", "warm_set_start", "warm_set", "paired", "slave_fixed", SUPP];
+
+    /// The scalar `name` (0 when absent).
+    pub fn scalar(&self, name: &str) -> u64 {
+        self.scalars.iter().find(|(n, _)| *n == name).map_or(0, |(_, v)| *v)
+    }
+
+    /// The float array `name` (empty when absent).
+    pub fn float(&self, name: &str) -> &[f64] {
+        self.floats.iter().find(|(n, _)| *n == name).map_or(&[], |(_, v)| v.as_slice())
+    }
+
+    /// The integer array `name` (empty when absent).
+    pub fn int(&self, name: &str) -> &[u64] {
+        self.ints.iter().find(|(n, _)| *n == name).map_or(&[], |(_, v)| v.as_slice())
+    }
+}
+
+/// Type-2's integer array of supported slaves.
+const SUPP: &str = "supp";
+
+fn flat(terms: &[Vec<f64>]) -> Vec<f64> {
+    terms.iter().flatten().copied().collect()
+}
+
+fn flags(b: &[bool]) -> Vec<u64> {
+    b.iter().map(|&x| u64::from(x)).collect()
+}
+
+fn idx(v: &[usize]) -> Vec<u64> {
+    v.iter().map(|&x| x as u64).collect()
+}
+
+/// A refused part: which array, and what is wrong with it.
+fn bad(name: &str, what: String) -> RomError {
+    RomError::Parts(format!("`{name}`: {what}"))
+}
+
+/// `parts.float(name)`, checked to hold `len` values.
+fn floats_of(p: &ModelParts, name: &str, len: usize) -> Result<Vec<f64>, RomError> {
+    let v = p.float(name);
+    if v.len() != len {
+        return Err(bad(name, format!("{} values, expected {len}", v.len())));
+    }
+    Ok(v.to_vec())
+}
+
+/// `parts.int(name)` as indices, checked to hold `len` values (any length when `None`), each
+/// below `bound`.
+fn indices_of(p: &ModelParts, name: &str, len: Option<usize>, bound: usize) -> Result<Vec<usize>, RomError> {
+    let v = p.int(name);
+    if let Some(len) = len.filter(|&l| l != v.len()) {
+        return Err(bad(name, format!("{} values, expected {len}", v.len())));
+    }
+    v.iter()
+        .map(|&x| {
+            usize::try_from(x).ok().filter(|&x| x < bound).ok_or_else(|| bad(name, format!("{x} is not below {bound}")))
+        })
+        .collect()
+}
+
+/// `parts.int(name)` as row starts of a compressed layout of `rows` rows over `entries`
+/// entries: `rows + 1` non-decreasing values from 0 to `entries`.
+fn starts_of(p: &ModelParts, name: &str, rows: usize, entries: usize) -> Result<Vec<usize>, RomError> {
+    let s = indices_of(p, name, Some(rows + 1), entries + 1)?;
+    if s[0] != 0 || s[rows] != entries || s.windows(2).any(|w| w[0] > w[1]) {
+        return Err(bad(name, format!("not the row starts of {rows} rows over {entries} entries")));
+    }
+    Ok(s)
+}
+
+/// `terms · n` values split into `terms` rows of `n`.
+fn split(v: Vec<f64>, terms: usize) -> Vec<Vec<f64>> {
+    let n = v.len() / terms.max(1);
+    if n == 0 {
+        return vec![Vec::new(); terms];
+    }
+    v.chunks(n).map(<[f64]>::to_vec).collect()
+}
+
+impl ReducedModel {
+    /// The model as named arrays (see the module doc).
+    pub fn parts(&self) -> ModelParts {
+        let lib = &self.warm_starts;
+        let mut set_start = vec![0u64];
+        let mut sets = Vec::new();
+        for s in &lib.sets {
+            sets.extend(idx(s));
+            set_start.push(sets.len() as u64);
+        }
+        let mut scalars = vec![
+            ("surface", 0),
+            ("r_primal", self.r_u as u64),
+            ("r_dual", self.r_l as u64),
+            ("n_contact", self.n_contact as u64),
+            ("lift_terms", 0),
+            ("warm_dim", lib.dim as u64),
+        ];
+        let mut floats = vec![
+            ("khat_l", self.khat_l.clone()),
+            ("u_of_y", self.u_of_y.clone()),
+            ("weights", self.weights.clone()),
+            ("theta_value", self.by_node.2.clone()),
+            ("warm_points", lib.points.clone()),
+            ("warm_y", flat(&lib.ys)),
+        ];
+        let mut ints = vec![
+            ("theta_start", idx(&self.by_node.0)),
+            ("theta_column", idx(&self.by_node.1)),
+            ("warm_set_start", set_start),
+            ("warm_set", sets),
+        ];
+        match &self.surf {
+            SurfaceData::Fixed { cphi, cu0, paired, chat, ghat, cwc } => {
+                scalars[4].1 = cu0.len() as u64;
+                floats.extend([
+                    ("cphi", cphi.clone()),
+                    ("cu0", flat(cu0)),
+                    ("chat", chat.clone()),
+                    ("ghat", flat(ghat)),
+                    ("cwc", cwc.clone()),
+                ]);
+                ints.push(("paired", flags(paired)));
+            }
+            SurfaceData::Nts { ns, nm, x_ref, slave_fixed, phi_c, a_terms, supp, quad, w_c, .. } => {
+                scalars[0].1 = 1;
+                scalars[4].1 = a_terms.len() as u64;
+                scalars.extend([("n_slaves", *ns as u64), ("n_masters", *nm as u64)]);
+                floats.extend([
+                    ("x_ref", x_ref.iter().flatten().copied().collect()),
+                    ("phi_c", phi_c.clone()),
+                    ("a_terms", flat(a_terms)),
+                    ("quad", quad.clone().unwrap_or_default()),
+                    ("w_c", w_c.clone()),
+                ]);
+                ints.extend([("slave_fixed", flags(slave_fixed)), (SUPP, idx(supp))]);
+            }
+        }
+        ModelParts { scalars, floats, ints }
+    }
+
+    /// The model stored as `parts` ([`Self::parts`]); every length and index is checked
+    /// (refused: [`RomError::Parts`], naming the array), so damaged parts never make a model
+    /// that panics in a query.
+    pub fn from_parts(p: &ModelParts) -> Result<Self, RomError> {
+        let size = |name: &str| -> Result<usize, RomError> {
+            usize::try_from(p.scalar(name)).ok().filter(|&v| v <= 1 << 32).ok_or_else(|| bad(name, "too large".into()))
+        };
+        let (r_u, r_l, nc, terms, dim) =
+            (size("r_primal")?, size("r_dual")?, size("n_contact")?, size("lift_terms")?, size("warm_dim")?);
+        if terms == 0 {
+            return Err(bad("lift_terms", "0: a lift has at least its constant term".into()));
+        }
+        let khat_l = floats_of(p, "khat_l", r_u * r_u)?;
+        let u_of_y = floats_of(p, "u_of_y", r_u * r_u)?;
+        let weights = floats_of(p, "weights", nc)?;
+        let values = p.float("theta_value").to_vec();
+        let start = starts_of(p, "theta_start", nc, values.len())?;
+        let cols = indices_of(p, "theta_column", Some(values.len()), r_l)?;
+        let mut theta = vec![0.0; nc * r_l];
+        for i in 0..nc {
+            for e in start[i]..start[i + 1] {
+                theta[i + cols[e] * nc] = values[e];
+            }
+        }
+        let (by_node, by_col): (Compressed, Compressed) = csr(&theta, nc, r_l);
+        if by_node != (start, cols, values) {
+            return Err(bad("theta_value", "zeros or repeated columns in the compressed rows".into()));
+        }
+        let points = p.float("warm_points").to_vec();
+        let n_warm = points.len().checked_div(dim).unwrap_or(0);
+        if n_warm * dim != points.len() {
+            return Err(bad("warm_points", format!("{} values are not points of {dim} components", points.len())));
+        }
+        let set = indices_of(p, "warm_set", None, usize::MAX)?;
+        let set_start = starts_of(p, "warm_set_start", n_warm, set.len())?;
+        let sets = (0..n_warm).map(|k| set[set_start[k]..set_start[k + 1]].to_vec()).collect();
+        let ys_flat = p.float("warm_y").to_vec();
+        let ys = match ys_flat.len() {
+            0 => Vec::new(),
+            n if n == n_warm * r_u => ys_flat.chunks(r_u.max(1)).map(<[f64]>::to_vec).collect(),
+            n => return Err(bad("warm_y", format!("{n} values, expected 0 or {}", n_warm * r_u))),
+        };
+        let warm_starts = WarmStarts { dim, points, sets, ys };
+        let surf = match p.scalar("surface") {
+            0 => SurfaceData::Fixed {
+                cphi: floats_of(p, "cphi", nc * r_u)?,
+                cu0: split(floats_of(p, "cu0", terms * nc)?, terms),
+                paired: indices_of(p, "paired", Some(nc), 2)?.into_iter().map(|x| x == 1).collect(),
+                chat: floats_of(p, "chat", r_l * r_u)?,
+                ghat: split(floats_of(p, "ghat", terms * r_l)?, terms),
+                cwc: floats_of(p, "cwc", nc * nc)?,
+            },
+            1 => {
+                let (ns, nm) = (size("n_slaves")?, size("n_masters")?);
+                if ns > nc {
+                    return Err(bad("n_slaves", format!("{ns} slaves, more than the {nc} contact nodes")));
+                }
+                let ncd = 2 * (ns + nm);
+                let x_ref = floats_of(p, "x_ref", ncd)?.chunks(2).map(|c| [c[0], c[1]]).collect();
+                let phi_c = floats_of(p, "phi_c", ncd * r_u)?;
+                let supp = indices_of(p, SUPP, None, ns)?;
+                if supp.windows(2).any(|w| w[0] >= w[1]) {
+                    return Err(bad(SUPP, "not strictly increasing".into()));
+                }
+                let quad = match p.float("quad").len() {
+                    0 => None,
+                    _ => Some(floats_of(p, "quad", nc)?),
+                };
+                let (node_norm, master_norm) = node_norms(&phi_c, r_u, ns);
+                SurfaceData::Nts {
+                    ns,
+                    nm,
+                    x_ref,
+                    slave_fixed: indices_of(p, "slave_fixed", Some(ns), 2)?.into_iter().map(|x| x == 1).collect(),
+                    phi_c,
+                    a_terms: split(floats_of(p, "a_terms", terms * ncd)?, terms),
+                    supp,
+                    quad,
+                    node_norm,
+                    master_norm,
+                    w_c: floats_of(p, "w_c", ncd * ncd)?,
+                }
+            }
+            s => return Err(bad("surface", format!("{s}: expected 0 (fixed pairs) or 1 (node-to-segment)"))),
+        };
+        Ok(Self { r_u, r_l, n_contact: nc, khat_l, u_of_y, weights, by_node, by_col, surf, warm_starts })
+    }
+
+    /// Components of the parameter the model is affine in (its lift's terms minus one).
+    pub fn parameter_dim(&self) -> usize {
+        let terms = match &self.surf {
+            SurfaceData::Fixed { cu0, .. } => cu0.len(),
+            SurfaceData::Nts { a_terms, .. } => a_terms.len(),
+        };
+        terms.saturating_sub(1)
+    }
+
+    /// The tributary lengths of the contact nodes (the weights of the pressure's L2 norm).
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ModelParts;
+    use crate::rom::reduced::test_support::{assert_round_trip, coarse_mus, coarse_tests, full_rom, points};
+    use crate::rom::{ReducedModel, RomError, RomParams};
+    use crate::testing::ironing_coarse;
+
+    /// Type-2 (ironing-coarse, 17 training points, full bases): the full model, its leading
+    /// (8, 6) block with warm starts, and a sampled surface (quadrature weights and a reduced
+    /// support) each survive a round trip through their parts bit for bit at the 48 test
+    /// points, with both algorithms.
+    #[test]
+    fn type2_models_round_trip_bit_for_bit() {
+        let fm = ironing_coarse();
+        let mus = coarse_mus();
+        let (rom, _, _) = full_rom(fm, &mus);
+        let p = RomParams::default();
+        let samples = points(&mus);
+        let at = points(&coarse_tests());
+        let warm = rom.leading(8, 6).with_warm_starts(&samples, &p);
+        let (sampled, _) = rom.with_sampled_surface(&samples, &p, 3e-2).expect("fit");
+        let sampled = sampled.with_warm_starts(&samples, &p);
+        assert!(sampled.sampled_slaves().is_some());
+        for model in [&rom, &warm, &sampled] {
+            assert_round_trip(model, &at);
+        }
+    }
+
+    /// Damaged parts are refused with the array's name, never a panic: a wrong length, an
+    /// index out of range, row starts that do not close, an unknown surface type.
+    #[test]
+    fn inconsistent_parts_are_refused_by_name() {
+        let (rom, _, _) = full_rom(ironing_coarse(), &coarse_mus());
+        let good = rom.with_warm_starts(&points(&coarse_mus()), &RomParams::default()).parts();
+        let edit = |f: &dyn Fn(&mut ModelParts)| {
+            let mut p = good.clone();
+            f(&mut p);
+            match ReducedModel::from_parts(&p) {
+                Err(RomError::Parts(m)) => m,
+                other => panic!("accepted: {other:?}"),
+            }
+        };
+        let float = |name: &'static str, f: fn(&mut Vec<f64>)| {
+            move |p: &mut ModelParts| f(&mut p.floats.iter_mut().find(|(n, _)| *n == name).expect("array").1)
+        };
+        let int = |name: &'static str, f: fn(&mut Vec<u64>)| {
+            move |p: &mut ModelParts| f(&mut p.ints.iter_mut().find(|(n, _)| *n == name).expect("array").1)
+        };
+        assert!(edit(&float("khat_l", |v| v.truncate(1))).contains("`khat_l`"));
+        assert!(edit(&float("w_c", |v| v.push(0.0))).contains("`w_c`"));
+        assert!(edit(&int("theta_column", |v| v[0] = 10_000)).contains("`theta_column`"));
+        assert!(edit(&int("theta_start", |v| v[1] = u64::MAX)).contains("`theta_start`"));
+        assert!(edit(&int("supp", |v| v[0] = 1 << 40)).contains("`supp`"));
+        assert!(edit(&int("warm_set_start", |v| v.truncate(2))).contains("`warm_set_start`"));
+        assert!(edit(&|p: &mut ModelParts| p.scalars[0].1 = 7).contains("`surface`"));
+        assert!(edit(&|p: &mut ModelParts| p.scalars[1].1 = u64::MAX).contains("`r_primal`"));
+        assert_eq!(ModelParts::SCALARS.len(), good.scalars.len());
+        for (n, _) in &good.floats {
+            assert!(ModelParts::FLOATS.contains(n), "{n} not listed");
+        }
+        for (n, _) in &good.ints {
+            assert!(ModelParts::INTS.contains(n), "{n} not listed");
+        }
+    }
+}

@@ -1,0 +1,75 @@
+"""The reduced model artifact (`model/<key>/model.h5`) read by a third party with h5py alone, as
+docs/user-guide.md ("The model artifact") describes it, and `crom query` driven from Python.
+
+Checked independently of crom's reader: the dual basis rebuilt from its compressed rows is the
+stored CPG basis's leading columns, exactly (a copy of the same doubles); `u_of_y` is the inverse
+transpose of the Cholesky factor `khat_l` to 1e-10 (a triangular inverse of a well-conditioned
+factor, rounding only); every array has the length the layout gives; the training domain is the
+scene file's.
+"""
+import subprocess
+import tomllib
+
+import h5py
+import numpy as np
+import pandas as pd
+
+from conftest import REPO, crom_bin, only_artifact
+
+
+def _check_layout(store, scene):
+    model = h5py.File(only_artifact(store, "model", "model.h5"), "r")
+    a = model.attrs
+    assert a["schema_version"] == 1 and a["scene"] == scene and a["kind"] == "model"
+    ru, rl, nc, terms = (int(a[k]) for k in ("r_primal", "r_dual", "n_contact", "lift_terms"))
+    # the dual basis, rebuilt from its compressed rows
+    start, col, val = model["theta_start"][:], model["theta_column"][:], model["theta_value"][:]
+    assert len(start) == nc + 1 and start[0] == 0 and start[-1] == len(val) == len(col)
+    theta = np.zeros((nc, rl))
+    for i in range(nc):
+        theta[i, col[start[i]:start[i + 1]]] = val[start[i]:start[i + 1]]
+    basis = h5py.File(only_artifact(store, "basis", "basis.h5"), "r")
+    cpg = basis["dual_cpg/modes"][:, :rl]
+    assert np.array_equal(theta, cpg), "Theta is the stored CPG basis's leading columns"
+    # the reduced stiffness' factor and its inverse transpose (column-major r x r)
+    lower = model["khat_l"][:].reshape(ru, ru).T
+    u_of_y = model["u_of_y"][:].reshape(ru, ru).T
+    assert np.all(np.diag(lower) > 0)
+    assert np.allclose(u_of_y @ np.tril(lower).T, np.eye(ru), atol=1e-10)
+    assert len(model["weights"]) == nc
+    # the training domain is the scene file's
+    spec = tomllib.loads((REPO / "data" / "scenes" / f"{scene}.toml").read_text())["parameter"]
+    assert a["parameter_names"] == spec["name"]
+    assert model["parameter_min"][:].tolist() == [spec["min"]] and model["parameter_max"][:].tolist() == [spec["max"]]
+    if int(a["surface"]) == 0:
+        assert len(model["cphi"]) == nc * ru and len(model["chat"]) == rl * ru and len(model["cwc"]) == nc * nc
+        assert len(model["cu0"]) == terms * nc and len(model["ghat"]) == terms * rl
+    else:
+        nn = int(a["n_slaves"]) + int(a["n_masters"])
+        assert len(model["x_ref"]) == 2 * nn and len(model["phi_c"]) == 2 * nn * ru
+        assert len(model["w_c"]) == (2 * nn) ** 2 and len(model["a_terms"]) == terms * 2 * nn
+    # the optional reconstruction part: the primal basis on every dof, the lift's terms
+    rec = h5py.File(only_artifact(store, "model", "reconstruction.h5"), "r")
+    assert rec["phi"].shape[1] == ru and rec["lift"].shape == (rec["phi"].shape[0], terms)
+    speed = pd.read_parquet(only_artifact(store, "model", "model_speed.parquet"))
+    assert list(speed.columns) == ["median_online_seconds", "median_fom_seconds", "speedup"] and len(speed) == 1
+
+
+def test_model_layout_reads_with_h5py(rope_store, hertz_store):
+    _check_layout(rope_store, "rope")
+    _check_layout(hertz_store, "hertz")
+
+
+def test_query_writes_one_row_per_point(rope_store, tmp_path):
+    points = tmp_path / "points.csv"
+    points.write_text("gamma\n-0.3\n0.0\n0.25\n")
+    out = tmp_path / "answers.parquet"
+    subprocess.run([str(crom_bin()), "--store", str(rope_store), "query", "rope", "--points", str(points), "--out",
+                    str(out)], cwd=REPO, check=True, capture_output=True)
+    t = pd.read_parquet(out)
+    assert t["gamma"].tolist() == [-0.3, 0.0, 0.25]
+    assert (t["outcome"] == "converged").all() and (t["extrapolated"] == "false").all()
+    assert (t["max_pressure"] >= 0).all() and (t["indicator"] >= 0).all()
+    bad = subprocess.run([str(crom_bin()), "--store", str(rope_store), "query", "rope", "--at", "gamma=9"], cwd=REPO,
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and "outside the training domain" in bad.stderr
