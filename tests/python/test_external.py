@@ -330,3 +330,17 @@ test = {list(range(n_train, n))}""")
         # The dual rows exactly as the native study's (same inputs, deterministic algorithms).
         pd.testing.assert_frame_equal(a[a.field == "dual"].reset_index(drop=True),
                                       b[b.field == "dual"].reset_index(drop=True), check_exact=True)
+
+
+def test_an_external_scene_has_no_reduced_model_to_query(files):
+    """An external scene's study is its bases and metrics: `crom query` says so (exit 2), rather
+    than asking for a `crom run` that would not make a model."""
+    tmp_path, primal, dual, mu, n_train = files
+    write(tmp_path, primal, dual, mu)
+    path = scene(tmp_path, "ext-query", body(n_train, dual.shape[1]))
+    store = tmp_path / "store"
+    assert crom(store, "--quiet", "run", str(path)).returncode == 0
+    done = crom(store, "query", str(path), "--at", f"gamma={mu[0]!r}")
+    assert done.returncode == 2, (done.returncode, done.stderr)
+    assert "is external" in done.stderr and "fix:" in done.stderr, done.stderr
+    assert "crom run" not in done.stderr.split("fix:")[1], done.stderr

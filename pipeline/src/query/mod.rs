@@ -132,6 +132,17 @@ struct Check {
 
 /// `crom query`: answer the request and print (or write) the table.
 pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> Result<(), CromError> {
+    if scene.model.external().is_some() {
+        return Err(CromError::Usage {
+            message: format!(
+                "scene `{}` is external: its snapshots come from another solver, and a reduced model \
+                 needs the full-order operators, which an external scene does not have",
+                scene.scene.name
+            ),
+            fix: "query a native scene (rope, hertz, ironing); an external scene's study is its bases and metrics"
+                .into(),
+        });
+    }
     let out_kind = match &req.out {
         None => None,
         Some(p) => match p.extension().and_then(|e| e.to_str()) {
