@@ -89,6 +89,10 @@ fn a_quarantined_artifact_loses_its_name_until_the_next_run() {
     assert_eq!(verify.status.code(), Some(1), "{}", text(&verify));
     assert!(!store.join("scenes/rope/basis.h5").exists(), "no name may lead into the quarantine");
     assert!(store.join("scenes/rope/train.h5").exists(), "the other names stay");
+    // The stored reduced model is published under its names (an online run of a native scene).
+    for name in ["model.h5", "reconstruction.h5", "model_speed.parquet"] {
+        assert!(resolved(&store, name).starts_with("model"), "{name}");
+    }
     let study = std::fs::read_to_string(store.join("scenes/rope/study.json")).expect("study.json");
     assert!(study.contains("\"withdrawn\"") && study.contains("quarantined"), "{study}");
     let catalog = read_parquet(&store.join("catalog.parquet")).expect("catalog");

@@ -159,6 +159,8 @@ pub struct RunOutput {
     pub comparison: Option<Key>,
     /// Their online solves side by side (online runs of such scenes).
     pub online_comparison: Option<Key>,
+    /// The stored reduced model (`crom query`'s), online runs of native scenes.
+    pub model: Option<Key>,
     /// Report artifact.
     pub report: Option<Key>,
 }
@@ -416,6 +418,7 @@ fn execute_in<'scope, 'env, 'a: 'env>(
         rom: keys.get("rom").cloned(),
         comparison: keys.get("comparison").cloned(),
         online_comparison: keys.get("online-comparison").cloned(),
+        model: keys.get("model").cloned(),
         report: keys.get("report").cloned(),
     })
 }

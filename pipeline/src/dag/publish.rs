@@ -50,6 +50,11 @@ pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
         put("tradeoff_timings.parquet".into(), K::Rom, k, Some(a::rom::TRADEOFF_TIMINGS));
         put("online.h5".into(), K::Rom, k, Some(a::rom::ONLINE));
     }
+    if let Some(k) = &out.model {
+        put("model.h5".into(), K::Model, k, Some(a::model::FILE));
+        put("reconstruction.h5".into(), K::Model, k, Some(a::model::RECONSTRUCTION));
+        put("model_speed.parquet".into(), K::Model, k, Some(a::model::SPEED));
+    }
     let cmp = |file: &str| format!("{COMPARISON_DIR}/{file}");
     if let Some(k) = &out.comparison {
         use a::comparison as c;
