@@ -94,6 +94,10 @@ pub enum Command {
         /// Also run the full-order solve at each point and report the true errors.
         #[arg(long)]
         check: bool,
+        /// Also write the reconstructed displacement and pressure fields of every point to this
+        /// `.h5` file, with an XDMF file beside it for ParaView.
+        #[arg(long)]
+        fields: Option<PathBuf>,
         /// Solve points outside the training domain too (their rows say `extrapolated`);
         /// without it they are refused.
         #[arg(long)]

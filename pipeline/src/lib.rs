@@ -145,7 +145,7 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
             println!("{}\n  run it with: crom run {}", path.display(), path.display());
             Ok(())
         }
-        Command::Query { scene, at, points, out, check, allow_extrapolation } => {
+        Command::Query { scene, at, points, out, check, fields, allow_extrapolation } => {
             let config = SceneConfig::load(&scenes::resolve(scene, &cli.scenes)?)?;
             let req = query::Request {
                 at: at.clone(),
@@ -153,6 +153,7 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
                 out: out.clone(),
                 check: *check,
                 allow_extrapolation: *allow_extrapolation,
+                fields: fields.clone(),
             };
             query::run(&cli.store, &config, scene, &req)
         }

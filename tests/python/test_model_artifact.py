@@ -73,3 +73,42 @@ def test_query_writes_one_row_per_point(rope_store, tmp_path):
     bad = subprocess.run([str(crom_bin()), "--store", str(rope_store), "query", "rope", "--at", "gamma=9"], cwd=REPO,
                          capture_output=True, text=True)
     assert bad.returncode == 2 and "outside the training domain" in bad.stderr
+
+
+def test_query_fields_hold_the_dirichlet_data_and_the_queried_pressure(hertz_store, tmp_path):
+    """`crom query --fields`: the reconstructed displacement imposes the scene's Dirichlet data
+    exactly where it is imposed (the top face moves by -d: the lift carries it and the POD modes
+    vanish there; 1e-12 relative for the rounding of one affine combination), the pressure field's
+    largest value is the row's `max_pressure` (the same doubles), and meshio's XDMF reader (as
+    ParaView's) opens the series."""
+    import meshio
+
+    fields = tmp_path / "out" / "hertz.h5"
+    d = [0.05, 0.1234]
+    rows = subprocess.run([str(crom_bin()), "--store", str(hertz_store), "query", "hertz", "--points",
+                           str(_points(tmp_path, "d", d)), "--fields", str(fields)],
+                          cwd=REPO, check=True, capture_output=True, text=True).stdout
+    table = pd.read_csv(pd.io.common.StringIO(rows))
+    with h5py.File(fields, "r") as f:
+        nodes = f["nodes"][:]
+        top = np.isclose(nodes[:, 1], nodes[:, 1].max(), rtol=0, atol=1e-12)
+        assert top.sum() > 2
+        np.testing.assert_array_equal(f["parameters"][:, 0], d)
+        for j, dj in enumerate(d):
+            u = f[f"steps/{j:05d}/displacement"][:]
+            p = f[f"steps/{j:05d}/pressure"][:]
+            assert u.shape == (len(nodes), 3) and p.shape == (len(nodes),)
+            np.testing.assert_allclose(u[top, 1], -dj, rtol=1e-12, atol=0)
+            assert p.max() == table["max_pressure"][j] and (p >= 0).all()
+    with meshio.xdmf.TimeSeriesReader(str(fields.with_suffix(".xdmf"))) as reader:
+        points, _ = reader.read_points_cells()
+        np.testing.assert_array_equal(points[:, :2], nodes)
+        _, point_data, _ = reader.read_data(1)
+        with h5py.File(fields, "r") as f:
+            np.testing.assert_array_equal(point_data["pressure"], f["steps/00001/pressure"][:])
+
+
+def _points(tmp_path, name, values):
+    path = tmp_path / "points.csv"
+    path.write_text(name + "\n" + "\n".join(repr(v) for v in values) + "\n")
+    return path

@@ -18,6 +18,7 @@
 //! `fom_seconds`. A query that does not converge gives its outcome and its (unconverged) values;
 //! a full-order solve that fails gives null errors.
 
+mod fields;
 pub mod points;
 
 use std::path::{Path, PathBuf};
@@ -50,6 +51,8 @@ pub struct Request {
     pub check: bool,
     /// `--allow-extrapolation`.
     pub allow_extrapolation: bool,
+    /// `--fields`: the reconstructed fields, HDF5 + XDMF.
+    pub fields: Option<PathBuf>,
 }
 
 /// A loaded model and where it came from.
@@ -143,6 +146,12 @@ pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> 
                 .into(),
         });
     }
+    if let Some(p) = req.fields.as_ref().filter(|p| p.extension().and_then(|e| e.to_str()) != Some("h5")) {
+        return Err(CromError::Usage {
+            message: format!("--fields {}: not an .h5 file", p.display()),
+            fix: "name the fields file FILE.h5 (FILE.xdmf is written beside it)".into(),
+        });
+    }
     let out_kind = match &req.out {
         None => None,
         Some(p) => match p.extension().and_then(|e| e.to_str()) {
@@ -202,6 +211,9 @@ pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> 
         .collect();
     if req.check {
         check(scene, &loaded, &mut rows)?;
+    }
+    if let Some(path) = &req.fields {
+        fields::write(path, root, scene, &loaded, &rows)?;
     }
     let table = table(&loaded, &rows, req.check);
     match (&req.out, out_kind.as_deref()) {
