@@ -202,20 +202,9 @@ impl ImportStage {
         let per_block = self.per_block;
         let mut progress = ctx.progress.stage("import", 2 * todo.len());
         // Pass 1: the pressures (small: n_contact rows), checked before anything is stored.
-        let mut negative: Vec<(usize, f64)> = Vec::new();
         for set in 0..2 {
             let mine: Vec<Todo> = todo.iter().copied().filter(|t| t.set == set).collect();
-            self.stream(set, &mine, per_block, false, |t, _primal, dual| {
-                progress.inc("checked");
-                if let Some(v) = self.most_negative(dual) {
-                    negative.push((self.sets[set].0.columns[t.at], v));
-                }
-                Ok(())
-            })?;
-            if !negative.is_empty() && !self.clip {
-                return Err(self.negative_error(set, &negative));
-            }
-            negative.clear();
+            self.check_pressures(set, &mine, (per_block, false), &mut || progress.inc("checked"))?;
         }
         // Pass 2: every field, one block of the family per read block; a non-finite primal value
         // takes back the blocks this pass committed, so a refusal leaves nothing stored.
@@ -345,17 +334,7 @@ impl ImportStage {
         let mut bar = progress.stage("check", n);
         for set in 0..2 {
             let all: Vec<Todo> = (0..self.sets[set].0.columns.len()).map(|at| Todo { set, at }).collect();
-            let mut negative: Vec<(usize, f64)> = Vec::new();
-            self.stream(set, &all, per_block, true, |t, _primal, dual| {
-                bar.inc("checked");
-                if let Some(v) = self.most_negative(dual) {
-                    negative.push((self.sets[set].0.columns[t.at], v));
-                }
-                Ok(())
-            })?;
-            if !negative.is_empty() && !self.clip {
-                return Err(self.negative_error(set, &negative));
-            }
+            self.check_pressures(set, &all, (per_block, true), &mut || bar.inc("checked"))?;
         }
         bar.finish("every value checked");
         Ok(())
@@ -371,6 +350,30 @@ impl ImportStage {
     /// Read the columns `todo` of set `set` (sorted by source column) in blocks of at most
     /// `per_block` source columns, checking that every value is finite, and hand each to `f`
     /// as (primal, dual); without `with_primal` the primal is not read (an empty slice).
+    /// Read the columns `todo` of set `set` (`(per_block, with_primal)`: as [`Self::stream`]
+    /// reads them; a non-finite value is an error there) and refuse pressures below the
+    /// tolerance unless the scene clips them; `tick` once per column.
+    fn check_pressures(
+        &self,
+        set: usize,
+        todo: &[Todo],
+        (per_block, with_primal): (usize, bool),
+        tick: &mut dyn FnMut(),
+    ) -> Result<(), CromError> {
+        let mut negative: Vec<(usize, f64)> = Vec::new();
+        self.stream(set, todo, per_block, with_primal, |t, _primal, dual| {
+            tick();
+            if let Some(v) = self.most_negative(dual) {
+                negative.push((self.sets[set].0.columns[t.at], v));
+            }
+            Ok(())
+        })?;
+        if !negative.is_empty() && !self.clip {
+            return Err(self.negative_error(set, &negative));
+        }
+        Ok(())
+    }
+
     fn stream(
         &self,
         set: usize,
