@@ -65,6 +65,24 @@ const ANDERSON_DEPTH: usize = 3;
 
 /// Force scale of the equilibrium residual: the contact forces, or the lifted load without
 /// contact (see the module docs).
+
+/// `u_c = a + V lambda` over the paired rows, and the contact force `f_old = B^T lambda` of the
+/// pairing the multipliers were solved for.
+fn update_displacement(ws: &mut Work, np: usize, ncd: usize) {
+    ws.uc.copy_from_slice(&ws.a);
+    ws.f_old.fill(0.0);
+    for r in 0..np {
+        let l = ws.lam[r];
+        if l != 0.0 {
+            let col = &ws.v[r * ncd..(r + 1) * ncd];
+            for (u, vi) in ws.uc.iter_mut().zip(col) {
+                *u += l * vi;
+            }
+            ws.rows[r].scatter(l, &mut ws.f_old);
+        }
+    }
+}
+
 fn residual_scale(contact_inf: f64, lift_inf: f64) -> f64 {
     if contact_inf > 0.0 {
         contact_inf
@@ -305,40 +323,7 @@ impl FactoredModel {
         let mut c_scale = 1.0;
         let mut last_eq = f64::INFINITY;
         loop {
-            // --- condensed LCP for the current pairing ---
-            ws.pidx.clear();
-            ws.pidx.extend((0..ns).filter(|&s| ws.pairs[s].kind.is_paired()));
-            let np = ws.pidx.len();
-            for (r, &s) in ws.pidx.iter().enumerate() {
-                let row = Row::new(s, ns, &ws.pairs[s]);
-                ws.rows[r] = row;
-                ws.q[r] = row.apply(&ws.xa);
-                // V[:, r] = W B_r^T
-                let col = &mut ws.v[r * ncd..(r + 1) * ncd];
-                col.fill(0.0);
-                for j in 0..row.len {
-                    let wrow = &self.w[row.dof[j] * ncd..(row.dof[j] + 1) * ncd];
-                    let cj = row.coef[j];
-                    for (vi, wi) in col.iter_mut().zip(wrow) {
-                        *vi += cj * wi;
-                    }
-                }
-            }
-            let mut diag_sum = 0.0;
-            for r in 0..np {
-                for t in 0..np {
-                    ws.d[r * np + t] = ws.rows[r].apply(&ws.v[t * ncd..(t + 1) * ncd]);
-                }
-                diag_sum += ws.d[r * np + r];
-            }
-            // symmetrise rounding
-            for r in 0..np {
-                for t in 0..r {
-                    let s = 0.5 * (ws.d[r * np + t] + ws.d[t * np + r]);
-                    ws.d[r * np + t] = s;
-                    ws.d[t * np + r] = s;
-                }
-            }
+            let (np, diag_sum) = self.condense(ws, ns, ncd);
             if np > 0 && diag_sum > 0.0 {
                 c_scale = np as f64 / diag_sum;
             }
@@ -369,19 +354,7 @@ impl FactoredModel {
             }
             let active_same = !first && ws.lam_s.iter().zip(&ws.lam_s_new).all(|(a, b)| (*a > 0.0) == (*b > 0.0));
             std::mem::swap(&mut ws.lam_s, &mut ws.lam_s_new);
-            // --- update u_c = a + V lambda and positions ---
-            ws.uc.copy_from_slice(&ws.a);
-            ws.f_old.fill(0.0);
-            for r in 0..np {
-                let l = ws.lam[r];
-                if l != 0.0 {
-                    let col = &ws.v[r * ncd..(r + 1) * ncd];
-                    for (u, vi) in ws.uc.iter_mut().zip(col) {
-                        *u += l * vi;
-                    }
-                    ws.rows[r].scatter(l, &mut ws.f_old);
-                }
-            }
+            update_displacement(ws, np, ncd);
             // --- re-pair in the deformed configuration ---
             self.pair_slaves(
                 mu,
@@ -394,33 +367,7 @@ impl FactoredModel {
                 &mut ws.pairs_new,
             )?;
             repairings += 1;
-            // --- residuals for the new pairing ---
-            ws.f_new.fill(0.0);
-            let mut comp = 0.0f64;
-            let mut neg_gap = 0.0f64;
-            for s in 0..ns {
-                let pn = &ws.pairs_new[s];
-                if pn.kind.is_paired() {
-                    let l = ws.lam_s[s];
-                    if l != 0.0 {
-                        Row::new(s, ns, pn).scatter(l, &mut ws.f_new);
-                    }
-                    comp = comp.max(l.min(c_scale * pn.gap).abs());
-                    neg_gap = neg_gap.max(-c_scale * pn.gap);
-                }
-            }
-            let mut eq = 0.0f64;
-            let mut fnew_inf = 0.0f64;
-            for (cd, free) in self.cfree.iter().enumerate() {
-                if free.is_some() {
-                    eq = eq.max((ws.f_new[cd] - ws.f_old[cd]).abs());
-                    fnew_inf = fnew_inf.max(ws.f_new[cd].abs());
-                }
-            }
-            // (a slave that lost its pairing but carries force shows up in f_new - f_old)
-            let f_ref = residual_scale(fnew_inf, lift_inf);
-            let eq = eq / f_ref;
-            let comp = comp / lam_new_inf.max(neg_gap).max(f64::MIN_POSITIVE);
+            let (eq, comp) = self.residuals(ws, ns, c_scale, (lam_new_inf, lift_inf));
             let same_pairing = ws.pairs.iter().zip(&ws.pairs_new).all(|(a, b)| a.kind == b.kind);
             if same_pairing && active_same && eq <= tol && comp <= tol {
                 break;
@@ -433,28 +380,104 @@ impl FactoredModel {
                     residual: eq.max(comp),
                 });
             }
-            // --- next pairing: plain (at u_c) or Anderson-mixed once the discrete state settled ---
             let smooth = same_pairing && active_same && eq < last_eq;
             last_eq = eq;
-            let mut accelerated = false;
-            if smooth && ws.anderson.step(&ws.x_pair, &ws.uc, &mut ws.x_next) {
-                self.pair_slaves(mu, &ws.x_next, &mut ws.x, &mut ws.xm, &mut ws.index, ties, None, &mut ws.pairs_acc)?;
-                if ws.pairs_acc.iter().zip(&ws.pairs_new).all(|(a, b)| a.kind == b.kind) {
-                    std::mem::swap(&mut ws.pairs, &mut ws.pairs_acc);
-                    std::mem::swap(&mut ws.x_pair, &mut ws.x_next);
-                    accelerated = true;
-                }
-            }
-            if !accelerated {
-                if !smooth {
-                    ws.anderson.reset();
-                }
-                std::mem::swap(&mut ws.pairs, &mut ws.pairs_new);
-                ws.x_pair.copy_from_slice(&ws.uc);
-            }
+            self.next_pairing(mu, ws, ties, smooth)?;
             first = false;
         }
         Ok((iterations, c_scale))
+    }
+
+    /// The next pairing: the one at `u_c` (`pairs_new`), or, once the discrete state has
+    /// settled (`smooth`: same pairing and active set, the equilibrium residual falling), the
+    /// Anderson-mixed configuration's when it pairs every slave the same way.
+    fn next_pairing(&self, mu: &[f64], ws: &mut Work, ties: &mut VertexTies, smooth: bool) -> Result<(), ContactError> {
+        if smooth && ws.anderson.step(&ws.x_pair, &ws.uc, &mut ws.x_next) {
+            self.pair_slaves(mu, &ws.x_next, &mut ws.x, &mut ws.xm, &mut ws.index, ties, None, &mut ws.pairs_acc)?;
+            if ws.pairs_acc.iter().zip(&ws.pairs_new).all(|(a, b)| a.kind == b.kind) {
+                std::mem::swap(&mut ws.pairs, &mut ws.pairs_acc);
+                std::mem::swap(&mut ws.x_pair, &mut ws.x_next);
+                return Ok(());
+            }
+        }
+        if !smooth {
+            ws.anderson.reset();
+        }
+        std::mem::swap(&mut ws.pairs, &mut ws.pairs_new);
+        ws.x_pair.copy_from_slice(&ws.uc);
+        Ok(())
+    }
+
+    /// The condensed LCP of the current pairing: the paired slaves (`pidx`), their rows `B_r`,
+    /// `q_r = B_r x_a`, `V[:, r] = W B_r^T` and `D = B V` (rounding symmetrised). Returns the
+    /// number of paired slaves and the trace of `D`.
+    fn condense(&self, ws: &mut Work, ns: usize, ncd: usize) -> (usize, f64) {
+        ws.pidx.clear();
+        ws.pidx.extend((0..ns).filter(|&s| ws.pairs[s].kind.is_paired()));
+        let np = ws.pidx.len();
+        for (r, &s) in ws.pidx.iter().enumerate() {
+            let row = Row::new(s, ns, &ws.pairs[s]);
+            ws.rows[r] = row;
+            ws.q[r] = row.apply(&ws.xa);
+            // V[:, r] = W B_r^T
+            let col = &mut ws.v[r * ncd..(r + 1) * ncd];
+            col.fill(0.0);
+            for j in 0..row.len {
+                let wrow = &self.w[row.dof[j] * ncd..(row.dof[j] + 1) * ncd];
+                let cj = row.coef[j];
+                for (vi, wi) in col.iter_mut().zip(wrow) {
+                    *vi += cj * wi;
+                }
+            }
+        }
+        let mut diag_sum = 0.0;
+        for r in 0..np {
+            for t in 0..np {
+                ws.d[r * np + t] = ws.rows[r].apply(&ws.v[t * ncd..(t + 1) * ncd]);
+            }
+            diag_sum += ws.d[r * np + r];
+        }
+        // symmetrise rounding
+        for r in 0..np {
+            for t in 0..r {
+                let s = 0.5 * (ws.d[r * np + t] + ws.d[t * np + r]);
+                ws.d[r * np + t] = s;
+                ws.d[t * np + r] = s;
+            }
+        }
+        (np, diag_sum)
+    }
+
+    /// The residuals of the multipliers `lam_s` under the new pairing `pairs_new`: the
+    /// equilibrium change `|f_new - f_old|_inf` on the free contact dofs over the force scale,
+    /// and the complementarity `|min(lambda, c g)|_inf` over the larger of the largest new
+    /// multiplier and the deepest scaled penetration (`scales`: that multiplier and the lift's
+    /// force norm). A slave that lost its pairing but carries force shows up in `f_new - f_old`.
+    fn residuals(&self, ws: &mut Work, ns: usize, c_scale: f64, (lam_new_inf, lift_inf): (f64, f64)) -> (f64, f64) {
+        ws.f_new.fill(0.0);
+        let mut comp = 0.0f64;
+        let mut neg_gap = 0.0f64;
+        for s in 0..ns {
+            let pn = &ws.pairs_new[s];
+            if pn.kind.is_paired() {
+                let l = ws.lam_s[s];
+                if l != 0.0 {
+                    Row::new(s, ns, pn).scatter(l, &mut ws.f_new);
+                }
+                comp = comp.max(l.min(c_scale * pn.gap).abs());
+                neg_gap = neg_gap.max(-c_scale * pn.gap);
+            }
+        }
+        let mut eq = 0.0f64;
+        let mut fnew_inf = 0.0f64;
+        for (cd, free) in self.cfree.iter().enumerate() {
+            if free.is_some() {
+                eq = eq.max((ws.f_new[cd] - ws.f_old[cd]).abs());
+                fnew_inf = fnew_inf.max(ws.f_new[cd].abs());
+            }
+        }
+        let f_ref = residual_scale(fnew_inf, lift_inf);
+        (eq / f_ref, comp / lam_new_inf.max(neg_gap).max(f64::MIN_POSITIVE))
     }
 
     /// Pair every slave at the contact-dof displacement `uc`. With `repairing = Some(k)` the

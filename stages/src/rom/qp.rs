@@ -238,6 +238,27 @@ pub fn solve_qp(
         assert_eq!(f.len(), r * r, "factor shape");
     }
     assert_eq!(x.len(), r, "x length");
+    reset(w, r, m, warm);
+    if !w.warm.is_empty() {
+        warm_start(cons, l, r, w);
+    }
+    loop {
+        // Step 1: the most violated constraint at x = L^{-T} y.
+        let Some(p) = most_violated(cons, l, r, feas_tol, x, w) else {
+            x.copy_from_slice(&w.y);
+            l.backward_t(r, x);
+            return QpOutcome::Solved;
+        };
+        // Step 2: add it (dropping constraints whose multipliers reach zero on the way).
+        if let Some(outcome) = add_violated(cons, l, r, p, max_steps, w) {
+            return outcome;
+        }
+    }
+}
+
+/// The work vectors sized for `r` unknowns and `m` constraints, nothing active, and the warm
+/// start's constraints (those that exist).
+fn reset(w: &mut QpWork, r: usize, m: usize, warm: &[usize]) {
     for v in [&mut w.y, &mut w.wp, &mut w.np, &mut w.z, &mut w.zero] {
         v.clear();
         v.resize(r, 0.0);
@@ -256,136 +277,155 @@ pub fn solve_qp(
     w.steps = 0;
     w.warm.clear();
     w.warm.extend(warm.iter().copied().filter(|&a| a < m));
-    if !w.warm.is_empty() {
-        // warm start: add the given constraints (skipping dependent ones), then drop negative
-        // multipliers until the equality-constrained minimiser is dual feasible
-        let zero = std::mem::take(&mut w.zero);
-        cons.values(&zero, &mut w.s);
-        w.zero = zero;
-        for k in 0..w.warm.len() {
-            let a = w.warm[k];
-            if w.active.len() >= r || w.active.contains(&a) {
-                continue;
-            }
-            range_row(cons, l, r, a, &mut w.np, &mut w.wp);
-            w.project(r, true);
-            w.back(r);
-            w.z.copy_from_slice(&w.wp);
-            for i in 0..w.active.len() {
-                let rv = w.rv[i];
-                let (wa, z) = (&w.wa[i * r..(i + 1) * r], &mut w.z);
-                axpy(-rv, wa, z);
-            }
-            let (z2, wn) = (dot(&w.z, &w.z), dot(&w.wp, &w.wp));
-            if z2 > DEPENDENT_TOL * DEPENDENT_TOL * wn {
-                w.append(r, z2.sqrt());
-                w.active.push(a);
-            }
+}
+
+/// Warm start: add the given constraints (skipping dependent ones), then drop negative
+/// multipliers until the equality-constrained minimiser is dual feasible; `y` is then that
+/// minimiser and `u` its multipliers.
+fn warm_start(cons: &mut dyn QpConstraints, l: Factor<'_>, r: usize, w: &mut QpWork) {
+    let zero = std::mem::take(&mut w.zero);
+    cons.values(&zero, &mut w.s);
+    w.zero = zero;
+    for k in 0..w.warm.len() {
+        let a = w.warm[k];
+        if w.active.len() >= r || w.active.contains(&a) {
+            continue;
         }
-        loop {
-            // u = -R^{-1} R^{-T} b_A
-            let q = w.active.len();
-            w.c.clear();
-            for i in 0..q {
-                let s = dot(&w.rm[i * r..i * r + i], &w.c[..i]);
-                let b = w.s[w.active[i]];
-                w.c.push((-b - s) / w.rm[i + i * r]);
-            }
-            w.back(r);
-            let worst = (0..q).filter(|&i| w.rv[i] < 0.0).min_by(|&i, &j| w.rv[i].total_cmp(&w.rv[j]));
-            match worst {
-                Some(i) => w.remove(r, i),
-                None => break,
-            }
-        }
-        w.u.clear();
-        w.u.extend_from_slice(&w.rv);
-        for i in 0..w.active.len() {
-            let ui = w.u[i];
-            let (wa, y) = (&w.wa[i * r..(i + 1) * r], &mut w.y);
-            axpy(ui, wa, y);
+        range_row(cons, l, r, a, &mut w.np, &mut w.wp);
+        direction(w, r);
+        let (z2, wn) = (dot(&w.z, &w.z), dot(&w.wp, &w.wp));
+        if z2 > DEPENDENT_TOL * DEPENDENT_TOL * wn {
+            w.append(r, z2.sqrt());
+            w.active.push(a);
         }
     }
     loop {
-        // Step 1: the most violated constraint at x = L^{-T} y.
-        if !cons.range_values(&w.y, &mut w.s) {
-            x.copy_from_slice(&w.y);
-            l.backward_t(r, x);
-            cons.values(x, &mut w.s);
+        // u = -R^{-1} R^{-T} b_A
+        let q = w.active.len();
+        w.c.clear();
+        for i in 0..q {
+            let s = dot(&w.rm[i * r..i * r + i], &w.c[..i]);
+            let b = w.s[w.active[i]];
+            w.c.push((-b - s) / w.rm[i + i * r]);
         }
-        let mut p = usize::MAX;
-        let mut worst = -feas_tol;
-        for i in 0..m {
-            if w.s[i] < worst && !w.active.contains(&i) {
-                worst = w.s[i];
-                p = i;
-            }
+        w.back(r);
+        let worst = (0..q).filter(|&i| w.rv[i] < 0.0).min_by(|&i, &j| w.rv[i].total_cmp(&w.rv[j]));
+        match worst {
+            Some(i) => w.remove(r, i),
+            None => break,
         }
-        if p == usize::MAX {
-            x.copy_from_slice(&w.y);
-            l.backward_t(r, x);
-            return QpOutcome::Solved;
+    }
+    w.u.clear();
+    w.u.extend_from_slice(&w.rv);
+    for i in 0..w.active.len() {
+        let ui = w.u[i];
+        let (wa, y) = (&w.wa[i * r..(i + 1) * r], &mut w.y);
+        axpy(ui, wa, y);
+    }
+}
+
+/// The step direction of the constraint row `wp` against the active set: `rv = R^{-1} W_A^T wp`
+/// (the multipliers' rates) and `z = wp - W_A rv`, its part orthogonal to the active rows.
+fn direction(w: &mut QpWork, r: usize) {
+    w.project(r, true);
+    w.back(r);
+    w.z.copy_from_slice(&w.wp);
+    for i in 0..w.active.len() {
+        let rv = w.rv[i];
+        let (wa, z) = (&w.wa[i * r..(i + 1) * r], &mut w.z);
+        axpy(-rv, wa, z);
+    }
+}
+
+/// The most violated inactive constraint (below `-feas_tol`) at `x = L^{-T} y`, or `None`;
+/// the constraint values are in `s`.
+fn most_violated(
+    cons: &mut dyn QpConstraints,
+    l: Factor<'_>,
+    r: usize,
+    feas_tol: f64,
+    x: &mut [f64],
+    w: &mut QpWork,
+) -> Option<usize> {
+    if !cons.range_values(&w.y, &mut w.s) {
+        x.copy_from_slice(&w.y);
+        l.backward_t(r, x);
+        cons.values(x, &mut w.s);
+    }
+    let mut p = None;
+    let mut worst = -feas_tol;
+    for i in 0..w.s.len() {
+        if w.s[i] < worst && !w.active.contains(&i) {
+            worst = w.s[i];
+            p = Some(i);
         }
-        let mut sp = w.s[p];
-        range_row(cons, l, r, p, &mut w.np, &mut w.wp);
-        let wn = dot(&w.wp, &w.wp);
-        w.up.clear();
-        w.up.extend_from_slice(&w.u);
-        w.up.push(0.0);
-        // Step 2: move until p is satisfied (full step) or a multiplier hits zero (partial).
-        loop {
-            w.steps += 1;
-            if w.steps > max_steps {
-                return QpOutcome::StepLimit;
-            }
-            let q = w.active.len();
-            w.project(r, true);
-            w.back(r);
-            w.z.copy_from_slice(&w.wp);
-            for i in 0..q {
-                let rv = w.rv[i];
-                let (wa, z) = (&w.wa[i * r..(i + 1) * r], &mut w.z);
-                axpy(-rv, wa, z);
-            }
-            // partial step: the first active multiplier to reach zero
-            let (mut t1, mut lidx) = (f64::INFINITY, usize::MAX);
-            for k in 0..q {
-                if w.rv[k] > 0.0 {
-                    let t = w.up[k] / w.rv[k];
-                    if t < t1 {
-                        t1 = t;
-                        lidx = k;
-                    }
+    }
+    p
+}
+
+/// Step 2 for the violated constraint `p`: move until it is satisfied (full step: it joins the
+/// active set) or an active multiplier reaches zero (partial step: that constraint leaves, and
+/// the move goes on). `None` once `p` is active; otherwise how the solve ends (the step cap,
+/// or infeasible: `p` cannot be satisfied).
+fn add_violated(
+    cons: &mut dyn QpConstraints,
+    l: Factor<'_>,
+    r: usize,
+    p: usize,
+    max_steps: usize,
+    w: &mut QpWork,
+) -> Option<QpOutcome> {
+    let mut sp = w.s[p];
+    range_row(cons, l, r, p, &mut w.np, &mut w.wp);
+    let wn = dot(&w.wp, &w.wp);
+    w.up.clear();
+    w.up.extend_from_slice(&w.u);
+    w.up.push(0.0);
+    loop {
+        w.steps += 1;
+        if w.steps > max_steps {
+            return Some(QpOutcome::StepLimit);
+        }
+        let q = w.active.len();
+        direction(w, r);
+        // partial step: the first active multiplier to reach zero
+        let (mut t1, mut lidx) = (f64::INFINITY, usize::MAX);
+        for k in 0..q {
+            if w.rv[k] > 0.0 {
+                let t = w.up[k] / w.rv[k];
+                if t < t1 {
+                    t1 = t;
+                    lidx = k;
                 }
             }
-            // full step: s_p reaches zero along z (z . w_p = |z|^2)
-            let z2 = dot(&w.z, &w.z);
-            let t2 = if z2 > DEPENDENT_TOL * DEPENDENT_TOL * wn { -sp / z2 } else { f64::INFINITY };
-            if t1.is_infinite() && t2.is_infinite() {
-                return QpOutcome::Infeasible(p);
-            }
-            let t = t1.min(t2);
-            for k in 0..q {
-                w.up[k] -= t * w.rv[k];
-            }
-            w.up[q] += t;
-            if t2.is_finite() {
-                let (z, y) = (&w.z, &mut w.y);
-                axpy(t, z, y);
-                sp += t * z2;
-            }
-            if t2 <= t1 {
-                w.append(r, z2.sqrt());
-                w.active.push(p);
-                w.u.clear();
-                w.u.extend_from_slice(&w.up);
-                break;
-            }
-            // partial (or pure dual) step: drop the constraint whose multiplier reached zero
-            // and go on with p (still violated: t1 < t2 leaves s_p < 0)
-            w.remove(r, lidx);
-            w.up.remove(lidx);
         }
+        // full step: s_p reaches zero along z (z . w_p = |z|^2)
+        let z2 = dot(&w.z, &w.z);
+        let t2 = if z2 > DEPENDENT_TOL * DEPENDENT_TOL * wn { -sp / z2 } else { f64::INFINITY };
+        if t1.is_infinite() && t2.is_infinite() {
+            return Some(QpOutcome::Infeasible(p));
+        }
+        let t = t1.min(t2);
+        for k in 0..q {
+            w.up[k] -= t * w.rv[k];
+        }
+        w.up[q] += t;
+        if t2.is_finite() {
+            let (z, y) = (&w.z, &mut w.y);
+            axpy(t, z, y);
+            sp += t * z2;
+        }
+        if t2 <= t1 {
+            w.append(r, z2.sqrt());
+            w.active.push(p);
+            w.u.clear();
+            w.u.extend_from_slice(&w.up);
+            return None;
+        }
+        // partial (or pure dual) step: drop the constraint whose multiplier reached zero
+        // and go on with p (still violated: t1 < t2 leaves s_p < 0)
+        w.remove(r, lidx);
+        w.up.remove(lidx);
     }
 }
 
