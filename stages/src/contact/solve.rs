@@ -65,6 +65,13 @@ const ANDERSON_DEPTH: usize = 3;
 
 /// Force scale of the equilibrium residual: the contact forces, or the lifted load without
 /// contact (see the module docs).
+fn residual_scale(contact_inf: f64, lift_inf: f64) -> f64 {
+    if contact_inf > 0.0 {
+        contact_inf
+    } else {
+        lift_inf.max(f64::MIN_POSITIVE)
+    }
+}
 
 /// `u_c = a + V lambda` over the paired rows, and the contact force `f_old = B^T lambda` of the
 /// pairing the multipliers were solved for.
@@ -80,14 +87,6 @@ fn update_displacement(ws: &mut Work, np: usize, ncd: usize) {
             }
             ws.rows[r].scatter(l, &mut ws.f_old);
         }
-    }
-}
-
-fn residual_scale(contact_inf: f64, lift_inf: f64) -> f64 {
-    if contact_inf > 0.0 {
-        contact_inf
-    } else {
-        lift_inf.max(f64::MIN_POSITIVE)
     }
 }
 
