@@ -181,21 +181,48 @@ fn run(
     ctx: &mut Ctx<'_>,
     physics: &mut LazyPhysics<'_>,
     spec: &KeySpec,
+    settings: (&RomKey, &Labels),
+    keys: [&Key; 3],
+) -> Result<Key, CromError> {
+    let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
+    let (manifest, computed) = ctx.cached(ArtifactKind::Rom, spec, |staging| {
+        measure(physics.get()?, (store, &loaded, progress), settings, keys, staging)
+    })?;
+    if !computed {
+        progress.stage("online ROM", 1).finish("cached");
+    }
+    ctx.record("rom", usize::from(computed), usize::from(!computed), store.dir(ArtifactKind::Rom, &manifest.key));
+    Ok(manifest.key)
+}
+
+/// What the measurements of the online stage share: the operator, the sets, the primal basis,
+/// the reduced models at full ranks (full and truncated dual basis) and the rank sweep.
+struct Online<'a> {
+    op: &'a dyn ContactOperator,
+    params: RomParams,
+    scene: &'a str,
+    train: &'a trainset::TrainingSet,
+    test: &'a trainset::TrainingSet,
+    phi: ColMatrix,
+    /// Columns of the full and the truncated CPG basis; whether the truncated one is a prefix.
+    theta: (usize, usize, bool),
+    full: ReducedModel,
+    sweep: Vec<(usize, usize, &'static str)>,
+}
+
+/// The online stage's measurements, written into `staging`; returns the manifest's summary.
+fn measure(
+    phys: &Physics,
+    (store, loaded, progress): (&crate::store::Store, &super::loaded::Loaded, crate::progress::Progress),
     (settings, labels): (&RomKey, &Labels),
     [train, test, basis]: [&Key; 3],
-) -> Result<Key, CromError> {
+    staging: &crate::store::Staging,
+) -> Result<BTreeMap<String, serde_json::Value>, CromError> {
     let params = settings.params();
-    let key = spec.key();
-    if let Some(_m) = ctx.lookup(ArtifactKind::Rom, &key)? {
-        ctx.progress.stage("online ROM", 1).finish("cached");
-        ctx.record("rom", 0, 1, ctx.store.dir(ArtifactKind::Rom, &key));
-        return Ok(key);
-    }
-    let scene = labels.scene.clone();
-    let fail = |m: String| CromError::Numerical { stage: "rom", scene: scene.clone(), message: m };
-    let phys = physics.get()?;
-    let (train_set, test_set) = (ctx.loaded.set(ctx.store, train)?, ctx.loaded.set(ctx.store, test)?);
-    let bfile = H5In::open(&ctx.store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
+    let scene = labels.scene.as_str();
+    let fail = |m: String| CromError::Numerical { stage: "rom", scene: scene.to_string(), message: m };
+    let (train_set, test_set) = (loaded.set(store, train)?, loaded.set(store, test)?);
+    let bfile = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
     let theta_full = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
     let theta_trunc = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG_TRUNCATED, bnames::MODES))?;
     drop(bfile);
@@ -205,10 +232,8 @@ fn run(
     let queries = train_set.parameters.len() + test_set.parameters.len();
     let paper_pairs = sweep.iter().filter(|s| paper_pair(s, &sweep)).count();
     let sampled_pairs = settings.contact_sampling.as_ref().map_or(0, |cs| cs.ranks.len());
-    let mut progress = ctx
-        .progress
-        .stage("online ROM", 2 + 2 * ALGORITHMS.len() * queries + sweep.len() + paper_pairs + sampled_pairs);
-    let start = Instant::now();
+    let mut progress =
+        progress.stage("online ROM", 2 + 2 * ALGORITHMS.len() * queries + sweep.len() + paper_pairs + sampled_pairs);
     // offline: the reduced model at full ranks, error references
     // warm starts of the exact solve at the training points (the paper algorithm does not read
     // them; `leading` drops them, so the sweep's models build their own)
@@ -232,89 +257,133 @@ fn run(
     let (train_pe, test_pe) = rayon::join(|| references(&train_set), || references(&test_set));
     // the full-order solve is timed at the test points (the speed-ups are test-set figures)
     let sets = [
-        ("train", &train_set, train_pe, vec![f64::NAN; train_set.parameters.len()]),
-        ("test", &test_set, test_pe, fom_seconds(phys, &test_set.parameters)),
+        ("train", &*train_set, train_pe, vec![f64::NAN; train_set.parameters.len()]),
+        ("test", &*test_set, test_pe, fom_seconds(phys, &test_set.parameters)),
     ];
     progress.inc("offline");
-    let (_, test_data, test_pe, test_fom) = &sets[1];
+    let (_, _, test_pe, test_fom) = &sets[1];
     let test_pe = test_pe.as_ref().ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
-    // the sweep; the test-set rows of the error table at full ranks are the sweep's own queries
-    let mut trade = TradeRows::default();
-    let mut at_full_ranks: BTreeMap<(&'static str, &'static str), Vec<Query>> = BTreeMap::new();
-    for alg in ALGORITHMS {
-        let p = RomParams { algorithm: alg, ..params };
-        for &(ru, rl, dual_basis) in sweep.iter().filter(|s| alg == Algorithm::Exact || paper_pair(s, &sweep)) {
-            let model = full.leading(ru, rl).with_warm_starts(&train_set.parameters, &p);
-            let rows = solve_set(&model, test_data, &p);
-            trade.push(&scene, alg.name(), dual_basis, (ru, rl), &rows, test_pe, test_fom, |j, q| {
-                dual_error(op, &model, &q.sol, test_data, j)
-            });
-            progress.inc(&format!("{} ranks ({ru}, {rl})", alg.name()));
-            let full_ranks = ru == phi.cols
-                && ((dual_basis == "full" && rl == theta_full.cols)
-                    || (dual_basis == "truncated" && prefix && rl == theta_trunc.cols));
-            if full_ranks {
-                at_full_ranks.insert((alg.name(), dual_basis), rows);
-            }
-        }
-    }
+    let theta = (theta_full.cols, theta_trunc.cols, prefix);
+    let online = Online { op, params, scene, train: &train_set, test: &test_set, phi, theta, full, sweep };
+    let (mut trade, mut at_full_ranks) = online.sweep_rows((test_pe, test_fom), &mut progress);
     if let Some(cs) = &settings.contact_sampling {
-        // the exact solve on a reduced quadrature of the contact constraints
-        // (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints), fitted per rank pair to a subsample of the training points
-        let p = RomParams { algorithm: Algorithm::Exact, ..params };
-        let fit_points = subsample(&train_set.parameters, SAMPLING_FIT_POINTS);
-        for &[ru, rl] in &cs.ranks {
-            let (ru, rl) = (ru.min(phi.cols), rl.min(theta_full.cols));
-            let exact = full.leading(ru, rl);
-            let (model, _) = exact.with_sampled_surface(&fit_points, &p, cs.tol).map_err(|e| fail(e.to_string()))?;
-            let model = model.with_warm_starts(&train_set.parameters, &p);
-            let rows = solve_set(&model, test_data, &p);
-            trade.push(&scene, names::SAMPLED, "full", (ru, rl), &rows, test_pe, test_fom, |j, q| {
-                dual_error(op, &model, &q.sol, test_data, j)
-            });
-            progress.inc(&format!("sampled ranks ({ru}, {rl})"));
-        }
+        online.sampled_rows(cs, (test_pe, test_fom), &mut trade, &mut progress).map_err(fail)?;
     }
-    let mut errors = ErrorRows { names: labels.names.clone(), ..Default::default() };
-    // The solutions whose fields are stored (`online.h5`): exact, full ranks, full dual basis.
-    let mut shown: Vec<ReducedSolution> = Vec::new();
-    for (dual_basis, model) in [("full", &full), ("truncated", &trunc)] {
-        for alg in ALGORITHMS {
-            let p = RomParams { algorithm: alg, ..params };
-            for (set, data, pe, fom) in &sets {
-                let pe = pe.as_ref().ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
-                let cached = if *set == "test" { at_full_ranks.remove(&(alg.name(), dual_basis)) } else { None };
-                let rows = cached.unwrap_or_else(|| solve_set(model, data, &p));
-                let keep = *set == "test" && dual_basis == "full" && alg == Algorithm::Exact;
-                for (j, q) in rows.into_iter().enumerate() {
-                    let errs = (pe.relative(j, &q.sol.u_hat), dual_error(op, model, &q.sol, data, j));
-                    errors.push(&scene, set, dual_basis, alg, &data.parameters[j], model.ranks(), errs, &q, fom[j]);
-                    progress.inc(&format!("{set} {dual_basis} {}", alg.name()));
-                    if keep {
-                        shown.push(q.sol);
-                    }
-                }
-            }
-        }
-    }
-    let staging = ctx.store.stage(spec)?;
+    let (errors, shown) =
+        online.error_rows(&trunc, &sets, &mut at_full_ranks, &labels.names, &mut progress).map_err(fail)?;
     let (errors, query_times) = errors.tables();
     errors.write_parquet(&staging.path(names::ERRORS))?;
     query_times.write_parquet(&staging.path(names::TIMINGS))?;
     let (trade, trade_times) = trade.tables();
     trade.write_parquet(&staging.path(names::TRADEOFF))?;
     trade_times.write_parquet(&staging.path(names::TRADEOFF_TIMINGS))?;
-    write_online(&staging.path(names::ONLINE), op, &phi, &full, &test_set, &shown)?;
-    let summary = BTreeMap::from([
-        ("r_primal".to_string(), json!(phi.cols)),
+    write_online(&staging.path(names::ONLINE), op, &online.phi, &online.full, &test_set, &shown)?;
+    progress.inc("written");
+    progress.finish("computed");
+    Ok(BTreeMap::from([
+        ("r_primal".to_string(), json!(online.phi.cols)),
         ("r_dual_full".to_string(), json!(theta_full.cols)),
         ("r_dual_truncated".to_string(), json!(theta_trunc.cols)),
-    ]);
-    progress.inc("written");
-    ctx.commit(staging, start.elapsed().as_secs_f64(), summary)?;
-    progress.finish("computed");
-    ctx.record("rom", 1, 0, ctx.store.dir(ArtifactKind::Rom, &key));
-    Ok(key)
+    ]))
+}
+
+/// The test points' solves of one rank pair, in the order of the sets' columns.
+type AtFullRanks = BTreeMap<(&'static str, &'static str), Vec<Query>>;
+
+impl Online<'_> {
+    /// The rank sweep at the test points, both algorithms (the paper's at its pairs only); the
+    /// test-set solves at full ranks are kept for the error table, which they are part of.
+    fn sweep_rows(
+        &self,
+        (test_pe, test_fom): (&PrimalErrors, &[f64]),
+        progress: &mut crate::progress::StageProgress,
+    ) -> (TradeRows, AtFullRanks) {
+        let (theta_full, theta_trunc, prefix) = self.theta;
+        let mut trade = TradeRows::default();
+        let mut at_full_ranks = AtFullRanks::new();
+        for alg in ALGORITHMS {
+            let p = RomParams { algorithm: alg, ..self.params };
+            let pairs = self.sweep.iter().filter(|s| alg == Algorithm::Exact || paper_pair(s, &self.sweep));
+            for &(ru, rl, dual_basis) in pairs {
+                let model = self.full.leading(ru, rl).with_warm_starts(&self.train.parameters, &p);
+                let rows = solve_set(&model, self.test, &p);
+                trade.push(self.scene, alg.name(), dual_basis, (ru, rl), &rows, test_pe, test_fom, |j, q| {
+                    dual_error(self.op, &model, &q.sol, self.test, j)
+                });
+                progress.inc(&format!("{} ranks ({ru}, {rl})", alg.name()));
+                let full_ranks = ru == self.phi.cols
+                    && ((dual_basis == "full" && rl == theta_full)
+                        || (dual_basis == "truncated" && prefix && rl == theta_trunc));
+                if full_ranks {
+                    at_full_ranks.insert((alg.name(), dual_basis), rows);
+                }
+            }
+        }
+        (trade, at_full_ranks)
+    }
+
+    /// The exact solve on a reduced quadrature of the contact constraints
+    /// (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints), fitted per rank
+    /// pair to a subsample of the training points.
+    fn sampled_rows(
+        &self,
+        cs: &ContactSamplingSpec,
+        (test_pe, test_fom): (&PrimalErrors, &[f64]),
+        trade: &mut TradeRows,
+        progress: &mut crate::progress::StageProgress,
+    ) -> Result<(), String> {
+        let p = RomParams { algorithm: Algorithm::Exact, ..self.params };
+        let fit_points = subsample(&self.train.parameters, SAMPLING_FIT_POINTS);
+        for &[ru, rl] in &cs.ranks {
+            let (ru, rl) = (ru.min(self.phi.cols), rl.min(self.theta.0));
+            let exact = self.full.leading(ru, rl);
+            let (model, _) = exact.with_sampled_surface(&fit_points, &p, cs.tol).map_err(|e| e.to_string())?;
+            let model = model.with_warm_starts(&self.train.parameters, &p);
+            let rows = solve_set(&model, self.test, &p);
+            trade.push(self.scene, names::SAMPLED, "full", (ru, rl), &rows, test_pe, test_fom, |j, q| {
+                dual_error(self.op, &model, &q.sol, self.test, j)
+            });
+            progress.inc(&format!("sampled ranks ({ru}, {rl})"));
+        }
+        Ok(())
+    }
+
+    /// Every training and test point with both dual bases and both algorithms at full ranks
+    /// (the test points' solves taken from the sweep where it made them); returns the rows and
+    /// the solutions whose fields are stored (`online.h5`: exact, full dual basis, test points).
+    #[allow(clippy::type_complexity)]
+    fn error_rows(
+        &self,
+        trunc: &ReducedModel,
+        sets: &[(&str, &trainset::TrainingSet, Option<PrimalErrors>, Vec<f64>); 2],
+        at_full_ranks: &mut AtFullRanks,
+        names: &[String],
+        progress: &mut crate::progress::StageProgress,
+    ) -> Result<(ErrorRows, Vec<ReducedSolution>), String> {
+        let mut errors = ErrorRows { names: names.to_vec(), ..Default::default() };
+        let mut shown: Vec<ReducedSolution> = Vec::new();
+        for (dual_basis, model) in [("full", &self.full), ("truncated", trunc)] {
+            for alg in ALGORITHMS {
+                let p = RomParams { algorithm: alg, ..self.params };
+                for (set, data, pe, fom) in sets {
+                    let pe = pe.as_ref().ok_or_else(|| "Phi^T H Phi is not positive definite".to_string())?;
+                    let cached = if *set == "test" { at_full_ranks.remove(&(alg.name(), dual_basis)) } else { None };
+                    let rows = cached.unwrap_or_else(|| solve_set(model, data, &p));
+                    let keep = *set == "test" && dual_basis == "full" && alg == Algorithm::Exact;
+                    for (j, q) in rows.into_iter().enumerate() {
+                        let errs = (pe.relative(j, &q.sol.u_hat), dual_error(self.op, model, &q.sol, data, j));
+                        let ranks = model.ranks();
+                        errors.push(self.scene, set, dual_basis, alg, &data.parameters[j], ranks, errs, &q, fom[j]);
+                        progress.inc(&format!("{set} {dual_basis} {}", alg.name()));
+                        if keep {
+                            shown.push(q.sol);
+                        }
+                    }
+                }
+            }
+        }
+        Ok((errors, shown))
+    }
 }
 
 /// `online.h5`: the online solution at every test point as fields, with its pointwise error
