@@ -81,11 +81,17 @@ pub(crate) fn render(root: &Path, scene: &crom_schemas::SceneConfig, view: View)
 fn levels(out: &mut String, root: &Path, scene: &crom_schemas::SceneConfig) -> Result<(), CromError> {
     let Some(k) = scene.parameter.train_level else { return Ok(()) };
     let _ = writeln!(out, "  levels (train_level = {k}; each level's study as a scene with that train_level):");
+    // Every level's snapshots are in one column family (same mesh, solver and names): its index
+    // is read once.
+    let mut index: Option<(crate::cache::Key, crate::store::columns::Index)> = None;
     for level in 1..=k {
         let mut at = scene.clone();
         at.parameter.train_level = Some(level);
         let plan = Plan::of(&at);
-        let state = plan.snapshot_state(root)?;
+        if index.as_ref().is_none_or(|(family, _)| *family != plan.family) {
+            index = Some((plan.family.clone(), plan.index(root)?));
+        }
+        let state = plan.snapshot_state_in(&index.as_ref().expect("read above").1);
         let offline: Vec<_> = plan.nodes.iter().filter(|n| !n.is_sweep() && !n.online).collect();
         let done = offline.iter().filter(|n| stored(root, n)).count();
         let study = if done == offline.len() {

@@ -282,7 +282,17 @@ impl Plan {
 
     /// Where the snapshots stand in the store at `root` (read-only).
     pub fn snapshot_state(&self, root: &Path) -> Result<SnapshotState, CromError> {
-        let (_, index) = snapshots::load_index(root, &self.family)?;
+        Ok(self.snapshot_state_in(&self.index(root)?))
+    }
+
+    /// The index of this plan's column family in the store at `root` (read-only; empty when the
+    /// family does not exist yet).
+    pub(crate) fn index(&self, root: &Path) -> Result<crate::store::columns::Index, CromError> {
+        Ok(snapshots::load_index(root, &self.family)?.1)
+    }
+
+    /// [`Self::snapshot_state`] against an index already read (that of [`Self::family`]).
+    pub(crate) fn snapshot_state_in(&self, index: &crate::store::columns::Index) -> SnapshotState {
         let mut state = SnapshotState { chunks: self.chunks(), ..SnapshotState::default() };
         if !self.imported.is_empty() {
             let distinct: std::collections::HashSet<&Key> = self.imported.iter().collect();
@@ -306,7 +316,7 @@ impl Plan {
             state.sweeps.push((sweep.name.to_string(), points, stored_points));
             first += sweep.chunks.len();
         }
-        Ok(state)
+        state
     }
 }
 

@@ -14,7 +14,6 @@ use crom_schemas::artifact::{mesh as mesh_names, model as names, ArtifactKind};
 use crom_schemas::SceneConfig;
 
 use super::{Loaded, Row};
-use crate::dag::plan::Plan;
 use crate::error::CromError;
 use crate::io::h5::{H5In, H5Out};
 use crate::io::model::Reconstruction;
@@ -29,14 +28,10 @@ pub(super) fn write(
     loaded: &Loaded,
     rows: &[Row],
 ) -> Result<(), CromError> {
-    let plan = Plan::of(scene);
-    let mesh_key = &plan
-        .node("mesh")
-        .ok_or_else(|| CromError::Usage {
-            message: format!("scene `{}` has no mesh", scene.scene.name),
-            fix: "query a native scene".into(),
-        })?
-        .key;
+    let mesh_key = loaded.mesh.as_ref().ok_or_else(|| CromError::Usage {
+        message: format!("scene `{}` has no mesh", scene.scene.name),
+        fix: "query a native scene".into(),
+    })?;
     let mesh_path = Store::open_read_only(root).dir(ArtifactKind::Mesh, mesh_key).join(mesh_names::FILE);
     let mesh = H5In::open(&mesh_path)?;
     let nodes = mesh.matrix(mesh_names::NODES)?; // n_nodes x 2, column-major

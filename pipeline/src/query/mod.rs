@@ -64,10 +64,17 @@ pub struct Loaded {
     pub model: ReducedModel,
     /// The artifact's directory.
     pub dir: PathBuf,
+    /// The key of the scene's mesh artifact (for `--fields`).
+    pub mesh: Option<crate::cache::Key>,
 }
 
 /// Load the stored model of `scene` from the store at `root` (read-only, no lock).
 pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded, CromError> {
+    // Before planning: `crom query` reads the scene file without resolving an external scene's
+    // data files, and such a scene has no model to plan.
+    if scene.model.external().is_some() {
+        return Err(external_has_no_model(scene));
+    }
     let plan = Plan::of(scene);
     let key = &plan
         .node("model")
@@ -76,6 +83,8 @@ pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded,
             fix: "use a scene with an online study".into(),
         })?
         .key;
+    // The model's mesh (its key is a function of the scene's model, as the model's own is).
+    let mesh = plan.node("mesh").map(|n| n.key.clone());
     let store = Store::open_read_only(root);
     let dir = store.dir(ArtifactKind::Model, key);
     let run_first =
@@ -110,7 +119,19 @@ pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded,
             &run_first(),
         ));
     }
-    Ok(Loaded { stored, model, dir })
+    Ok(Loaded { stored, model, dir, mesh })
+}
+
+/// An external scene has no full-order operators, so no reduced model.
+fn external_has_no_model(scene: &SceneConfig) -> CromError {
+    CromError::Usage {
+        message: format!(
+            "scene `{}` is external: its snapshots come from another solver, and a reduced model \
+             needs the full-order operators, which an external scene does not have",
+            scene.scene.name
+        ),
+        fix: "query a native scene (rope, hertz, ironing); an external scene's study is its bases and metrics".into(),
+    }
 }
 
 /// One answered point.
@@ -135,17 +156,6 @@ struct Check {
 
 /// `crom query`: answer the request and print (or write) the table.
 pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> Result<(), CromError> {
-    if scene.model.external().is_some() {
-        return Err(CromError::Usage {
-            message: format!(
-                "scene `{}` is external: its snapshots come from another solver, and a reduced model \
-                 needs the full-order operators, which an external scene does not have",
-                scene.scene.name
-            ),
-            fix: "query a native scene (rope, hertz, ironing); an external scene's study is its bases and metrics"
-                .into(),
-        });
-    }
     if let Some(p) = req.fields.as_ref().filter(|p| p.extension().and_then(|e| e.to_str()) != Some("h5")) {
         return Err(CromError::Usage {
             message: format!("--fields {}: not an .h5 file", p.display()),
