@@ -50,6 +50,67 @@ fn dot_lanes<const L: usize>(a: &[f64], b: &[f64]) -> f64 {
     acc[0] + s
 }
 
+/// [`dot`] of two vectors whose products are `±0` outside `lo..hi` (one of the two is zero
+/// there), summed over the chunks that meet `lo..hi` only: the same bits as `dot(a, b)`.
+///
+/// *Why the same bits:* each of `dot`'s partial sums adds its products in index order, and an
+/// exact zero added to a partial sum leaves it unchanged (`s + ±0 = s`, `+0 + −0 = +0`), so
+/// skipping the products outside `lo..hi` changes no partial sum; the window is widened to
+/// whole chunks so that every product inside it lands in the partial sum `dot` gives it, and
+/// the reduction is the same. For sparse columns (a contact pressure is non-zero on the few
+/// nodes under the contact patch) this is a dot product over the patch instead of the surface.
+#[inline]
+pub fn dot_window(a: &[f64], b: &[f64], lo: usize, hi: usize) -> f64 {
+    debug_assert_eq!(a.len(), b.len());
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let (lo, hi) = (lo.min(n), hi.min(n));
+    if lo >= hi {
+        return 0.0;
+    }
+    if n < 2 * LANES {
+        dot_lanes_window::<4>(a, b, lo, hi)
+    } else {
+        dot_lanes_window::<LANES>(a, b, lo, hi)
+    }
+}
+
+/// [`dot_lanes`] restricted to the chunks that meet `lo..hi` and the remainder inside it.
+#[inline]
+fn dot_lanes_window<const L: usize>(a: &[f64], b: &[f64], lo: usize, hi: usize) -> f64 {
+    let main = a.len() / L * L;
+    let mut acc = [0.0f64; L];
+    let (first, end) = (lo / L * L, hi.min(main).div_ceil(L) * L);
+    if first < end {
+        for (x, y) in a[first..end].chunks_exact(L).zip(b[first..end].chunks_exact(L)) {
+            for k in 0..L {
+                acc[k] += x[k] * y[k];
+            }
+        }
+    }
+    let mut s = 0.0;
+    for i in lo.max(main)..hi {
+        s += a[i] * b[i];
+    }
+    let mut w = L;
+    while w > 1 {
+        w /= 2;
+        for k in 0..w {
+            acc[k] += acc[k + w];
+        }
+    }
+    acc[0] + s
+}
+
+/// The smallest `lo..hi` outside which `v` is zero (`0..0` for a zero vector).
+#[inline]
+pub fn nonzero_window(v: &[f64]) -> (usize, usize) {
+    match v.iter().position(|x| *x != 0.0) {
+        Some(lo) => (lo, v.iter().rposition(|x| *x != 0.0).map_or(lo, |h| h) + 1),
+        None => (0, 0),
+    }
+}
+
 /// `y += alpha x`.
 #[inline]
 pub fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
@@ -127,6 +188,45 @@ mod tests {
         for (j, v) in norms.iter().enumerate() {
             assert_eq!(v.to_bits(), whole.col(j).squared_norm_l2().to_bits(), "column {j}");
         }
+    }
+
+    /// `dot_window` against `dot`, bit for bit, on vectors zero outside random windows (one
+    /// vector's window or the other's; cancellations included), at lengths around both lane
+    /// counts and with windows in the remainder, across chunk boundaries and empty.
+    #[test]
+    fn dot_window_is_dot_bit_for_bit() {
+        let mut rng = Rng::new(9);
+        for n in [1, 3, 4, 5, 17, 31, 32, 33, 47, 64, 101, 130] {
+            for trial in 0..200 {
+                let lo = (rng.uniform_in(0.0, 1.0) * n as f64) as usize;
+                let hi = (lo + (rng.uniform_in(0.0, 1.0) * (n - lo + 1) as f64) as usize).min(n);
+                let mut a: Vec<f64> = (0..n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
+                let mut b: Vec<f64> = (0..n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
+                let zeroed = if trial % 2 == 0 { &mut a } else { &mut b };
+                for (i, v) in zeroed.iter_mut().enumerate() {
+                    if i < lo || i >= hi {
+                        *v = if i % 3 == 0 { -0.0 } else { 0.0 };
+                    }
+                }
+                if trial % 7 == 0 && hi > lo + 1 {
+                    // An exact cancellation inside the window.
+                    a[lo] = 1.0;
+                    b[lo] = 1.0;
+                    a[lo + 1] = -1.0;
+                    b[lo + 1] = 1.0;
+                }
+                let whole = dot(&a, &b);
+                assert_eq!(dot_window(&a, &b, lo, hi).to_bits(), whole.to_bits(), "n = {n}, window {lo}..{hi}");
+                let (wlo, whi) = nonzero_window(if trial % 2 == 0 { &a } else { &b });
+                assert!(
+                    (wlo, whi) == (0, 0) || (wlo >= lo && whi <= hi),
+                    "nonzero_window {wlo}..{whi} outside {lo}..{hi}"
+                );
+                assert_eq!(dot_window(&a, &b, wlo, whi).to_bits(), whole.to_bits(), "n = {n}, tight {wlo}..{whi}");
+            }
+        }
+        assert_eq!(nonzero_window(&[0.0, -0.0, 0.0]), (0, 0));
+        assert_eq!(nonzero_window(&[0.0, 2.0, 0.0, 3.0, 0.0]), (1, 4));
     }
 
     /// Against the naive sum (1e-13 relative: reordered sums of O(1) products), at lengths

@@ -37,7 +37,7 @@ use faer::{Mat, MatRef};
 use rayon::prelude::*;
 
 use super::lazy::{sparse, LazyGreedy, Refresh, Step};
-use crate::cone::{copy_column, norm2, ConeError, ConeProjector, GrowingCone, NnlsParams, WideNnls};
+use crate::cone::{copy_column, norm2, ColumnIndex, ConeError, ConeProjector, GrowingCone, NnlsParams, WideNnls};
 use crate::float_cmp::{close, Tol};
 
 /// Parameters of [`cpg`].
@@ -403,6 +403,8 @@ impl<'a> ChunkedCone<'a> {
 struct RankGrid<'s> {
     s: MatRef<'s, f64>,
     basis: MatRef<'s, f64>,
+    /// Each generator's non-zero rows.
+    windows: ColumnIndex,
     /// Position of each snapshot on the path (`usize::MAX`: not selected).
     position: Vec<usize>,
     norms: &'s [f64],
@@ -427,7 +429,8 @@ impl<'s> RankGrid<'s> {
         let mut position = vec![usize::MAX; s.ncols()];
         selected.iter().enumerate().for_each(|(p, &j)| position[j] = p);
         let dense: Vec<Vec<(usize, f64)>> = (0..s.ncols()).map(|j| sparse(cone.coeffs(j))).collect();
-        Self { s, basis, position, norms, total, nnls, last: dense.clone(), dense }
+        let windows = ColumnIndex::of(basis);
+        Self { s, basis, windows, position, norms, total, nnls, last: dense.clone(), dense }
     }
 
     /// `C(m)`, warm-started from the last grid rank's supports (which it replaces).
@@ -450,7 +453,7 @@ impl<'s> RankGrid<'s> {
                         return Ok(0.0);
                     }
                     copy_column(self.s, j, lambda);
-                    wide.project(theta, lambda, support)
+                    wide.project_windowed(theta, Some(&self.windows), lambda, support)
                 },
             )
             .collect::<Result<Vec<f64>, ConeError>>()?;

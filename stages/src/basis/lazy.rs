@@ -11,7 +11,7 @@ use std::collections::BinaryHeap;
 use faer::{Mat, MatRef};
 
 use super::cpg::{scan, BAND_ABS, BAND_REL, CPG_FLOOR};
-use crate::cone::{copy_column, ConeError, ConeProjector, NnlsParams, WideNnls};
+use crate::cone::{copy_column, ColumnIndex, ConeError, ConeProjector, NnlsParams, WideNnls};
 
 /// A candidate's bound in the max-heap (larger error first, then lower index).
 #[derive(Debug, Clone, Copy)]
@@ -67,12 +67,21 @@ struct WideCone {
     n: usize,
     cols: usize,
     data: Vec<f64>,
+    /// Each generator's non-zero rows (the projections' dual update visits only the
+    /// generators that meet the residual).
+    windows: ColumnIndex,
     nnls: WideNnls,
 }
 
 impl WideCone {
     fn new(n: usize, most: usize, params: NnlsParams) -> Self {
-        Self { n, cols: 0, data: Vec::with_capacity(n.saturating_mul(most)), nnls: WideNnls::new(n, most, params) }
+        Self {
+            n,
+            cols: 0,
+            data: Vec::with_capacity(n.saturating_mul(most)),
+            windows: ColumnIndex::new(n),
+            nnls: WideNnls::new(n, most, params),
+        }
     }
 
     fn theta(&self) -> MatRef<'_, f64> {
@@ -81,6 +90,7 @@ impl WideCone {
 
     fn push(&mut self, column: &[f64]) {
         self.data.extend_from_slice(column);
+        self.windows.push(column.iter().copied());
         self.cols += 1;
     }
 }
@@ -208,7 +218,10 @@ impl<'a> LazyGreedy<'a> {
         copy_column(self.s, j, &mut self.lambda);
         // `wide.theta()` would borrow the workspace `wide.nnls` projects with.
         let theta = columns(&wide.data, wide.n, m);
-        let err = wide.nnls.project(theta, &self.lambda, &mut self.coeffs[j]).map(|r| r / self.norms[j]);
+        let err = wide
+            .nnls
+            .project_windowed(theta, Some(&wide.windows), &self.lambda, &mut self.coeffs[j])
+            .map(|r| r / self.norms[j]);
         if let (Ok(err), Some(h)) = (&err, self.history.as_mut().filter(|_| m < self.record_below)) {
             let mut coeffs = vec![0.0; m];
             for &(g, v) in &self.coeffs[j] {

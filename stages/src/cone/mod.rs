@@ -39,11 +39,13 @@ mod passive_factor;
 mod projector;
 mod reference;
 mod wide;
+mod windows;
 
 pub use nnls::{nnls, ConeError, Nnls, NnlsParams, NnlsSolution, NnlsStats};
 pub use projector::{ConeProjection, ConeProjector, GrowingCone, IN_CONE_REL_TOL};
 pub use reference::nnls_reference;
 pub use wide::WideNnls;
+pub use windows::ColumnIndex;
 
 pub(crate) use nnls::norm2;
 pub(crate) use projector::{coefficient_intervals, copy_column};

@@ -511,7 +511,7 @@ pub(super) fn scan_entering(
 
 /// The larger candidate, the lower column on equal values (candidates exceed a non-negative
 /// threshold: no NaN).
-fn better_entering(held: Option<(f64, usize)>, c: (f64, usize)) -> (f64, usize) {
+pub(super) fn better_entering(held: Option<(f64, usize)>, c: (f64, usize)) -> (f64, usize) {
     match held {
         Some((bv, bj)) if bv.total_cmp(&c.0).then(c.1.cmp(&bj)).is_gt() => (bv, bj),
         _ => c,

@@ -15,7 +15,11 @@
 //! column), with the same incremental Cholesky and Givens downdate as [`Nnls`](super::Nnls).
 //!
 //! The dual update `w = Theta^T r` uses the vectorised [`dot`](crate::kernels::dot): the
-//! same bits on every run, not those of an in-order sum.
+//! same bits on every run, not those of an in-order sum. Given a [`ColumnIndex`] of the columns'
+//! non-zero rows (a pressure snapshot is non-zero under its contact patch only), only the
+//! columns that meet the residual's non-zero rows are visited, each summed over the rows they
+//! share ([`dot_window`]); every other `w_j` is exactly 0 and cannot enter, so the result is the
+//! same bits and the update costs the meeting columns' patches instead of `n m` products.
 //!
 //! Warm start: the support of a previous solution (a sparse list), typically the same
 //! snapshot's projection on a smaller prefix of the same cone. Its entries are re-solved on
@@ -31,9 +35,10 @@ use faer::MatRef;
 
 use rayon::prelude::*;
 
-use super::nnls::{norm2, scan_entering, ConeError, NnlsParams, DUAL_BLOCK, PAR_DUAL_MIN};
+use super::nnls::{better_entering, norm2, scan_entering, ConeError, NnlsParams, DUAL_BLOCK, PAR_DUAL_MIN};
 use super::passive_factor;
-use crate::kernels::dot;
+use super::windows::ColumnIndex;
+use crate::kernels::{dot, dot_window, nonzero_window};
 
 /// Workspaces of [`WideNnls::project`], sized once for `n` rows and `m` columns.
 #[derive(Debug, Clone)]
@@ -42,6 +47,8 @@ pub struct WideNnls {
     passive: Vec<usize>,
     in_passive: Vec<bool>,
     blocked: Vec<bool>,
+    /// The columns set in `blocked` (cleared by list, not by a pass over every column).
+    blocked_list: Vec<usize>,
     /// Lower Cholesky factor of `Theta_P^T Theta_P`, row-major, leading dimension `ld`.
     chol: Vec<f64>,
     ld: usize,
@@ -53,6 +60,8 @@ pub struct WideNnls {
     rhs: Vec<f64>,
     r: Vec<f64>,
     w: Vec<f64>,
+    /// Columns whose `w` the last windowed dual update computed (every other `w_j` is 0).
+    meeting: Vec<usize>,
     params: NnlsParams,
 }
 
@@ -64,6 +73,7 @@ impl WideNnls {
             passive: Vec::with_capacity(ld),
             in_passive: vec![false; m],
             blocked: vec![false; m],
+            blocked_list: Vec::new(),
             chol: vec![0.0; ld * ld],
             ld,
             x: vec![0.0; m],
@@ -72,6 +82,7 @@ impl WideNnls {
             rhs: vec![0.0; ld],
             r: vec![0.0; n],
             w: vec![0.0; m],
+            meeting: Vec::new(),
             params,
         }
     }
@@ -86,7 +97,21 @@ impl WideNnls {
         b: &[f64],
         support: &mut Vec<(usize, f64)>,
     ) -> Result<f64, ConeError> {
+        self.project_windowed(theta, None, b, support)
+    }
+
+    /// [`project`](Self::project) given the [`ColumnIndex`] of `theta`'s columns (or of a
+    /// matrix whose first `theta.ncols()` columns they are): the same result bit for bit, with
+    /// the dual update over the columns that meet the residual only.
+    pub fn project_windowed(
+        &mut self,
+        theta: MatRef<'_, f64>,
+        windows: Option<&ColumnIndex>,
+        b: &[f64],
+        support: &mut Vec<(usize, f64)>,
+    ) -> Result<f64, ConeError> {
         let (n, m) = (theta.nrows(), theta.ncols());
+        assert!(windows.is_none_or(|w| w.len() >= m), "WideNnls::project_windowed: an index of fewer columns");
         assert_eq!(b.len(), n, "WideNnls::project: b has length {}, theta has {n} rows", b.len());
         assert!(m <= self.x.len() && n < self.ld, "WideNnls::project: workspace sized for a smaller cone");
         if !b.iter().all(|v| v.is_finite()) || !support.iter().all(|(_, v)| v.is_finite()) {
@@ -104,15 +129,15 @@ impl WideNnls {
         let mut iterations = 0;
         loop {
             self.residual(theta, b);
-            self.dual(theta);
+            self.dual(theta, windows);
             let scale = bnorm + self.passive.iter().map(|&j| self.x[j]).sum::<f64>();
-            let Some(t) = self.entering(m, scale) else { break };
+            let Some(t) = self.entering(m, scale, windows.is_some()) else { break };
             if iterations >= max_iter {
-                let worst = (0..m).filter(|&j| !self.in_passive[j]).map(|j| self.w[j].max(0.0)).fold(0.0, f64::max);
+                let worst = self.outside_passive(m, windows.is_some()).map(|j| self.w[j].max(0.0)).fold(0.0, f64::max);
                 return Err(ConeError::NotConverged { iterations, kkt_residual: worst / scale });
             }
             if !self.try_add(theta, t) {
-                self.blocked[t] = true;
+                self.block(t);
                 continue;
             }
             self.solve_z(theta, b);
@@ -120,11 +145,11 @@ impl WideNnls {
             // In exact arithmetic z_t > 0 here; a non-positive value means w_t was round-off.
             if self.z[last] <= 0.0 {
                 self.remove_at(last);
-                self.blocked[t] = true;
+                self.block(t);
                 continue;
             }
             iterations += 1;
-            self.blocked[..m].fill(false);
+            self.unblock_all();
             self.settle(theta, b);
         }
         support.clear();
@@ -136,8 +161,21 @@ impl WideNnls {
 
     /// `w = Theta^T r`; from [`PAR_DUAL_MIN`] columns on in parallel blocks of [`DUAL_BLOCK`]
     /// (each entry is the same dot product whatever the blocks or threads).
-    fn dual(&mut self, theta: MatRef<'_, f64>) {
+    ///
+    /// With an index: `w_j` of the columns meeting the residual's non-zero rows only, listed in
+    /// `meeting` (the others are 0 and are not written).
+    fn dual(&mut self, theta: MatRef<'_, f64>, windows: Option<&ColumnIndex>) {
         let m = theta.ncols();
+        if let Some(index) = windows {
+            let (a, b) = nonzero_window(&self.r);
+            let (r, w, meeting) = (&self.r, &mut self.w, &mut self.meeting);
+            meeting.clear();
+            index.for_each_meeting(m, a, b, |j, lo, hi| {
+                w[j] = column_dot_window(theta, j, r, lo, hi);
+                meeting.push(j);
+            });
+            return;
+        }
         let r = &self.r;
         let fill = |start: usize, w: &mut [f64]| {
             for (i, w) in w.iter_mut().enumerate() {
@@ -157,7 +195,19 @@ impl WideNnls {
             self.in_passive[j] = false;
         }
         self.passive.clear();
-        self.blocked[..m].fill(false);
+        self.unblock_all();
+        debug_assert!(!self.blocked[..m].iter().any(|&b| b));
+    }
+
+    fn block(&mut self, j: usize) {
+        self.blocked[j] = true;
+        self.blocked_list.push(j);
+    }
+
+    fn unblock_all(&mut self) {
+        for j in self.blocked_list.drain(..) {
+            self.blocked[j] = false;
+        }
     }
 
     /// `r = b - Theta_P x_P`.
@@ -173,9 +223,30 @@ impl WideNnls {
 
     /// The column outside P (and not refused) with the largest `w_j > tol * scale`, the first
     /// on ties (the Gram solver's scan).
-    fn entering(&self, m: usize, scale: f64) -> Option<usize> {
+    ///
+    /// After a windowed dual update only the meeting columns can exceed the non-negative
+    /// threshold; the larger value, then the lower column, wins as in the full scan.
+    fn entering(&self, m: usize, scale: f64, windowed: bool) -> Option<usize> {
         let threshold = self.params.tol * scale;
+        if windowed {
+            return self
+                .meeting
+                .iter()
+                .filter(|&&j| !self.in_passive[j] && !self.blocked[j] && self.w[j] > threshold)
+                .map(|&j| (self.w[j], j))
+                .fold(None, |held, c| Some(better_entering(held, c)))
+                .map(|c| c.1);
+        }
         scan_entering(&self.w[..m], &self.in_passive[..m], &self.blocked[..m], 0, threshold).map(|c| c.1)
+    }
+
+    /// The columns outside P whose `w` the last dual update holds (for the error report).
+    fn outside_passive(&self, m: usize, windowed: bool) -> Box<dyn Iterator<Item = usize> + '_> {
+        if windowed {
+            Box::new(self.meeting.iter().copied().filter(|&j| !self.in_passive[j]))
+        } else {
+            Box::new((0..m).filter(|&j| !self.in_passive[j]))
+        }
     }
 
     /// Inner loop: from the feasible `x` towards the passive least-squares solution, dropping
@@ -279,6 +350,18 @@ fn column_dot(theta: MatRef<'_, f64>, j: usize, v: &[f64]) -> f64 {
     }
 }
 
+/// [`column_dot`] where the products outside `lo..hi` are zero: the same bits.
+fn column_dot_window(theta: MatRef<'_, f64>, j: usize, v: &[f64], lo: usize, hi: usize) -> f64 {
+    if lo >= hi {
+        return 0.0;
+    }
+    match theta.col(j).try_as_col_major() {
+        Some(col) => dot_window(col.as_slice(), v, lo, hi),
+        // An in-order sum skipping exact-zero products is the whole in-order sum.
+        None => (lo..hi).map(|i| theta[(i, j)] * v[i]).fold(0.0, |s, p| s + p),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -369,6 +452,42 @@ mod tests {
         assert!(close(prefix, reference.residual_norm, Tol::abs(1e-12)));
         assert!(prefix > 0.1, "column 30 is outside the prefix: {prefix}");
         assert!(support.iter().all(|&(j, _)| j < 10));
+    }
+
+    /// With each column's window the projection is the same bits as without, cold and warm,
+    /// on narrow bumps (most columns do not meet a residual) and on wide ones, for right-hand
+    /// sides that are zero outside a patch and for dense ones.
+    #[test]
+    fn windows_change_no_bit() {
+        let mut rng = Rng::new(11);
+        for (n, m, width) in [(101, 3000, 0.06), (40, 300, 0.5), (12, 30, 0.2)] {
+            let theta = bumps(n, m, width);
+            let windows = ColumnIndex::of(theta.as_ref());
+            assert!((0..m).all(|j| windows.window(j).0 < windows.window(j).1), "every bump is non-zero somewhere");
+            let mut plain = WideNnls::new(n, m, NnlsParams::default());
+            let mut windowed = WideNnls::new(n, m, NnlsParams::default());
+            for trial in 0..30 {
+                let patch = if trial % 2 == 0 { (n / 3, n / 3 + n / 5 + 1) } else { (0, n) };
+                let b: Vec<f64> = (0..n)
+                    .map(|i| if (patch.0..patch.1).contains(&i) { rng.uniform_in(-0.2, 1.0) } else { 0.0 })
+                    .collect();
+                let (mut s1, mut s2) = (Vec::new(), Vec::new());
+                for _ in 0..2 {
+                    // cold, then warm from the cold support
+                    let r1 = plain.project(theta.as_ref(), &b, &mut s1).expect("converges");
+                    let r2 = windowed.project_windowed(theta.as_ref(), Some(&windows), &b, &mut s2).expect("converges");
+                    assert_eq!(r1.to_bits(), r2.to_bits(), "{n} x {m}, trial {trial}");
+                    let bits = |s: &[(usize, f64)]| s.iter().map(|&(j, v)| (j, v.to_bits())).collect::<Vec<_>>();
+                    assert_eq!(bits(&s1), bits(&s2), "{n} x {m}, trial {trial}");
+                }
+                // A prefix of the cone with the whole cone's index.
+                let half = theta.subcols(0, m / 2);
+                let r1 = plain.project(half, &b, &mut s1).expect("converges");
+                let r2 = windowed.project_windowed(half, Some(&windows), &b, &mut s2).expect("converges");
+                assert_eq!(r1.to_bits(), r2.to_bits(), "{n} x {m}, trial {trial}, prefix");
+                assert!(s2.iter().all(|&(j, _)| j < m / 2));
+            }
+        }
     }
 
     #[test]
