@@ -35,6 +35,7 @@
 //! ```
 
 pub mod basis;
+pub mod blocks;
 pub mod condition;
 pub mod cone;
 pub mod contact;

@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 
 use crom_schemas::artifact::{basis as names, ArtifactKind};
 use crom_schemas::SceneConfig;
-use crom_stages::basis::{cpg_path_refined, pod, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
+use crom_stages::basis::{cpg_path_refined, pod, pod_blocks, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
 use crom_stages::cone::NnlsParams;
 use serde::Serialize;
 use serde_json::json;
@@ -124,6 +124,10 @@ pub(crate) struct BasisKey {
     /// Gram selection of up to `DENSE_CURVE_MAX` snapshots.
     #[serde(skip_serializing_if = "Option::is_none")]
     selection: Option<&'static str>,
+    /// `"streamed"` when the primal POD reads the training set block by block
+    /// ([`super::streamed`]); absent (and not in the key) at or below the switch-over size.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    primal: Option<&'static str>,
     /// The metrics' range recorded on the shared greedy path (`dual_path`): it decides the
     /// bases only through `curve_dense_to`, so it is not in the key itself.
     #[serde(skip)]
@@ -149,6 +153,11 @@ impl BasisKey {
         self.max_rank
     }
 
+    /// True when the primal snapshots are read block by block ([`super::streamed`]).
+    pub(crate) fn streams_primal(&self) -> bool {
+        self.primal.is_some()
+    }
+
     /// The scene's basis settings.
     fn of(scene: &SceneConfig) -> Self {
         let st = &scene.study;
@@ -163,6 +172,7 @@ impl BasisKey {
             nnls: NnlsKey::used(),
             curve_dense_to: grid.then_some(max_rank),
             selection: selection_of(n_train),
+            primal: super::streamed::primal_of(n_train),
             max_rank,
         }
     }
@@ -211,16 +221,25 @@ impl BasisStage {
         let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
         let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
         ctx.single(ArtifactKind::Basis, "basis", &self.spec, |staging| {
-            let set = loaded.set(store, train)?;
             // The primal POD (the large SVD) beside the dual POD and the greedy path: independent
             // computations, each deterministic, on the two cores.
-            let (primal, (dual, path)) = rayon::join(
-                || pod(view(&set.primal), PodParams { rel_tol: st.primal_tol }),
-                || {
-                    let dual = pod(view(&set.dual), PodParams { rel_tol: st.dual_orth_tol });
-                    (dual, dual_path(progress, &tols, train, &set.dual, st.max_rank))
-                },
-            );
+            let dual_side = |dual_set: &ColMatrix| {
+                let dual = pod(view(dual_set), PodParams { rel_tol: st.dual_orth_tol });
+                (dual, dual_path(progress, &tols, train, dual_set, st.max_rank))
+            };
+            let primal_params = PodParams { rel_tol: st.primal_tol };
+            let (primal, (dual, path)) = if st.streams_primal() {
+                let set = loaded.streamed(store, train)?;
+                let (primal, rest) =
+                    rayon::join(|| pod_blocks(&set.primal, &set.primal_norms, primal_params), || dual_side(&set.dual));
+                if let Some(e) = set.primal.failure() {
+                    return Err(e);
+                }
+                (primal, rest)
+            } else {
+                let set = loaded.set(store, train)?;
+                rayon::join(|| pod(view(&set.primal), primal_params), || dual_side(&set.dual))
+            };
             let primal = primal.map_err(|e| numerical(e.to_string()))?;
             let dual = dual.map_err(|e| numerical(e.to_string()))?;
             // One greedy path; both bases are its prefixes (the greedy is deterministic).

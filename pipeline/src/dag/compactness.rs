@@ -6,13 +6,15 @@
 use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{compactness as names, ArtifactKind};
-use crom_stages::metrics::compactness_orth;
+use crom_stages::blocks::modal_pass;
+use crom_stages::metrics::{compactness_orth, compactness_orth_modal};
 use serde::Serialize;
 use serde_json::json;
 
 use super::basis::{self, BasisKey};
 use super::convert::view;
 use super::graph::{Input, StageDef};
+use super::streamed::MetricSet;
 use super::{Ctx, Labels, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -77,14 +79,21 @@ impl CompactnessStage {
         let scene = &self.labels.scene;
         let (progress, max_rank) = (ctx.progress, self.basis_settings.max_rank());
         let tols = self.basis_settings.cone_tols();
+        let streams = self.basis_settings.streams_primal();
         ctx.single(ArtifactKind::Compactness, "compactness", spec, |staging| {
-            let set = loaded.set(store, train)?;
+            let numerical =
+                |message: String| CromError::Numerical { stage: "compactness", scene: scene.clone(), message };
+            let set = loaded.metric_set(store, train, streams)?;
             let b = loaded.bases(store, basis_key)?;
-            let primal = compactness_orth(view(&set.primal), view(&b.primal_pod));
-            let dual = compactness_orth(view(&set.dual), view(&b.dual_pod));
+            let primal = match &set {
+                MetricSet::Whole(s) => compactness_orth(view(&s.primal), view(&b.primal_pod)),
+                MetricSet::Streamed(s) => compactness_orth_modal(
+                    &modal_pass(&s.primal, view(&b.primal_pod)).map_err(|e| s.primal.error_or(|| numerical(e.0)))?,
+                ),
+            };
+            let dual = compactness_orth(view(set.dual()), view(&b.dual_pod));
             // C(m) of the stored cone basis: the prefix of the CPG path's curve (the same pass).
-            let path = basis::dual_path(progress, &tols, train, &set.dual, max_rank)
-                .map_err(|message| CromError::Numerical { stage: "compactness", scene: scene.clone(), message })?;
+            let path = basis::dual_path(progress, &tols, train, set.dual(), max_rank).map_err(numerical)?;
             let cone = path.compactness[..=b.dual_cpg.cols.min(path.len())].to_vec();
             let mut t = Rows::default();
             t.push(scene, "primal", "orth", &primal);

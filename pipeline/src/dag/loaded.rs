@@ -8,6 +8,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use super::basis::{self, Bases};
+use super::streamed::{self, MetricSet, StreamedSet};
 use super::trainset::{self, TrainingSet};
 use crate::cache::Key;
 use crate::error::CromError;
@@ -17,6 +18,7 @@ use crate::store::Store;
 #[derive(Debug, Default)]
 pub(crate) struct Loaded {
     sets: Mutex<HashMap<Key, Arc<TrainingSet>>>,
+    streamed: Mutex<HashMap<Key, Arc<StreamedSet>>>,
     bases: Mutex<HashMap<Key, Arc<Bases>>>,
 }
 
@@ -39,6 +41,21 @@ impl Loaded {
     /// The training or test set `key`.
     pub(crate) fn set(&self, store: &Store, key: &Key) -> Result<Arc<TrainingSet>, CromError> {
         get_or_load(&self.sets, key, || trainset::load_from(store, key))
+    }
+
+    /// The training set `key` with its primal snapshots left in the store
+    /// ([`super::streamed`]).
+    pub(crate) fn streamed(&self, store: &Store, key: &Key) -> Result<Arc<StreamedSet>, CromError> {
+        get_or_load(&self.streamed, key, || streamed::load(store, key))
+    }
+
+    /// The training set `key` for the offline metrics: streamed when `streamed`, else whole.
+    pub(crate) fn metric_set(&self, store: &Store, key: &Key, streamed: bool) -> Result<MetricSet, CromError> {
+        Ok(if streamed {
+            MetricSet::Streamed(self.streamed(store, key)?)
+        } else {
+            MetricSet::Whole(self.set(store, key)?)
+        })
     }
 
     /// The bases `key`.

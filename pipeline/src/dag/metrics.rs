@@ -6,10 +6,11 @@ use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{metrics as names, ArtifactKind};
 use crom_schemas::SceneConfig;
+use crom_stages::blocks::modal_pass;
 use crom_stages::cone::NnlsParams;
 use crom_stages::metrics::{
     combine_folds, loo_fold_cone, mean_interval95, nested_error_cone, nested_error_orth, specificity_cone_path,
-    specificity_orth, LooOrth, MetricCurve, SpecificityParams,
+    specificity_orth, specificity_orth_modal, LooOrth, MetricCurve, SpecificityParams,
 };
 use rayon::prelude::*;
 use serde::Serialize;
@@ -18,6 +19,7 @@ use serde_json::json;
 use super::basis::Ticker;
 use super::convert::view;
 use super::graph::{Input, StageDef};
+use super::streamed::{self, MetricSet};
 use super::{basis, trainset, Ctx, Labels, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -42,6 +44,10 @@ pub(crate) struct GeneralizationKey {
     /// is in.
     #[serde(skip_serializing_if = "Option::is_none")]
     interval: Option<&'static str>,
+    /// `"streamed"` when the primal folds read the training set block by block
+    /// ([`super::streamed`]); absent (and not in the key) at or below the switch-over size.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    primal: Option<&'static str>,
 }
 
 impl StageKey for GeneralizationKey {
@@ -61,6 +67,10 @@ pub(crate) struct SpecificityKey {
     /// Every m up to this, then the quarter-octave rank grid (large training sets only).
     #[serde(skip_serializing_if = "Option::is_none")]
     dense_to: Option<usize>,
+    /// `"streamed"` when the primal S(m) reads the training set block by block
+    /// ([`super::streamed`]); absent (and not in the key) at or below the switch-over size.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    primal: Option<&'static str>,
 }
 
 /// Every m of S(m) is evaluated up to this many training snapshots; above, every m up to
@@ -109,7 +119,8 @@ impl GeneralizationKey {
         let sampled = (folds.len() != n_train).then_some(folds.len());
         let selection = basis::selection_of(n_train);
         let interval = sampled.map(|_| names::INTERVAL);
-        Self { max_rank, folds: sampled, nnls: NnlsKey::used(), selection, interval }
+        let primal = streamed::primal_of(n_train);
+        Self { max_rank, folds: sampled, nnls: NnlsKey::used(), selection, interval, primal }
     }
 
     /// The folds of `n` training snapshots: every one, or the keyed sample of them
@@ -124,7 +135,8 @@ impl SpecificityKey {
     fn of(scene: &SceneConfig) -> Self {
         let st = &scene.study;
         let (max_rank, dense_to) = (basis::max_rank_of(scene), specificity_dense_to(scene));
-        Self { samples: st.specificity_samples, seed: st.seed, max_rank, nnls: NnlsKey::used(), dense_to }
+        let primal = streamed::primal_of(scene.parameter.train_points().len());
+        Self { samples: st.specificity_samples, seed: st.seed, max_rank, nnls: NnlsKey::used(), dense_to, primal }
     }
 }
 
@@ -244,35 +256,41 @@ fn generalization(
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
     ctx.single(ArtifactKind::Generalization, "generalization", spec, |staging| {
-        let set = loaded.set(store, train)?;
-        let folds = settings.folds(set.dual.cols);
-        let max_m = set.dual.cols.saturating_sub(1).min(max_rank);
+        let set = loaded.metric_set(store, train, settings.primal.is_some())?;
+        let n_train = set.len();
+        let folds = settings.folds(n_train);
+        let max_m = n_train.saturating_sub(1).min(max_rank);
         let fail = |e: String| numerical(scene, "generalization", e);
         // G(m) reads the path's generators and leave-one-out data, not its C(m): no tolerance.
-        let path = basis::dual_path(progress, &[], train, &set.dual, max_rank).map_err(fail)?;
+        let path = basis::dual_path(progress, &[], train, set.dual(), max_rank).map_err(fail)?;
         let bar = Ticker::new(progress, "LOO folds", 3 * folds.len());
         // A sample of folds: each mean with its interval over all N folds.
-        let population = settings.interval.map(|_| set.dual.cols);
+        let population = settings.interval.map(|_| n_train);
         let mut rows = CurveRows { population, ..CurveRows::default() };
-        for (field, s) in [("primal", &set.primal), ("dual", &set.dual)] {
-            let curve = loo_orth(s, &folds, max_m, &|| bar.tick(&format!("{field} orth"))).map_err(fail)?;
+        let primal = match &set {
+            MetricSet::Whole(s) => LooOrth::new(view(&s.primal)).map_err(|e| fail(e.to_string()))?,
+            MetricSet::Streamed(s) => LooOrth::from_blocks(&s.primal, &s.primal_norms)
+                .map_err(|e| s.primal.error_or(|| fail(e.to_string())))?,
+        };
+        let dual = LooOrth::new(view(set.dual())).map_err(|e| fail(e.to_string()))?;
+        for (field, loo) in [("primal", &primal), ("dual", &dual)] {
+            let curve = loo_orth(loo, &folds, max_m, &|| bar.tick(&format!("{field} orth"))).map_err(fail)?;
             rows.push(scene, field, "orth", &curve);
         }
-        let curve = loo_cone(&set.dual, &path, &folds, max_m, &|| bar.tick("dual cone")).map_err(fail)?;
+        let curve = loo_cone(set.dual(), &path, &folds, max_m, &|| bar.tick("dual cone")).map_err(fail)?;
         rows.push(scene, "dual", "cone", &curve);
         bar.finish(&format!("m <= {max_m}"));
         rows.table().write_parquet(&staging.path(names::GENERALIZATION))?;
         Ok(BTreeMap::from([
             ("folds".to_string(), json!(folds.len())),
-            ("snapshots".to_string(), json!(set.parameters.len())),
+            ("snapshots".to_string(), json!(n_train)),
             ("max_rank".to_string(), json!(max_rank)),
             ("max_m".to_string(), json!(max_m)),
         ]))
     })
 }
 
-fn loo_orth(s: &ColMatrix, which: &[usize], max_m: usize, tick: &(dyn Fn() + Sync)) -> Result<MetricCurve, String> {
-    let loo = LooOrth::new(view(s)).map_err(|e| e.to_string())?;
+fn loo_orth(loo: &LooOrth, which: &[usize], max_m: usize, tick: &(dyn Fn() + Sync)) -> Result<MetricCurve, String> {
     let folds: Result<Vec<_>, _> = which
         .par_iter()
         .copied()
@@ -323,22 +341,35 @@ fn specificity(
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
     ctx.single(ArtifactKind::Specificity, "specificity", spec, |staging| {
-        let set = loaded.set(store, train)?;
+        let set = loaded.metric_set(store, train, settings.primal.is_some())?;
         let b = loaded.bases(store, basis_key)?;
         // S(m) reads the path's generators and coefficient ranges, not its C(m): no tolerance.
-        let path = basis::dual_path(progress, &[], train, &set.dual, max_rank)
+        let path = basis::dual_path(progress, &[], train, set.dual(), max_rank)
             .map_err(|e| numerical(scene, "specificity", e))?;
         let pm = view(&b.primal_pod).subcols(0, b.primal_pod.cols.min(max_rank));
         let dm = view(&b.dual_pod).subcols(0, b.dual_pod.cols.min(max_rank));
         // The stored cone basis is a prefix of the path: the same m range as computing on it.
         let cone_m = b.dual_cpg.cols.min(max_rank);
         let bar = Ticker::new(progress, "specificity m", cone_m);
+        // The primal snapshots' coordinates on the modes: from the set in memory, or from one
+        // pass over its blocks.
+        let modal = match &set {
+            MetricSet::Whole(_) => None,
+            MetricSet::Streamed(s) => {
+                Some(modal_pass(&s.primal, pm).map_err(|e| s.primal.error_or(|| numerical(scene, "specificity", e)))?)
+            }
+        };
+        let dual = set.dual();
         let (p, d, c) = rayon::join(
-            || specificity_orth(view(&set.primal), pm, params),
+            || match (&set, modal) {
+                (_, Some(modal)) => specificity_orth_modal(modal, params),
+                (MetricSet::Whole(s), None) => specificity_orth(view(&s.primal), pm, params),
+                (MetricSet::Streamed(_), None) => unreachable!("a streamed set has its modal pass"),
+            },
             || {
                 rayon::join(
-                    || specificity_orth(view(&set.dual), dm, params),
-                    || specificity_cone_path(view(&set.dual), &path, cone_m, params, &|| bar.tick("dual cone")),
+                    || specificity_orth(view(dual), dm, params),
+                    || specificity_cone_path(view(dual), &path, cone_m, params, &|| bar.tick("dual cone")),
                 )
             },
         )

@@ -39,6 +39,7 @@ pub mod publish;
 mod report;
 mod rom;
 mod snapshots;
+mod streamed;
 pub(crate) mod trainset;
 mod views;
 

@@ -20,6 +20,8 @@
 
 use faer::{Mat, MatRef};
 
+use crate::blocks::{BlockError, ColumnBlocks};
+
 /// Columns per block: about the rank of the shipped scenes' primal snapshots (180), where the
 /// per-block cost `n (q + B)^2` per `B` columns is near its minimum.
 pub const FRAME_BLOCK: usize = 256;
@@ -50,8 +52,14 @@ pub fn frame_pays_up_to(count: usize) -> usize {
 
 /// [`frame`], or `None` as soon as it would have more than `max_q` columns.
 pub fn frame_within(s: MatRef<'_, f64>, max_q: usize) -> Option<Frame> {
-    let (n, count) = s.shape();
-    let total = s.norm_l2();
+    frame_within_blocks(&s, s.norm_l2(), max_q)
+        .unwrap_or_else(|_| unreachable!("a matrix in memory is read without error"))
+}
+
+/// [`frame_within`] of snapshots read block by block ([`ColumnBlocks`]: one block of
+/// [`FRAME_BLOCK`] columns in memory at a time), given `total = ||S||_F`.
+pub fn frame_within_blocks(src: &dyn ColumnBlocks, total: f64, max_q: usize) -> Result<Option<Frame>, BlockError> {
+    let (n, count) = (src.nrows(), src.ncols());
     let tau = f64::EPSILON * total;
     let mut q = Mat::<f64>::zeros(n, 0);
     // Coefficients per block: (rows of the frame at that block, q_b x B).
@@ -60,7 +68,8 @@ pub fn frame_within(s: MatRef<'_, f64>, max_q: usize) -> Option<Frame> {
     let mut start = 0;
     while start < count {
         let b = FRAME_BLOCK.min(count - start);
-        let sb = s.subcols(start, b);
+        let block = src.block(start, b)?;
+        let sb = block.as_ref();
         let mut c = if q.ncols() > 0 { q.transpose() * sb } else { Mat::zeros(0, b) };
         let mut w = if q.ncols() > 0 { sb - &q * &c } else { sb.to_owned() };
         if q.ncols() > 0 {
@@ -75,7 +84,7 @@ pub fn frame_within(s: MatRef<'_, f64>, max_q: usize) -> Option<Frame> {
         let q_old = q.ncols();
         let t = keep.ncols();
         if q_old + t > max_q {
-            return None;
+            return Ok(None);
         }
         if t > 0 {
             q.resize_with(n, q_old + t, |i, j| keep[(i, j - q_old)]);
@@ -90,7 +99,7 @@ pub fn frame_within(s: MatRef<'_, f64>, max_q: usize) -> Option<Frame> {
         r.submatrix_mut(0, col, blk.nrows(), blk.ncols()).copy_from(blk);
         col += blk.ncols();
     }
-    Some(Frame { q, r, dropped: dropped2.sqrt() })
+    Ok(Some(Frame { q, r, dropped: dropped2.sqrt() }))
 }
 
 /// The directions of the residual block `w` (already orthogonal to `q` up to round-off of

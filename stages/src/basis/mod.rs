@@ -19,11 +19,11 @@ pub use cpg::{
     cpg, cpg_path, cpg_path_refined, Cpg, CpgParams, CpgPath, CpgPathParams, CPG_FLOOR, DENSE_CURVE_MAX, GRID_START,
 };
 pub use cpg_reference::cpg_reference;
-pub use frame::{frame, frame_pays_up_to, frame_within, Frame, FRAME_BLOCK};
+pub use frame::{frame, frame_pays_up_to, frame_within, frame_within_blocks, Frame, FRAME_BLOCK};
 pub use gram_condition::gram_condition_path;
 
 pub(crate) use lazy::LazyGreedy;
 pub use pod::{
-    numerical_rank, pod, pod_direct, pod_frame, pod_full, tail_energies, truncation_rank, Pod, PodError, PodParams,
-    POD_FRAME_ABOVE,
+    numerical_rank, pod, pod_blocks, pod_direct, pod_frame, pod_full, pod_of_frame, tail_energies, truncation_rank,
+    Pod, PodError, PodParams, POD_FRAME_ABOVE,
 };

@@ -9,6 +9,8 @@
 use faer::{Mat, MatRef};
 use thiserror::Error;
 
+use crate::blocks::{ColumnBlocks, ColumnNorms};
+
 /// Parameters of [`pod`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PodParams {
@@ -32,6 +34,9 @@ pub enum PodError {
     /// The snapshot matrix contains NaN or infinity.
     #[error("the snapshot matrix contains a non-finite value (NaN or infinity)")]
     NonFinite,
+    /// A block of snapshots could not be read.
+    #[error("reading the snapshots: {0}")]
+    Read(#[from] crate::blocks::BlockError),
 }
 
 /// A POD basis.
@@ -71,6 +76,30 @@ pub fn pod(s: MatRef<'_, f64>, params: PodParams) -> Result<Pod, PodError> {
         return pod_direct(s, params);
     }
     let Some(f) = pod_frame(s) else { return pod_direct(s, params) };
+    pod_of_frame(&f, n, count, params)
+}
+
+/// [`pod`] of snapshots read block by block (`src`, with `norms` from
+/// [`column_norms`](crate::blocks::column_norms) of the same source): above
+/// [`POD_FRAME_ABOVE`] snapshots through the frame, one block in memory at a time, with
+/// `||S||_F` summed from the columns' norms; at or below it, or where the frame does not pay,
+/// the whole matrix is read and [`pod`] runs on it.
+pub fn pod_blocks(src: &dyn ColumnBlocks, norms: &ColumnNorms, params: PodParams) -> Result<Pod, PodError> {
+    let (n, count) = (src.nrows(), src.ncols());
+    if !norms.finite {
+        return Err(PodError::NonFinite);
+    }
+    if count <= POD_FRAME_ABOVE {
+        return pod(src.whole()?.as_ref(), params);
+    }
+    match super::frame::frame_within_blocks(src, norms.frobenius(), super::frame::frame_pays_up_to(count))? {
+        Some(f) => pod_of_frame(&f, n, count, params),
+        None => pod_direct(src.whole()?.as_ref(), params),
+    }
+}
+
+/// The POD from a frame `S ~ Q R` of n x N snapshots: the SVD of the small R.
+pub fn pod_of_frame(f: &super::Frame, n: usize, count: usize, params: PodParams) -> Result<Pod, PodError> {
     let len = n.min(count);
     if f.q.ncols() == 0 {
         return Ok(Pod { modes: Mat::zeros(n, 0), singular_values: vec![0.0; len], rank: 0 });

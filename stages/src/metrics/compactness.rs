@@ -29,6 +29,24 @@ pub fn compactness_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>) -> Vec<f64> 
     } else {
         crate::kernels::out_of_span_norms(s, modes, q.as_ref()).iter().sum()
     };
+    curve_from_coordinates(q.as_ref(), perp2, total)
+}
+
+/// [`compactness_orth`] from one [`modal_pass`](crate::blocks::modal_pass) over snapshots read
+/// block by block: `||S||_F` and `||S_perp||_F^2` summed from the columns' numbers in column
+/// order (the form [`compactness_orth`] uses above `DENSE_CURVE_MAX` snapshots).
+pub fn compactness_orth_modal(modal: &crate::blocks::ModalCoordinates) -> Vec<f64> {
+    let total = modal.norm2.iter().sum::<f64>().sqrt();
+    if total <= 0.0 {
+        return vec![0.0; modal.coords.nrows() + 1];
+    }
+    curve_from_coordinates(modal.coords.as_ref(), modal.perp.iter().sum(), total)
+}
+
+/// `C(m) = sqrt(||S_perp||_F^2 + sum_{i>m} ||Q_i||^2) / ||S||_F`, the tail summed from the last
+/// mode up.
+fn curve_from_coordinates(q: MatRef<'_, f64>, perp2: f64, total: f64) -> Vec<f64> {
+    let m_max = q.nrows();
     let mut c = vec![0.0; m_max + 1];
     let mut tail = 0.0;
     for m in (1..=m_max).rev() {

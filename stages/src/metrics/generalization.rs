@@ -251,6 +251,29 @@ impl LooOrth {
         Self::direct(s, method, norms)
     }
 
+    /// [`new`](Self::new) of snapshots read block by block (`src`, with `norms` from
+    /// [`column_norms`](crate::blocks::column_norms) of the same source): above the
+    /// frame's switch-over size through the blockwise frame, one block in memory at a time,
+    /// with `||S||_F` and each snapshot's norm from `norms`; elsewhere (or where the frame does
+    /// not pay) on the whole matrix.
+    pub fn from_blocks(
+        src: &dyn crate::blocks::ColumnBlocks,
+        norms: &crate::blocks::ColumnNorms,
+    ) -> Result<Self, PodError> {
+        let count = src.ncols();
+        if !norms.finite {
+            return Err(PodError::NonFinite);
+        }
+        if count > crate::basis::POD_FRAME_ABOVE && FoldMethod::for_snapshots(count) == FoldMethod::Downdate {
+            let pays = crate::basis::frame_pays_up_to(count);
+            if let Some(frame) = crate::basis::frame_within_blocks(src, norms.frobenius(), pays)? {
+                let single = norms.norm2.iter().map(|v| v.sqrt()).collect();
+                return Self::framed(frame, count, src.nrows(), single);
+            }
+        }
+        Self::new(src.whole()?.as_ref())
+    }
+
     /// [`with_method`](Self::with_method) on the whole QR factor of `s` at any size.
     fn direct(s: MatRef<'_, f64>, method: FoldMethod, norms: Vec<f64>) -> Result<Self, PodError> {
         let (n, count) = (s.nrows(), s.ncols());

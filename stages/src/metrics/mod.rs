@@ -27,7 +27,9 @@ pub mod order;
 mod specificity;
 mod stats;
 
-pub use compactness::{compactness_cone, compactness_cone_with, compactness_orth, relative_errors_orth};
+pub use compactness::{
+    compactness_cone, compactness_cone_with, compactness_orth, compactness_orth_modal, relative_errors_orth,
+};
 pub use downdate::ColumnDowndate;
 pub use generalization::{
     combine_folds, generalization_cone, generalization_cone_reference, generalization_orth, loo_fold_cone,
@@ -35,7 +37,8 @@ pub use generalization::{
 };
 pub use nested::{nested_error_cone, nested_error_orth};
 pub use specificity::{
-    cone_ranges_reference, specificity_cone, specificity_cone_path, specificity_orth, SpecificityParams,
+    cone_ranges_reference, specificity_cone, specificity_cone_path, specificity_orth, specificity_orth_modal,
+    SpecificityParams,
 };
 
 pub use specificity::stream as specificity_stream;

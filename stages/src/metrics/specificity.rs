@@ -74,12 +74,22 @@ pub fn specificity_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>, params: Spec
         (modes.transpose() * modes - Mat::<f64>::identity(modes.ncols(), modes.ncols())).norm_l2() <= 1e-8,
         "specificity_orth: modes are not orthonormal"
     );
-    let frame = Frame::new(s, modes);
-    let k = modes.ncols();
+    specificity_on_frame(&Frame::new(s, modes), params)
+}
+
+/// [`specificity_orth`] from one [`modal_pass`](crate::blocks::modal_pass) over snapshots read
+/// block by block (the snapshots' coordinates on the modes, their out-of-span and whole
+/// squared norms: all the sampling reads of them).
+pub fn specificity_orth_modal(modal: crate::blocks::ModalCoordinates, params: SpecificityParams) -> MetricCurve {
+    specificity_on_frame(&Frame::from_parts(modal.coords, &modal.perp, &modal.norm2), params)
+}
+
+fn specificity_on_frame(frame: &Frame, params: SpecificityParams) -> MetricCurve {
+    let (k, count) = frame.coords.shape();
     let ranges: Vec<(f64, f64)> = (0..k)
         .map(|l| {
             let mut st = RunningStats::new();
-            (0..s.ncols()).for_each(|j| st.push(frame.coords[(l, j)]));
+            (0..count).for_each(|j| st.push(frame.coords[(l, j)]));
             st.interval(false)
         })
         .collect();
@@ -90,7 +100,7 @@ pub fn specificity_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>, params: Spec
             if !on_rank_grid(m, params.dense_to, k) {
                 return RunningStats::new();
             }
-            sample_stats(&frame, &ranges[..m], stream(params.seed, m), params.samples, m, |alpha, beta| {
+            sample_stats(frame, &ranges[..m], stream(params.seed, m), params.samples, m, |alpha, beta| {
                 beta.copy_from_slice(alpha)
             })
         })
@@ -207,6 +217,12 @@ impl Frame {
     fn new(s: MatRef<'_, f64>, q: MatRef<'_, f64>) -> Self {
         let coords: Mat<f64> = q.transpose() * s;
         let perp = crate::kernels::out_of_span_norms(s, q, coords.as_ref());
+        let norm2: Vec<f64> = (0..s.ncols()).map(|j| s.col(j).squared_norm_l2()).collect();
+        Self::from_parts(coords, &perp, &norm2)
+    }
+
+    /// From the coordinates `c_j`, `||s_j - Q c_j||^2` and `||s_j||^2` of every snapshot.
+    fn from_parts(coords: Mat<f64>, perp: &[f64], norm2: &[f64]) -> Self {
         let (qdim, count) = coords.shape();
         let mut tails = Mat::zeros(qdim + 1, count);
         for j in 0..count {
@@ -215,12 +231,7 @@ impl Frame {
                 tails[(l, j)] = tails[(l + 1, j)] + coords[(l, j)] * coords[(l, j)];
             }
         }
-        let nonzero = (0..count)
-            .filter_map(|j| {
-                let norm2 = s.col(j).squared_norm_l2();
-                (norm2 > 0.0).then(|| (j, 1.0 / norm2))
-            })
-            .collect();
+        let nonzero = (0..count).filter(|&j| norm2[j] > 0.0).map(|j| (j, 1.0 / norm2[j])).collect();
         Self { coords, tails, nonzero }
     }
 

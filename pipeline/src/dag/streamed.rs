@@ -1,0 +1,148 @@
+//! Large training sets with their primal snapshots left in the store.
+//!
+//! Above [`STREAM_PRIMAL_ABOVE`] training snapshots the offline stages (bases, compactness,
+//! leave-one-out, specificity) do not hold the `n_dof x N` primal matrix (3.2 GB for 65 537
+//! ironing-coarse snapshots): the set is loaded as its dual snapshots, its parameters and each
+//! primal column's squared norm, and the primal metrics read the columns again from their
+//! blocks, a fixed number of columns at a time ([`crom_stages::blocks`]), verifying each
+//! column's blake3 as every read does. Their memory is a block and the rank, not N.
+//!
+//! The keys of those stages carry `primal = "streamed"` above the switch-over size: the frame's
+//! tolerance is `eps ||S||_F` with the norm summed from the columns' norms, which can round
+//! differently from the whole matrix's norm of the in-memory path. At or below it nothing
+//! changes (the paper's studies are in memory, bit for bit).
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use crom_schemas::artifact::{trainset as names, ArtifactKind};
+use crom_stages::blocks::{BlockError, ColumnBlocks, ColumnNorms};
+use faer::{Mat, MatRef};
+
+use super::trainset::{self, TrainingSet};
+use crate::cache::Key;
+use crate::error::CromError;
+use crate::io::h5::{ColMatrix, H5In};
+use crate::store::columns::{read_columns, IndexRow};
+use crate::store::Store;
+
+/// Training sets larger than this are streamed (the frame's switch-over size: below it the
+/// POD is the direct SVD of the whole matrix).
+pub(crate) const STREAM_PRIMAL_ABOVE: usize = crom_stages::basis::POD_FRAME_ABOVE;
+
+/// Columns read per block while loading a streamed set.
+const LOAD_BLOCK: usize = 256;
+
+/// The key marker of the stages that stream the primal snapshots of `n_train` training points.
+pub(crate) fn primal_of(n_train: usize) -> Option<&'static str> {
+    (n_train > STREAM_PRIMAL_ABOVE).then_some("streamed")
+}
+
+/// A training set as the offline metrics read it: whole, or with its primal snapshots left in
+/// the store.
+#[derive(Debug, Clone)]
+pub(crate) enum MetricSet {
+    Whole(Arc<TrainingSet>),
+    Streamed(Arc<StreamedSet>),
+}
+
+impl MetricSet {
+    /// The dual snapshots (in memory either way).
+    pub(crate) fn dual(&self) -> &ColMatrix {
+        match self {
+            Self::Whole(s) => &s.dual,
+            Self::Streamed(s) => &s.dual,
+        }
+    }
+
+    /// Number of snapshots.
+    pub(crate) fn len(&self) -> usize {
+        self.dual().cols
+    }
+}
+
+/// A training set whose primal snapshots stay in the store.
+#[derive(Debug)]
+pub(crate) struct StreamedSet {
+    /// Dual snapshots, `n_contact x N`, in memory.
+    pub dual: ColMatrix,
+    /// The primal columns, read block by block.
+    pub primal: PrimalColumns,
+    /// `||u_j||^2` of every primal column, and whether all are finite.
+    pub primal_norms: ColumnNorms,
+}
+
+/// The primal snapshots of a stored set as a [`ColumnBlocks`] source. A failed read is kept
+/// (the first one) so the stage can report the store's own error, with its file and fix.
+#[derive(Debug)]
+pub(crate) struct PrimalColumns {
+    root: PathBuf,
+    rows: Vec<IndexRow>,
+    n_dof: usize,
+    n_contact: usize,
+    failure: Mutex<Option<CromError>>,
+}
+
+impl PrimalColumns {
+    /// The store's error behind a failed block read, if one failed.
+    pub(crate) fn failure(&self) -> Option<CromError> {
+        self.failure.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take()
+    }
+
+    /// The error of a computation that read these columns: the store's own error when a read
+    /// failed, else `otherwise` (the computation's).
+    pub(crate) fn error_or(&self, otherwise: impl FnOnce() -> CromError) -> CromError {
+        self.failure().unwrap_or_else(otherwise)
+    }
+
+    /// Columns `start..start + count`: primal and dual, each verified.
+    fn read(&self, start: usize, count: usize) -> Result<(ColMatrix, ColMatrix), CromError> {
+        let refs: Vec<&IndexRow> = self.rows[start..start + count].iter().collect();
+        read_columns(&self.root, self.n_dof, self.n_contact, &refs)
+    }
+}
+
+impl ColumnBlocks for PrimalColumns {
+    fn nrows(&self) -> usize {
+        self.n_dof
+    }
+    fn ncols(&self) -> usize {
+        self.rows.len()
+    }
+    fn block(&self, start: usize, count: usize) -> Result<Mat<f64>, BlockError> {
+        match self.read(start, count) {
+            Ok((p, _)) => Ok(MatRef::from_column_major_slice(&p.data, p.rows, p.cols).to_owned()),
+            Err(e) => {
+                let message = e.to_string();
+                let mut held = self.failure.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                held.get_or_insert(e);
+                Err(BlockError(message))
+            }
+        }
+    }
+}
+
+/// Load the training set `key` without its primal matrix: the dual snapshots and the primal
+/// columns' norms, read block by block (one pass; every column verified).
+pub(crate) fn load(store: &Store, key: &Key) -> Result<StreamedSet, CromError> {
+    let dir = store.dir(ArtifactKind::TrainingSet, key);
+    let f = H5In::open(&dir.join(names::FILE))?;
+    let n_dof = f.shape(names::PRIMAL)?.first().copied().unwrap_or(0);
+    let n_contact = f.shape(names::DUAL)?.first().copied().unwrap_or(0);
+    drop(f);
+    let rows = trainset::rows_of(&dir.join(names::STATS))?;
+    let count = rows.len();
+    let primal = PrimalColumns { root: store.root().to_path_buf(), rows, n_dof, n_contact, failure: Mutex::new(None) };
+    let mut dual = ColMatrix { rows: n_contact, cols: count, data: Vec::with_capacity(n_contact * count) };
+    let mut norms = ColumnNorms { norm2: Vec::with_capacity(count), finite: true };
+    for start in (0..count).step_by(LOAD_BLOCK) {
+        let (p, d) = primal.read(start, LOAD_BLOCK.min(count - start))?;
+        let p = MatRef::from_column_major_slice(&p.data, p.rows, p.cols);
+        for j in 0..p.ncols() {
+            norms.finite &= p.col(j).iter().all(|v| v.is_finite());
+            norms.norm2.push(p.col(j).squared_norm_l2());
+        }
+        dual.data.extend_from_slice(&d.data);
+    }
+    Ok(StreamedSet { dual, primal, primal_norms: norms })
+}
