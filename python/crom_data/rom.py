@@ -130,6 +130,12 @@ class Result:
         return self._t[13]
 
     @property
+    def answer_seconds(self) -> float:
+        """Time of the whole Rust answer (solve, indicator and pressure): what a call costs
+        without the binding."""
+        return self._t[14]
+
+    @property
     def displacement(self) -> np.ndarray:
         """Displacement on every dof (n_dof): `lift(μ) + Φ û` from `reconstruction.h5`."""
         if self._displacement is None:

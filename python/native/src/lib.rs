@@ -21,6 +21,7 @@ mod points;
 
 use std::path::PathBuf;
 use std::sync::{Mutex, OnceLock};
+use std::time::Instant;
 
 use crom_pipeline::cache::Key;
 use crom_pipeline::error::CromError;
@@ -116,7 +117,8 @@ impl Model {
 }
 
 /// The answer at one point as a tuple (see `crom_data.rom.Result`).
-fn answer_tuple<'py>(py: Python<'py>, a: &Answer, extrapolated: bool) -> PyResult<Bound<'py, PyTuple>> {
+/// `total`: the time of the whole [`answer`] call (solve, indicator, pressure), seconds.
+fn answer_tuple<'py>(py: Python<'py>, a: &Answer, extrapolated: bool, total: f64) -> PyResult<Bound<'py, PyTuple>> {
     let i = &a.indicator;
     PyTuple::new(
         py,
@@ -135,6 +137,7 @@ fn answer_tuple<'py>(py: Python<'py>, a: &Answer, extrapolated: bool) -> PyResul
             pyo3::types::PyBool::new(py, extrapolated).to_owned().into_any(),
             a.seconds.into_pyobject(py)?.into_any(),
             a.indicator_seconds.into_pyobject(py)?.into_any(),
+            total.into_pyobject(py)?.into_any(),
         ],
     )
 }
@@ -215,7 +218,8 @@ impl Model {
 
     /// Solve at one point (`point`: a list of the components in the model's order); a tuple
     /// (pressure, û, λ̂ as bytes; outcome; iterations; linearizations; nonzero_dual; indicator,
-    /// penetration, complementarity, unpaired_force; extrapolated; seconds, indicator_seconds).
+    /// penetration, complementarity, unpaired_force; extrapolated; seconds, indicator_seconds;
+    /// the time of the whole answer: solve, indicator and pressure).
     fn solve<'py>(
         &self,
         py: Python<'py>,
@@ -229,11 +233,15 @@ impl Model {
             );
         }
         let extrapolated = self.bounds.check(&mu, None, allow_extrapolation).map_err(|e| point_error(py, e))?;
-        let a = py.detach(|| match self.work.try_lock() {
-            Ok(mut w) => answer(&self.loaded.model, &self.params, &mu, &mut w),
-            Err(_) => answer(&self.loaded.model, &self.params, &mu, &mut RomWork::default()),
+        let (a, total) = py.detach(|| {
+            let t = Instant::now();
+            let a = match self.work.try_lock() {
+                Ok(mut w) => answer(&self.loaded.model, &self.params, &mu, &mut w),
+                Err(_) => answer(&self.loaded.model, &self.params, &mu, &mut RomWork::default()),
+            };
+            (a, t.elapsed().as_secs_f64())
         });
-        answer_tuple(py, &a, extrapolated)
+        answer_tuple(py, &a, extrapolated, total)
     }
 
     /// Solve at `n` points (`points`: `n x p` row-major `f64` bytes) in parallel; a tuple of bytes:
