@@ -1,7 +1,7 @@
 """examples/rom_sweep.ipynb: committed without outputs, and it runs against a real ironing-fine store
 (the one the explore notebook's test builds; ironing-fine because it is the scene the notebook is
 about, and its store is already built for that test, so this one adds only the sweep and a
-12-point `crom query --check`): it sweeps 10^4 points with `solve_many`, draws three figures, and
+16-point `crom query --check`): it sweeps 10^4 points with `solve_many`, draws three figures, and
 finds the query's indicator identical to the sweep's at the checked sample."""
 import os
 
