@@ -21,7 +21,9 @@ run-all:
 
 # Rust tests (unit, reference, end-to-end) and the Python artifact validation.
 test:
-    cargo build --quiet -p crom-pipeline --bin crom
+    # --workspace: the feature resolution of the tests and of the Python extension's build
+    # (docs/design-notes.md#the-python-binding-is-a-thin-native-module-behind-the-reader)
+    cargo build --quiet --workspace --bin crom
     if command -v cargo-nextest >/dev/null; then cargo nextest run --workspace --no-fail-fast; else cargo test --workspace --no-fail-fast; fi
     CROM_BIN=target/debug/crom {{python}} -m pytest -q tests/python
 

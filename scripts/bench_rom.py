@@ -6,15 +6,25 @@ reads each scene's `tradeoff.parquet` and the online stage's wall time from its 
 runs `stages/examples/bench_rom.rs` for the online time against mesh refinement (ironing-coarse,
 ironing-fine, 4x refined, same ranks) and the rope's online time in a hot loop.
 
+The Python rows (`crom_data`'s `rom.solve` and `rom.solve_many`) use a release wheel of the
+native extension built here into a temporary directory (the installed one, from
+`scripts/setup.sh`, is a dev build): `rom.solve`'s overhead is the wall time of one call from
+Python (the result's pressure array included) less the time of the Rust answer the call reports
+(`Result.answer_seconds`: the query's per-point call, solve + indicator + pressure), the median
+over a hot loop of 2000 points, best of 3; `solve_many` is the wall time of one call on 10^4 points on a
+pool of 2 threads, best of 3, with the process's CPU time beside it (the wall time needs two
+free cores: other processes on the machine show as wall time above CPU time / 2). `--python` runs only ironing-fine's study and these rows.
+
 All times are medians over the test points of the fastest of up to 3 repetitions, measured on
 2 threads in the same process as the full-order solves they are compared with (see
 pipeline/src/dag/rom.rs). This machine's timings vary by up to ~30 % between runs; the script
 prints what it measured.
 
-Usage: scripts/bench_rom.py
+Usage: scripts/bench_rom.py [--python]
 """
 
 import json
+import os
 import pathlib
 import subprocess
 import sys
@@ -23,7 +33,7 @@ import tempfile
 import pandas as pd
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
-CROM = REPO / "target" / "release" / "crom"
+CROM = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target")) / "release" / "crom"
 # Relative residual of the reduced quadrature in the mesh table (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints).
 SAMPLING_TOL = 3e-2
 
@@ -68,16 +78,78 @@ def model_rows(store):
         ms <= 50)
 
 
+PYTHON_MEASURE = r"""
+import json, statistics, sys, time
+import numpy as np
+import crom_data
+rom = crom_data.open_store(sys.argv[1]).scene("ironing-fine").rom()
+(name, (lo, hi)), = rom.domain.items()
+hot = np.linspace(lo, hi, 2000).tolist()
+overheads, rust = [], []
+for _ in range(3):
+    rom.solve(**{name: hot[0]})  # warm
+    over = []
+    for v in hot:
+        t = time.perf_counter()
+        r = rom.solve(**{name: v})
+        r.pressure
+        wall = time.perf_counter() - t
+        over.append(wall - r.answer_seconds)
+        rust.append(r.answer_seconds)
+    overheads.append(statistics.median(over))
+sweep = np.linspace(lo, hi, 10_000)
+walls, cpus = [], []
+for _ in range(3):
+    t, c = time.perf_counter(), time.process_time()
+    b = rom.solve_many(sweep, threads=2)
+    walls.append(time.perf_counter() - t)
+    cpus.append(time.process_time() - c)
+print(json.dumps({"overhead": min(overheads), "rust": statistics.median(rust),
+                  "many": min(walls), "many_cpu": cpus[walls.index(min(walls))], "converged": int(b.converged.sum()), "n": len(b),
+                  "ranks": list(rom.ranks)}))
+"""
+
+
+def python_rows(store):
+    """`rom.solve`'s overhead over the Rust solve in a hot loop and `rom.solve_many` of 10^4
+    ironing-fine points on 2 threads, with a release wheel of the extension (module doc)."""
+    import zipfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        wheels, site = pathlib.Path(tmp) / "wheels", pathlib.Path(tmp) / "site"
+        subprocess.run([sys.executable, "-m", "maturin", "build", "--quiet", "--release", "--compatibility",
+                        "linux", "--auditwheel", "skip", "-m",
+                        str(REPO / "python" / "native" / "Cargo.toml"), "-i", sys.executable, "-o", str(wheels)],
+                       cwd=REPO, check=True, stdout=subprocess.DEVNULL)
+        wheel, = wheels.glob("crom_native-*.whl")
+        zipfile.ZipFile(wheel).extractall(site)
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), str(REPO / "python")]))
+        out = subprocess.run([sys.executable, "-c", PYTHON_MEASURE, str(store)], cwd=REPO, env=env, check=True,
+                             capture_output=True, text=True).stdout
+    m = json.loads(out)
+    us = m["overhead"] * 1e6
+    row(f"ironing-fine {tuple(m['ranks'])}: Python `rom.solve` overhead over the Rust solve (hot loop, median "
+        "of 2000 calls, best of 3)", "<= 5 us", f"{us:.2f} us (the Rust answer: {m['rust'] * 1e6:.0f} us)", us <= 5)
+    row(f"ironing-fine: Python `rom.solve_many` of {m['n']} points on 2 threads ({m['converged']} converged, best "
+        "of 3)", "<= 1 s", f"{m['many']:.3f} s (CPU time of both threads {m['many_cpu']:.2f} s; load average "
+        f"{os.getloadavg()[0]:.1f} at the end)", m["many"] <= 1)
+
+
 def pair(trade, alg, ru, rl):
     t = trade[(trade.algorithm == alg) & (trade.r_primal == ru) & (trade.r_dual == rl)]
     return t.iloc[0] if len(t) else None
 
 
 def main():
-    subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
-                   check=True)
+    # --workspace: the features the extension's build resolves too (one build of the tree, not two)
+    subprocess.run(["cargo", "build", "--release", "--quiet", "--workspace", "--bin", "crom"], cwd=REPO, check=True)
     print("| target | target value | measured | met |")
     print("|---|---|---|---|")
+    if "--python" in sys.argv[1:]:
+        with tempfile.TemporaryDirectory() as tmp:
+            run(pathlib.Path(tmp) / "ironing-fine", "ironing-fine")
+            python_rows(pathlib.Path(tmp) / "ironing-fine")
+        return
     with tempfile.TemporaryDirectory() as tmp:
         results, results_errors = {}, {}
         for scene in ["rope", "hertz", "ironing-fine"]:
@@ -114,6 +186,7 @@ def main():
                 f"{t.speedup:.1f}x ({int(t.converged)}/{int(t.points)} converged)", t.speedup >= 50)
         row("ironing-fine: online stage wall time", "<= 3 s", f"{seconds:.2f} s", seconds <= 3)
         model_rows(pathlib.Path(tmp) / "ironing-fine")
+        python_rows(pathlib.Path(tmp) / "ironing-fine")
         trade, _ = results["rope"]
         t = pair(trade, "exact", int(trade.r_primal.max()), int(trade[trade.dual_basis == "full"].r_dual.max()))
         row("rope, full ranks: speed-up", ">= 100x", f"{t.speedup:.0f}x", t.speedup >= 100)

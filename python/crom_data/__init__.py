@@ -8,6 +8,8 @@
     ts = sc.trainset("train")               # also "test", "nested-3"
     ts.primal.shape, ts.dual.shape          # (n_dof, N), (n_contact, N)
     sc.generalization(); sc.basis()["dual_cpg"].modes; sc.mesh().nodes; sc.report_dir
+    rom = sc.rom()                          # the stored reduced model (native extension, crom_data.rom)
+    rom.solve(d_x=1.2345).pressure; rom.solve_many(points).indicator
 
 The store (written by the Rust binary `crom`; specified in full in docs/store-format.md):
 
@@ -38,12 +40,12 @@ The reader follows `study.json`'s `target`s (relative to the store root), so a c
 without symbolic links still reads, and verifies every artifact it opens against its manifest
 (see `crom_data.scene`). Every error is a `CromDataError` naming the scene, the entry and the fix.
 """
-from .errors import (ArtifactMissing, CorruptArtifact, CromDataError, SceneNotFound, SchemaTooNew, StaleArtifact,
-                     StoreNotFound)
+from .errors import (ArtifactMissing, CorruptArtifact, CromDataError, InvalidPoint, NativeMissing, OutsideDomain,
+                     SceneNotFound, SchemaTooNew, StaleArtifact, StoreNotFound)
 from .scene import LAYOUT_VERSION, SCHEMA_VERSIONS, Basis, Mesh, Scene, SnapshotSet
 from .store import Store, open_store
 
 __version__ = "0.1.0"
 __all__ = ["open_store", "Store", "Scene", "SnapshotSet", "Basis", "Mesh", "SCHEMA_VERSIONS", "LAYOUT_VERSION",
            "CromDataError", "StoreNotFound", "SceneNotFound", "ArtifactMissing", "SchemaTooNew", "StaleArtifact",
-           "CorruptArtifact"]
+           "CorruptArtifact", "InvalidPoint", "OutsideDomain", "NativeMissing"]

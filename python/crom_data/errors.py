@@ -30,3 +30,17 @@ class StaleArtifact(CromDataError):
 class CorruptArtifact(CromDataError):
     """The artifact does not match its manifest (file not listed, size or blake3 differs,
     manifest missing or naming another artifact)."""
+
+
+class InvalidPoint(CromDataError, ValueError):
+    """A point given to a reduced model (`ReducedModel.solve`, `solve_many`) is malformed: a
+    missing or extra component, a value that is not a finite number, an array of the wrong shape."""
+
+
+class OutsideDomain(InvalidPoint):
+    """A component of a point lies outside the model's training domain (and
+    `allow_extrapolation=True` was not given)."""
+
+
+class NativeMissing(CromDataError, ImportError):
+    """The native extension `crom_native` that solves reduced models is not installed."""

@@ -178,7 +178,8 @@ class Scene:
             why = ("the scene has no nested levels; add `nested_levels = K` to the [parameter] table of its scene "
                    f"file and run `crom --store {self.store.root} run {self.name}`" if not nested else
                    f"its nested levels are {', '.join(nested)}; raise `nested_levels` in its scene file and rerun")
-        elif (entry.split(".")[0] in ("rom_errors", "tradeoff", "report", "online")) and not self.study.get("online", True):
+        elif (entry.split(".")[0] in ("rom_errors", "tradeoff", "report", "online", "model", "reconstruction",
+                                      "model_speed")) and not self.study.get("online", True):
             why = ("its last run was --offline (no online reduced solve, no report); run "
                    f"`crom --store {self.store.root} run {self.name}` without --offline")
         else:
@@ -341,6 +342,13 @@ class Scene:
             raise CorruptArtifact(f"{self._where(timings + '.parquet')}: its rows do not match {results}.parquet; "
                                   f"{self._rerun()}")
         return pd.concat([a, b.drop(columns=keys)], axis=1)
+
+    def rom(self):
+        """The study's stored reduced model (`model.h5`), loaded to be solved:
+        `rom.solve(d_x=1.2345)`, `rom.solve_many(points)` (see `crom_data.rom`). Needs the native
+        extension (`scripts/setup.sh` builds it) and an online run (not `--offline`)."""
+        from .rom import open_model
+        return open_model(self)
 
     @property
     def report_dir(self) -> pathlib.Path:

@@ -134,8 +134,10 @@ pub(super) fn write(
         .map_err(|e| CromError::io(&xdmf, "writing the XDMF file", e))
 }
 
-/// `lift[:, 0] + sum_k mu_k lift[:, k + 1] + phi û`.
-fn displacement(rec: &Reconstruction, mu: &[f64], u_hat: &[f64]) -> Vec<f64> {
+/// `lift[:, 0] + sum_k mu_k lift[:, k + 1] + phi û` on every dof (the fields `--fields` writes
+/// and the Python extension's lazy displacement). The caller checks the shapes: `lift` has
+/// `1 + mu.len()` columns, `phi` as many rows as `lift` and `u_hat.len()` columns.
+pub fn displacement(rec: &Reconstruction, mu: &[f64], u_hat: &[f64]) -> Vec<f64> {
     let n = rec.lift.rows;
     let mut u = rec.lift.col(0).to_vec();
     for (k, m) in mu.iter().enumerate() {

@@ -18,7 +18,7 @@
 //! `fom_seconds`. A query that does not converge gives its outcome and its (unconverged) values;
 //! a full-order solve that fails gives null errors.
 
-mod fields;
+pub mod fields;
 pub mod points;
 
 use std::path::{Path, PathBuf};
@@ -26,9 +26,10 @@ use std::time::Instant;
 
 use crom_schemas::artifact::{model as names, ArtifactKind};
 use crom_schemas::SceneConfig;
-use crom_stages::rom::{Algorithm, ReducedModel, RomParams, RomWork};
+use crom_stages::rom::{Algorithm, Indicator, ReducedModel, ReducedSolution, RomParams, RomWork};
 use rayon::prelude::*;
 
+use crate::cache::Key;
 use crate::dag::plan::Plan;
 use crate::dag::relative_dual_error;
 use crate::error::CromError;
@@ -85,8 +86,7 @@ pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded,
         .key;
     // The model's mesh (its key is a function of the scene's model, as the model's own is).
     let mesh = plan.node("mesh").map(|n| n.key.clone());
-    let store = Store::open_read_only(root);
-    let dir = store.dir(ArtifactKind::Model, key);
+    let dir = Store::open_read_only(root).dir(ArtifactKind::Model, key);
     let run_first =
         || format!("run `crom run {scene_arg}` first (add --store {} if it is not the default)", root.display());
     if !dir.exists() {
@@ -100,14 +100,26 @@ pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded,
             fix: run_first(),
         });
     }
+    let loaded = load_artifact(root, key, &run_first())?;
+    Ok(Loaded { mesh, ..loaded })
+}
+
+/// Load the model artifact `key` of the store at `root` (read-only, no lock): verified against
+/// its manifest, `model.h5` read, the model rebuilt from its parts. `fix` is the fix every error
+/// names (how to get a sound artifact back). The entry of every reader of a stored model: `crom
+/// query` (through [`load`]) and the Python extension (which finds the key in the published
+/// study). `mesh` is left `None`.
+pub fn load_artifact(root: &Path, key: &Key, fix: &str) -> Result<Loaded, CromError> {
+    let store = Store::open_read_only(root);
+    let dir = store.dir(ArtifactKind::Model, key);
     store.verify(ArtifactKind::Model, key).map_err(|problem| CromError::Artifact {
         path: dir.clone(),
         message: format!("the stored reduced model failed verification: {problem}"),
-        fix: run_first(),
+        fix: fix.to_string(),
     })?;
     let stored = StoredModel::read(&dir.join(names::FILE))?;
-    let model = ReducedModel::from_parts(&stored.parts)
-        .map_err(|e| CromError::artifact(dir.join(names::FILE), e.to_string(), &run_first()))?;
+    let model =
+        ReducedModel::from_parts(&stored.parts).map_err(|e| CromError::artifact(dir.join(names::FILE), e, fix))?;
     if model.parameter_dim() != stored.parameter_names.len() {
         return Err(CromError::artifact(
             dir.join(names::FILE),
@@ -116,10 +128,49 @@ pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded,
                 stored.parameter_names.len(),
                 model.parameter_dim()
             ),
-            &run_first(),
+            fix,
         ));
     }
-    Ok(Loaded { stored, model, dir, mesh })
+    Ok(Loaded { stored, model, dir, mesh: None })
+}
+
+/// The exact online solve's settings stored with the model.
+pub fn params(stored: &StoredModel) -> RomParams {
+    RomParams {
+        algorithm: Algorithm::Exact,
+        max_iter: usize::try_from(stored.max_iter).unwrap_or(usize::MAX),
+        gap_tol: stored.gap_tol,
+        u_tol: stored.u_tol,
+    }
+}
+
+/// The answer at one point: what a row of `crom query` (and a Python `rom.solve`) reports.
+#[derive(Debug, Clone)]
+pub struct Answer {
+    /// The reduced solution (coefficients, outcome, iterations).
+    pub sol: ReducedSolution,
+    /// The pressure on the contact surface, `Theta λ̂` (one value per contact node).
+    pub pressure: Vec<f64>,
+    /// The a-posteriori indicator.
+    pub indicator: Indicator,
+    /// Time of the online solve (`solve_in`), seconds.
+    pub seconds: f64,
+    /// Time of the indicator, seconds.
+    pub indicator_seconds: f64,
+}
+
+/// Solve `model` at `mu` with `params` in the workspace `w`, then evaluate the indicator and the
+/// pressure: the call the online stage times, and the one every query answer comes from.
+pub fn answer(model: &ReducedModel, params: &RomParams, mu: &[f64], w: &mut RomWork) -> Answer {
+    let t = Instant::now();
+    let info = model.solve_in(mu, params, w);
+    let seconds = t.elapsed().as_secs_f64();
+    let sol = w.solution(&info);
+    let t = Instant::now();
+    let indicator = model.indicator(mu, w);
+    let indicator_seconds = t.elapsed().as_secs_f64();
+    let pressure = model.pressure(&sol.lambda_hat);
+    Answer { sol, pressure, indicator, seconds, indicator_seconds }
 }
 
 /// An external scene has no full-order operators, so no reduced model.
@@ -138,9 +189,9 @@ fn external_has_no_model(scene: &SceneConfig) -> CromError {
 struct Row {
     point: Vec<f64>,
     extrapolated: bool,
-    sol: crom_stages::rom::ReducedSolution,
+    sol: ReducedSolution,
     pressure: Vec<f64>,
-    indicator: crom_stages::rom::Indicator,
+    indicator: Indicator,
     seconds: f64,
     indicator_seconds: f64,
     check: Option<Check>,
@@ -197,25 +248,13 @@ pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> 
         };
         flags.push(domain.check(p, &at, req.allow_extrapolation)?);
     }
-    let params = RomParams {
-        algorithm: Algorithm::Exact,
-        max_iter: usize::try_from(s.max_iter).unwrap_or(usize::MAX),
-        gap_tol: s.gap_tol,
-        u_tol: s.u_tol,
-    };
+    let params = params(s);
     let model = &loaded.model;
     let mut rows: Vec<Row> = points
         .par_iter()
         .zip(&flags)
         .map_init(RomWork::default, |w, (mu, &extrapolated)| {
-            let t = Instant::now();
-            let info = model.solve_in(mu, &params, w);
-            let seconds = t.elapsed().as_secs_f64();
-            let sol = w.solution(&info);
-            let t = Instant::now();
-            let indicator = model.indicator(mu, w);
-            let indicator_seconds = t.elapsed().as_secs_f64();
-            let pressure = model.pressure(&sol.lambda_hat);
+            let Answer { sol, pressure, indicator, seconds, indicator_seconds } = answer(model, &params, mu, w);
             Row { point: mu.clone(), extrapolated, sol, pressure, indicator, seconds, indicator_seconds, check: None }
         })
         .collect();
