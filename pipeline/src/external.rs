@@ -241,17 +241,17 @@ fn resolve_spec(ext: &ExternalSpec, base: &Path) -> Result<ResolvedExternal, Cro
         ));
     }
     check_distinct(ext, base, &train, &test)?;
-    let coordinates = match &ext.coordinates {
-        None => None,
-        Some(src) => Some(coordinates(base, src, main.dual.rows)?),
+    let n_dof = train.primal.as_ref().map_or(0, |p| p.rows);
+    let mesh = ext.mesh.as_ref().map(|m| crate::external_mesh::resolve(base, m, main.dual.rows, n_dof)).transpose()?;
+    let coordinates = match (&ext.coordinates, &mesh) {
+        (Some(src), _) => Some(coordinates(base, src, main.dual.rows)?),
+        // Without coordinates of their own, the dual entries are at their mesh nodes.
+        (None, Some(m)) => {
+            Some(m.dual_nodes.iter().map(|&i| m.nodes[i as usize * m.dim..(i as usize + 1) * m.dim].to_vec()).collect())
+        }
+        (None, None) => None,
     };
-    Ok(ResolvedExternal {
-        n_dof: train.primal.as_ref().map_or(0, |p| p.rows),
-        n_contact: train.dual.rows,
-        train,
-        test,
-        coordinates,
-    })
+    Ok(ResolvedExternal { n_dof, mesh, n_contact: train.dual.rows, train, test, coordinates })
 }
 
 /// No two snapshots of the study may share a parameter value (bit for bit): a duplicate
