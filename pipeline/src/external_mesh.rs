@@ -100,7 +100,7 @@ pub fn resolve(base: &Path, src: &MeshSource, n_contact: usize, n_dof: usize) ->
         }
     };
     let dofs_per_node = if n_dof == 0 { 0 } else { n_dof / n_nodes };
-    if n_dof > 0 && (n_dof % n_nodes != 0 || !(1..=3).contains(&dofs_per_node)) {
+    if n_dof > 0 && (!n_dof.is_multiple_of(n_nodes) || !(1..=3).contains(&dofs_per_node)) {
         return Err(CromError::input(
             &nodes.path,
             nodes.what.clone(),

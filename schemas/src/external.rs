@@ -254,4 +254,7 @@ pub struct ResolvedExternal {
     pub coordinates: Option<Vec<Vec<f64>>>,
     /// The mesh, if given.
     pub mesh: Option<ResolvedMesh>,
+    /// Nested levels 1..=k of a training set that is a level-k grid (positions in the training
+    /// set, ascending by parameter; level k is the whole set); empty otherwise.
+    pub levels: Vec<Vec<usize>>,
 }

@@ -2,9 +2,11 @@
 + 101 rows; about 15 s offline) exported to plain .npy / CSV and HDF5 / Parquet files, imported
 back as an external scene, must give the native study's metric tables and bases bit for bit (the
 import copies f64 values exactly and every metric is a deterministic function of the training
-and test sets). The native study's nested levels are not compared: an external scene has none
-yet. Bad data files (on the rope's arrays, which are small) are refused with exit 2, the file,
-the dataset or field and the fix, and nothing stored."""
+and test sets). ironing-coarse's 128 training points are no nested grid, so its nested levels
+are not compared here; a rope at train_level = 3 is. Bad data files (on the rope's arrays, which
+are small) are refused with exit 2, the file, the dataset or field and the fix, and nothing
+stored. With a mesh, coordinates or a comparison, the views, the report and the comparison are
+checked against the native study's too."""
 import os
 import pathlib
 import subprocess
@@ -504,3 +506,40 @@ test = {list(range(n_train, n))}"""
         assert "fig_comparison_test" in index
         reason = "the registered maps need the contact entries' coordinates"
         assert (reason in done.stderr) == skipped and (reason in index) == skipped, done.stderr
+
+
+def test_a_training_set_that_is_a_nested_grid_gets_the_native_nested_error(tmp_path):
+    """The rope at train_level = 3 with nested levels 1 to 3 (level 3 is its training set),
+    exported and imported: the external scene finds the levels in its 9 equally spaced training
+    points, and its H(n) table equals the native one bit for bit."""
+    text = (REPO / "data" / "scenes" / "rope.toml").read_text()
+    assert "n_train = 10" in text, "rope.toml changed: update this test"
+    native_scene = tmp_path / "rope-l3.toml"
+    native_scene.write_text(text.replace('name = "rope"', 'name = "rope-l3"')
+                            .replace("n_train = 10", "train_level = 3\nnested_levels = 3"))
+    native_store = tmp_path / "native"
+    done = crom(native_store, "--quiet", "run", str(native_scene), "--offline")
+    assert done.returncode == 0, done.stderr
+    sets = {}
+    for s in ["train", "test"]:
+        with h5py.File(native_store / "scenes" / "rope-l3" / f"{s}.h5") as f:
+            sets[s] = (f["primal"][()], f["dual"][()], f["parameters"][()])
+    primal, dual, mu, n_train = all_columns(sets)
+    assert n_train == 9
+    np.save(tmp_path / "primal.npy", primal)
+    np.save(tmp_path / "dual.npy", dual)
+    np.save(tmp_path / "mu.npy", mu)
+    path = scene(tmp_path, "rope-nested", f"""dual = {{ file = "dual.npy" }}
+primal = {{ file = "primal.npy" }}
+parameters = {{ file = "mu.npy", names = ["gamma"] }}
+train = {list(range(n_train))}
+test = {list(range(n_train, dual.shape[1]))}""")
+    store = tmp_path / "store"
+    done = crom(store, "--quiet", "run", str(path))
+    assert done.returncode == 0, done.stderr
+    a = pd.read_parquet(native_store / "scenes" / "rope-l3" / "nested.parquet").drop(columns="scene")
+    b = pd.read_parquet(store / "scenes" / "rope-nested" / "nested.parquet").drop(columns="scene")
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    assert sorted(p.name for p in (store / "scenes" / "rope-nested" / "nested").glob("level-*.h5")) == \
+        ["level-1.h5", "level-2.h5", "level-3.h5"]
+    assert "fig15_nested" in (store / "scenes" / "rope-nested" / "report" / "index.html").read_text()

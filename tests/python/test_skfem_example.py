@@ -69,6 +69,10 @@ def test_the_scikit_fem_membrane_is_studied_by_crom(tmp_path):
     assert not any(f.startswith(("fig03", "fig_tradeoff")) for f in figures), figures
     assert index.index("<figure>") < index.index("Not in this report")
     assert "full-order operators" in index
+    # The 17 equally spaced training points are nested level 4: H(n) for n = 1, 2, 3.
+    nested = pd.read_parquet(scene / "nested.parquet")
+    assert sorted(set(nested.n)) == [1, 2, 3]
+    assert "fig15_nested" in figures
     # The comparison ran on the imported snapshots; the registered map, which needs a contact
     # curve, is skipped with its reason.
     cmp = pd.read_parquet(scene / "comparison" / "comparison.parquet")

@@ -279,6 +279,7 @@ impl Plan {
         let labels = Labels::of(scene);
         let (train_keys, test_keys) = (import.keys().0.to_vec(), import.keys().1.to_vec());
         let family = import.key();
+        let level_positions = import.levels().to_vec();
         let sweep = nodes.add("import", false, import);
         let mesh = ExternalMeshStage::plan(scene).map(|stage| nodes.add("mesh", false, stage));
         let p = &scene.parameter;
@@ -309,6 +310,24 @@ impl Plan {
             nodes.add("generalization", false, GeneralizationStage::plan(scene, train.clone(), &labels));
         let stage = SpecificityStage::plan(scene, train.clone(), basis.clone(), &labels);
         let specificity = nodes.add("specificity", false, stage);
+        // Nested levels, when the training points form them: training columns again, each
+        // level's rows after the test set's in the import's columns.
+        let mut levels: Vec<Input> = Vec::new();
+        let mut at = train_points.len() + test_points.len();
+        for (n, positions) in level_positions.iter().enumerate() {
+            let pts: Vec<Vec<f64>> = positions.iter().map(|&i| train_points[i].clone()).collect();
+            let keys: Vec<&Key> = positions.iter().map(|&i| &train_keys[i]).collect();
+            let name = format!("nested-{}", n + 1);
+            let level = nodes.add(&format!("trainset {name}"), false, set(&name, &pts, &keys, at));
+            at += positions.len();
+            if let Some(mesh) = &mesh {
+                let subject = Subject::Set { set: name.clone(), of: level.clone() };
+                nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
+            }
+            levels.push(level);
+        }
+        let nested =
+            (!levels.is_empty()).then(|| nodes.add("nested", false, NestedStage::plan(levels.clone(), &labels)));
         let surface = external_surface(scene, mesh.as_ref());
         let mut skipped = Vec::new();
         let mut parts: Vec<(String, Input)> = Vec::new();
@@ -323,7 +342,7 @@ impl Plan {
                 (Ok(s), _) => s.clone(),
                 (Err(_), false) => SurfaceSource::Absent,
             };
-            let Some(stage) = ApproximationStage::plan(scene, i, train.clone(), test.clone(), surface, Vec::new())
+            let Some(stage) = ApproximationStage::plan(scene, i, train.clone(), test.clone(), surface, levels.clone())
             else {
                 continue;
             };
@@ -344,13 +363,13 @@ impl Plan {
             rom: None,
             generalization: generalization.key.clone(),
             specificity: specificity.key.clone(),
-            nested: None,
+            nested: nested.as_ref().map(|n| n.key.clone()),
             comparison: comparison.as_ref().map(|n| n.key.clone()),
             online_comparison: None,
         };
         let mut inputs: Vec<Input> = mesh.into_iter().collect();
         inputs.extend([train, basis, compactness, generalization, specificity]);
-        inputs.extend(comparison);
+        inputs.extend([nested, comparison].into_iter().flatten());
         nodes.add("report", true, ReportStage::plan_with(scene, shows, inputs, skipped.clone()));
         let imported = train_keys.into_iter().chain(test_keys).collect();
         Self { sweeps: Vec::new(), family, nodes: nodes.0, imported, skipped }

@@ -123,20 +123,20 @@ pub(crate) fn write_all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Resu
 
 /// The online stage's tables: the trade-off and the stability of each rank pair.
 fn online_tables(d: &ReportData, dir: &Path) -> Result<Vec<ReportTable>, CromError> {
-    let mut out = Vec::new();
-    out.push(save(
+    Ok(vec![
+        save(
         &tradeoff_view(&d.tradeoff),
         dir,
         "table_tradeoff",
         "Speed/accuracy trade over the test points: errors over converged points, times over all (ms), speed-up = median full-order time / median online time in the same process, ρ = Spearman rank correlation of the indicator with the true error",
-    )?);
-    out.push(save(
+    )?,
+    save(
         &stability_view(&d.tradeoff),
         dir,
         "table_stability",
         "Stability of the reduced saddle-point system per rank pair: the reduced inf-sup constant beta = sigma_min(Â L^-T) (Â the reduced constraint rows of the dual vectors that constrain at the query's pairing, K̂ = L Lᵀ) at 8 evenly spaced test points, min and median over the converged ones; 0 = more constraining dual vectors than primal modes (r_dual > r_primal) or than paired contact nodes under them, or nearly parallel dual vectors: the multipliers are not unique",
-    )?);
-    Ok(out)
+    )?,
+    ])
 }
 
 /// The comparison's tables, for scenes with `[comparison]`.
