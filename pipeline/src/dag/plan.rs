@@ -112,9 +112,9 @@ impl Nodes {
 /// (`has_mesh`: the scene gives a mesh).
 pub fn external_skips(has_mesh: bool) -> &'static str {
     if has_mesh {
-        "external scene: the online reduced solve and the trade-off need the full-order operators, which an external scene does not have; skipped"
+        "external scene: the online reduced solve, the trade-off and the online comparison need the full-order operators, which an external scene does not have; skipped"
     } else {
-        "external scene: the online reduced solve and the trade-off need the full-order operators, which an external scene does not have, and the views and the report's pictures need a mesh (model.external.mesh); skipped"
+        "external scene: the online reduced solve, the trade-off and the online comparison need the full-order operators, which an external scene does not have, and the views and the report's pictures need a mesh (model.external.mesh); skipped"
     }
 }
 

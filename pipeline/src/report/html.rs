@@ -107,7 +107,7 @@ fn skipped<'d>(scene: &SceneConfig, d: &'d ReportData) -> Vec<&'d str> {
         return out;
     }
     if !d.online {
-        out.push("The online reduced solve (errors and speed-ups, paper Figs. 3, 7) and the speed/accuracy trade-off: they solve the full-order and the reduced problems, and an external scene has snapshots, not the full-order operators.");
+        out.push("The online reduced solve (errors and speed-ups, paper Figs. 3, 7), the speed/accuracy trade-off and the online solve with each dual approximation: they solve the full-order and the reduced problems, and an external scene has snapshots, not the full-order operators.");
     }
     if !d.mesh {
         out.push("Pictures of the snapshots on the body (and the views for ParaView): they need a mesh; give model.external.mesh (nodes, cells and the node of each dual entry). The pressure snapshots are drawn against the dual entry's number instead.");
