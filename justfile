@@ -60,7 +60,7 @@ paraview SCENE SET="train" WARP="1" OUT="paraview.png":
 bench-rom:
     {{python}} scripts/bench_rom.py
 
-# Only the scale benchmarks (A-E, see scripts/bench_scale.py), e.g. `just bench-scale E`.
+# Only the scale benchmarks (A-G, see scripts/bench_scale.py), e.g. `just bench-scale G`.
 bench-scale *WHICH:
     {{python}} scripts/bench_scale.py {{WHICH}}
 

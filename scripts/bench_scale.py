@@ -15,12 +15,19 @@ each target beside the measured value. Part of `just bench`; not a test.
      whole offline study cold; growing 12 -> 13 against cold 13. Targets: level 13 <= 60 s,
      <= 1.5 GiB; level 14 <= 150 s, <= 2 GiB; growing <= 0.5 x cold.
 
+  G  import of an external scene from one HDF5 file: 16 385 columns of 6 164 + 101 rows
+     (`crom solve`, which imports and stops): <= 10 s, peak RSS <= 0.5 GiB; a rerun with the
+     file unchanged <= 0.5 s, nothing imported. `G-small` is the same on 1 025 columns of
+     617 + 11 rows, without targets: a check that the case runs.
+
 "Offline study" is `crom run --offline` (every stage but the online ROM and the report, whose
 speed `scripts/bench_rom.py` measures), timed with its peak RSS.
 
-Usage: scripts/bench_scale.py [A B C D E]   (default: all)
+Usage: scripts/bench_scale.py [A B C D E F G G-small]   (default: A to G)
+CROM_BIN=path/to/crom uses that binary and builds nothing (e.g. a debug build for G-small).
 """
 import json
+import os
 import pathlib
 import random
 import re
@@ -33,7 +40,8 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from scene_variant import variant  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
-BIN = REPO / "target" / "release" / "crom"
+BIN = pathlib.Path(os.environ.get("CROM_BIN") or
+                   pathlib.Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target")) / "release" / "crom")
 GIB = 1 << 30
 
 
@@ -165,11 +173,73 @@ def bench_f(tmp):
         f"({grow / cold[13]:.2f} x; {solved} solved, {reused} reused)", grow <= 0.5 * cold[13])
 
 
+def bench_g(tmp, cols=16_385, n_dof=6_164, n_contact=101, targets=True):
+    """Import an external scene's snapshots from one HDF5 file, then again with the file unchanged."""
+    import h5py
+    import numpy as np
+    header(f"G. import of {cols} columns of {n_dof} + {n_contact} rows from HDF5 (`crom solve`)")
+    tmp = pathlib.Path(tmp)
+    rng = np.random.default_rng(1)
+    block = 512
+    with h5py.File(tmp / "snapshots.h5", "w") as f:
+        primal = f.create_dataset("primal", (n_dof, cols), dtype="f8")
+        dual = f.create_dataset("dual", (n_contact, cols), dtype="f8")
+        for j in range(0, cols, block):
+            k = min(block, cols - j)
+            primal[:, j:j + k] = rng.standard_normal((n_dof, k))
+            dual[:, j:j + k] = np.maximum(rng.standard_normal((n_contact, k)), 0.0)
+        f["mu"] = np.linspace(0.0, 3.0, cols)
+    test = list(range(1, cols, 64))
+    train = sorted(set(range(cols)) - set(test))
+    (tmp / "g.toml").write_text(f"""[scene]
+name = "bench-import"
+description = "synthetic snapshots, one HDF5 file"
+
+[model.external]
+dual = {{ file = "snapshots.h5", dataset = "dual" }}
+primal = {{ file = "snapshots.h5", dataset = "primal" }}
+parameters = {{ file = "snapshots.h5", dataset = "mu", names = ["d_x"] }}
+train = {train}
+test = {test}
+
+[study]
+primal_tol = 0.0
+dual_orth_tol = 0.0
+dual_cone_tol = 0.0
+dual_cone_tol_truncated = 0.05
+specificity_samples = 10
+seed = 1
+""")
+    store = tmp / "store"
+    size = (tmp / "snapshots.h5").stat().st_size
+
+    def counts(out):
+        m = re.search(r"snapshots: (\d+) imported, (\d+) reused", out)
+        return (int(m.group(1)), int(m.group(2))) if m else (-1, -1)
+
+    wall, rss, out = crom(store, "solve", tmp / "g.toml")
+    got = counts(out)
+    row(f"import ({size / 1e6:.0f} MB file)", "<= 10 s" if targets else "-",
+        f"{wall:.2f} s ({got[0]} imported)", (not targets or wall <= 10) and got[0] == cols)
+    row("peak RSS of the import", "<= 0.5 GiB" if targets else "-", f"{rss / GIB:.2f} GiB",
+        not targets or rss <= 0.5 * GIB)
+    wall, _, out = crom(store, "solve", tmp / "g.toml")
+    got = counts(out)
+    row("rerun with the file unchanged", "<= 0.5 s, nothing imported" if targets else "nothing imported",
+        f"{wall:.2f} s ({got[0]} imported, {got[1]} reused)", (not targets or wall <= 0.5) and got == (0, cols))
+
+
+def bench_g_small(tmp):
+    bench_g(tmp, cols=1_025, n_dof=617, n_contact=11, targets=False)
+
+
 def main():
-    which = sys.argv[1:] or ["A", "B", "C", "D", "E", "F"]
-    subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
-                   check=True)
-    benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "E": bench_e, "F": bench_f}
+    which = sys.argv[1:] or ["A", "B", "C", "D", "E", "F", "G"]
+    if not os.environ.get("CROM_BIN"):
+        subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
+                       check=True)
+    benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "E": bench_e, "F": bench_f, "G": bench_g,
+               "G-small": bench_g_small}
     for w in which:
         with tempfile.TemporaryDirectory() as tmp:
             benches[w](tmp)

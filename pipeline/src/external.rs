@@ -241,17 +241,18 @@ fn resolve_spec(ext: &ExternalSpec, base: &Path) -> Result<ResolvedExternal, Cro
         ));
     }
     check_distinct(ext, base, &train, &test)?;
-    let coordinates = match &ext.coordinates {
-        None => None,
-        Some(src) => Some(coordinates(base, src, main.dual.rows)?),
+    let n_dof = train.primal.as_ref().map_or(0, |p| p.rows);
+    let mesh = ext.mesh.as_ref().map(|m| crate::external_mesh::resolve(base, m, main.dual.rows, n_dof)).transpose()?;
+    let coordinates = match (&ext.coordinates, &mesh) {
+        (Some(src), _) => Some(coordinates(base, src, main.dual.rows)?),
+        // Without coordinates of their own, the dual entries are at their mesh nodes.
+        (None, Some(m)) => {
+            Some(m.dual_nodes.iter().map(|&i| m.nodes[i as usize * m.dim..(i as usize + 1) * m.dim].to_vec()).collect())
+        }
+        (None, None) => None,
     };
-    Ok(ResolvedExternal {
-        n_dof: train.primal.as_ref().map_or(0, |p| p.rows),
-        n_contact: train.dual.rows,
-        train,
-        test,
-        coordinates,
-    })
+    let levels = nested_levels(&train.points);
+    Ok(ResolvedExternal { n_dof, mesh, levels, n_contact: train.dual.rows, train, test, coordinates })
 }
 
 /// No two snapshots of the study may share a parameter value (bit for bit): a duplicate
@@ -311,4 +312,53 @@ fn coordinates(
     let d = a.rows;
     let block = a.block(0, n_contact)?;
     Ok((0..n_contact).map(|i| block[i * d..(i + 1) * d].to_vec()).collect())
+}
+
+/// The nested levels of a training set whose points form one: a one-component parameter whose
+/// `2^k + 1` training values (k >= 2) are equally spaced (to 1e-9 of the spacing). Level n (1 to
+/// k) is every `2^(k - n)`-th value in ascending order, `2^n + 1` points, as a native scene's
+/// level n of the same range; level k is the whole set. Returned as positions in the training
+/// set; empty when the points are no such grid.
+pub fn nested_levels(points: &[Vec<f64>]) -> Vec<Vec<usize>> {
+    let n = points.len();
+    if n < 5 || !(n - 1).is_power_of_two() || points.iter().any(|p| p.len() != 1) {
+        return Vec::new();
+    }
+    let k = (n - 1).trailing_zeros();
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| points[a][0].total_cmp(&points[b][0]));
+    let (lo, hi) = (points[order[0]][0], points[order[n - 1]][0]);
+    let h = (hi - lo) / (n - 1) as f64;
+    let grid = crom_stages::float_cmp::Tol { abs: 1e-9 * h, rel: 0.0 };
+    let even = h > 0.0
+        && order.iter().enumerate().all(|(i, &j)| crom_stages::float_cmp::close(points[j][0], lo + i as f64 * h, grid));
+    if !even {
+        return Vec::new();
+    }
+    (1..=k).map(|level| order.iter().copied().step_by(1 << (k - level)).collect()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_equally_spaced_level_k_set_has_levels_1_to_k() {
+        // 9 points of [0, 2] given out of order: levels 1 (3 points), 2 (5) and 3 (all 9).
+        let values = [1.0, 0.0, 0.25, 2.0, 0.5, 0.75, 1.25, 1.5, 1.75];
+        let points: Vec<Vec<f64>> = values.iter().map(|&v| vec![v]).collect();
+        let levels = nested_levels(&points);
+        let at = |l: &[usize]| l.iter().map(|&i| values[i]).collect::<Vec<_>>();
+        assert_eq!(levels.len(), 3);
+        assert_eq!(at(&levels[0]), vec![0.0, 1.0, 2.0]);
+        assert_eq!(at(&levels[1]), vec![0.0, 0.5, 1.0, 1.5, 2.0]);
+        assert_eq!(levels[2].len(), 9);
+        // Not a grid: one value moved, a count that is not 2^k + 1, two components.
+        let mut moved = points.clone();
+        moved[2][0] = 0.3;
+        assert!(nested_levels(&moved).is_empty());
+        assert!(nested_levels(&points[..8]).is_empty());
+        let two: Vec<Vec<f64>> = values.iter().map(|&v| vec![v, 0.0]).collect();
+        assert!(nested_levels(&two).is_empty());
+    }
 }

@@ -83,6 +83,7 @@ pub fn run(args: &ImportArgs, progress: &crate::progress::Progress) -> Result<Pa
         test: Some(test),
         test_files: None,
         coordinates: None,
+        mesh: None,
         negative_tolerance: None,
         clip_negative: args.clip_negative,
         units: None,

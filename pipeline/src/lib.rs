@@ -69,6 +69,7 @@ pub mod dag;
 pub mod error;
 pub mod executor;
 pub mod external;
+pub mod external_mesh;
 pub mod import_scene;
 pub mod io;
 pub mod physics;

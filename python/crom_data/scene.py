@@ -73,7 +73,7 @@ class Basis:
 @dataclasses.dataclass
 class Mesh:
     """`mesh.h5`."""
-    nodes: np.ndarray          # n_nodes x 2
+    nodes: np.ndarray          # n_nodes x 2 (x 3: an external scene's 3-D mesh)
     cells: np.ndarray          # n_cells x nodes_per_cell (node indices)
     contact_nodes: np.ndarray  # potential-contact nodes, the order of the dual rows
     node_body: np.ndarray

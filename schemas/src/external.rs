@@ -54,6 +54,9 @@ pub struct ExternalSpec {
     /// need them).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coordinates: Option<ArraySource>,
+    /// The mesh the snapshots live on (optional; the views and the report's pictures need it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshSource>,
     /// A pressure below `-negative_tolerance * max |column|` is an error (the cone methods
     /// assume non-negative multipliers) unless `clip_negative` is set; default
     /// [`DEFAULT_NEGATIVE_TOLERANCE`]. Values within the tolerance are kept as they are.
@@ -74,6 +77,75 @@ impl ExternalSpec {
     /// The tolerance of the negative-pressure check.
     pub fn negative_tolerance(&self) -> f64 {
         self.negative_tolerance.unwrap_or(DEFAULT_NEGATIVE_TOLERANCE)
+    }
+}
+
+/// `mesh = { ... }`: the mesh of an external scene, as arrays in one HDF5 file (`file` +
+/// dataset paths) or one `.npy` file per array (`file` absent, each entry a path relative to
+/// the scene file's directory).
+///
+/// - `nodes`: `(n_nodes, d)` floats, `d` in 1..=3, one row per node;
+/// - `cells`: `(n_cells, k)` integers, 0-based node indices, one row per cell: `k = 2` segments
+///   (any `d`), 3 triangles and 4 quadrilaterals (`d` = 2), 4 tetrahedra and 8 hexahedra
+///   (`d` = 3), node order as in VTK;
+/// - `dual_nodes`: `(n_contact,)` integers, the node of each dual entry (distinct); absent: the
+///   dual entries are the nodes, in order (`n_contact = n_nodes`).
+///
+/// The primal snapshots are node-major: entry `dofs_per_node * i + c` is component `c` of node
+/// `i`, with `dofs_per_node = n_dof / n_nodes` (a whole number).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSource {
+    /// The HDF5 file holding the arrays (absent: each array is a `.npy` file).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+    /// Node coordinates (dataset path, or `.npy` file).
+    #[serde(default = "default_nodes")]
+    pub nodes: String,
+    /// Cells (dataset path, or `.npy` file).
+    #[serde(default = "default_cells")]
+    pub cells: String,
+    /// The node of each dual entry (dataset path, or `.npy` file).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dual_nodes: Option<String>,
+}
+
+fn default_nodes() -> String {
+    "/nodes".to_string()
+}
+
+fn default_cells() -> String {
+    "/cells".to_string()
+}
+
+/// The mesh of an external scene as read and checked when the scene is loaded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResolvedMesh {
+    /// Node coordinates, row-major `n_nodes x dim`.
+    pub nodes: Vec<f64>,
+    /// Coordinates per node (1, 2 or 3).
+    pub dim: usize,
+    /// Cells, row-major `n_cells x nodes_per_cell`.
+    pub cells: Vec<u64>,
+    /// Nodes per cell.
+    pub nodes_per_cell: usize,
+    /// The node of each dual entry.
+    pub dual_nodes: Vec<u64>,
+    /// Primal entries per node (0 without primal snapshots).
+    pub dofs_per_node: usize,
+    /// blake3 of all of the above: the mesh artifact's key.
+    pub digest: String,
+}
+
+impl ResolvedMesh {
+    /// Nodes.
+    pub fn n_nodes(&self) -> usize {
+        self.nodes.len() / self.dim.max(1)
+    }
+
+    /// Cells.
+    pub fn n_cells(&self) -> usize {
+        self.cells.len() / self.nodes_per_cell.max(1)
     }
 }
 
@@ -180,4 +252,9 @@ pub struct ResolvedExternal {
     pub n_contact: usize,
     /// The contact nodes' coordinates (`n_contact` points), if given.
     pub coordinates: Option<Vec<Vec<f64>>>,
+    /// The mesh, if given.
+    pub mesh: Option<ResolvedMesh>,
+    /// Nested levels 1..=k of a training set that is a level-k grid (positions in the training
+    /// set, ascending by parameter; level k is the whole set); empty otherwise.
+    pub levels: Vec<Vec<usize>>,
 }

@@ -265,9 +265,9 @@ impl SceneConfig {
 }
 
 impl SceneConfig {
-    /// An external scene: no `[parameter]`, `[solver]`, `[comparison]` or contact sampling
-    /// (its parameter comes from its files, it solves nothing, and the comparison and the
-    /// sampling need the full-order model); its files named, its column lists consistent.
+    /// An external scene: no `[parameter]`, `[solver]` or contact sampling (its parameter comes
+    /// from its files, it solves nothing, and the sampling needs the full-order model); its
+    /// comparison as a native scene's; its files named, its column lists consistent.
     fn check_external(&self, c: &Checker<'_>, e: &ExternalSpec) -> Result<(), SceneError> {
         let has = "an external scene reads its snapshots and parameter values from files";
         if !self.parameter.is_unset() {
@@ -280,12 +280,11 @@ impl SceneConfig {
         if !self.solver.is_unset() {
             return Err(c.fail("solver", format!("is given, but {has} and solves nothing"), "remove [solver]"));
         }
-        if self.comparison.is_some() {
-            return Err(c.fail(
-                "comparison",
-                "is given, but the dual approximations' comparison does not run on external scenes yet".into(),
-                "remove [comparison]",
-            ));
+        if let Some(cmp) = &self.comparison {
+            // The training points are known once the files are read: the local bases' cell
+            // count is checked against them by the approximation itself.
+            let first_axis = e.train.as_ref().map_or(usize::MAX, Vec::len);
+            check_comparison(c, cmp, &self.model, e.parameters.names.len(), first_axis)?;
         }
         if self.study.contact_sampling.is_some() {
             return Err(c.fail(

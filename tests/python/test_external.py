@@ -2,9 +2,11 @@
 + 101 rows; about 15 s offline) exported to plain .npy / CSV and HDF5 / Parquet files, imported
 back as an external scene, must give the native study's metric tables and bases bit for bit (the
 import copies f64 values exactly and every metric is a deterministic function of the training
-and test sets). The native study's nested levels are not compared: an external scene has none
-yet. Bad data files (on the rope's arrays, which are small) are refused with exit 2, the file,
-the dataset or field and the fix, and nothing stored."""
+and test sets). ironing-coarse's 128 training points are no nested grid, so its nested levels
+are not compared here; a rope at train_level = 3 is. Bad data files (on the rope's arrays, which
+are small) are refused with exit 2, the file, the dataset or field and the fix, and nothing
+stored. With a mesh, coordinates or a comparison, the views, the report and the comparison are
+checked against the native study's too."""
 import os
 import pathlib
 import subprocess
@@ -195,9 +197,34 @@ def test_a_missing_file_and_a_missing_dataset_are_named(files):
         f["dual"] = dual
     refused(tmp_path, body(n_train, n, dual='{ file = "d.h5", dataset = "pressure" }'), "d.h5", "dataset pressure",
             "does not exist", "model.external.dual.dataset")
-    # A compressed .npz cannot be read block by block: refused, with the way out.
+    # A compressed .npz cannot be read block by block: refused, naming the member and the way out.
     np.savez_compressed(tmp_path / "d.npz", dual=dual)
-    refused(tmp_path, body(n_train, n, dual='{ file = "d.npz" }'), "d.npz", "a compressed .npz is not read")
+    refused(tmp_path, body(n_train, n, dual='{ file = "d.npz", dataset = "dual" }'), "d.npz", "member dual",
+            "is compressed", "np.savez (uncompressed) instead of np.savez_compressed")
+    # An archive without the member named, and one without a member given at all.
+    np.savez(tmp_path / "d.npz", pressure=dual)
+    refused(tmp_path, body(n_train, n, dual='{ file = "d.npz", dataset = "dual" }'), "d.npz", "member dual",
+            "is not in the archive (it holds: pressure)", "model.external.dual.dataset")
+    refused(tmp_path, body(n_train, n, dual='{ file = "d.npz" }'), "d.npz", "names no member",
+            "model.external.dual.dataset")
+
+
+def test_an_uncompressed_npz_round_trips_bit_for_bit(native, tmp_path):
+    """np.savez stores its members uncompressed: each is read in blocks where it lies in the
+    archive, and the study equals the native one."""
+    native_store, sets = native
+    primal, dual, mu, n_train = all_columns(sets)
+    np.savez(tmp_path / "rope.npz", primal=primal, dual=np.ascontiguousarray(dual.T), mu=mu)
+    n = dual.shape[1]
+    path = scene(tmp_path, "rope-npz", f"""dual = {{ file = "rope.npz", dataset = "dual", layout = "rows" }}
+primal = {{ file = "rope.npz", dataset = "primal" }}
+parameters = {{ file = "rope.npz", dataset = "mu", names = ["gamma"] }}
+train = {list(range(n_train))}
+test = {list(range(n_train, n))}""")
+    store = tmp_path / "store"
+    done = crom(store, "--quiet", "run", str(path))
+    assert done.returncode == 0, done.stderr
+    assert_same_tables(native_store, store, "rope-npz", "rope")
 
 
 def test_mismatched_column_counts_are_refused(files):
@@ -344,3 +371,175 @@ def test_an_external_scene_has_no_reduced_model_to_query(files):
     assert done.returncode == 2, (done.returncode, done.stderr)
     assert "is external" in done.stderr and "fix:" in done.stderr, done.stderr
     assert "crom run" not in done.stderr.split("fix:")[1], done.stderr
+
+
+def rope_mesh(native_store, tmp_path):
+    """The native rope's mesh as an external mesh file: nodes, 2-node cells and the node of each
+    dual entry (its contact nodes)."""
+    with h5py.File(native_store / "scenes" / "rope" / "mesh.h5") as f:
+        nodes, cells, contact = f["nodes"][()], f["cells"][()], f["contact_nodes"][()]
+    with h5py.File(tmp_path / "mesh.h5", "w") as f:
+        f["nodes"] = nodes[:, :1]  # 1-D coordinates: the mesh artifact pads y = 0
+        f["cells"] = cells.astype(np.int32)
+        f["dual_nodes"] = contact.astype(np.int64)
+    return nodes, cells, contact
+
+
+def test_without_a_mesh_the_report_has_the_curves_and_says_pictures_need_one(files):
+    tmp_path, primal, dual, mu, n_train = files
+    write(tmp_path, primal, dual, mu)
+    store = tmp_path / "store"
+    done = crom(store, "run", str(scene(tmp_path, "no-mesh", body(n_train, dual.shape[1]))))
+    assert done.returncode == 0, done.stderr
+    assert "need a mesh (model.external.mesh)" in done.stderr, done.stderr
+    report = store / "scenes" / "no-mesh" / "report"
+    index = (report / "index.html").read_text()
+    for stem in ["fig_dual_snapshots", "fig04_singular_values", "fig09_compactness", "fig10_generalization",
+                 "fig10_specificity"]:
+        assert f'src="{stem}.png"' in index and (report / f"{stem}.png").exists(), stem
+    assert "fig_pressure_mesh" not in index and "fig_tradeoff" not in index
+    assert "they need a mesh" in index and "full-order operators" in index
+    assert not (store / "scenes" / "no-mesh" / "train.xdmf").exists()
+
+
+def test_a_mesh_gives_the_views_of_the_native_scene(native, files):
+    """The rope's snapshots on the rope's own mesh, read back: the external scene's views hold
+    the native views' values (the deflection as y, the pressure at the contact nodes)."""
+    native_store, _ = native
+    tmp_path, primal, dual, mu, n_train = files
+    write(tmp_path, primal, dual, mu)
+    rope_mesh(native_store, tmp_path)
+    mesh = 'mesh = { file = "mesh.h5", nodes = "nodes", cells = "cells", dual_nodes = "dual_nodes" }'
+    store = tmp_path / "store"
+    done = crom(store, "run", str(scene(tmp_path, "rope-mesh", body(n_train, dual.shape[1], extra=mesh))))
+    assert done.returncode == 0, done.stderr
+    import meshio
+    read = lambda p: meshio.xdmf.TimeSeriesReader(str(p))
+    with read(native_store / "scenes" / "rope" / "train.xdmf") as a, \
+            read(store / "scenes" / "rope-mesh" / "train.xdmf") as b:
+        pa, ca = a.read_points_cells()
+        pb, cb = b.read_points_cells()
+        np.testing.assert_array_equal(pa, pb)
+        np.testing.assert_array_equal(ca[0].data, cb[0].data)
+        assert a.num_steps == b.num_steps == n_train
+        for k in range(n_train):
+            fa, fb = a.read_data(k)[1], b.read_data(k)[1]
+            for field in ["displacement", "pressure"]:
+                np.testing.assert_array_equal(fa[field], fb[field])
+    index = (store / "scenes" / "rope-mesh" / "report" / "index.html").read_text()
+    assert "they need a mesh" not in index and "full-order operators" in index
+
+
+def test_a_bad_mesh_is_refused_naming_the_file_and_the_dataset(native, files):
+    native_store, _ = native
+    tmp_path, primal, dual, mu, n_train = files
+    write(tmp_path, primal, dual, mu)
+    nodes, cells, contact = rope_mesh(native_store, tmp_path)
+    n = dual.shape[1]
+    mesh = 'mesh = {{ file = "mesh.h5", nodes = "{}", cells = "cells"{} }}'
+    # No map, and fewer dual entries than nodes (the rope's every node is a contact node: one
+    # node more).
+    with h5py.File(tmp_path / "mesh.h5", "a") as f:
+        f["more_nodes"] = np.vstack([nodes[:, :1], [[2.0]]])
+    refused(tmp_path, body(n_train, n, extra=mesh.format("more_nodes", "")), "mesh.h5",
+            "model.external.mesh.dual_nodes", "is missing", f"{len(contact)} entries for {len(nodes) + 1} nodes")
+    # A map of the wrong length.
+    with h5py.File(tmp_path / "mesh.h5", "a") as f:
+        f["short"] = contact[:-1]
+    refused(tmp_path, body(n_train, n, extra=mesh.format("nodes", ', dual_nodes = "short"')), "mesh.h5",
+            "dataset short", f"the dual snapshots have {len(contact)} entries")
+    # A dataset that is not there.
+    refused(tmp_path, body(n_train, n, extra=mesh.format("nodes", ', dual_nodes = "map"')), "mesh.h5", "dataset map",
+            "does not exist")
+    # A cell that names a node the mesh does not have.
+    bad = cells.copy()
+    bad[3, 1] = len(nodes) + 5
+    with h5py.File(tmp_path / "mesh.h5", "a") as f:
+        del f["cells"]
+        f["cells"] = bad
+    refused(tmp_path, body(n_train, n, extra=mesh.format("nodes", ', dual_nodes = "dual_nodes"')), "mesh.h5",
+            "dataset cells", f"row 3, column 1 is {len(nodes) + 5}", "not a node index")
+    # Two dual entries on one node.
+    twice = contact.copy()
+    twice[1] = twice[0]
+    with h5py.File(tmp_path / "mesh.h5", "a") as f:
+        del f["cells"], f["dual_nodes"]
+        f["cells"] = cells
+        f["dual_nodes"] = twice
+    refused(tmp_path, body(n_train, n, extra=mesh.format("nodes", ', dual_nodes = "dual_nodes"')), "mesh.h5",
+            "dataset dual_nodes", f"gives node {contact[0]} to dual entries 0 and 1")
+
+
+@pytest.fixture(scope="module")
+def hertz(tmp_path_factory):
+    return native_study(tmp_path_factory, "hertz")
+
+
+def test_the_comparison_runs_on_an_external_scene_with_coordinates(hertz, tmp_path):
+    """Hertz's training and test sets with its contact nodes' coordinates, imported with Hertz's
+    [comparison] (registered moments maps included): every approximation's curves equal the
+    native study's bit for bit. Without coordinates the registered ones are skipped with their
+    reason, and the others still equal the native ones."""
+    native_store, sets = hertz
+    primal, dual, mu, n_train = all_columns(sets)
+    with h5py.File(native_store / "scenes" / "hertz" / "mesh.h5") as f:
+        xy = f["nodes"][()][f["contact_nodes"][()]]
+    with h5py.File(tmp_path / "hertz.h5", "w") as f:
+        f["primal"], f["dual"], f["mu"], f["xy"] = primal, dual, mu, xy
+    n = dual.shape[1]
+    files = f"""dual = {{ file = "hertz.h5", dataset = "dual" }}
+primal = {{ file = "hertz.h5", dataset = "primal" }}
+parameters = {{ file = "hertz.h5", dataset = "mu", names = ["d"] }}
+train = {list(range(n_train))}
+test = {list(range(n_train, n))}"""
+    native = pd.read_parquet(native_store / "scenes" / "hertz" / "comparison" / "comparison.parquet")
+    native = native.drop(columns="scene")
+    for name, extra, skipped in [("hertz-xy", 'coordinates = { file = "hertz.h5", dataset = "xy" }', False),
+                                 ("hertz-no-xy", "", True)]:
+        store = tmp_path / f"store-{name}"
+        done = crom(store, "run", str(scene(tmp_path, name, files + "\n" + extra, like="hertz")))
+        assert done.returncode == 0, done.stderr
+        ours = pd.read_parquet(store / "scenes" / name / "comparison" / "comparison.parquet").drop(columns="scene")
+        expected = native[~native.approximation.str.startswith("registered")] if skipped else native
+        pd.testing.assert_frame_equal(expected.reset_index(drop=True), ours.reset_index(drop=True), check_exact=True)
+        index = (store / "scenes" / name / "report" / "index.html").read_text()
+        assert "fig_comparison_test" in index
+        reason = "the registered maps need the contact entries' coordinates"
+        assert (reason in done.stderr) == skipped and (reason in index) == skipped, done.stderr
+
+
+def test_a_training_set_that_is_a_nested_grid_gets_the_native_nested_error(tmp_path):
+    """The rope at train_level = 3 with nested levels 1 to 3 (level 3 is its training set),
+    exported and imported: the external scene finds the levels in its 9 equally spaced training
+    points, and its H(n) table equals the native one bit for bit."""
+    text = (REPO / "data" / "scenes" / "rope.toml").read_text()
+    assert "n_train = 10" in text, "rope.toml changed: update this test"
+    native_scene = tmp_path / "rope-l3.toml"
+    native_scene.write_text(text.replace('name = "rope"', 'name = "rope-l3"')
+                            .replace("n_train = 10", "train_level = 3\nnested_levels = 3"))
+    native_store = tmp_path / "native"
+    done = crom(native_store, "--quiet", "run", str(native_scene), "--offline")
+    assert done.returncode == 0, done.stderr
+    sets = {}
+    for s in ["train", "test"]:
+        with h5py.File(native_store / "scenes" / "rope-l3" / f"{s}.h5") as f:
+            sets[s] = (f["primal"][()], f["dual"][()], f["parameters"][()])
+    primal, dual, mu, n_train = all_columns(sets)
+    assert n_train == 9
+    np.save(tmp_path / "primal.npy", primal)
+    np.save(tmp_path / "dual.npy", dual)
+    np.save(tmp_path / "mu.npy", mu)
+    path = scene(tmp_path, "rope-nested", f"""dual = {{ file = "dual.npy" }}
+primal = {{ file = "primal.npy" }}
+parameters = {{ file = "mu.npy", names = ["gamma"] }}
+train = {list(range(n_train))}
+test = {list(range(n_train, dual.shape[1]))}""")
+    store = tmp_path / "store"
+    done = crom(store, "--quiet", "run", str(path))
+    assert done.returncode == 0, done.stderr
+    a = pd.read_parquet(native_store / "scenes" / "rope-l3" / "nested.parquet").drop(columns="scene")
+    b = pd.read_parquet(store / "scenes" / "rope-nested" / "nested.parquet").drop(columns="scene")
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    assert sorted(p.name for p in (store / "scenes" / "rope-nested" / "nested").glob("level-*.h5")) == \
+        ["level-1.h5", "level-2.h5", "level-3.h5"]
+    assert "fig15_nested" in (store / "scenes" / "rope-nested" / "report" / "index.html").read_text()

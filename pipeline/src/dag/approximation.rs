@@ -69,10 +69,38 @@ impl ApproximationKey {
     }
 }
 
+/// Where the abscissae of the contact entries (the registration maps' surface) come from.
+#[derive(Debug, Clone)]
+pub(crate) enum SurfaceSource {
+    /// The slave nodes' x in the mesh artifact (native scenes, external scenes with a mesh).
+    Mesh(Input),
+    /// Given with the scene (an external scene's `coordinates`, first component), keyed by the
+    /// blake3 of their bits.
+    Given { x: Vec<f64>, key: Key },
+    /// None: an external scene without coordinates (no registered approximation is planned).
+    Absent,
+}
+
+impl SurfaceSource {
+    /// The abscissae given with the scene, keyed by their bits.
+    pub(crate) fn given(x: Vec<f64>) -> Self {
+        let mut h = blake3::Hasher::new();
+        for v in &x {
+            h.update(&v.to_bits().to_le_bytes());
+        }
+        Self::Given { key: Key(h.finalize().to_hex().to_string()), x }
+    }
+}
+
 /// The key spec of the approximation `key`; `nested` are the nested levels' sets (level n at
 /// index n - 1), for H(n).
-fn spec(key: &ApproximationKey, train: &Key, test: &Key, mesh: &Key, nested: &[Key]) -> KeySpec {
-    let mut spec = KeySpec::of(key).input("train", train).input("test", test).input("mesh", mesh);
+fn spec(key: &ApproximationKey, train: &Key, test: &Key, surface: &SurfaceSource, nested: &[Key]) -> KeySpec {
+    let mut spec = KeySpec::of(key).input("train", train).input("test", test);
+    spec = match surface {
+        SurfaceSource::Mesh(mesh) => spec.input("mesh", &mesh.key),
+        SurfaceSource::Given { key, .. } => spec.input("surface", key),
+        SurfaceSource::Absent => spec,
+    };
     for (i, k) in nested.iter().enumerate() {
         spec = spec.input(&format!("level{}", i + 1), k);
     }
@@ -89,7 +117,8 @@ pub(crate) struct ApproximationStage {
     pub scene: String,
     pub train: Input,
     pub test: Input,
-    pub mesh: Input,
+    /// The contact entries' abscissae.
+    pub surface: SurfaceSource,
     /// The nested levels' sets (level n at index n - 1), for H(n).
     pub nested: Vec<Input>,
 }
@@ -101,13 +130,13 @@ impl ApproximationStage {
         index: usize,
         train: Input,
         test: Input,
-        mesh: Input,
+        surface: SurfaceSource,
         nested: Vec<Input>,
     ) -> Option<Self> {
         let keys: Vec<Key> = nested.iter().map(|l| l.key.clone()).collect();
         let settings = ApproximationKey::of(scene, index)?;
-        let spec = spec(&settings, &train.key, &test.key, &mesh.key, &keys);
-        Some(Self { spec, settings, scene: scene.scene.name.clone(), train, test, mesh, nested })
+        let spec = spec(&settings, &train.key, &test.key, &surface, &keys);
+        Some(Self { spec, settings, scene: scene.scene.name.clone(), train, test, surface, nested })
     }
 }
 
@@ -119,13 +148,16 @@ impl StageDef for ApproximationStage {
         self.spec.key()
     }
     fn inputs(&self) -> Vec<&Input> {
-        let mut inputs = vec![&self.train, &self.test, &self.mesh];
+        let mut inputs = vec![&self.train, &self.test];
+        if let SurfaceSource::Mesh(mesh) = &self.surface {
+            inputs.push(mesh);
+        }
         inputs.extend(&self.nested);
         inputs
     }
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         let keys: Vec<Key> = self.nested.iter().map(|l| l.key.clone()).collect();
-        run(ctx, &self.spec, (&self.settings, &self.scene), &self.train.key, &self.test.key, &self.mesh.key, &keys)
+        run(ctx, &self.spec, (&self.settings, &self.scene), &self.train.key, &self.test.key, &self.surface, &keys)
     }
 }
 
@@ -136,7 +168,7 @@ fn run(
     (settings, scene): (&ApproximationKey, &str),
     train: &Key,
     test: &Key,
-    mesh: &Key,
+    surface: &SurfaceSource,
     nested: &[Key],
 ) -> Result<Key, CromError> {
     let item = comparison::item_of(&settings.approximation);
@@ -146,7 +178,11 @@ fn run(
     ctx.single(ArtifactKind::Approximation, "approximation", spec, |staging| {
         let set = loaded.set(store, train)?;
         let tset = loaded.set(store, test)?;
-        let surface = contact_x(store, mesh)?;
+        let surface = match surface {
+            SurfaceSource::Mesh(mesh) => contact_x(store, &mesh.key)?,
+            SurfaceSource::Given { x, .. } => x.clone(),
+            SurfaceSource::Absent => Vec::new(),
+        };
         let n_train = set.parameters.len();
         let ms = dual::m_grid(max_m.min(n_train));
         let folds = crom_schemas::scene::spaced_folds(loo_folds.min(n_train), n_train);

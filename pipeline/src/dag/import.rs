@@ -122,6 +122,8 @@ pub(crate) struct ImportStage {
     per_block: usize,
     /// The scene's name, in the column family's metadata.
     scene: String,
+    /// The nested levels: positions in the training set ([`ResolvedExternal::levels`]).
+    levels: Vec<Vec<usize>>,
 }
 
 impl ImportStage {
@@ -142,12 +144,19 @@ impl ImportStage {
             tolerance: ext.negative_tolerance(),
             per_block: super::snapshots::chunk_columns(scene),
             scene: scene.scene.name.clone(),
+            levels: r.levels.clone(),
         })
     }
 
     /// The keys of the training columns, then the test columns.
     pub(crate) fn keys(&self) -> (&[Key], &[Key]) {
         (&self.sets[0].1, &self.sets[1].1)
+    }
+
+    /// The nested levels (positions in the training set); their rows follow the test set's in
+    /// the columns this stage hands on.
+    pub(crate) fn levels(&self) -> &[Vec<usize>] {
+        &self.levels
     }
 }
 
@@ -162,7 +171,12 @@ impl StageDef for ImportStage {
         Vec::new()
     }
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
-        let columns = self.import(ctx)?;
+        let mut columns = self.import(ctx)?;
+        // The nested levels are training columns again, each level after the test set.
+        let train = columns.rows[..self.sets[0].1.len()].to_vec();
+        for level in &self.levels {
+            columns.rows.extend(level.iter().map(|&i| train[i].clone()));
+        }
         shared.columns.insert(0, columns);
         Ok(self.family.clone())
     }

@@ -95,7 +95,7 @@ pub(crate) fn run(
         write_mesh_xdmf(
             &staging.path(names::XDMF),
             names::FILE,
-            m.nodes.len(),
+            (m.nodes.len(), 2),
             m.cells.len(),
             m.nodes_per_cell,
             &[names::CELL_BODY],

@@ -27,6 +27,7 @@ mod beside;
 mod compactness;
 pub(crate) mod comparison;
 mod convert;
+mod external_mesh;
 mod graph;
 mod import;
 mod labels;
@@ -368,7 +369,10 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     online: bool,
 ) -> Result<RunOutput, CromError> {
     if plan.is_external() {
-        ctx.progress.note(plan::EXTERNAL_SKIPS);
+        ctx.progress.note(plan::external_skips(plan.node("mesh").is_some()));
+        for line in &plan.skipped {
+            ctx.progress.note(line);
+        }
     }
     let mut shared = Shared::new(scene);
     let mut keys: BTreeMap<&str, Key> = BTreeMap::new();

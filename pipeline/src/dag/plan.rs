@@ -18,11 +18,12 @@ use std::sync::Arc;
 use crom_schemas::artifact::{ArtifactKind, MANIFEST};
 use crom_schemas::SceneConfig;
 
-use super::approximation::ApproximationStage;
+use super::approximation::{ApproximationStage, SurfaceSource};
 use super::approximation_online::OnlineApproximationStage;
 use super::basis::BasisStage;
 use super::compactness::CompactnessStage;
 use super::comparison::{self, GatherStage};
+use super::external_mesh::ExternalMeshStage;
 use super::graph::{Input, StageDef};
 use super::import::ImportStage;
 use super::mesh;
@@ -80,6 +81,9 @@ pub struct Plan {
     pub(crate) imported: Vec<Key>,
     /// Every stage, in an order that respects their inputs.
     pub nodes: Vec<Node>,
+    /// Parts of the study not planned, each with its reason (an external scene's
+    /// approximations that need what it does not give).
+    pub skipped: Vec<String>,
 }
 
 /// The nodes of a plan as they are added: each node's inputs must already be there.
@@ -104,8 +108,39 @@ impl Nodes {
     }
 }
 
-/// The one line an external scene's run prints about the stages it does not have.
-pub const EXTERNAL_SKIPS: &str = "external scene: the views, the comparison, the online reduced solve, the trade-off and the report need the full-order model or a mesh, which an external scene does not have; skipped";
+/// The one line an external scene's run prints about the stages it does not have
+/// (`has_mesh`: the scene gives a mesh).
+pub fn external_skips(has_mesh: bool) -> &'static str {
+    if has_mesh {
+        "external scene: the online reduced solve, the trade-off and the online comparison need the full-order operators, which an external scene does not have; skipped"
+    } else {
+        "external scene: the online reduced solve, the trade-off and the online comparison need the full-order operators, which an external scene does not have, and the views and the report's pictures need a mesh (model.external.mesh); skipped"
+    }
+}
+
+/// The abscissae of an external scene's contact entries, for the registered approximations: the
+/// x of their mesh nodes (with a mesh), else the first coordinate of `coordinates`; or why there
+/// are none to use. The registration maps act along a contact curve parametrised by x, so the
+/// entries' abscissae must be distinct.
+fn external_surface(scene: &SceneConfig, mesh: Option<&Input>) -> Result<SurfaceSource, String> {
+    let r = scene.model.external().and_then(|e| e.resolved.as_ref());
+    let Some(coordinates) = r.and_then(|r| r.coordinates.as_ref()) else {
+        return Err("skipped: the registered maps need the contact entries' coordinates, and the scene gives neither model.external.coordinates nor model.external.mesh".into());
+    };
+    let x: Vec<f64> = coordinates.iter().map(|p| p.first().copied().unwrap_or(0.0)).collect();
+    let mut sorted = x.clone();
+    sorted.sort_by(f64::total_cmp);
+    // Distinct to 1e-12 of the extent (a contact area, not a curve, repeats abscissae exactly).
+    let extent = sorted.last().copied().unwrap_or(0.0) - sorted.first().copied().unwrap_or(0.0);
+    let tol = crom_stages::float_cmp::Tol { abs: 1e-12 * extent.abs(), rel: 0.0 };
+    if sorted.windows(2).any(|w| crom_stages::float_cmp::close(w[0], w[1], tol)) {
+        return Err("skipped: the registered maps act along a contact curve parametrised by x, and two of this scene's contact entries share an abscissa (a contact area, not a curve)".into());
+    }
+    Ok(match mesh {
+        Some(m) => SurfaceSource::Mesh(m.clone()),
+        None => SurfaceSource::given(x),
+    })
+}
 
 /// Where the snapshot sweeps stand in a store.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -186,8 +221,8 @@ impl Plan {
         let items = scene.comparison.as_ref().map(comparison::items).unwrap_or_default();
         let mut parts: Vec<(String, Input)> = Vec::new();
         for (i, item) in items.iter().enumerate() {
-            let Some(stage) =
-                ApproximationStage::plan(scene, i, train.clone(), test.clone(), mesh.clone(), levels.clone())
+            let surface = SurfaceSource::Mesh(mesh.clone());
+            let Some(stage) = ApproximationStage::plan(scene, i, train.clone(), test.clone(), surface, levels.clone())
             else {
                 continue;
             };
@@ -218,11 +253,11 @@ impl Plan {
         let subject = Subject::Online { of: rom.clone(), test: test.clone() };
         nodes.add("views online", true, ViewsStage::plan(subject, mesh.clone(), &labels));
         let shows = report::ReportInputs {
-            mesh: mesh.key.clone(),
+            mesh: Some(mesh.key.clone()),
             train: train.key.clone(),
             basis: basis.key.clone(),
             compactness: compactness.key.clone(),
-            rom: rom.key.clone(),
+            rom: Some(rom.key.clone()),
             generalization: generalization.key.clone(),
             specificity: specificity.key.clone(),
             nested: nested.as_ref().map(|n| n.key.clone()),
@@ -232,19 +267,21 @@ impl Plan {
         let mut inputs = vec![mesh, train, basis, compactness, rom, generalization, specificity];
         inputs.extend([nested, comparison, online_comparison].into_iter().flatten());
         nodes.add("report", true, ReportStage::plan(scene, shows, inputs));
-        Self { sweeps, family, nodes: nodes.0, imported: Vec::new() }
+        Self { sweeps, family, nodes: nodes.0, imported: Vec::new(), skipped: Vec::new() }
     }
 
-    /// The plan of an external scene: its import in place of the mesh and the sweeps, then the
-    /// sets, the basis and the metrics as for a native scene. What needs the full-order model
-    /// or a mesh (the views, the comparison, the online stage, the report) is not planned
-    /// ([`EXTERNAL_SKIPS`]).
+    /// The plan of an external scene: its import in place of the sweeps, its mesh (if it gives
+    /// one) in place of the native mesh, then the sets, the basis, the metrics and the report as
+    /// for a native scene, and the views when there is a mesh. What needs the full-order
+    /// operators (the online stage, the trade-off) is not planned ([`external_skips`]).
     fn of_external(scene: &SceneConfig, import: ImportStage) -> Self {
         let mut nodes = Nodes::default();
         let labels = Labels::of(scene);
         let (train_keys, test_keys) = (import.keys().0.to_vec(), import.keys().1.to_vec());
         let family = import.key();
+        let level_positions = import.levels().to_vec();
         let sweep = nodes.add("import", false, import);
+        let mesh = ExternalMeshStage::plan(scene).map(|stage| nodes.add("mesh", false, stage));
         let p = &scene.parameter;
         let (train_points, test_points) = (p.train_points(), p.test_points());
         let tk: Vec<&Key> = train_keys.iter().collect();
@@ -253,16 +290,89 @@ impl Plan {
             SetStage::plan(name, (points, keys), sweep.clone(), (0, start), &labels)
         };
         let train = nodes.add("trainset train", false, set("train", &train_points, &tk, 0));
-        nodes.add("trainset test", false, set("test", &test_points, &sk, train_points.len()));
+        let test = nodes.add("trainset test", false, set("test", &test_points, &sk, train_points.len()));
+        if let Some(mesh) = &mesh {
+            for (name, of) in [("train", &train), ("test", &test)] {
+                let subject = Subject::Set { set: name.to_string(), of: of.clone() };
+                nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
+            }
+        }
         let basis_stage = BasisStage::plan(scene, train.clone());
         let basis_settings = basis_stage.settings.clone();
         let basis = nodes.add("basis", false, basis_stage);
+        if let Some(mesh) = &mesh {
+            let views = ViewsStage::plan(Subject::Basis { of: basis.clone() }, mesh.clone(), &labels);
+            nodes.add("views basis", false, views);
+        }
         let stage = CompactnessStage::plan(train.clone(), basis.clone(), &basis_settings, &labels);
-        nodes.add("compactness", false, stage);
-        nodes.add("generalization", false, GeneralizationStage::plan(scene, train.clone(), &labels));
-        nodes.add("specificity", false, SpecificityStage::plan(scene, train, basis, &labels));
+        let compactness = nodes.add("compactness", false, stage);
+        let generalization =
+            nodes.add("generalization", false, GeneralizationStage::plan(scene, train.clone(), &labels));
+        let stage = SpecificityStage::plan(scene, train.clone(), basis.clone(), &labels);
+        let specificity = nodes.add("specificity", false, stage);
+        // Nested levels, when the training points form them: training columns again, each
+        // level's rows after the test set's in the import's columns.
+        let mut levels: Vec<Input> = Vec::new();
+        let mut at = train_points.len() + test_points.len();
+        for (n, positions) in level_positions.iter().enumerate() {
+            let pts: Vec<Vec<f64>> = positions.iter().map(|&i| train_points[i].clone()).collect();
+            let keys: Vec<&Key> = positions.iter().map(|&i| &train_keys[i]).collect();
+            let name = format!("nested-{}", n + 1);
+            let level = nodes.add(&format!("trainset {name}"), false, set(&name, &pts, &keys, at));
+            at += positions.len();
+            if let Some(mesh) = &mesh {
+                let subject = Subject::Set { set: name.clone(), of: level.clone() };
+                nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
+            }
+            levels.push(level);
+        }
+        let nested =
+            (!levels.is_empty()).then(|| nodes.add("nested", false, NestedStage::plan(levels.clone(), &labels)));
+        let surface = external_surface(scene, mesh.as_ref());
+        let mut skipped = Vec::new();
+        let mut parts: Vec<(String, Input)> = Vec::new();
+        let items = scene.comparison.as_ref().map(comparison::items).unwrap_or_default();
+        for (i, item) in items.iter().enumerate() {
+            let registered = matches!(item.approach, crom_stages::dual::Approach::Registered { .. });
+            let surface = match (&surface, registered) {
+                (Err(reason), true) => {
+                    skipped.push(format!("approximation {}: {reason}", item.name));
+                    continue;
+                }
+                (Ok(s), _) => s.clone(),
+                (Err(_), false) => SurfaceSource::Absent,
+            };
+            let Some(stage) = ApproximationStage::plan(scene, i, train.clone(), test.clone(), surface, levels.clone())
+            else {
+                continue;
+            };
+            parts.push((
+                item.name.clone(),
+                nodes.add(&format!("{}{}", comparison::OFFLINE_NODE, item.name), false, stage),
+            ));
+        }
+        let comparison = (!parts.is_empty()).then(|| {
+            let stage = GatherStage::plan(ArtifactKind::Comparison, ArtifactKind::Approximation, parts);
+            nodes.add("comparison", false, stage)
+        });
+        let shows = report::ReportInputs {
+            mesh: mesh.as_ref().map(|m| m.key.clone()),
+            train: train.key.clone(),
+            basis: basis.key.clone(),
+            compactness: compactness.key.clone(),
+            rom: None,
+            generalization: generalization.key.clone(),
+            specificity: specificity.key.clone(),
+            nested: nested.as_ref().map(|n| n.key.clone()),
+            comparison: comparison.as_ref().map(|n| n.key.clone()),
+            online_comparison: None,
+        };
+        let mut inputs: Vec<Input> = mesh.into_iter().collect();
+        inputs.extend([train, basis, compactness, generalization, specificity]);
+        inputs.extend([nested, comparison].into_iter().flatten());
+        nodes.add("report", true, ReportStage::plan_with(scene, shows, inputs, skipped.clone()));
         let imported = train_keys.into_iter().chain(test_keys).collect();
-        Self { sweeps: Vec::new(), family, nodes: nodes.0, imported }
+        Self { sweeps: Vec::new(), family, nodes: nodes.0, imported, skipped }
     }
 
     /// Whether this is an external scene's plan (no mesh: its snapshots were imported).

@@ -18,7 +18,7 @@ use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
 use crate::io::table::{read_parquet, Column, Table};
-use crate::report::{bodies, render, ComparisonData, ReportData};
+use crate::report::{bodies, render, ComparisonData, ReportData, Surface};
 use crate::store::Store;
 
 /// The report is determined by its inputs and by the scene it shows: its name, description,
@@ -27,6 +27,10 @@ use crate::store::Store;
 #[derive(Debug, Clone, serde::Serialize)]
 pub(crate) struct ReportKey {
     scene: SceneConfig,
+    /// Parts of the study not planned, with their reasons (an external scene's), stated in the
+    /// report.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    skipped: Vec<String>,
 }
 
 impl StageKey for ReportKey {
@@ -39,16 +43,16 @@ impl StageKey for ReportKey {
 /// The artifacts a report shows.
 #[derive(Debug, Clone)]
 pub struct ReportInputs {
-    /// Mesh.
-    pub mesh: Key,
+    /// Mesh (none for an external scene without one).
+    pub mesh: Option<Key>,
     /// Training set.
     pub train: Key,
     /// Bases.
     pub basis: Key,
     /// Compactness table.
     pub compactness: Key,
-    /// Online ROM tables.
-    pub rom: Key,
+    /// Online ROM tables (none for an external scene: no full-order operators).
+    pub rom: Option<Key>,
     /// G(m) table.
     pub generalization: Key,
     /// S(m) table.
@@ -63,12 +67,15 @@ pub struct ReportInputs {
 
 /// The report's key spec: the scene and every artifact it shows.
 fn spec(key: &ReportKey, inputs: &ReportInputs) -> KeySpec {
-    let spec = KeySpec::of(key)
-        .input("mesh", &inputs.mesh)
+    let optional = |spec: KeySpec, name: &str, key: &Option<Key>| match key {
+        Some(k) => spec.input(name, k),
+        None => spec,
+    };
+    let spec = optional(KeySpec::of(key), "mesh", &inputs.mesh)
         .input("train", &inputs.train)
         .input("basis", &inputs.basis)
-        .input("compactness", &inputs.compactness)
-        .input("rom", &inputs.rom)
+        .input("compactness", &inputs.compactness);
+    let spec = optional(spec, "rom", &inputs.rom)
         .input("generalization", &inputs.generalization)
         .input("specificity", &inputs.specificity);
     let spec = match &inputs.nested {
@@ -99,7 +106,17 @@ pub(crate) struct ReportStage {
 impl ReportStage {
     /// The report of `scene`; `inputs`: the nodes it reads (their keys are the ones in `shows`).
     pub(crate) fn plan(scene: &SceneConfig, shows: ReportInputs, inputs: Vec<Input>) -> Self {
-        let settings = ReportKey { scene: scene.clone() };
+        Self::plan_with(scene, shows, inputs, Vec::new())
+    }
+
+    /// The same, stating the parts of the study `skipped` (with their reasons).
+    pub(crate) fn plan_with(
+        scene: &SceneConfig,
+        shows: ReportInputs,
+        inputs: Vec<Input>,
+        skipped: Vec<String>,
+    ) -> Self {
+        let settings = ReportKey { scene: scene.clone(), skipped };
         Self { spec: spec(&settings, &shows), settings, shows, inputs }
     }
 }
@@ -115,42 +132,64 @@ impl StageDef for ReportStage {
         self.inputs.iter().collect()
     }
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
-        run(ctx, &self.spec, &self.settings.scene, &self.shows)
+        run(ctx, &self.spec, &self.settings, &self.shows)
     }
 }
 
 /// Build (or find) the report of `scene`; returns its key.
-fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, scene: &SceneConfig, inputs: &ReportInputs) -> Result<Key, CromError> {
+fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, settings: &ReportKey, inputs: &ReportInputs) -> Result<Key, CromError> {
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
+    let scene = &settings.scene;
     ctx.single(ArtifactKind::Report, "report", spec, |staging| {
-        let data = gather(store, &loaded, inputs)?;
+        let mut data = gather(store, &loaded, inputs)?;
+        data.skipped.clone_from(&settings.skipped);
         let figures = render(scene, &data, &staging.path(""))?;
         Ok(BTreeMap::from([("figures".to_string(), json!(figures))]))
     })
 }
 
 fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<ReportData, CromError> {
-    let mesh = H5In::open(&store.dir(ArtifactKind::Mesh, &inputs.mesh).join(mnames::FILE))?;
-    let nodes = mesh.matrix(mnames::NODES)?; // n x 2, column-major
-    let contact = mesh.vec_u64(mnames::CONTACT_NODES)?;
-    let cells = mesh.shape(mnames::CELLS)?;
-    let contact_x = contact.iter().map(|&i| nodes.data[i as usize]).collect();
-    let line_x = if cells.get(1) == Some(&2) { nodes.col(0).to_vec() } else { Vec::new() };
-    let geometry = if mesh.attr_u64("dofs_per_node")? == 2 {
-        let per = cells.get(1).copied().unwrap_or(4).max(1);
-        let flat = mesh.vec_u64(mnames::CELLS)?;
-        Some(bodies::Geometry {
-            nodes: (0..nodes.rows).map(|i| [nodes.data[i], nodes.data[i + nodes.rows]]).collect(),
-            cells: flat.chunks(per).map(|c| c.iter().map(|&i| i as usize).collect()).collect(),
-            cell_body: mesh.vec_u64(mnames::CELL_BODY)?,
-            node_body: mesh.vec_u64(mnames::NODE_BODY)?,
-            contact: contact.iter().map(|&i| i as usize).collect(),
-        })
-    } else {
-        None
-    };
-    let conditioning = conditioning(&mesh, store, &inputs.basis)?;
     let train = loaded.set(store, &inputs.train)?;
+    let mesh = match &inputs.mesh {
+        Some(k) => Some(H5In::open(&store.dir(ArtifactKind::Mesh, k).join(mnames::FILE))?),
+        None => None,
+    };
+    let mut contact_x: Vec<f64> = (0..train.dual.rows).map(|i| i as f64).collect();
+    let (mut line_x, mut geometry, mut surface) = (Vec::new(), None, None);
+    if let Some(mesh) = &mesh {
+        let nodes = mesh.matrix(mnames::NODES)?; // n x dim, column-major
+        let contact = mesh.vec_u64(mnames::CONTACT_NODES)?;
+        let cells = mesh.shape(mnames::CELLS)?;
+        let per = cells.get(1).copied().unwrap_or(4).max(1);
+        let external = mesh.contains_attr("source");
+        contact_x = contact.iter().map(|&i| nodes.data[i as usize]).collect();
+        if per == 2 {
+            line_x = nodes.col(0).to_vec();
+        }
+        let planar = nodes.cols == 2 && per > 2;
+        let xy = || (0..nodes.rows).map(|i| [nodes.data[i], nodes.data[i + nodes.rows]]).collect::<Vec<_>>();
+        let cells_of = || -> Result<Vec<Vec<usize>>, CromError> {
+            let flat = mesh.vec_u64(mnames::CELLS)?;
+            Ok(flat.chunks(per).map(|c| c.iter().map(|&i| i as usize).collect()).collect())
+        };
+        if mesh.attr_u64("dofs_per_node")? == 2 && (!external || planar) {
+            geometry = Some(bodies::Geometry {
+                nodes: xy(),
+                cells: cells_of()?,
+                cell_body: mesh.vec_u64(mnames::CELL_BODY)?,
+                node_body: mesh.vec_u64(mnames::NODE_BODY)?,
+                contact: contact.iter().map(|&i| i as usize).collect(),
+            });
+        }
+        if external && planar {
+            surface = Some(Surface {
+                nodes: xy(),
+                cells: cells_of()?,
+                contact: contact.iter().map(|&i| i as usize).collect(),
+            });
+        }
+    }
+    let conditioning = conditioning(mesh.as_ref(), store, &inputs.basis)?;
     let b = basis::load_full(store, &inputs.basis)?;
     let table = read_parquet(&store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
     let mut compactness: BTreeMap<(String, String), Vec<f64>> = BTreeMap::new();
@@ -159,18 +198,31 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
             compactness.entry((f.clone(), b.clone())).or_default().push(*v);
         }
     }
-    let rom_dir = store.dir(ArtifactKind::Rom, &inputs.rom);
+    let (rom_errors, tradeoff) = match &inputs.rom {
+        Some(k) => {
+            let rom_dir = store.dir(ArtifactKind::Rom, k);
+            (
+                joined(&rom_dir, rnames::ERRORS, rnames::TIMINGS, &QUERY_KEYS)?,
+                joined(&rom_dir, rnames::TRADEOFF, rnames::TRADEOFF_TIMINGS, &TRADE_KEYS)?,
+            )
+        }
+        None => (Table::default(), Table::default()),
+    };
     Ok(ReportData {
         contact_x,
         line_x,
         geometry,
+        surface,
+        online: inputs.rom.is_some(),
+        skipped: Vec::new(),
+        mesh: inputs.mesh.is_some(),
         train,
         primal_sv: b.primal_sv,
         dual_sv: b.dual_sv,
         ranks: b.ranks,
         compactness,
-        rom_errors: joined(&rom_dir, rnames::ERRORS, rnames::TIMINGS, &QUERY_KEYS)?,
-        tradeoff: joined(&rom_dir, rnames::TRADEOFF, rnames::TRADEOFF_TIMINGS, &TRADE_KEYS)?,
+        rom_errors,
+        tradeoff,
         generalization: read_parquet(
             &store.dir(ArtifactKind::Generalization, &inputs.generalization).join(metric_names::GENERALIZATION),
         )?,
@@ -213,14 +265,14 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
 
 /// The conditioning table: the stiffness estimate from the mesh artifact and, per CPG basis,
 /// the Gram's condition estimate after the last selection and its largest over the steps.
-fn conditioning(mesh: &H5In, store: &Store, basis: &Key) -> Result<Table, CromError> {
+fn conditioning(mesh: Option<&H5In>, store: &Store, basis: &Key) -> Result<Table, CromError> {
     let mut rows: Vec<(String, String, f64)> = Vec::new();
     for (name, what) in [
         (mnames::STIFFNESS_CONDITION, "condition estimate lambda_max / lambda_min (a lower bound on kappa_2)"),
         (mnames::STIFFNESS_LAMBDA_MAX, "largest eigenvalue estimate"),
         (mnames::STIFFNESS_LAMBDA_MIN, "smallest eigenvalue estimate"),
     ] {
-        if mesh.contains_attr(name) {
+        if let Some(mesh) = mesh.filter(|m| m.contains_attr(name)) {
             rows.push(("stiffness K_FF".into(), what.into(), mesh.attr_f64(name)?));
         }
     }

@@ -60,6 +60,9 @@ struct MeshFacts {
     n_nodes: usize,
     n_cells: usize,
     nodes_per_cell: usize,
+    /// Coordinates per node in the mesh file (2 or 3).
+    dim: usize,
+    /// Primal entries per node (0: an external scene without primal snapshots).
     dofs_per_node: usize,
     /// Runs of consecutive contact nodes: (first node, first contact index, length).
     contact_runs: Vec<(usize, usize, usize)>,
@@ -68,7 +71,8 @@ struct MeshFacts {
 fn mesh_facts(ctx: &Ctx<'_>, mesh: &Key) -> Result<MeshFacts, CromError> {
     let path = ctx.store.dir(ArtifactKind::Mesh, mesh).join(mesh_names::FILE);
     let f = H5In::open(&path)?;
-    let n_nodes = f.shape(mesh_names::NODES)?.first().copied().unwrap_or(0);
+    let node_shape = f.shape(mesh_names::NODES)?;
+    let n_nodes = node_shape.first().copied().unwrap_or(0);
     let cells = f.shape(mesh_names::CELLS)?;
     let contact = f.vec_u64(mesh_names::CONTACT_NODES)?;
     let mut contact_runs: Vec<(usize, usize, usize)> = Vec::new();
@@ -84,6 +88,7 @@ fn mesh_facts(ctx: &Ctx<'_>, mesh: &Key) -> Result<MeshFacts, CromError> {
         n_nodes,
         n_cells: cells.first().copied().unwrap_or(0),
         nodes_per_cell: cells.get(1).copied().unwrap_or(4),
+        dim: node_shape.get(1).copied().unwrap_or(2),
         dofs_per_node: f.attr_u64("dofs_per_node")? as usize,
         contact_runs,
     })
@@ -127,14 +132,20 @@ fn write_steps(h5: &H5Out, path: &str, mesh: &MeshFacts, steps: &[Step]) -> Resu
         let mut attributes = Vec::new();
         for (field, shape, c) in &s.fields {
             match shape {
+                Shape::Displacement if mesh.dofs_per_node == 0 => {}
                 Shape::Displacement => {
                     // One piece: the whole column, in dof order `dofs_per_node * node +
                     // component`, is the row-major order of the (n_nodes x dofs_per_node) block
                     // of the view, so both selections are plain hyperslabs (strided source
                     // selections make HDF5's virtual datasets read element by element: seconds
                     // per step instead of milliseconds). The rope's one dof per node is its
-                    // vertical deflection: the y column.
-                    let first = if mesh.dofs_per_node == 1 { 1 } else { 0 };
+                    // vertical deflection: the y column; one dof per node of a surface or
+                    // volume mesh (an external scene's membrane, say) is the z column.
+                    let first = match (mesh.dofs_per_node, mesh.nodes_per_cell) {
+                        (1, 2) => 1,
+                        (1, _) => 2,
+                        _ => 0,
+                    };
                     let pieces = [VirtualPiece {
                         file: c.file.clone(),
                         dataset: c.dataset.clone(),
@@ -199,6 +210,7 @@ fn series_mesh(mesh: &MeshFacts) -> SeriesMesh {
         n_nodes: mesh.n_nodes,
         n_cells: mesh.n_cells,
         nodes_per_cell: mesh.nodes_per_cell,
+        dim: mesh.dim,
     }
 }
 

@@ -65,12 +65,20 @@ impl Npy {
     /// Open `path` and read its header; checks that the file holds as many bytes as the shape
     /// says.
     pub fn open(path: &Path) -> Result<Self, CromError> {
+        let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+        Self::open_at(path, 0, size)
+    }
+
+    /// The `.npy` data of `size` bytes at byte `at` of the file `path` (a whole file, or a member
+    /// stored uncompressed in a `.npz` archive); checks that it holds as many bytes as the shape
+    /// says.
+    pub fn open_at(path: &Path, at: u64, size: u64) -> Result<Self, CromError> {
         let bad = |m: String| CromError::input(path, "the .npy header", m, FIX);
         let file = File::open(path).map_err(|e| {
             CromError::input(path, "the file", format!("cannot be opened: {e}"), "check the path in the scene file")
         })?;
         let mut pre = [0u8; 12];
-        let got = file.read_at(&mut pre, 0).map_err(|e| bad(format!("cannot be read: {e}")))?;
+        let got = file.read_at(&mut pre, at).map_err(|e| bad(format!("cannot be read: {e}")))?;
         if got < 10 || &pre[..6] != b"\x93NUMPY" {
             return Err(bad("is not a NumPy .npy file (no \\x93NUMPY magic)".into()));
         }
@@ -83,14 +91,14 @@ impl Npy {
             return Err(bad(format!("claims a header of {len} bytes")));
         }
         let mut header = vec![0u8; len];
-        file.read_exact_at(&mut header, start as u64).map_err(|e| bad(format!("is cut short: {e}")))?;
+        file.read_exact_at(&mut header, at + start as u64).map_err(|e| bad(format!("is cut short: {e}")))?;
         let header = String::from_utf8_lossy(&header).into_owned();
         let (dtype, fortran, shape) = parse_header(&header).map_err(bad)?;
-        let offset = (start + len) as u64;
+        let header_end = (start + len) as u64;
         let elements =
             shape.iter().try_fold(1usize, |a, &n| a.checked_mul(n)).ok_or_else(|| bad("overflows".into()))?;
-        let need = (elements as u64).saturating_mul(dtype.size() as u64).saturating_add(offset);
-        let size = file.metadata().map(|m| m.len()).unwrap_or(0);
+        let need = (elements as u64).saturating_mul(dtype.size() as u64).saturating_add(header_end);
+        let offset = at + header_end;
         if size != need {
             return Err(CromError::input(
                 path,

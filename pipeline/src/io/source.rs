@@ -41,12 +41,18 @@ enum Inner {
 }
 
 /// Whether `path` names an HDF5 file (by its extension).
-fn is_h5(path: &Path) -> bool {
+pub(crate) fn is_h5(path: &Path) -> bool {
     matches!(path.extension().and_then(|e| e.to_str()), Some("h5" | "hdf5" | "he5" | "hdf"))
 }
 
-fn is_npy(path: &Path) -> bool {
+/// Whether `path` names a `.npy` file (by its extension).
+pub(crate) fn is_npy(path: &Path) -> bool {
     path.extension().and_then(|e| e.to_str()) == Some("npy")
+}
+
+/// Whether `path` names a `.npz` archive (by its extension).
+pub(crate) fn is_npz(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()) == Some("npz")
 }
 
 /// `file` relative to `base` (absolute paths stay).
@@ -97,6 +103,16 @@ fn h5_dataset(path: &Path, field: &str, dataset: Option<&str>) -> Result<hdf5::D
                 "check that the file is an HDF5 file",
             )
         })?;
+    open_dataset(&file, path, field, name)
+}
+
+/// Open the HDF5 file `path` (with the reading options of a snapshot file) and its dataset
+/// `name`, named in the scene as `field`.
+pub(crate) fn open_h5(path: &Path, field: &str, name: &str) -> Result<hdf5::Dataset, CromError> {
+    h5_dataset(path, field, Some(name))
+}
+
+fn open_dataset(file: &hdf5::File, path: &Path, field: &str, name: &str) -> Result<hdf5::Dataset, CromError> {
     if !file.link_exists(name) {
         let top: Vec<String> = file.member_names().unwrap_or_default();
         return Err(CromError::input(
@@ -140,12 +156,25 @@ impl SnapshotArray {
             let a = Npy::open(&path)?;
             let shape = a.shape.clone();
             (Inner::Npy(a), shape, "the array".to_string())
+        } else if is_npz(&path) {
+            let Some(member) = src.dataset.as_deref() else {
+                return Err(CromError::input(
+                    &path,
+                    field,
+                    "is a .npz archive, and the scene names no member of it",
+                    format!("add {field}.dataset = \"NAME\" (the keyword given to np.savez)"),
+                ));
+            };
+            let m = super::npz::stored_member(&path, member, field)?;
+            let a = Npy::open_at(&path, m.offset, m.size)?;
+            let shape = a.shape.clone();
+            (Inner::Npy(a), shape, format!("member {member}"))
         } else {
             return Err(CromError::input(
                 &path,
                 field,
                 "has an extension this reader does not know",
-                "give an HDF5 file (.h5, .hdf5) with a dataset, or a NumPy .npy file (a compressed .npz is not read: save each array with np.save)",
+                "give an HDF5 file (.h5, .hdf5) with a dataset, a NumPy .npy file, or an uncompressed .npz archive (np.savez) with the member as dataset",
             ));
         };
         let [a, b] = shape[..] else {
@@ -273,6 +302,11 @@ pub fn read_parameters(base: &Path, src: &ParameterSource, field: &str) -> Resul
             let (data, shape, fortran) = if is_npy(&path) {
                 let a = Npy::open(&path)?;
                 (a.read_all()?, a.shape.clone(), a.fortran)
+            } else if is_npz(&path) {
+                let member = src.dataset.as_deref().unwrap_or("mu");
+                let m = super::npz::stored_member(&path, member, field)?;
+                let a = Npy::open_at(&path, m.offset, m.size)?;
+                (a.read_all()?, a.shape.clone(), a.fortran)
             } else if is_h5(&path) {
                 let ds = h5_dataset(&path, field, src.dataset.as_deref())?;
                 let v = ds.read_raw::<f64>().map_err(|e| {
@@ -289,7 +323,7 @@ pub fn read_parameters(base: &Path, src: &ParameterSource, field: &str) -> Resul
                     &path,
                     field,
                     "has an extension this reader does not know",
-                    "give a .csv (header row with the names), .parquet, .npy or HDF5 file",
+                    "give a .csv (header row with the names), .parquet, .npy, uncompressed .npz (member as dataset) or HDF5 file",
                 ));
             };
             let n = match shape[..] {

@@ -4,21 +4,40 @@ use std::path::Path;
 
 use crate::error::CromError;
 
-/// Write `<xdmf>` describing the mesh in `h5_name` (same directory): `nodes` (n x 2, XY) and
-/// `cells` (n_cells x nodes_per_cell): 2 → Polyline, 4 → Quadrilateral. `node_fields` are 1-D
-/// node datasets shown as attributes (e.g. body ids).
+/// The XDMF topology attributes of cells of `nodes_per_cell` nodes in `dim` dimensions: 2 →
+/// Polyline, 3 → Triangle, 4 → Quadrilateral (Tetrahedron in 3-D), 8 → Hexahedron.
+fn topology(nodes_per_cell: usize, dim: usize) -> String {
+    match (nodes_per_cell, dim) {
+        (2, _) => "TopologyType=\"Polyline\" NodesPerElement=\"2\"".to_string(),
+        (3, _) => "TopologyType=\"Triangle\"".to_string(),
+        (4, 3) => "TopologyType=\"Tetrahedron\"".to_string(),
+        (8, _) => "TopologyType=\"Hexahedron\"".to_string(),
+        _ => "TopologyType=\"Quadrilateral\"".to_string(),
+    }
+}
+
+/// `GeometryType` of nodes with `dim` coordinates (2: XY, 3: XYZ).
+fn geometry(dim: usize) -> &'static str {
+    if dim == 3 {
+        "XYZ"
+    } else {
+        "XY"
+    }
+}
+
+/// Write `<xdmf>` describing the mesh in `h5_name` (same directory): `nodes` (n x dim, XY or
+/// XYZ) and `cells` (n_cells x nodes_per_cell, [`topology`]). `cell_fields` are 1-D cell
+/// datasets shown as attributes (e.g. body ids).
 pub fn write_mesh_xdmf(
     path: &Path,
     h5_name: &str,
-    n_nodes: usize,
+    (n_nodes, dim): (usize, usize),
     n_cells: usize,
     nodes_per_cell: usize,
     cell_fields: &[&str],
 ) -> Result<(), CromError> {
-    let topology = match nodes_per_cell {
-        2 => "TopologyType=\"Polyline\" NodesPerElement=\"2\"".to_string(),
-        _ => "TopologyType=\"Quadrilateral\"".to_string(),
-    };
+    let topology = topology(nodes_per_cell, dim);
+    let geometry = geometry(dim);
     let mut attrs = String::new();
     for f in cell_fields {
         attrs.push_str(&format!(
@@ -33,8 +52,8 @@ pub fn write_mesh_xdmf(
       <Topology {topology} NumberOfElements="{n_cells}">
         <DataItem Dimensions="{n_cells} {nodes_per_cell}" NumberType="UInt" Precision="8" Format="HDF">{h5_name}:/cells</DataItem>
       </Topology>
-      <Geometry GeometryType="XY">
-        <DataItem Dimensions="{n_nodes} 2" NumberType="Float" Precision="8" Format="HDF">{h5_name}:/nodes</DataItem>
+      <Geometry GeometryType="{geometry}">
+        <DataItem Dimensions="{n_nodes} {dim}" NumberType="Float" Precision="8" Format="HDF">{h5_name}:/nodes</DataItem>
       </Geometry>
 {attrs}    </Grid>
   </Domain>
@@ -81,8 +100,10 @@ pub struct SeriesMesh {
     pub n_nodes: usize,
     /// Cells.
     pub n_cells: usize,
-    /// 2 (polyline) or 4 (quadrilateral).
+    /// Nodes per cell (the topology with `dim`: see `topology`).
     pub nodes_per_cell: usize,
+    /// Coordinates per node in the mesh file (2 or 3).
+    pub dim: usize,
 }
 
 /// An XDMF 3 temporal collection in the layout of meshio's `TimeSeriesWriter` (which ParaView
@@ -92,10 +113,8 @@ pub fn series_xdmf(name: &str, mesh: &SeriesMesh, steps: &[SeriesStep]) -> Strin
     use std::fmt::Write as _;
     let esc = |s: &str| s.replace('&', "&amp;").replace('"', "&quot;").replace('<', "&lt;").replace('>', "&gt;");
     let (n_nodes, n_cells, npc, m) = (mesh.n_nodes, mesh.n_cells, mesh.nodes_per_cell, &mesh.mesh_ref);
-    let topology = match npc {
-        2 => "TopologyType=\"Polyline\" NodesPerElement=\"2\"".to_string(),
-        _ => "TopologyType=\"Quadrilateral\"".to_string(),
-    };
+    let topology = topology(npc, mesh.dim);
+    let (geometry, dim) = (geometry(mesh.dim), mesh.dim);
     let mut x = String::new();
     let _ = writeln!(x, "<?xml version=\"1.0\" ?>");
     let _ = writeln!(x, "<Xdmf Version=\"3.0\" xmlns:xi=\"http://www.w3.org/2001/XInclude\">");
@@ -132,10 +151,10 @@ pub fn series_xdmf(name: &str, mesh: &SeriesMesh, steps: &[SeriesStep]) -> Strin
         esc(m)
     );
     let _ = writeln!(x, "      </Topology>");
-    let _ = writeln!(x, "      <Geometry GeometryType=\"XY\">");
+    let _ = writeln!(x, "      <Geometry GeometryType=\"{geometry}\">");
     let _ = writeln!(
         x,
-        "        <DataItem Dimensions=\"{n_nodes} 2\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/nodes</DataItem>",
+        "        <DataItem Dimensions=\"{n_nodes} {dim}\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/nodes</DataItem>",
         esc(m)
     );
     let _ = writeln!(x, "      </Geometry>");

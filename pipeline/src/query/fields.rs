@@ -128,6 +128,7 @@ pub(super) fn write(
         n_nodes: n,
         n_cells: cells_shape.first().copied().unwrap_or(0),
         nodes_per_cell: per,
+        dim: 2,
     };
     let xdmf = path.with_extension("xdmf");
     std::fs::write(&xdmf, series_xdmf("query", &mesh, &series))

@@ -103,7 +103,7 @@ fn anchors(g: &Geometry) -> HashMap<u64, usize> {
 }
 
 /// Colour of `t` in [0, 1] on a perceptually ordered map (viridis anchors).
-fn colormap(t: f64) -> RGBColor {
+pub(crate) fn colormap(t: f64) -> RGBColor {
     const A: [(f64, f64, f64); 5] =
         [(68.0, 1.0, 84.0), (59.0, 82.0, 139.0), (33.0, 145.0, 140.0), (94.0, 201.0, 98.0), (253.0, 231.0, 37.0)];
     let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 } * (A.len() - 1) as f64;

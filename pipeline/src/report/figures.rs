@@ -98,6 +98,9 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
     if let Model::Rope(spec) = &scene.model {
         figs.push(rope_primal(scene, &Rope::new(RopeParams::from(spec)), d, dir)?);
     }
+    if let Some(surface) = &d.surface {
+        figs.push(pressure_on_mesh(scene, surface, d, dir)?);
+    }
     if let Some(g) = &d.geometry {
         figs.push(deformed_bodies(scene, g, d, dir)?);
     }
@@ -124,10 +127,12 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
     if let Some(t) = &d.nested {
         figs.push(nested(scene, t, dir)?);
     }
-    for basis in ["full", "truncated"] {
-        figs.push(rom_errors(scene, d, dir, basis)?);
+    if d.online {
+        for basis in ["full", "truncated"] {
+            figs.push(rom_errors(scene, d, dir, basis)?);
+        }
+        figs.push(tradeoff(scene, d, dir)?);
     }
-    figs.push(tradeoff(scene, d, dir)?);
     if let Some(c) = &d.comparison {
         for (metric, stem, ylabel, caption) in COMPARISON_FIGURES {
             figs.push(comparison(scene, &c.curves, dir, metric, stem, ylabel, caption)?);
@@ -294,13 +299,9 @@ fn deformed_bodies(
     d: &ReportData,
     dir: &Path,
 ) -> Result<Figure, CromError> {
-    let n = d.train.parameters.len();
-    let mut picks = vec![0, n / 2, n.saturating_sub(1)];
-    picks.dedup();
-    let shown: Vec<super::bodies::Shown<'_>> = picks
-        .iter()
-        .filter(|&&j| j < n)
-        .map(|&j| super::bodies::Shown {
+    let shown: Vec<super::bodies::Shown<'_>> = three(d.train.parameters.len())
+        .into_iter()
+        .map(|j| super::bodies::Shown {
             label: label(scene, &d.train.parameters[j]),
             u: d.train.primal.col(j),
             pressure: d.train.dual.col(j),
@@ -316,11 +317,42 @@ fn deformed_bodies(
     })
 }
 
+/// The first, middle and last training points (distinct).
+fn three(n: usize) -> Vec<usize> {
+    let mut picks = vec![0, n / 2, n.saturating_sub(1)];
+    picks.dedup();
+    picks.retain(|&j| j < n);
+    picks
+}
+
+/// An external scene's pressure on its planar mesh at three training points.
+fn pressure_on_mesh(scene: &SceneConfig, s: &super::Surface, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
+    let panels: Vec<super::surface::Panel<'_>> = three(d.train.parameters.len())
+        .into_iter()
+        .map(|j| super::surface::Panel { label: label(scene, &d.train.parameters[j]), pressure: d.train.dual.col(j) })
+        .collect();
+    let title = format!("{}: contact pressure on the mesh at three training points", scene.scene.name);
+    super::surface::render(&title, s, &panels, dir, "fig_pressure_mesh")?;
+    Ok(Figure {
+        stem: "fig_pressure_mesh".into(),
+        caption: "The contact pressure λ (the dual snapshots) on the scene's mesh at the first, middle and last training points: each cell coloured by the mean of its nodes' pressures (0 at nodes that carry no dual entry), one colour scale for the three (colour bar at the right).".into(),
+    })
+}
+
 fn dual_snapshots(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
     let step = every(d.train.parameters.len());
     let mut order: Vec<usize> = (0..d.contact_x.len()).collect();
     order.sort_by(|&a, &b| d.contact_x[a].total_cmp(&d.contact_x[b]));
     let xs: Vec<f64> = order.iter().map(|&i| d.contact_x[i]).collect();
+    // An external scene's contact set need not be a curve (a membrane's is an area): points
+    // where two entries share an x (to 1e-9 of the extent: nodes on one grid line), and the
+    // entry number without a mesh.
+    let external = scene.model.external().is_some();
+    let extent = xs.last().copied().unwrap_or(0.0) - xs.first().copied().unwrap_or(0.0);
+    let same = crom_stages::float_cmp::Tol { abs: 1e-9 * extent.abs(), rel: 0.0 };
+    let shared = xs.windows(2).any(|w| crom_stages::float_cmp::close(w[0], w[1], same));
+    let mark = if external && shared { Mark::Points } else { Mark::Line };
+    let x_axis = if d.mesh { "x of the potential-contact node" } else { "dual entry (no mesh: model.external.mesh)" };
     let series = d
         .train
         .parameters
@@ -329,20 +361,14 @@ fn dual_snapshots(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Fig
         .step_by(step)
         .map(|(j, p)| {
             let col = d.train.dual.col(j);
-            Series::line(&label(scene, p), xs.clone(), order.iter().map(|&i| col[i]).collect()).mark(Mark::Line)
+            Series::line(&label(scene, p), xs.clone(), order.iter().map(|&i| col[i]).collect()).mark(mark)
         })
         .collect();
     draw(
         dir,
         "fig_dual_snapshots",
         format!("{}: contact pressure snapshots", scene.scene.name),
-        Axes {
-            x: "x of the potential-contact node",
-            y: "contact pressure λ",
-            log_x: false,
-            log_y: false,
-            legend: Legend::UpperRight,
-        },
+        Axes { x: x_axis, y: "contact pressure λ", log_x: false, log_y: false, legend: Legend::UpperRight },
         series,
         "Contact pressure snapshots at training points (paper Figs. 2 right, 6b, 12).",
     )

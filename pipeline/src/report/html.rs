@@ -20,19 +20,11 @@ pub(crate) fn write_index(
     tables: &[ReportTable],
     dir: &Path,
 ) -> Result<(), CromError> {
-    let p = &scene.parameter;
     let [pr, dr, cr, ctr] = d.ranks;
     let facts = [
         ("scene".to_string(), esc(&scene.scene.name)),
         ("description".to_string(), esc(&scene.scene.description)),
-        (
-            "parameter".to_string(),
-            std::iter::once((&p.name, p.min, p.max, &p.description))
-                .chain(p.axes.iter().map(|a| (&a.name, a.min, a.max, &a.description)))
-                .map(|(n, lo, hi, what)| format!("{} ∈ [{lo}, {hi}] ({})", esc(n), esc(what)))
-                .collect::<Vec<_>>()
-                .join(" × "),
-        ),
+        ("parameter".to_string(), parameter_fact(scene, d)),
         ("training snapshots".to_string(), d.train.parameters.len().to_string()),
         ("primal dofs / contact nodes".to_string(), format!("{} / {}", d.train.primal.rows, d.train.dual.rows)),
         ("primal POD rank (δ = ".to_string() + &scene.study.primal_tol.to_string() + ")", pr.to_string()),
@@ -65,6 +57,14 @@ pub(crate) fn write_index(
             esc(&f.caption)
         ));
     }
+    let skipped = skipped(scene, d);
+    if !skipped.is_empty() {
+        html.push_str("<h2>Not in this report</h2>\n<ul>\n");
+        for line in skipped {
+            html.push_str(&format!("<li>{}</li>\n", esc(line)));
+        }
+        html.push_str("</ul>\n");
+    }
     for t in tables {
         html.push_str(&format!(
             "<h2>{}</h2>\n{}<p><a href=\"{}.csv\">CSV</a> · <a href=\"{}.md\">Markdown</a></p>\n",
@@ -77,6 +77,44 @@ pub(crate) fn write_index(
     html.push_str("</body></html>\n");
     let path = dir.join("index.html");
     std::fs::write(&path, html).map_err(|e| CromError::io(&path, "writing index.html", e))
+}
+
+/// The parameter's components with their ranges: the scene's for a native scene, the training
+/// points' for an external one (its parameter values come from a file).
+fn parameter_fact(scene: &SceneConfig, d: &ReportData) -> String {
+    let p = &scene.parameter;
+    let external = scene.model.external().is_some();
+    std::iter::once((&p.name, p.min, p.max, &p.description))
+        .chain(p.axes.iter().map(|a| (&a.name, a.min, a.max, &a.description)))
+        .enumerate()
+        .map(|(c, (n, lo, hi, what))| {
+            let (lo, hi) = if external {
+                let v = d.train.parameters.iter().map(|q| q[c]);
+                (v.clone().fold(f64::INFINITY, f64::min), v.fold(f64::NEG_INFINITY, f64::max))
+            } else {
+                (lo, hi)
+            };
+            format!("{} ∈ [{lo}, {hi}] ({})", esc(n), esc(what))
+        })
+        .collect::<Vec<_>>()
+        .join(" × ")
+}
+
+/// What an external scene's report leaves out, each with its reason.
+fn skipped<'d>(scene: &SceneConfig, d: &'d ReportData) -> Vec<&'d str> {
+    let mut out: Vec<&str> = d.skipped.iter().map(String::as_str).collect();
+    if scene.model.external().is_none() {
+        return out;
+    }
+    if !d.online {
+        out.push("The online reduced solve (errors and speed-ups, paper Figs. 3, 7), the speed/accuracy trade-off and the online solve with each dual approximation: they solve the full-order and the reduced problems, and an external scene has snapshots, not the full-order operators.");
+    }
+    if !d.mesh {
+        out.push("Pictures of the snapshots on the body (and the views for ParaView): they need a mesh; give model.external.mesh (nodes, cells and the node of each dual entry). The pressure snapshots are drawn against the dual entry's number instead.");
+    } else if d.surface.is_none() && d.geometry.is_none() && d.line_x.is_empty() {
+        out.push("A picture of the pressure on the mesh: drawn for planar meshes only; open the views (train.xdmf, test.xdmf) in ParaView.");
+    }
+    out
 }
 
 /// A Markdown pipe table (as written by the report) to an HTML table.

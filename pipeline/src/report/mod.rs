@@ -7,7 +7,10 @@ pub(crate) mod bodies;
 pub mod chart;
 mod figures;
 mod html;
+mod surface;
 mod tables;
+
+pub(crate) use surface::Surface;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -37,12 +40,22 @@ pub(crate) fn render(scene: &SceneConfig, data: &ReportData, dir: &Path) -> Resu
 /// Everything the figures need, read from the artifacts.
 #[derive(Debug)]
 pub(crate) struct ReportData {
-    /// x coordinate of each potential-contact node (dual field abscissa).
+    /// x coordinate of each potential-contact node (dual field abscissa); the entry index
+    /// without a mesh.
     pub contact_x: Vec<f64>,
     /// Node x coordinates of a 1-D mesh (primal abscissa), empty for 2-D.
     pub line_x: Vec<f64>,
     /// The 2-D mesh (scenes with two displacement components per node), for the bodies figure.
     pub geometry: Option<bodies::Geometry>,
+    /// A planar mesh to draw the pressure on (external scenes with a 2-D mesh).
+    pub surface: Option<Surface>,
+    /// The scene has the online stage (native scenes); an external scene does not.
+    pub online: bool,
+    /// The scene has a mesh (every native scene; an external one when it gives one).
+    pub mesh: bool,
+    /// Parts of the study not planned, with their reasons (an external scene's approximations
+    /// that need what it does not give).
+    pub skipped: Vec<String>,
     /// Training set.
     pub train: std::sync::Arc<TrainingSet>,
     /// Singular values of the primal and dual snapshot matrices.

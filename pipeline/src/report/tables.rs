@@ -92,37 +92,56 @@ pub(crate) fn write_all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Resu
     let [pr, _, cr, ctr] = d.ranks;
     let r_online = d.rom_errors.u64s("r_primal").and_then(|v| v.first().copied()).unwrap_or(0);
     let st = &scene.study;
-    let ranks = Table::default()
+    let mut ranks = Table::default()
         .with("basis_set", Column::Str(vec!["full".into(), "truncated".into()]))
         .with("primal_tolerance", Column::F64(vec![st.primal_tol, st.primal_tol]))
-        .with("primal_rank", Column::U64(vec![pr as u64, pr as u64]))
-        .with("online_primal_rank", Column::U64(vec![r_online, r_online]))
+        .with("primal_rank", Column::U64(vec![pr as u64, pr as u64]));
+    if d.online {
+        ranks = ranks.with("online_primal_rank", Column::U64(vec![r_online, r_online]));
+    }
+    let ranks = ranks
         .with("dual_cpg_tolerance", Column::F64(vec![st.dual_cone_tol, st.dual_cone_tol_truncated]))
         .with("dual_cpg_rank", Column::U64(vec![cr as u64, ctr as u64]));
-    let mut out = vec![save(
-        &ranks,
-        dir,
-        "table_ranks",
-        "Truncation tolerances and ranks of each basis (paper Tables 1–2); online_primal_rank is the POD rank of the contact responses used online",
-    )?];
-    out.push(save(
-        &tradeoff_view(&d.tradeoff),
-        dir,
-        "table_tradeoff",
-        "Speed/accuracy trade over the test points: errors over converged points, times over all (ms), speed-up = median full-order time / median online time in the same process, ρ = Spearman rank correlation of the indicator with the true error",
-    )?);
-    out.push(save(
-        &stability_view(&d.tradeoff),
-        dir,
-        "table_stability",
-        "Stability of the reduced saddle-point system per rank pair: the reduced inf-sup constant beta = sigma_min(Â L^-T) (Â the reduced constraint rows of the dual vectors that constrain at the query's pairing, K̂ = L Lᵀ) at 8 evenly spaced test points, min and median over the converged ones; 0 = more constraining dual vectors than primal modes (r_dual > r_primal) or than paired contact nodes under them, or nearly parallel dual vectors: the multipliers are not unique",
-    )?);
+    let title = if d.online {
+        "Truncation tolerances and ranks of each basis (paper Tables 1–2); online_primal_rank is the POD rank of the contact responses used online"
+    } else {
+        "Truncation tolerances and ranks of each basis (paper Tables 1–2)"
+    };
+    let mut out = vec![save(&ranks, dir, "table_ranks", title)?];
+    if d.online {
+        out.extend(online_tables(d, dir)?);
+    }
     out.push(save(
         &d.conditioning,
         dir,
         "table_conditioning",
         "Stability: conditioning of the stiffness on the free dofs (power and inverse iteration with the solver's factor; the ratio is a lower bound on kappa_2) and of the CPG generators' Gram after each selection (Hager's 1-norm estimate; it bounds every NNLS Gram of that step, each a principal submatrix; per step in basis.h5, gram_rcond)",
     )?);
+    out.extend(comparison_tables(d, dir)?);
+    Ok(out)
+}
+
+/// The online stage's tables: the trade-off and the stability of each rank pair.
+fn online_tables(d: &ReportData, dir: &Path) -> Result<Vec<ReportTable>, CromError> {
+    Ok(vec![
+        save(
+        &tradeoff_view(&d.tradeoff),
+        dir,
+        "table_tradeoff",
+        "Speed/accuracy trade over the test points: errors over converged points, times over all (ms), speed-up = median full-order time / median online time in the same process, ρ = Spearman rank correlation of the indicator with the true error",
+    )?,
+    save(
+        &stability_view(&d.tradeoff),
+        dir,
+        "table_stability",
+        "Stability of the reduced saddle-point system per rank pair: the reduced inf-sup constant beta = sigma_min(Â L^-T) (Â the reduced constraint rows of the dual vectors that constrain at the query's pairing, K̂ = L Lᵀ) at 8 evenly spaced test points, min and median over the converged ones; 0 = more constraining dual vectors than primal modes (r_dual > r_primal) or than paired contact nodes under them, or nearly parallel dual vectors: the multipliers are not unique",
+    )?,
+    ])
+}
+
+/// The comparison's tables, for scenes with `[comparison]`.
+fn comparison_tables(d: &ReportData, dir: &Path) -> Result<Vec<ReportTable>, CromError> {
+    let mut out = Vec::new();
     if let Some(c) = &d.comparison {
         out.push(save(
             &comparison_view(c),
