@@ -15,6 +15,11 @@ each target beside the measured value. Part of `just bench`; not a test.
      whole offline study cold; growing 12 -> 13 against cold 13. Targets: level 13 <= 60 s,
      <= 1.5 GiB; level 14 <= 150 s, <= 2 GiB; growing <= 0.5 x cold.
 
+  F16  (not in the default list: each row takes about a quarter of an hour on 2 cores)
+     ironing-coarse at train_level = 16 (65 537 + 65 536 points, primal 3.2 GB on disk) and
+     ironing-fine at train_level = 14 (16 385 + 16 384, primal 3.1 GB), whole offline study
+     cold: <= 15 min, <= 4 GiB each.
+
   G  import of an external scene from one HDF5 file: 16 385 columns of 6 164 + 101 rows
      (`crom solve`, which imports and stops): <= 10 s, peak RSS <= 0.5 GiB; a rerun with the
      file unchanged <= 0.5 s, nothing imported. `G-small` is the same on 1 025 columns of
@@ -23,7 +28,7 @@ each target beside the measured value. Part of `just bench`; not a test.
 "Offline study" is `crom run --offline` (every stage but the online ROM and the report, whose
 speed `scripts/bench_rom.py` measures), timed with its peak RSS.
 
-Usage: scripts/bench_scale.py [A B C D E F G G-small]   (default: A to G)
+Usage: scripts/bench_scale.py [A B C D E F F16 G G-small]   (default: A to G)
 CROM_BIN=path/to/crom uses that binary and builds nothing (e.g. a debug build for G-small).
 """
 import json
@@ -31,6 +36,7 @@ import os
 import pathlib
 import random
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -173,6 +179,18 @@ def bench_f(tmp):
         f"({grow / cold[13]:.2f} x; {solved} solved, {reused} reused)", grow <= 0.5 * cold[13])
 
 
+def bench_f16(tmp):
+    header("F16. the largest single studies: primal snapshots of 3 GB on disk, read block by block")
+    for base, k in [("ironing-coarse", 16), ("ironing-fine", 14)]:
+        drop = ("comparison",) if base == "ironing-fine" else ()
+        scene = variant(tmp, base, f"{base}-l{k}", [("n_train = 128\nnested_levels = 7", f"train_level = {k}")], drop)
+        wall, rss, _ = crom(pathlib.Path(tmp) / f"f16-{base}", "run", "--offline", scene)
+        row(f"{base} level {k} ({2**k + 1} + {2**k}): whole offline study, cold", "<= 900 s", f"{wall:.1f} s",
+            wall <= 900)
+        row(f"{base} level {k}: peak RSS", "<= 4 GiB", f"{rss / GIB:.2f} GiB", rss <= 4 * GIB)
+        shutil.rmtree(pathlib.Path(tmp) / f"f16-{base}", ignore_errors=True)
+
+
 def bench_g(tmp, cols=16_385, n_dof=6_164, n_contact=101, targets=True):
     """Import an external scene's snapshots from one HDF5 file, then again with the file unchanged."""
     import h5py
@@ -238,7 +256,7 @@ def main():
     if not os.environ.get("CROM_BIN"):
         subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
                        check=True)
-    benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "E": bench_e, "F": bench_f, "G": bench_g,
+    benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "E": bench_e, "F": bench_f, "F16": bench_f16, "G": bench_g,
                "G-small": bench_g_small}
     for w in which:
         with tempfile.TemporaryDirectory() as tmp:

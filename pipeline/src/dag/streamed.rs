@@ -22,7 +22,7 @@ use faer::{Mat, MatRef};
 use super::trainset::{self, TrainingSet};
 use crate::cache::Key;
 use crate::error::CromError;
-use crate::io::h5::{ColMatrix, H5In};
+use crate::io::h5::ColMatrix;
 use crate::store::columns::{read_columns, IndexRow};
 use crate::store::Store;
 
@@ -126,11 +126,8 @@ impl ColumnBlocks for PrimalColumns {
 /// columns' norms, read block by block (one pass; every column verified).
 pub(crate) fn load(store: &Store, key: &Key) -> Result<StreamedSet, CromError> {
     let dir = store.dir(ArtifactKind::TrainingSet, key);
-    let f = H5In::open(&dir.join(names::FILE))?;
-    let n_dof = f.shape(names::PRIMAL)?.first().copied().unwrap_or(0);
-    let n_contact = f.shape(names::DUAL)?.first().copied().unwrap_or(0);
-    drop(f);
     let rows = trainset::rows_of(&dir.join(names::STATS))?;
+    let (n_dof, n_contact) = trainset::set_shape(store, key, &rows)?;
     let count = rows.len();
     let primal = PrimalColumns { root: store.root().to_path_buf(), rows, n_dof, n_contact, failure: Mutex::new(None) };
     let mut dual = ColMatrix { rows: n_contact, cols: count, data: Vec::with_capacity(n_contact * count) };

@@ -360,10 +360,7 @@ fn set(
     let root = ctx.store.root().to_path_buf();
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::STATS);
     let mesh_facts = mesh_facts(ctx, mesh)?;
-    let shape = {
-        let f = H5In::open(&ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::FILE))?;
-        (f.shape(set_names::PRIMAL)?[0], f.shape(set_names::DUAL)?[0])
-    };
+    let shape = super::trainset::set_shape(ctx.store, set_key, &super::trainset::rows_of(&stats)?)?;
     ctx.single(ArtifactKind::Views, "views", spec, |staging| {
         let steps = set_steps(&root, &stats, names_of, shape)?;
         write_series(staging, ("set", set), &mesh_facts, &steps, names::SET_XDMF, set)
