@@ -3,7 +3,9 @@
 //! `primal = "streamed"`), killed (SIGKILL) during its snapshot sweep, during its basis stage and
 //! during its metrics, resumes each time to the same result files, byte for byte, as an
 //! uninterrupted cold run. (The small study's kills are in `e2e_faults.rs` and
-//! `e2e_columns.rs`.)
+//! `e2e_columns.rs`.) Settings of a large study that cannot work are refused with exit 2 before
+//! anything is written, naming the field and the fix; a rank grid or a fold sample beyond the
+//! training set is clamped, and the run says so.
 
 mod common;
 
@@ -79,3 +81,48 @@ fn a_streamed_study_killed_in_its_sweep_basis_and_metrics_resumes_to_identical_r
     assert!(verify.status.success() && text(&verify).contains(" 0 problems"), "{}", text(&verify));
 }
 
+/// Refused, exit 2, nothing written, the field and the fix named: a training level whose
+/// memory estimate exceeds the limit (the rope at `train_level = 17`, 131 073 training points,
+/// 1 008 MiB, under `--max-memory 256M`), and a fold sample of 0 (`study.loo_folds = 0`).
+/// Clamped, not refused (earlier studies rely on it): `study.max_rank = 1000` and
+/// `study.loo_folds = 50` over the rope's 10 training points run, and the run's summary states
+/// the values the results are those of (m up to 10, all 10 folds).
+#[test]
+fn settings_that_cannot_work_exit_2_naming_the_field_and_the_fix_and_clamped_ones_are_stated() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let huge = variant(tmp.path(), "rope", "rope-level17.toml", &[("n_train = 10", "train_level = 17")]);
+    let out = crom(&store, &["--max-memory", "256M", "run", huge.to_str().expect("utf8"), "--offline"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    let msg = text(&out);
+    assert!(msg.contains("rope-level17.toml") && msg.contains("parameter.train_level"), "{msg}");
+    assert!(
+        msg.contains(" MiB (of which dual training set") && msg.contains("fix:") && msg.contains("--max-memory"),
+        "{msg}"
+    );
+    assert!(!store.exists(), "nothing written for a scene that cannot fit");
+
+    let no_folds =
+        variant(tmp.path(), "rope", "rope-no-folds.toml", &[("seed = 20231", "seed = 20231\nloo_folds = 0")]);
+    let out = crom(&store, &["run", no_folds.to_str().expect("utf8"), "--offline"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    let msg = text(&out);
+    assert!(msg.contains("rope-no-folds.toml") && msg.contains("study.loo_folds"), "{msg}");
+    assert!(msg.contains("fix: give the number of leave-one-out folds (>= 1)"), "{msg}");
+    assert!(!store.exists(), "nothing written for a fold sample of 0");
+
+    let beyond = variant(
+        tmp.path(),
+        "rope",
+        "rope-beyond.toml",
+        &[("seed = 20231", "seed = 20231\nmax_rank = 1000\nloo_folds = 50")],
+    );
+    let out = crom(&store, &["run", beyond.to_str().expect("utf8"), "--offline"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let msg = text(&out);
+    assert!(
+        msg.contains("study.max_rank = 1000 is more than the 10 training snapshots: the metric curves stop at m = 10"),
+        "{msg}"
+    );
+    assert!(msg.contains("study.loo_folds = 50 is more than the 10 training snapshots: G(m) averages all 10"), "{msg}");
+}
