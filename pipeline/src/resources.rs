@@ -19,9 +19,25 @@
 //!   `8 (c s + s^2)` per thread (two threads);
 //! - the largest stage's snapshot matrices: the online stage's training and test sets plus
 //!   three `n x N` bases (`8 n (N + T + 3 N)`), or the nested-error stage's two levels
-//!   (`8 n (2^L + 2^(L-1) + 2)`), or the metrics' `N x N` Gram matrices (`32 N^2`, up to 1 025
-//!   training snapshots; above, where no `N x N` matrix is formed, the training set and the
-//!   primal POD's working copy, `16 (n + c) N`), whichever is largest.
+//!   (`8 n (2^L + 2^(L-1) + 2)`), or the offline metrics, whichever is largest. The metrics form
+//!   `N x N` Gram matrices (`32 N^2`) up to 1 025 training snapshots. Above, no `N x N` matrix
+//!   is formed and the primal snapshots are streamed from the store (`pipeline::dag::streamed`):
+//!   the offline stages hold the dual set and its POD's working copy, `16 c N`, and of the
+//!   primal either
+//!   - the blockwise frame and what is built on it, `8 n (q + B) + 24 q N`: the frame `Q`
+//!     (`n x q`), one block of `B = 512` columns (the modal pass's; the frame's are 256), and
+//!     three `q x N` matrices (the frame's coordinates `R`, the leave-one-out's right singular
+//!     vectors, the modal pass's coordinates on the POD modes), where `q = min(n, N)` is at most
+//!     `frame_pays_up_to(N)`: the primal's rank cannot exceed `q`, so the frame always pays; or
+//!   - the whole primal and the POD's working copy of it, `16 n N`, where it is not: a frame
+//!     that grows past `frame_pays_up_to(N)` is abandoned and the POD reads the whole matrix
+//!     (`pod_blocks` falls back to `ColumnBlocks::whole`). The rank is known only once the
+//!     snapshots are, so the estimate takes the case the scene cannot rule out (the ironing
+//!     scenes: their displacements' rank is about 200, but `n` is above the frame's limit).
+//!
+//!   The first version counted `16 (n + c) N` in both cases, the in-memory path's training set
+//!   and working copy; the streamed path holds less where `q` is small against `n` and more,
+//!   three `q x N` matrices, where `q` is near `N`.
 //!
 //! It is an estimate, not a bound: it is meant to catch a scene that cannot fit, by orders of
 //! magnitude, before it starts. A scene is refused when the estimate exceeds the limit: the
@@ -68,23 +84,49 @@ pub fn estimate(scene: &SceneConfig) -> Vec<Term> {
     ];
     let online = 8.0 * n * (n_train + n_test + 3.0 * n_train);
     let nested = 8.0 * n * (2f64.powf(level) + 2f64.powf(level - 1.0) + 2.0);
-    // Up to the Gram limit the metrics' N x N Gram matrices; above it no N x N matrix is formed
-    // (the greedy selection holds its generators, the metrics work in column blocks): the
-    // training set in memory and the primal POD's working copy of it.
-    let (metrics_what, metrics) = if n_train <= GRAM_LIMIT {
-        ("Gram matrices of the metrics", 8.0 * 4.0 * n_train * n_train)
-    } else {
-        ("training set and the POD's working copy", 8.0 * 2.0 * (n + c) * n_train)
-    };
+    let (metrics_what, metrics) = metrics_term(n, c, n_train);
+    let train = train_field(scene);
     let (field, what, bytes) = if online >= nested && online >= metrics {
-        ("parameter.n_train", "snapshot sets and bases of the online stage", online)
+        (train, "snapshot sets and bases of the online stage", online)
     } else if nested >= metrics {
         ("parameter.nested_levels", "two nested levels of snapshots", nested)
     } else {
-        ("parameter.n_train", metrics_what, metrics)
+        (train, metrics_what, metrics)
     };
     terms.push(Term { field, what, bytes });
     terms
+}
+
+/// What the offline metrics hold for `n_train` training snapshots of `n` dofs and `c` contact
+/// dofs (module docs): up to the Gram limit the `N x N` Gram matrices; above it, with the primal
+/// streamed, the dual set and its working copy plus the primal's frame and coordinates where
+/// the frame surely pays, else the whole primal and its working copy.
+fn metrics_term(n: f64, c: f64, n_train: f64) -> (&'static str, f64) {
+    if n_train <= GRAM_LIMIT {
+        return ("Gram matrices of the metrics", 8.0 * 4.0 * n_train * n_train);
+    }
+    let dual = 8.0 * 2.0 * c * n_train;
+    let q = n.min(n_train);
+    let pays = crom_stages::basis::frame_pays_up_to(n_train as usize) as f64;
+    if q <= pays {
+        let block = crom_stages::basis::FRAME_BLOCK.max(crom_stages::blocks::MODAL_BLOCK) as f64;
+        (
+            "dual training set and the primal's frame and coordinates",
+            dual + 8.0 * n * (q + block) + 8.0 * 3.0 * q * n_train,
+        )
+    } else {
+        ("training set and the POD's working copy", dual + 8.0 * 2.0 * n * n_train)
+    }
+}
+
+/// The scene field that sets the training set's size: `parameter.train_level` where the scene
+/// gives the training points as a nested level, else `parameter.n_train`.
+fn train_field(scene: &SceneConfig) -> &'static str {
+    if scene.parameter.train_level.is_some() {
+        "parameter.train_level"
+    } else {
+        "parameter.n_train"
+    }
 }
 
 /// An external scene holds no operator: its training set and the POD's working copy of it
@@ -278,6 +320,40 @@ mod tests {
         assert_eq!(online.bytes.to_bits(), (8.0 * n * (n_train + 65536.0 + 3.0 * n_train)).to_bits());
         assert!(total(&scene) < 24.0 * 1024f64.powi(3), "{}", human(total(&scene)));
         assert!(terms.iter().all(|t| !t.what.contains("Gram")));
+    }
+
+    /// Above 1 025 training snapshots the primal is streamed. The rope at level 11 (n = c = 201
+    /// nodes, N = 2 049): min(n, N) = 201 is within `frame_pays_up_to(2 049)` = 468 (the
+    /// frame's rank cannot pass it), so the metrics hold the dual set and its copy
+    /// (`16 c N`), the frame and one block of 512 columns (`8 n (201 + 512)`) and three
+    /// 201 x 2 049 coordinate matrices (`24 n N`): 17.6 MB, above the online stage's
+    /// `8 n (N + T + 3 N)` = 16.5 MB, so the term leads and names `parameter.train_level`.
+    /// Ironing-coarse at level 16 (n = 6 164 above `frame_pays_up_to(65 537)` = 3 840: a
+    /// frame may not pay, and then the whole primal is read) keeps the whole primal and the
+    /// POD's working copy, `16 (n + c) N`.
+    #[test]
+    fn streamed_sets_count_the_frame_where_it_surely_pays_and_the_whole_primal_elsewhere() {
+        assert_eq!(
+            (crom_stages::basis::frame_pays_up_to(2049), crom_stages::basis::frame_pays_up_to(65537)),
+            (468, 3840)
+        );
+        let mut rope = shipped("rope");
+        rope.parameter.n_train = None;
+        rope.parameter.train_level = Some(11);
+        assert_eq!(snapshot_rows(&rope), (201.0, 201.0));
+        let terms = estimate(&rope);
+        let last = terms.last().expect("terms");
+        let (n, big_n) = (201.0f64, 2049.0f64);
+        // exact: integer-valued sums far below 2^53
+        let expected = 16.0 * n * big_n + 8.0 * n * (n + 512.0) + 24.0 * n * big_n;
+        assert_eq!(last.bytes.to_bits(), expected.to_bits(), "{last:?}");
+        assert!(last.what.contains("frame") && last.field == "parameter.train_level", "{last:?}");
+        assert!(expected > 8.0 * n * (big_n + 2048.0 + 3.0 * big_n));
+        let (what, bytes) = metrics_term(6164.0, 264.0, 65537.0);
+        assert_eq!(bytes.to_bits(), (16.0f64 * (6164.0 + 264.0) * 65537.0).to_bits());
+        assert!(what.contains("working copy"), "{what}");
+        // At and below the Gram limit, unchanged: 32 N^2.
+        assert_eq!(metrics_term(201.0, 201.0, 1025.0).1.to_bits(), (32.0f64 * 1025.0 * 1025.0).to_bits());
     }
 
     #[test]

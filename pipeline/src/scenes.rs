@@ -26,10 +26,40 @@ pub fn available(dir: &Path) -> Vec<String> {
 /// pressures too high, the more so as `nu -> 1/2` (Hughes, *The Finite Element Method*, 4.5).
 pub const LOCKING_RATIO: f64 = 49.0;
 
-/// Warnings about a valid scene that will give poor answers: bodies of nearly incompressible
-/// material with fully integrated Q1 elements (the indicator is [`LOCKING_RATIO`]), each naming
-/// the field and the remedy.
+/// Warnings about a valid scene: bodies of nearly incompressible material with fully
+/// integrated Q1 elements, which will give poor answers (the indicator is [`LOCKING_RATIO`]),
+/// and metric settings larger than the training set, which are clamped ([`clamped_settings`]);
+/// each names the field and what to do.
 pub fn warnings(scene: &crom_schemas::SceneConfig) -> Vec<String> {
+    let mut out = locking(scene);
+    out.extend(clamped_settings(scene));
+    out
+}
+
+/// `study.max_rank` and `study.loo_folds` above the N training snapshots are valid and clamped
+/// (the curves stop at N, leave-one-out at N - 1; the folds are every fold): the run states the
+/// value it used and how to silence the warning.
+pub fn clamped_settings(scene: &crom_schemas::SceneConfig) -> Vec<String> {
+    let n = scene.parameter.train_points().len();
+    let mut out = Vec::new();
+    if let Some(m) = scene.study.max_rank.filter(|&m| m > n) {
+        out.push(format!(
+            "study.max_rank = {m} is more than the {n} training snapshots: the metric curves stop at m = {n} at \
+             most (leave-one-out at m = {}); set max_rank = {n} to silence this",
+            n.saturating_sub(1)
+        ));
+    }
+    if let Some(f) = scene.study.loo_folds.filter(|&f| f > n) {
+        out.push(format!(
+            "study.loo_folds = {f} is more than the {n} training snapshots: G(m) averages all {n} folds; set \
+             loo_folds = {n} to silence this"
+        ));
+    }
+    out
+}
+
+/// Bodies of nearly incompressible material with fully integrated Q1 elements.
+fn locking(scene: &crom_schemas::SceneConfig) -> Vec<String> {
     use crom_schemas::scene::{Integration, Model};
     let bodies: Vec<(&str, &crom_schemas::scene::MaterialSpec)> = match &scene.model {
         Model::Rope(_) | Model::External(_) => vec![],

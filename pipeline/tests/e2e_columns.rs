@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 use std::time::Duration;
 
-use common::{crom, crom_cmd, kill_when, repo, text};
+use common::{blocks, crom, crom_cmd, kill_when, repo, text};
 
 /// `(computed, cached)` of one stage in the closing summary.
 fn stage_counts(o: &Output, stage: &str) -> (usize, usize) {
@@ -83,16 +83,6 @@ fn only(store: &Path, stage: &str, file: &str) -> PathBuf {
     let dirs: Vec<PathBuf> = std::fs::read_dir(store.join(stage)).expect(stage).flatten().map(|e| e.path()).collect();
     assert_eq!(dirs.len(), 1, "{stage}: {dirs:?}");
     dirs[0].join(file)
-}
-
-/// Committed blocks (a block file counts once its index fragment exists; compaction folds
-/// fragments into index.parquet later, so committed = blocks named by either).
-fn blocks(store: &Path) -> usize {
-    let Ok(fams) = std::fs::read_dir(store.join("columns")) else { return 0 };
-    fams.flatten()
-        .filter_map(|f| std::fs::read_dir(f.path().join("blocks")).ok())
-        .map(|rd| rd.flatten().filter(|e| !e.file_name().to_string_lossy().starts_with(".tmp")).count())
-        .sum()
 }
 
 #[test]

@@ -3,7 +3,8 @@
 //! processes racing on one store (same scene, other scene) — the second is refused with exit 3
 //! and changes nothing; a byte flipped in a basis and in a Parquet table and a truncated
 //! manifest are each detected, quarantined and recomputed to the same results. (A kill during
-//! the snapshot sweep and a flipped snapshot block are tested in `e2e_columns.rs`.)
+//! the snapshot sweep and a flipped snapshot block are tested in `e2e_columns.rs`, the kills of
+//! a large study whose primal snapshots are streamed in `e2e_faults_scale.rs`.)
 
 mod common;
 

@@ -57,6 +57,15 @@ pub fn artifacts(store: &Path, stage: &str) -> usize {
     std::fs::read_dir(store.join(stage)).map_or(0, |d| d.flatten().count())
 }
 
+/// Snapshot blocks written to the column store (block files, not their temporary files).
+pub fn blocks(store: &Path) -> usize {
+    let Ok(fams) = std::fs::read_dir(store.join("columns")) else { return 0 };
+    fams.flatten()
+        .filter_map(|f| std::fs::read_dir(f.path().join("blocks")).ok())
+        .map(|rd| rd.flatten().filter(|e| !e.file_name().to_string_lossy().starts_with(".tmp")).count())
+        .sum()
+}
+
 /// A scene file in `dir`: the shipped scene `scene` with `edits` applied (each must apply).
 pub fn variant(dir: &Path, scene: &str, file: &str, edits: &[(&str, &str)]) -> PathBuf {
     let mut text = std::fs::read_to_string(repo().join(format!("data/scenes/{scene}.toml"))).expect("scene");
