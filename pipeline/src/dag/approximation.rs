@@ -53,7 +53,7 @@ impl StageKey for ApproximationKey {
 /// The dual sizes the online solve is run at (those up to the basis size; the dictionary is
 /// run once, with all its atoms); `bases.h5` holds the basis of each. 10 is the largest size
 /// of the registered online target
-/// (docs/design-notes.md#the-registered-approximation-online-a-floor-that-is-not-the-dual-basis).
+/// (docs/design-notes.md#the-registered-approximation-online-the-error-the-multiplier-adds).
 pub(crate) const ONLINE_MS: [usize; 8] = [1, 2, 3, 5, 8, 10, 16, 32];
 
 impl ApproximationKey {
