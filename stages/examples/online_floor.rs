@@ -8,7 +8,9 @@
 //! * the registered (whole-node translation) POD of the training pressures at m = 5, 8, 10,
 //!   entered as `±modes` (2m non-negative coefficients, so λ of either sign, and the reduced
 //!   gaps' averages on the modes held at 0): a signed registered basis online without a sign
-//!   condition on the pressure.
+//!   condition on the pressure;
+//! * the registered CPG at m = 5, 10, alone and with the oracle added to it (whether the solve
+//!   finds the exact member when the basis holds it).
 //!
 //! `cargo run --release -p crom-stages --example online_floor`
 //!
@@ -134,6 +136,22 @@ fn main() {
         (p.iter().map(|v| v / norm).collect::<Vec<f64>>(), 1)
     };
     print(&format!("the test pressure itself (m = 1; r_u = {ru}, n_contact = {nc})"), run(&oracle));
+    // The registered CPG alone, and with the oracle added: whether the solve picks the exact
+    // member when the basis holds it.
+    let cpg = Registered::build(&training, kind, Inner::Cpg).expect("registered CPG");
+    let cone = |j: usize, d: f64, m: usize, with_oracle: bool| {
+        let b = cpg.modes_at(&[d], nc);
+        let (mut theta, mut k) = if with_oracle { oracle(j, d) } else { (Vec::new(), 0) };
+        for c in (0..b.ncols()).filter(|&c| b.col(c).iter().any(|&v| v != 0.0)).take(m) {
+            theta.extend(b.col(c).iter().copied());
+            k += 1;
+        }
+        (theta, k)
+    };
+    for m in [5usize, 10] {
+        print(&format!("registered CPG, {m} generators"), run(&|j, d| cone(j, d, m, false)));
+        print(&format!("the oracle and registered CPG, {m} generators"), run(&|j, d| cone(j, d, m, true)));
+    }
     // A signed basis entered as ±modes: λ of either sign, the reduced gaps' averages on the
     // modes held at 0 (bilateral), the pressure's sign not imposed.
     for m in [5usize, 8, 10] {
