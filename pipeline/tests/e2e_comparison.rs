@@ -125,7 +125,7 @@ fn one_changed_approximation_recomputes_only_itself() {
     assert_eq!(with_bases.len(), 3, "cpg, angle-greedy and nnmf store their bases");
     for d in &with_bases {
         let f = hdf5::File::open(d.join(names::BASES)).expect("bases.h5");
-        for m in [1usize, 2, 3, 5, 8] {
+        for m in [1usize, 2, 3, 5, 8, 10] {
             let ds = f.dataset(&format!("m{m}")).expect("one dataset per online size up to max_m = 11");
             let shape = ds.shape();
             assert!(shape.len() == 2 && shape.contains(&m), "m{m}: shape {shape:?}");

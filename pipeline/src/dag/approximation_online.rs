@@ -60,8 +60,8 @@ pub(crate) struct OnlineApproximationKey {
 impl StageKey for OnlineApproximationKey {
     const KIND: ArtifactKind = ArtifactKind::OnlineApproximation;
     /// Bump when a number of the online solve changes (3: Newton-corrected re-pairing steps,
-    /// docs/design-notes.md#newton-corrected-re-pairing-steps).
-    const ALGORITHM_VERSION: u32 = 3;
+    /// docs/design-notes.md#newton-corrected-re-pairing-steps; 4: a row at m = 10).
+    const ALGORITHM_VERSION: u32 = 4;
 }
 
 impl OnlineApproximationKey {

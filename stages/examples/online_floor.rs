@@ -1,0 +1,171 @@
+//! Where the online dual error of ironing-fine comes from: the online reduced solve (exact
+//! algorithm, the POD of the 128 training contact responses as primal basis, as the online
+//! stage builds it) at the 127 test midpoints with two kinds of dual basis:
+//!
+//! * an *oracle*, the test point's own full-order pressure, normalised, as the one dual vector:
+//!   the projection error is 0, so the dual error left is what the primal space and the
+//!   solve add;
+//! * the registered (whole-node translation) POD of the training pressures at m = 5, 8, 10,
+//!   entered as `±modes` (2m non-negative coefficients, so λ of either sign, and the reduced
+//!   gaps' averages on the modes held at 0): a signed registered basis online without a sign
+//!   condition on the pressure;
+//! * the registered CPG at m = 5, 10, alone and with the oracle added to it (whether the solve
+//!   finds the exact member when the basis holds it).
+//!
+//! `cargo run --release -p crom-stages --example online_floor`
+//!
+//! Prints, per basis, the converged count and the median and 95th percentile of the relative
+//! dual error (tributary-weighted, as every online table) and the median relative primal error
+//! (Euclidean, of the reconstructed displacement). What the numbers show:
+//! docs/design-notes.md#the-registered-approximation-online-the-error-the-multiplier-adds.
+
+use crom_stages::basis::pod_full;
+use crom_stages::contact::{build_ironing, ContactSolveParams, FactoredModel, IroningParams, Material};
+use crom_stages::dual::registration::{Interpolation, MapKind, Registered};
+use crom_stages::dual::{Inner, Training};
+use crom_stages::rom::{ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};
+use faer::MatRef;
+use rayon::prelude::*;
+
+fn ironing_fine() -> FactoredModel {
+    let p = IroningParams {
+        slab_length: 5.0,
+        slab_height: 1.0,
+        slab_nx: 200,
+        slab_ny: 40,
+        slab: Material::new(1.0, 0.3),
+        iron_width: 1.0,
+        iron_height: 1.0,
+        sole_radius: 2.0,
+        iron_nx: 60,
+        iron_ny: 60,
+        iron: Material::new(10.0, 0.3),
+        contact_x: 1.0,
+        d_y: Some(0.04),
+    };
+    build_ironing(&p).expect("ironing").factor().expect("factor")
+}
+
+/// The `q`-quantile (nearest rank) of the finite values of `v`.
+fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+fn main() {
+    let tol = ContactSolveParams { rel_tol: 1e-10, max_iter: 500 };
+    let fm = ironing_fine();
+    let (n, nc) = (fm.n_dof(), fm.n_contact());
+    let train: Vec<f64> = (0..128).map(|k| 3.0 * k as f64 / 127.0).collect();
+    let test: Vec<f64> = (0..127).map(|k| 3.0 * (k as f64 + 0.5) / 127.0).collect();
+    let snaps: Vec<_> = train.par_iter().map(|&d| fm.solve(&[d], &tol).expect("training solve")).collect();
+    let responses: Vec<f64> = train
+        .iter()
+        .zip(&snaps)
+        .flat_map(|(&d, s)| s.u.iter().zip(fm.lift(&[d])).map(|(a, b)| a - b).collect::<Vec<_>>())
+        .collect();
+    let phi = pod_full(MatRef::from_column_major_slice(&responses, n, train.len())).expect("pod");
+    let ru = phi.modes.ncols();
+    let phi_c: Vec<f64> = (0..ru).flat_map(|j| phi.modes.col(j).iter().copied().collect::<Vec<_>>()).collect();
+    let base = ReducedModel::new(&fm, &phi_c, ru, &[], 0).expect("K̂ SPD");
+    let truth: Vec<_> = test.par_iter().map(|&d| fm.solve(&[d], &tol).expect("test solve")).collect();
+    let w8 = fm.weights();
+    // The registered (whole-node translation) POD of the training pressures, for the signed
+    // variant below.
+    let mesh = fm.model().mesh();
+    let x: Vec<f64> = fm.contact_nodes()[..nc].iter().map(|&i| mesh.nodes[i][0]).collect();
+    let train_p: Vec<f64> = snaps.iter().flat_map(|s| s.pressure.iter().copied()).collect();
+    let params: Vec<Vec<f64>> = train.iter().map(|&d| vec![d]).collect();
+    let ms: Vec<usize> = (1..=10).collect();
+    let training = Training {
+        snapshots: MatRef::from_column_major_slice(&train_p, nc, train.len()),
+        params: &params,
+        surface: &x,
+        ms: &ms,
+    };
+    let kind = MapKind::Translate { interpolation: Interpolation::Nodes };
+    let reg = Registered::build(&training, kind, Inner::Pod).expect("registered POD");
+    // One dual basis per test point: `basis(j, d)` is column-major, with its column count.
+    let run = |basis: &(dyn Fn(usize, f64) -> (Vec<f64>, usize) + Sync)| -> Vec<(bool, f64, f64)> {
+        test.par_iter()
+            .zip(&truth)
+            .enumerate()
+            .map(|(j, (&d, full))| {
+                let p = &full.pressure;
+                let (theta, k) = basis(j, d);
+                let mut rom = base.clone();
+                rom.set_dual(&theta, k);
+                let mut w = RomWork::default();
+                let sol = rom.solve(&[d], &RomParams::default(), &mut w);
+                let q = rom.pressure(&sol.lambda_hat);
+                let num: f64 = q.iter().zip(p).zip(w8).map(|((a, b), w)| w * (a - b) * (a - b)).sum();
+                let den: f64 = p.iter().zip(w8).map(|(b, w)| w * b * b).sum();
+                // u = lift + Φ û
+                let mut u = fm.lift(&[d]);
+                for (c, &y) in sol.u_hat.iter().enumerate() {
+                    u.iter_mut().zip(phi.modes.col(c).iter()).for_each(|(a, b)| *a += y * b);
+                }
+                let du: f64 = u.iter().zip(&full.u).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+                let un: f64 = full.u.iter().map(|v| v * v).sum::<f64>().sqrt();
+                (sol.outcome == RomOutcome::Converged, (num / den).sqrt(), du / un)
+            })
+            .collect()
+    };
+    println!("| dual basis | converged | median dual error | p95 dual error | median primal error |");
+    println!("|---|---|---|---|---|");
+    let print = |what: &str, rows: Vec<(bool, f64, f64)>| {
+        let conv: Vec<_> = rows.iter().filter(|r| r.0).collect();
+        let dual: Vec<f64> = conv.iter().map(|r| r.1).collect();
+        let primal: Vec<f64> = conv.iter().map(|r| r.2).collect();
+        println!(
+            "| {what} | {}/{} | {:.4} % | {:.4} % | {:.4} % |",
+            conv.len(),
+            rows.len(),
+            100.0 * quantile(dual.clone(), 0.5),
+            100.0 * quantile(dual, 0.95),
+            100.0 * quantile(primal, 0.5)
+        );
+    };
+    let oracle = |j: usize, _d: f64| {
+        let p = &truth[j].pressure;
+        let norm = p.iter().map(|v| v * v).sum::<f64>().sqrt();
+        (p.iter().map(|v| v / norm).collect::<Vec<f64>>(), 1)
+    };
+    print(&format!("the test pressure itself (m = 1; r_u = {ru}, n_contact = {nc})"), run(&oracle));
+    // The registered CPG alone, and with the oracle added: whether the solve picks the exact
+    // member when the basis holds it.
+    let cpg = Registered::build(&training, kind, Inner::Cpg).expect("registered CPG");
+    let cone = |j: usize, d: f64, m: usize, with_oracle: bool| {
+        let b = cpg.modes_at(&[d], nc);
+        let (mut theta, mut k) = if with_oracle { oracle(j, d) } else { (Vec::new(), 0) };
+        for c in (0..b.ncols()).filter(|&c| b.col(c).iter().any(|&v| v != 0.0)).take(m) {
+            theta.extend(b.col(c).iter().copied());
+            k += 1;
+        }
+        (theta, k)
+    };
+    for m in [5usize, 10] {
+        print(&format!("registered CPG, {m} generators"), run(&|j, d| cone(j, d, m, false)));
+        print(&format!("the oracle and registered CPG, {m} generators"), run(&|j, d| cone(j, d, m, true)));
+    }
+    // A signed basis entered as ±modes: λ of either sign, the reduced gaps' averages on the
+    // modes held at 0 (bilateral), the pressure's sign not imposed.
+    for m in [5usize, 8, 10] {
+        let signed = |_j: usize, d: f64| {
+            let b = reg.modes_at(&[d], nc);
+            let k = b.ncols().min(m);
+            let mut theta = Vec::with_capacity(2 * k * nc);
+            for sign in [1.0, -1.0] {
+                for c in 0..k {
+                    theta.extend(b.col(c).iter().map(|v| sign * v));
+                }
+            }
+            (theta, 2 * k)
+        };
+        print(&format!("registered POD, ±{m} modes (bilateral, sign not imposed)"), run(&signed));
+    }
+}
