@@ -40,6 +40,12 @@ fn dot_lanes<const L: usize>(a: &[f64], b: &[f64]) -> f64 {
     for (x, y) in ra.iter().zip(rb) {
         s += x * y;
     }
+    reduce_lanes(acc) + s
+}
+
+/// The partial sums of a [`dot`] reduced pairwise (`L` a power of two): one fixed order.
+#[inline]
+fn reduce_lanes<const L: usize>(mut acc: [f64; L]) -> f64 {
     let mut w = L;
     while w > 1 {
         w /= 2;
@@ -47,7 +53,7 @@ fn dot_lanes<const L: usize>(a: &[f64], b: &[f64]) -> f64 {
             acc[k] += acc[k + w];
         }
     }
-    acc[0] + s
+    acc[0]
 }
 
 /// [`dot`] of two vectors whose products are `±0` outside `lo..hi` (one of the two is zero
@@ -92,14 +98,7 @@ fn dot_lanes_window<const L: usize>(a: &[f64], b: &[f64], lo: usize, hi: usize) 
     for i in lo.max(main)..hi {
         s += a[i] * b[i];
     }
-    let mut w = L;
-    while w > 1 {
-        w /= 2;
-        for k in 0..w {
-            acc[k] += acc[k + w];
-        }
-    }
-    acc[0] + s
+    reduce_lanes(acc) + s
 }
 
 /// The smallest `lo..hi` outside which `v` is zero (`0..0` for a zero vector).
