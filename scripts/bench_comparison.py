@@ -13,6 +13,7 @@ The dictionary row runs `stages/examples/bench_dictionary.rs` (its own table is 
 Usage: scripts/bench_comparison.py
 """
 
+import os
 import pathlib
 import subprocess
 import tempfile
@@ -20,7 +21,8 @@ import tempfile
 import pandas as pd
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
-CROM = REPO / "target" / "release" / "crom"
+# The release binary `cargo build --release` writes (under CARGO_TARGET_DIR when that is set).
+CROM = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target")) / "release" / "crom"
 
 
 def row(what, target, measured, met):
