@@ -67,8 +67,13 @@ pub struct ColumnNorms {
 impl ColumnNorms {
     /// `||S||_F` as `sqrt(sum_j ||s_j||^2)`, summed in column order.
     pub fn frobenius(&self) -> f64 {
-        self.norm2.iter().sum::<f64>().sqrt()
+        frobenius(&self.norm2)
     }
+}
+
+/// `||S||_F = sqrt(sum_j ||s_j||^2)` from the columns' squared norms, summed in column order.
+pub fn frobenius(norm2: &[f64]) -> f64 {
+    norm2.iter().sum::<f64>().sqrt()
 }
 
 /// [`ColumnNorms`] of `src`, read in blocks of `block` columns.

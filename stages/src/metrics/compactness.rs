@@ -36,7 +36,7 @@ pub fn compactness_orth(s: MatRef<'_, f64>, modes: MatRef<'_, f64>) -> Vec<f64> 
 /// block by block: `||S||_F` and `||S_perp||_F^2` summed from the columns' numbers in column
 /// order (the form [`compactness_orth`] uses above `DENSE_CURVE_MAX` snapshots).
 pub fn compactness_orth_modal(modal: &crate::blocks::ModalCoordinates) -> Vec<f64> {
-    let total = modal.norm2.iter().sum::<f64>().sqrt();
+    let total = crate::blocks::frobenius(&modal.norm2);
     if total <= 0.0 {
         return vec![0.0; modal.coords.nrows() + 1];
     }
