@@ -191,11 +191,7 @@ fn run(
         let folds = crom_schemas::scene::spaced_folds(loo_folds.min(n_train), n_train);
         let training = Training { snapshots: view(&set.dual), params: &set.parameters, surface: &surface, ms: &ms };
         // The nested levels' pressures and parameters (small: n_contact x (2^n + 1) each).
-        let mut levels = Vec::new();
-        for k in nested {
-            let set = super::trainset::load_from(store, k)?;
-            levels.push((set.dual, set.parameters));
-        }
+        let levels = nested.iter().map(|k| loaded.level(store, k)).collect::<Result<Vec<_>, _>>()?;
         let bar = Ticker::new(progress, &format!("approximation {}", item.name), folds.len() + 2);
         let mut out = Rows { scene: scene.to_string(), ..Rows::default() };
         {
@@ -239,11 +235,12 @@ fn run(
             }
             for (n, pair) in levels.windows(2).enumerate() {
                 let (lo, hi) = (&pair[0], &pair[1]);
-                let lo_ms = dual::m_grid(max_m.min(lo.1.len()));
-                let lower = Training { snapshots: view(&lo.0), params: &lo.1, surface: &surface, ms: &lo_ms };
+                let lo_ms = dual::m_grid(max_m.min(lo.parameters.len()));
+                let lower =
+                    Training { snapshots: view(&lo.dual), params: &lo.parameters, surface: &surface, ms: &lo_ms };
                 // A level too small for the approach (a local basis with more cells than the
                 // level has points) has no H(n): no row, counted in the facts.
-                match study::nested_error(a, &lower, view(&hi.0), &hi.1) {
+                match study::nested_error(a, &lower, view(&hi.dual), &hi.parameters) {
                     Ok(h) => out.nested.push((name.clone(), n + 1, lo_ms.last().copied().unwrap_or(0), h)),
                     Err(dual::DualError::NotApplicable(_)) => {
                         out.facts.push((name.clone(), "nested_level_skipped".into(), None, (n + 1) as f64))

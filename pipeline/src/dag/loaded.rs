@@ -1,8 +1,10 @@
 //! Inputs read once per run: the first stage that needs a training set or the bases reads them
 //! from the store (verifying every column), and every later stage of the run shares that copy
 //! instead of reading the HDF5 files again. Only stages that compute (cache misses) ask, so a
-//! fully cached run reads nothing. Nested levels are not kept (the nested stage holds two
-//! levels at a time, docs/design-notes.md#the-nested-error-keeps-two-levels-in-memory).
+//! fully cached run reads nothing. Nested levels are kept as their pressures and parameters
+//! only ([`NestedLevel`]: every approximation of the comparison reads every level, and those are
+//! small); their displacements are not kept (the nested stage holds two whole levels at a
+//! time, docs/design-notes.md#the-nested-error-keeps-two-levels-in-memory).
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -12,6 +14,7 @@ use super::streamed::{self, MetricSet, StreamedSet};
 use super::trainset::{self, TrainingSet};
 use crate::cache::Key;
 use crate::error::CromError;
+use crate::io::h5::ColMatrix;
 use crate::store::Store;
 
 /// The run's loaded inputs, by artifact key.
@@ -20,6 +23,15 @@ pub(crate) struct Loaded {
     sets: Mutex<HashMap<Key, Arc<TrainingSet>>>,
     streamed: Mutex<HashMap<Key, Arc<StreamedSet>>>,
     bases: Mutex<HashMap<Key, Arc<Bases>>>,
+    levels: Mutex<HashMap<Key, Arc<NestedLevel>>>,
+}
+
+/// A nested level's pressures (`n_contact x points`) and parameter points: what the
+/// comparison's nested error H(n) reads of it.
+#[derive(Debug)]
+pub(crate) struct NestedLevel {
+    pub dual: ColMatrix,
+    pub parameters: Vec<Vec<f64>>,
 }
 
 /// The value under `key`, loaded by `load` on first use.
@@ -55,6 +67,15 @@ impl Loaded {
             MetricSet::Streamed(self.streamed(store, key)?)
         } else {
             MetricSet::Whole(self.set(store, key)?)
+        })
+    }
+
+    /// The pressures and parameters of the nested level `key` (read whole and verified once,
+    /// its displacements dropped).
+    pub(crate) fn level(&self, store: &Store, key: &Key) -> Result<Arc<NestedLevel>, CromError> {
+        get_or_load(&self.levels, key, || {
+            let set = trainset::load_from(store, key)?;
+            Ok(NestedLevel { dual: set.dual, parameters: set.parameters })
         })
     }
 

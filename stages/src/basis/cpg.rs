@@ -254,6 +254,20 @@ pub fn cpg_path(s: MatRef<'_, f64>, params: CpgPathParams, tick: &(dyn Fn() + Sy
     cpg_path_until(s, params, -1.0, &[], tick)
 }
 
+/// The first `max_m` generators (unit columns, in order) of the tolerance-0 CPG path of `s`:
+/// the lazy selection stopped after `max_m` steps, without the path's compactness pass. The
+/// greedy picks each generator from the ones before it only, so these are the first columns of
+/// [`cpg_path`]'s basis, bit for bit.
+pub fn cpg_prefix(s: MatRef<'_, f64>, max_m: usize, nnls: NnlsParams) -> Result<Mat<f64>, ConeError> {
+    let norms: Vec<f64> = (0..s.ncols()).map(|j| s.col(j).norm_l2()).collect();
+    let wide = s.ncols() > CpgPathParams::default().wide_above;
+    let mut lazy = LazyGreedy::new(s, &norms, nnls, 0, wide);
+    if s.norm_l2() > 0.0 {
+        while lazy.len() < max_m && lazy.step()?.is_some() {}
+    }
+    Ok(lazy.basis())
+}
+
 /// [`cpg_path`] whose [`rank_at`](CpgPath::rank_at) is exact at each of `tols` also on a grid
 /// path: the grid interval where `C(m)` first reaches a tolerance is bisected (`C(m)` does not
 /// increase with m, the cone only grows), about `log2(interval)` more evaluations.
@@ -800,5 +814,21 @@ mod tests {
         assert_eq!(bits(&one.compactness), bits(&three.compactness));
         assert_eq!(one.cone_ranges, three.cone_ranges);
         assert_eq!(one.loo.errors, three.loo.errors);
+    }
+
+    /// The prefix is the full path's first generators bit for bit, at sizes below, at and above
+    /// the path's length, on bumps and on a Hertz family.
+    #[test]
+    fn the_prefix_is_the_paths_first_generators() {
+        let mut rng = Rng::new(41);
+        for s in [bumps(&mut rng, 40, 25, (1.0, 4.0)), hertz_family(&mut rng, 30, 26)] {
+            let path = cpg_path(s.as_ref(), CpgPathParams::default(), &|| {}).expect("path");
+            assert!(path.len() > 4, "a path of {} checks little", path.len());
+            for m in [0, 1, 4, path.len(), path.len() + 3] {
+                let prefix = cpg_prefix(s.as_ref(), m, NnlsParams::default()).expect("prefix");
+                let k = m.min(path.len());
+                assert_eq!(prefix, path.basis.subcols(0, k).to_owned(), "m = {m}");
+            }
+        }
     }
 }

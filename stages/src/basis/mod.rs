@@ -16,7 +16,8 @@ mod lazy;
 mod pod;
 
 pub use cpg::{
-    cpg, cpg_path, cpg_path_refined, Cpg, CpgParams, CpgPath, CpgPathParams, CPG_FLOOR, DENSE_CURVE_MAX, GRID_START,
+    cpg, cpg_path, cpg_path_refined, cpg_prefix, Cpg, CpgParams, CpgPath, CpgPathParams, CPG_FLOOR, DENSE_CURVE_MAX,
+    GRID_START,
 };
 pub use cpg_reference::cpg_reference;
 pub use frame::{frame, frame_pays_up_to, frame_within, frame_within_blocks, Frame, FRAME_BLOCK};

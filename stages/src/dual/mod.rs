@@ -45,7 +45,7 @@ pub mod study;
 use faer::{Mat, MatRef};
 use thiserror::Error;
 
-use crate::basis::{cpg_path, pod_full, CpgPathParams, PodError};
+use crate::basis::{cpg_prefix, pod_full, CpgPathParams, PodError};
 use crate::cone::ConeError;
 
 pub use prefix::{ConePrefix, SpanPrefix};
@@ -271,9 +271,7 @@ pub(crate) fn pod_modes(s: MatRef<'_, f64>, max_m: usize) -> Result<Mat<f64>, Du
 
 /// The first `max_m` generators of the tolerance-0 CPG path of `s`.
 pub(crate) fn cpg_generators(s: MatRef<'_, f64>, max_m: usize) -> Result<Mat<f64>, DualError> {
-    let path = cpg_path(s, CpgPathParams::default(), &|| {})?;
-    let k = path.len().min(max_m);
-    Ok(path.basis.subcols(0, k).to_owned())
+    Ok(cpg_prefix(s, max_m, CpgPathParams::default().nnls)?)
 }
 
 fn check_finite(s: MatRef<'_, f64>) -> Result<(), DualError> {
