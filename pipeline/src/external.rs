@@ -314,28 +314,67 @@ fn coordinates(
     Ok((0..n_contact).map(|i| block[i * d..(i + 1) * d].to_vec()).collect())
 }
 
-/// The nested levels of a training set whose points form one: a one-component parameter whose
-/// `2^k + 1` training values (k >= 2) are equally spaced (to 1e-9 of the spacing). Level n (1 to
-/// k) is every `2^(k - n)`-th value in ascending order, `2^n + 1` points, as a native scene's
-/// level n of the same range; level k is the whole set. Returned as positions in the training
-/// set; empty when the points are no such grid.
+/// The nested levels of a training set whose points form them: a tensor grid whose axis a
+/// (parameter component a) takes `2^(k_a) + 1` equally spaced values (to 1e-9 of its spacing),
+/// every combination exactly once, with `k = min_a k_a >= 2`. Level n (1 to k) is the points
+/// whose index along every axis a is a multiple of `2^(k_a - n)` — `2^n + 1` values per axis,
+/// as a native scene's level n of the same ranges — ordered as a native tensor grid (the first
+/// component varying fastest). With one component, level k is the whole set in ascending order.
+/// Returned as positions in the training set; empty when the points are no such grid.
 pub fn nested_levels(points: &[Vec<f64>]) -> Vec<Vec<usize>> {
     let n = points.len();
-    if n < 5 || !(n - 1).is_power_of_two() || points.iter().any(|p| p.len() != 1) {
+    let d = points.first().map_or(0, Vec::len);
+    if n < 5 || d == 0 || points.iter().any(|p| p.len() != d) {
         return Vec::new();
     }
-    let k = (n - 1).trailing_zeros();
+    // Per axis: its exponent k_a, and each point's index along it.
+    let mut ks = Vec::with_capacity(d);
+    let mut index = vec![vec![0usize; d]; n];
+    for a in 0..d {
+        let mut values: Vec<f64> = points.iter().map(|p| p[a]).collect();
+        values.sort_by(f64::total_cmp);
+        values.dedup_by(|x, y| x.to_bits() == y.to_bits());
+        let m = values.len();
+        if m < 3 || !(m - 1).is_power_of_two() {
+            return Vec::new();
+        }
+        let (lo, hi) = (values[0], values[m - 1]);
+        let h = (hi - lo) / (m - 1) as f64;
+        let grid = crom_stages::float_cmp::Tol { abs: 1e-9 * h, rel: 0.0 };
+        let even = h > 0.0
+            && values.iter().enumerate().all(|(i, &v)| crom_stages::float_cmp::close(v, lo + i as f64 * h, grid));
+        if !even {
+            return Vec::new();
+        }
+        ks.push((m - 1).trailing_zeros());
+        for (p, idx) in points.iter().zip(index.iter_mut()) {
+            idx[a] = values.partition_point(|v| v.total_cmp(&p[a]).is_lt());
+        }
+    }
+    // Every combination exactly once: as many points as combinations, and no two alike.
+    let combinations = ks.iter().try_fold(1usize, |acc, &k| acc.checked_mul((1usize << k) + 1));
+    if combinations != Some(n) {
+        return Vec::new();
+    }
+    // Native tensor order: the last axis slowest, the first fastest.
     let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&a, &b| points[a][0].total_cmp(&points[b][0]));
-    let (lo, hi) = (points[order[0]][0], points[order[n - 1]][0]);
-    let h = (hi - lo) / (n - 1) as f64;
-    let grid = crom_stages::float_cmp::Tol { abs: 1e-9 * h, rel: 0.0 };
-    let even = h > 0.0
-        && order.iter().enumerate().all(|(i, &j)| crom_stages::float_cmp::close(points[j][0], lo + i as f64 * h, grid));
-    if !even {
+    order.sort_by(|&i, &j| index[i].iter().rev().cmp(index[j].iter().rev()));
+    if order.windows(2).any(|w| index[w[0]] == index[w[1]]) {
         return Vec::new();
     }
-    (1..=k).map(|level| order.iter().copied().step_by(1 << (k - level)).collect()).collect()
+    let top = ks.iter().copied().min().unwrap_or(0);
+    if top < 2 {
+        return Vec::new();
+    }
+    (1..=top)
+        .map(|level| {
+            order
+                .iter()
+                .copied()
+                .filter(|&j| index[j].iter().zip(&ks).all(|(&i, &k)| i % (1usize << (k - level)) == 0))
+                .collect()
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -353,12 +392,51 @@ mod tests {
         assert_eq!(at(&levels[0]), vec![0.0, 1.0, 2.0]);
         assert_eq!(at(&levels[1]), vec![0.0, 0.5, 1.0, 1.5, 2.0]);
         assert_eq!(levels[2].len(), 9);
-        // Not a grid: one value moved, a count that is not 2^k + 1, two components.
+        // Not a grid: one value moved, a count that is not 2^k + 1, a second component that
+        // takes one value only.
         let mut moved = points.clone();
         moved[2][0] = 0.3;
         assert!(nested_levels(&moved).is_empty());
         assert!(nested_levels(&points[..8]).is_empty());
         let two: Vec<Vec<f64>> = values.iter().map(|&v| vec![v, 0.0]).collect();
         assert!(nested_levels(&two).is_empty());
+    }
+
+    /// A two-component tensor grid (9 x 5 values, given in a shuffled order) has the levels of a
+    /// native scene with the same axes: level n is the tensor grid of `nested_points(n)`, in the
+    /// same order, point for point; a grid with a point missing or listed twice has none.
+    #[test]
+    fn a_tensor_grid_has_the_native_scenes_levels() {
+        use crom_schemas::parameter::tensor;
+        let x = |k: u32| (0..=(1usize << k)).map(|i| i as f64 * 3.0 / (1usize << k) as f64).collect::<Vec<_>>();
+        let y = |k: u32| (0..=(1usize << k)).map(|i| 0.02 + i as f64 * 0.04 / (1usize << k) as f64).collect::<Vec<_>>();
+        let grid = tensor(&[x(3), y(2)]);
+        // A fixed shuffle (reversed, then every third first): the levels must not depend on it.
+        let mut points: Vec<Vec<f64>> = grid
+            .iter()
+            .rev()
+            .step_by(3)
+            .chain(grid.iter().rev().skip(1).step_by(3))
+            .chain(grid.iter().rev().skip(2).step_by(3))
+            .cloned()
+            .collect();
+        assert_eq!(points.len(), grid.len());
+        let levels = nested_levels(&points);
+        assert_eq!(levels.len(), 2, "levels 1 and 2 (the second axis has 2^2 + 1 values)");
+        for (n, level) in levels.iter().enumerate() {
+            let expected = tensor(&[x(n as u32 + 1), y(n as u32 + 1)]);
+            let got: Vec<Vec<f64>> = level.iter().map(|&j| points[j].clone()).collect();
+            assert_eq!(got.len(), expected.len(), "level {}", n + 1);
+            for (g, e) in got.iter().zip(&expected) {
+                assert!(g.iter().zip(e).all(|(a, b)| (a - b).abs() <= 1e-12), "level {}: {g:?} vs {e:?}", n + 1);
+            }
+        }
+        let last = points.pop().expect("a point");
+        assert!(nested_levels(&points).is_empty(), "one combination missing");
+        points.push(points[0].clone());
+        assert!(nested_levels(&points).is_empty(), "one combination twice, one missing");
+        points.pop();
+        points.push(last);
+        assert_eq!(nested_levels(&points).len(), 2);
     }
 }

@@ -543,3 +543,50 @@ test = {list(range(n_train, dual.shape[1]))}""")
     assert sorted(p.name for p in (store / "scenes" / "rope-nested" / "nested").glob("level-*.h5")) == \
         ["level-1.h5", "level-2.h5", "level-3.h5"]
     assert "fig15_nested" in (store / "scenes" / "rope-nested" / "report" / "index.html").read_text()
+
+
+def test_a_two_component_nested_grid_gets_the_native_nested_error(tmp_path):
+    """ironing-coarse with two components (d_x at train_level 3, d_y at train_level 2: 9 x 5
+    training points) and nested levels 1 and 2, exported with its training columns reversed and
+    imported: the external scene finds levels 1 and 2 as tensor grids in the shuffled columns,
+    and its H(n) table equals the native one bit for bit."""
+    text = (REPO / "data" / "scenes" / "ironing-coarse.toml").read_text()
+    for old in ["n_train = 128\nnested_levels = 7", "[model.ironing]\nd_y = 0.04\n"]:
+        assert old in text, "ironing-coarse.toml changed: update this test"
+    native_scene = tmp_path / "ic-2d.toml"
+    native_scene.write_text(
+        text.replace('name = "ironing-coarse"', 'name = "ic-2d"')
+        .replace("[model.ironing]\nd_y = 0.04\n", "[model.ironing]\n")
+        .replace("n_train = 128\nnested_levels = 7",
+                 'train_level = 3\nnested_levels = 2\n\n[[parameter.axes]]\nname = "d_y"\n'
+                 'description = "downward displacement of the iron"\nmin = 0.02\nmax = 0.06\ntrain_level = 2'))
+    native_store = tmp_path / "native"
+    done = crom(native_store, "--quiet", "run", str(native_scene), "--offline")
+    assert done.returncode == 0, done.stderr
+    sets = {}
+    for s in ["train", "test"]:
+        with h5py.File(native_store / "scenes" / "ic-2d" / f"{s}.h5") as f:
+            sets[s] = (f["primal"][()], f["dual"][()], f["parameters"][()])
+    # The training columns in reverse order: the levels must come from the values, not the order.
+    p, d, m = sets["train"]
+    sets["train"] = (p[:, ::-1], d[:, ::-1], m[::-1])
+    primal, dual, mu, n_train = all_columns(sets)
+    assert n_train == 45 and mu.shape == (77, 2)
+    np.save(tmp_path / "primal.npy", primal)
+    np.save(tmp_path / "dual.npy", dual)
+    np.save(tmp_path / "mu.npy", mu)
+    path = scene(tmp_path, "ic-2d-ext", f"""dual = {{ file = "dual.npy" }}
+primal = {{ file = "primal.npy" }}
+parameters = {{ file = "mu.npy", names = ["d_x", "d_y"] }}
+train = {list(range(n_train))}
+test = {list(range(n_train, dual.shape[1]))}""", like="ironing-coarse")
+    store = tmp_path / "store"
+    done = crom(store, "--quiet", "run", str(path), "--offline")
+    assert done.returncode == 0, done.stderr
+    a = pd.read_parquet(native_store / "scenes" / "ic-2d" / "nested.parquet").drop(columns="scene")
+    b = pd.read_parquet(store / "scenes" / "ic-2d-ext" / "nested.parquet").drop(columns="scene")
+    assert len(a) > 0
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    for level, count in [(1, 9), (2, 25)]:
+        with h5py.File(store / "scenes" / "ic-2d-ext" / "nested" / f"level-{level}.h5") as f:
+            assert f["parameters"].shape[0] == count
