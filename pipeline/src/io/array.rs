@@ -44,8 +44,7 @@ pub fn read_whole(base: &Path, file: Option<&Path>, name: &str, field: &str) -> 
                 return Err(missing(&path, &format!("{field} (file)")));
             }
             if is_npz(&path) {
-                let m = super::npz::stored_member(&path, name, field)?;
-                let a = Npy::open_at(&path, m.offset, m.size)?;
+                let a = super::npz::open_member(&path, name, field)?;
                 let (data, shape) = row_major(&a)?;
                 return check(WholeArray { path, what: format!("member {name}"), shape, data }, field);
             }
@@ -54,7 +53,7 @@ pub fn read_whole(base: &Path, file: Option<&Path>, name: &str, field: &str) -> 
                     &path,
                     field,
                     "is neither an HDF5 file (.h5, .hdf5) nor a .npz archive, so it has no dataset to read",
-                    "give an HDF5 file and dataset paths, an uncompressed .npz and member names, or leave `file` out and name one .npy file per array",
+                    "give an HDF5 file and dataset paths, a .npz archive and member names, or leave `file` out and name one .npy file per array",
                 ));
             }
             let ds = open_h5(&path, field, name)?;

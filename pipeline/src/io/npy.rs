@@ -69,6 +69,13 @@ impl Npy {
         Self::open_at(path, 0, size)
     }
 
+    /// The same array, named `path` in every later error (an inflated archive member read from
+    /// a temporary file is named by its archive).
+    pub(crate) fn shown_as(mut self, path: &Path) -> Self {
+        self.path = path.to_path_buf();
+        self
+    }
+
     /// The `.npy` data of `size` bytes at byte `at` of the file `path` (a whole file, or a member
     /// stored uncompressed in a `.npz` archive); checks that it holds as many bytes as the shape
     /// says.

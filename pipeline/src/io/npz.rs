@@ -1,8 +1,10 @@
 //! NumPy `.npz` archives: a zip file of `.npy` members (`np.savez(path, dual=a)` writes the
 //! member `dual.npy`). A member *stored* without compression (`np.savez`) is a plain `.npy` at
-//! a known offset of the archive, read in pieces like a `.npy` file ([`super::npy::Npy`]); a
-//! *deflated* member (`np.savez_compressed`) cannot be read in pieces, and is refused with the
-//! way out.
+//! a known offset of the archive, read in pieces like a `.npy` file ([`super::npy::Npy`]). A
+//! *deflated* member (`np.savez_compressed`) cannot be read in pieces where it lies: it is
+//! inflated, block by block and checked against its CRC-32, into a temporary file that is
+//! unlinked as soon as it is open (so nothing is left behind and memory stays one block),
+//! and read in pieces from there.
 //!
 //! Only what locating a member needs is read: the end-of-central-directory record (its last
 //! 22 bytes, or further back past a comment; the zip64 record when the archive is one), the
@@ -13,6 +15,7 @@ use std::fs::File;
 use std::os::unix::fs::FileExt;
 use std::path::Path;
 
+use super::npy::Npy;
 use crate::error::CromError;
 
 /// A member of an archive: where its bytes are and how they are stored.
@@ -26,6 +29,10 @@ pub struct Member {
     pub offset: u64,
     /// Its size in the archive.
     pub size: u64,
+    /// Its size once inflated (= `size` when stored).
+    pub unpacked: u64,
+    /// CRC-32 of its inflated bytes.
+    pub crc: u32,
 }
 
 const EOCD: u32 = 0x0605_4b50;
@@ -87,6 +94,7 @@ pub fn members(path: &Path) -> Result<Vec<Member>, CromError> {
             return Err(bad("has a damaged central directory".into()));
         }
         let method = u16_at(&cd, p + 10);
+        let crc = u32_at(&cd, p + 16);
         let mut size = u64::from(u32_at(&cd, p + 20));
         let mut usize_ = u64::from(u32_at(&cd, p + 24));
         let (name_len, extra_len, comment_len) =
@@ -120,16 +128,15 @@ pub fn members(path: &Path) -> Result<Vec<Member>, CromError> {
         if offset.saturating_add(size) > len {
             return Err(bad(format!("has member {name} beyond its end")));
         }
-        out.push(Member { name, method, offset, size });
+        out.push(Member { name, method, offset, size, unpacked: usize_, crc });
         p = end + comment_len;
     }
     Ok(out)
 }
 
 /// The member `name` (with or without `.npy`) of the archive `path` named in the scene as
-/// `field`, if it is stored uncompressed; otherwise an error naming the archive, the member
-/// and the fix.
-pub fn stored_member(path: &Path, name: &str, field: &str) -> Result<Member, CromError> {
+/// `field`, or an error naming the archive, the member and the fix.
+pub fn member(path: &Path, name: &str, field: &str) -> Result<Member, CromError> {
     let all = members(path)?;
     let want = if name.ends_with(".npy") { name.to_string() } else { format!("{name}.npy") };
     let want = want.trim_start_matches('/').to_string();
@@ -142,17 +149,95 @@ pub fn stored_member(path: &Path, name: &str, field: &str) -> Result<Member, Cro
             format!("correct {field}.dataset (the keyword given to np.savez)"),
         ));
     };
+    Ok(m.clone())
+}
+
+/// Zip's method number of a deflated member.
+const DEFLATED: u16 = 8;
+
+/// The member `name` of the archive `path` (named in the scene as `field`) as a `.npy` array
+/// read in pieces: where it lies when stored, from an unlinked temporary file (under the
+/// system's temporary directory, `TMPDIR`) when deflated.
+pub fn open_member(path: &Path, name: &str, field: &str) -> Result<Npy, CromError> {
+    let m = member(path, name, field)?;
     match m.method {
-        0 => Ok(m.clone()),
+        0 => Npy::open_at(path, m.offset, m.size),
+        DEFLATED => inflate(path, &m, name),
         method => Err(CromError::input(
             path,
             format!("member {name}"),
-            format!(
-                "is compressed (zip method {method}, as np.savez_compressed writes), so it cannot be read in pieces"
-            ),
-            "save the arrays with np.savez (uncompressed) instead of np.savez_compressed, or as HDF5 datasets",
+            format!("is stored with zip method {method}, which this reader does not know (np.savez stores, np.savez_compressed deflates)"),
+            "save the arrays with np.savez or np.savez_compressed, or as HDF5 datasets",
         )),
     }
+}
+
+/// Inflate the deflated member `m` of `path` into a temporary file, check its size and
+/// CRC-32 against the central directory, open it as a `.npy` and unlink it.
+fn inflate(path: &Path, m: &Member, name: &str) -> Result<Npy, CromError> {
+    use std::io::{Read, Seek, SeekFrom, Write};
+    let damaged = |why: String| {
+        CromError::input(
+            path,
+            format!("member {name}"),
+            format!("cannot be decompressed: {why}"),
+            "write the archive again with numpy.savez_compressed or numpy.savez, or store the arrays in HDF5",
+        )
+    };
+    let mut src = File::open(path).map_err(|e| CromError::io(path, "opening the archive", e))?;
+    src.seek(SeekFrom::Start(m.offset)).map_err(|e| CromError::io(path, "reading the archive", e))?;
+    let mut inflater = flate2::read::DeflateDecoder::new(std::io::BufReader::new(src.take(m.size)));
+    let tmp = std::env::temp_dir().join(format!(
+        "crom-inflated-{}-{}-{}.npy",
+        std::process::id(),
+        m.offset,
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos())
+    ));
+    let written = (|| -> Result<u64, CromError> {
+        let mut out = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp).map_err(|e| {
+            CromError::io(
+                &tmp,
+                "creating a temporary file for an inflated .npz member (set TMPDIR to a writable directory)",
+                e,
+            )
+        })?;
+        let mut crc = flate2::Crc::new();
+        let mut buf = vec![0u8; 1 << 20];
+        let mut total = 0u64;
+        loop {
+            let n = inflater.read(&mut buf).map_err(|e| damaged(e.to_string()))?;
+            if n == 0 {
+                break;
+            }
+            total += n as u64;
+            if total > m.unpacked {
+                return Err(damaged(format!(
+                    "it inflates to more than the {} bytes its directory entry gives",
+                    m.unpacked
+                )));
+            }
+            crc.update(&buf[..n]);
+            out.write_all(&buf[..n]).map_err(|e| {
+                CromError::io(&tmp, "writing an inflated .npz member (is the temporary directory full? set TMPDIR)", e)
+            })?;
+        }
+        if total != m.unpacked {
+            return Err(damaged(format!("it inflates to {total} bytes, its directory entry gives {}", m.unpacked)));
+        }
+        if crc.sum() != m.crc {
+            return Err(damaged(format!(
+                "CRC-32 {:08x} of the inflated bytes, the archive says {:08x}",
+                crc.sum(),
+                m.crc
+            )));
+        }
+        out.flush().map_err(|e| CromError::io(&tmp, "writing an inflated .npz member", e))?;
+        Ok(total)
+    })();
+    let opened = written.and_then(|size| Npy::open_at(&tmp, 0, size));
+    // Unlinked whatever happened: an open array keeps its bytes until it is dropped.
+    let _ = std::fs::remove_file(&tmp);
+    Ok(opened?.shown_as(path))
 }
 
 #[cfg(test)]
@@ -199,19 +284,83 @@ mod tests {
         std::fs::write(path, out).expect("write zip");
     }
 
+    /// One member whose central entry gives `crc` and the inflated size `unpacked`.
+    fn write_zip_sized(path: &Path, name: &str, data: &[u8], method: u16, crc: u32, unpacked: u32) {
+        write_zip(path, &[(name, data, method)]);
+        let mut b = std::fs::read(path).expect("read zip");
+        let cd = b.windows(4).rposition(|w| w == CENTRAL.to_le_bytes()).expect("central entry");
+        b[cd + 16..cd + 20].copy_from_slice(&crc.to_le_bytes());
+        b[cd + 24..cd + 28].copy_from_slice(&unpacked.to_le_bytes());
+        std::fs::write(path, b).expect("write zip");
+    }
+
     #[test]
     fn members_are_found_at_their_offsets() {
         let dir = tempfile::tempdir().expect("tempdir");
         let p = dir.path().join("a.npz");
-        write_zip(&p, &[("a.npy", b"first", 0), ("dual.npy", b"second!", 0), ("z.npy", b"xx", 8)]);
-        let m = stored_member(&p, "dual", "model.external.dual").expect("stored");
+        write_zip(&p, &[("a.npy", b"first", 0), ("dual.npy", b"second!", 0), ("z.npy", b"xx", 9)]);
+        let m = member(&p, "dual", "model.external.dual").expect("stored");
         let mut b = vec![0u8; m.size as usize];
         File::open(&p).expect("open").read_exact_at(&mut b, m.offset).expect("read");
         assert_eq!(b, b"second!");
-        let e = stored_member(&p, "z", "model.external.dual").expect_err("deflated");
+        let e = open_member(&p, "z", "model.external.dual").expect_err("method 9");
         assert_eq!(e.exit_code(), 2);
-        assert!(e.to_string().contains("np.savez_compressed"), "{e}");
-        let e = stored_member(&p, "nothere", "model.external.dual").expect_err("missing");
+        assert!(e.to_string().contains("zip method 9"), "{e}");
+        let e = member(&p, "nothere", "model.external.dual").expect_err("missing");
         assert!(e.to_string().contains("a, dual, z"), "{e}");
+    }
+
+    /// A `.npy` of the given f64 values (shape `(len,)`), as numpy.save writes version 1.0.
+    fn npy_bytes(values: &[f64]) -> Vec<u8> {
+        let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({},), }}", values.len());
+        while (10 + header.len() + 1) % 64 != 0 {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut out = b"\x93NUMPY\x01\x00".to_vec();
+        out.extend((header.len() as u16).to_le_bytes());
+        out.extend(header.as_bytes());
+        values.iter().for_each(|v| out.extend(v.to_le_bytes()));
+        out
+    }
+
+    /// A deflated member (flate2's encoder standing in for zlib's) reads as the array it holds,
+    /// under the archive's name, and leaves no temporary file; a member whose CRC or size does
+    /// not match its directory entry is refused naming the member.
+    #[test]
+    fn a_deflated_member_is_inflated_and_checked() {
+        use std::io::Write;
+        let values: Vec<f64> = (0..5000).map(|i| (i as f64 * 0.37).sin()).collect();
+        let plain = npy_bytes(&values);
+        let mut enc = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::default());
+        enc.write_all(&plain).expect("deflate");
+        let packed = enc.finish().expect("deflate");
+        let mut crc = flate2::Crc::new();
+        crc.update(&plain);
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join("c.npz");
+        let zip = |crc: u32, unpacked: u32| write_zip_sized(&p, "dual.npy", &packed, DEFLATED, crc, unpacked);
+        let before: Vec<_> =
+            std::fs::read_dir(std::env::temp_dir()).expect("tmp").flatten().map(|e| e.file_name()).collect();
+        zip(crc.sum(), plain.len() as u32);
+        let a = open_member(&p, "dual", "model.external.dual").expect("inflated");
+        assert_eq!(a.shape, vec![values.len()]);
+        assert_eq!(a.read_all().expect("read"), values);
+        let left: Vec<_> = std::fs::read_dir(std::env::temp_dir())
+            .expect("tmp")
+            .flatten()
+            .map(|e| e.file_name())
+            .filter(|n| {
+                n.to_string_lossy().starts_with(&format!("crom-inflated-{}-", std::process::id()))
+                    && !before.contains(n)
+            })
+            .collect();
+        assert!(left.is_empty(), "left behind: {left:?}");
+        zip(crc.sum() ^ 1, plain.len() as u32);
+        let e = open_member(&p, "dual", "model.external.dual").expect_err("crc");
+        assert!(e.to_string().contains("member dual") && e.to_string().contains("CRC-32"), "{e}");
+        zip(crc.sum(), plain.len() as u32 - 8);
+        let e = open_member(&p, "dual", "model.external.dual").expect_err("size");
+        assert!(e.to_string().contains("more than"), "{e}");
     }
 }

@@ -165,8 +165,7 @@ impl SnapshotArray {
                     format!("add {field}.dataset = \"NAME\" (the keyword given to np.savez)"),
                 ));
             };
-            let m = super::npz::stored_member(&path, member, field)?;
-            let a = Npy::open_at(&path, m.offset, m.size)?;
+            let a = super::npz::open_member(&path, member, field)?;
             let shape = a.shape.clone();
             (Inner::Npy(a), shape, format!("member {member}"))
         } else {
@@ -174,7 +173,7 @@ impl SnapshotArray {
                 &path,
                 field,
                 "has an extension this reader does not know",
-                "give an HDF5 file (.h5, .hdf5) with a dataset, a NumPy .npy file, or an uncompressed .npz archive (np.savez) with the member as dataset",
+                "give an HDF5 file (.h5, .hdf5) with a dataset, a NumPy .npy file, or a .npz archive (np.savez or np.savez_compressed) with the member as dataset",
             ));
         };
         let [a, b] = shape[..] else {
@@ -304,8 +303,7 @@ pub fn read_parameters(base: &Path, src: &ParameterSource, field: &str) -> Resul
                 (a.read_all()?, a.shape.clone(), a.fortran)
             } else if is_npz(&path) {
                 let member = src.dataset.as_deref().unwrap_or("mu");
-                let m = super::npz::stored_member(&path, member, field)?;
-                let a = Npy::open_at(&path, m.offset, m.size)?;
+                let a = super::npz::open_member(&path, member, field)?;
                 (a.read_all()?, a.shape.clone(), a.fortran)
             } else if is_h5(&path) {
                 let ds = h5_dataset(&path, field, src.dataset.as_deref())?;
@@ -323,7 +321,7 @@ pub fn read_parameters(base: &Path, src: &ParameterSource, field: &str) -> Resul
                     &path,
                     field,
                     "has an extension this reader does not know",
-                    "give a .csv (header row with the names), .parquet, .npy, uncompressed .npz (member as dataset) or HDF5 file",
+                    "give a .csv (header row with the names), .parquet, .npy, .npz (member as dataset) or HDF5 file",
                 ));
             };
             let n = match shape[..] {
