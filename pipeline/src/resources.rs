@@ -129,25 +129,26 @@ fn train_field(scene: &SceneConfig) -> &'static str {
     }
 }
 
-/// An external scene holds no operator: its training set and the POD's working copy of it
-/// (`16 (n + c) N`), and the metrics' Gram matrices (`32 N^2`) up to the Gram limit. The import
-/// itself holds one block at a time.
+/// An external scene holds no operator: the metrics' share of [`estimate`], on the sizes its
+/// files' headers give. The import itself holds one block at a time.
 fn external_estimate(scene: &SceneConfig) -> Vec<Term> {
     let (n, c, ..) = sizes(scene);
-    let n_train = scene.parameter.train_points().len() as f64;
-    let mut terms = vec![Term {
-        field: "model.external.train",
-        what: "training set and the POD's working copy",
-        bytes: 8.0 * 2.0 * (n + c) * n_train,
-    }];
-    if n_train <= GRAM_LIMIT {
-        terms.push(Term {
-            field: "model.external.train",
-            what: "Gram matrices of the metrics",
-            bytes: 32.0 * n_train * n_train,
-        });
+    external_terms(n, c, scene.parameter.train_points().len() as f64)
+}
+
+/// Up to the Gram limit the whole training set and the POD's working copy of it
+/// (`16 (n + c) N`) and the metrics' Gram matrices (`32 N^2`); above it the primal is streamed
+/// as for a native scene, and the term is [`metrics_term`]'s.
+fn external_terms(n: f64, c: f64, n_train: f64) -> Vec<Term> {
+    let field = "model.external.train";
+    if n_train > GRAM_LIMIT {
+        let (what, bytes) = metrics_term(n, c, n_train);
+        return vec![Term { field, what, bytes }];
     }
-    terms
+    vec![
+        Term { field, what: "training set and the POD's working copy", bytes: 8.0 * 2.0 * (n + c) * n_train },
+        Term { field, what: "Gram matrices of the metrics", bytes: 32.0 * n_train * n_train },
+    ]
 }
 
 /// Rows of one snapshot column from the scene alone (no meshing): displacement dofs and
@@ -354,6 +355,27 @@ mod tests {
         assert!(what.contains("working copy"), "{what}");
         // At and below the Gram limit, unchanged: 32 N^2.
         assert_eq!(metrics_term(201.0, 201.0, 1025.0).1.to_bits(), (32.0f64 * 1025.0 * 1025.0).to_bits());
+    }
+
+    /// An external scene is estimated like a native one with the same sizes: the whole set, its
+    /// working copy and the Gram matrices up to 1 025 training snapshots; above, the streamed
+    /// primal's frame (bench G's 16 385 columns of 6 164 + 101 rows, 8 193 of them training:
+    /// 6 164 is above `frame_pays_up_to(8 193)`, so the whole primal and its working copy are
+    /// counted, `16 (n + c) N`) and, for the rope's sizes at level 11, the frame and coordinates.
+    #[test]
+    fn external_scenes_count_the_streamed_primal_as_native_ones_do() {
+        let small = external_terms(617.0, 11.0, 513.0);
+        assert_eq!(small.len(), 2);
+        let sum: f64 = small.iter().map(|t| t.bytes).sum();
+        assert_eq!(sum.to_bits(), (16.0f64 * 628.0 * 513.0 + 32.0 * 513.0 * 513.0).to_bits());
+        for (n, c, big_n) in [(201.0, 201.0, 2049.0), (6164.0, 101.0, 8193.0)] {
+            let terms = external_terms(n, c, big_n);
+            assert_eq!(terms.len(), 1);
+            assert_eq!(terms[0].bytes.to_bits(), metrics_term(n, c, big_n).1.to_bits());
+            assert_eq!(terms[0].field, "model.external.train");
+        }
+        let rope = external_terms(201.0, 201.0, 2049.0);
+        assert!(rope[0].what.contains("frame"), "{:?}", rope[0]);
     }
 
     #[test]
