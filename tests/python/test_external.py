@@ -32,16 +32,41 @@ def crom(store, *args):
     return subprocess.run([str(crom_bin()), "--store", str(store), *args], cwd=REPO, capture_output=True, text=True)
 
 
-def native_study(tmp_path_factory, name):
-    """A native study (offline) and its training and test sets as arrays."""
+def native_study(tmp_path_factory, name, scene_file=None):
+    """A native study (offline; of the shipped scene `name`, or of `scene_file` naming scene
+    `name`) and its training and test sets as arrays."""
     store = tmp_path_factory.mktemp(f"native-{name}")
-    done = crom(store, "--quiet", "run", name, "--offline")
+    done = crom(store, "--quiet", "run", str(scene_file or name), "--offline")
     assert done.returncode == 0, done.stderr
     sets = {}
     for s in ["train", "test"]:
         with h5py.File(store / "scenes" / name / f"{s}.h5") as f:
             sets[s] = (f["primal"][()], f["dual"][()], f["parameters"][()])
     return store, sets
+
+
+class TmpDirs:
+    """tmp_path as a tmp_path_factory (its mktemp makes a fresh subdirectory)."""
+
+    def __init__(self, root):
+        self.root = root
+
+    def mktemp(self, name):
+        path = self.root / name
+        path.mkdir()
+        return path
+
+
+def variant(tmp_path, base, name, replacements):
+    """The shipped scene `base` renamed `name`, with each (old, new) of `replacements` made
+    (each old text must be in it), written to tmp_path."""
+    text = (REPO / "data" / "scenes" / f"{base}.toml").read_text()
+    for old, new in [(f'name = "{base}"', f'name = "{name}"'), *replacements]:
+        assert old in text, f"{base}.toml changed: update this test ({old!r})"
+        text = text.replace(old, new)
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
 
 
 @pytest.fixture(scope="module")
@@ -520,18 +545,8 @@ def test_a_training_set_that_is_a_nested_grid_gets_the_native_nested_error(tmp_p
     """The rope at train_level = 3 with nested levels 1 to 3 (level 3 is its training set),
     exported and imported: the external scene finds the levels in its 9 equally spaced training
     points, and its H(n) table equals the native one bit for bit."""
-    text = (REPO / "data" / "scenes" / "rope.toml").read_text()
-    assert "n_train = 10" in text, "rope.toml changed: update this test"
-    native_scene = tmp_path / "rope-l3.toml"
-    native_scene.write_text(text.replace('name = "rope"', 'name = "rope-l3"')
-                            .replace("n_train = 10", "train_level = 3\nnested_levels = 3"))
-    native_store = tmp_path / "native"
-    done = crom(native_store, "--quiet", "run", str(native_scene), "--offline")
-    assert done.returncode == 0, done.stderr
-    sets = {}
-    for s in ["train", "test"]:
-        with h5py.File(native_store / "scenes" / "rope-l3" / f"{s}.h5") as f:
-            sets[s] = (f["primal"][()], f["dual"][()], f["parameters"][()])
+    native_scene = variant(tmp_path, "rope", "rope-l3", [("n_train = 10", "train_level = 3\nnested_levels = 3")])
+    native_store, sets = native_study(TmpDirs(tmp_path), "rope-l3", native_scene)
     primal, dual, mu, n_train = all_columns(sets)
     assert n_train == 9
     np.save(tmp_path / "primal.npy", primal)
@@ -558,23 +573,12 @@ def test_a_two_component_nested_grid_gets_the_native_nested_error(tmp_path):
     training points) and nested levels 1 and 2, exported with its training columns reversed and
     imported: the external scene finds levels 1 and 2 as tensor grids in the shuffled columns,
     and its H(n) table equals the native one bit for bit."""
-    text = (REPO / "data" / "scenes" / "ironing-coarse.toml").read_text()
-    for old in ["n_train = 128\nnested_levels = 7", "[model.ironing]\nd_y = 0.04\n"]:
-        assert old in text, "ironing-coarse.toml changed: update this test"
-    native_scene = tmp_path / "ic-2d.toml"
-    native_scene.write_text(
-        text.replace('name = "ironing-coarse"', 'name = "ic-2d"')
-        .replace("[model.ironing]\nd_y = 0.04\n", "[model.ironing]\n")
-        .replace("n_train = 128\nnested_levels = 7",
-                 'train_level = 3\nnested_levels = 2\n\n[[parameter.axes]]\nname = "d_y"\n'
-                 'description = "downward displacement of the iron"\nmin = 0.02\nmax = 0.06\ntrain_level = 2'))
-    native_store = tmp_path / "native"
-    done = crom(native_store, "--quiet", "run", str(native_scene), "--offline")
-    assert done.returncode == 0, done.stderr
-    sets = {}
-    for s in ["train", "test"]:
-        with h5py.File(native_store / "scenes" / "ic-2d" / f"{s}.h5") as f:
-            sets[s] = (f["primal"][()], f["dual"][()], f["parameters"][()])
+    native_scene = variant(tmp_path, "ironing-coarse", "ic-2d", [
+        ("[model.ironing]\nd_y = 0.04\n", "[model.ironing]\n"),
+        ("n_train = 128\nnested_levels = 7",
+         'train_level = 3\nnested_levels = 2\n\n[[parameter.axes]]\nname = "d_y"\n'
+         'description = "downward displacement of the iron"\nmin = 0.02\nmax = 0.06\ntrain_level = 2')])
+    native_store, sets = native_study(TmpDirs(tmp_path), "ic-2d", native_scene)
     # The training columns in reverse order: the levels must come from the values, not the order.
     p, d, m = sets["train"]
     sets["train"] = (p[:, ::-1], d[:, ::-1], m[::-1])

@@ -182,7 +182,8 @@ pub(crate) mod tests {
 
     /// A version-1 `.npy` file of float64 `data` with `shape`, written by hand as numpy.save
     /// does (header padded with spaces to a multiple of 64 bytes, ending in a newline).
-    pub(crate) fn write_npy(path: &Path, shape: &[usize], fortran: bool, data: &[f64]) {
+    /// The bytes of a float64 `.npy` of `shape` (version 1.0, as numpy.save writes them).
+    pub(crate) fn npy_bytes(shape: &[usize], fortran: bool, data: &[f64]) -> Vec<u8> {
         let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
         let tuple = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
         let order = if fortran { "True" } else { "False" };
@@ -197,7 +198,11 @@ pub(crate) mod tests {
         for v in data {
             bytes.extend(v.to_le_bytes());
         }
-        std::fs::write(path, bytes).expect("write npy");
+        bytes
+    }
+
+    pub(crate) fn write_npy(path: &Path, shape: &[usize], fortran: bool, data: &[f64]) {
+        std::fs::write(path, npy_bytes(shape, fortran, data)).expect("write npy");
     }
 
     #[test]

@@ -310,20 +310,6 @@ mod tests {
         assert!(e.to_string().contains("a, dual, z"), "{e}");
     }
 
-    /// A `.npy` of the given f64 values (shape `(len,)`), as numpy.save writes version 1.0.
-    fn npy_bytes(values: &[f64]) -> Vec<u8> {
-        let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({},), }}", values.len());
-        while (10 + header.len() + 1) % 64 != 0 {
-            header.push(' ');
-        }
-        header.push('\n');
-        let mut out = b"\x93NUMPY\x01\x00".to_vec();
-        out.extend((header.len() as u16).to_le_bytes());
-        out.extend(header.as_bytes());
-        values.iter().for_each(|v| out.extend(v.to_le_bytes()));
-        out
-    }
-
     /// A deflated member (flate2's encoder standing in for zlib's) reads as the array it holds,
     /// under the archive's name, and leaves no temporary file; a member whose CRC or size does
     /// not match its directory entry is refused naming the member.
@@ -331,7 +317,7 @@ mod tests {
     fn a_deflated_member_is_inflated_and_checked() {
         use std::io::Write;
         let values: Vec<f64> = (0..5000).map(|i| (i as f64 * 0.37).sin()).collect();
-        let plain = npy_bytes(&values);
+        let plain = crate::io::npy::tests::npy_bytes(&[values.len()], false, &values);
         let mut enc = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::default());
         enc.write_all(&plain).expect("deflate");
         let packed = enc.finish().expect("deflate");
