@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 
 use crom_schemas::artifact::{basis as names, ArtifactKind};
 use crom_schemas::SceneConfig;
-use crom_stages::basis::{cpg_path_refined, pod, pod_blocks, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
+use crom_stages::basis::{cpg_path_refined, pod, pod_blocks_framed, Cpg, CpgPath, CpgPathParams, Pod, PodParams};
 use crom_stages::cone::NnlsParams;
 use serde::Serialize;
 use serde_json::json;
@@ -230,8 +230,11 @@ impl BasisStage {
             let primal_params = PodParams { rel_tol: st.primal_tol };
             let (primal, (dual, path)) = if st.streams_primal() {
                 let set = loaded.streamed(store, train)?;
-                let (primal, rest) =
-                    rayon::join(|| pod_blocks(&set.primal, &set.primal_norms, primal_params), || dual_side(&set.dual));
+                let primal_pod = || {
+                    let frame = set.frame()?;
+                    pod_blocks_framed(&set.primal, &set.primal_norms, frame.as_deref(), primal_params)
+                };
+                let (primal, rest) = rayon::join(primal_pod, || dual_side(&set.dual));
                 if let Some(e) = set.primal.failure() {
                     return Err(e);
                 }

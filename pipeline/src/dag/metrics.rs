@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{metrics as names, ArtifactKind};
 use crom_schemas::SceneConfig;
+use crom_stages::basis::PodError;
 use crom_stages::blocks::modal_pass;
 use crom_stages::cone::NnlsParams;
 use crom_stages::metrics::{
@@ -269,7 +270,10 @@ fn generalization(
         let mut rows = CurveRows { population, ..CurveRows::default() };
         let primal = match &set {
             MetricSet::Whole(s) => LooOrth::new(view(&s.primal)).map_err(|e| fail(e.to_string()))?,
-            MetricSet::Streamed(s) => LooOrth::from_blocks(&s.primal, &s.primal_norms)
+            MetricSet::Streamed(s) => s
+                .take_frame()
+                .map_err(PodError::from)
+                .and_then(|frame| LooOrth::from_blocks_framed(&s.primal, &s.primal_norms, frame.as_deref()))
                 .map_err(|e| s.primal.error_or(|| fail(e.to_string())))?,
         };
         let dual = LooOrth::new(view(set.dual())).map_err(|e| fail(e.to_string()))?;

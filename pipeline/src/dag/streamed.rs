@@ -16,6 +16,7 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 use crom_schemas::artifact::{trainset as names, ArtifactKind};
+use crom_stages::basis::{large_frame, Frame};
 use crom_stages::blocks::{BlockError, ColumnBlocks, ColumnNorms};
 use faer::{Mat, MatRef};
 
@@ -70,6 +71,31 @@ pub(crate) struct StreamedSet {
     pub primal: PrimalColumns,
     /// `||u_j||^2` of every primal column, and whether all are finite.
     pub primal_norms: ColumnNorms,
+    /// The primal's [`large_frame`], once computed: the basis stage's POD and the
+    /// generalization stage's orthogonal folds read the same one (one pass over the primal
+    /// columns instead of two). Outer `None`: not computed yet.
+    frame: Mutex<Option<Option<Arc<Frame>>>>,
+}
+
+impl StreamedSet {
+    /// The primal's [`large_frame`], computed on first use and kept.
+    pub(crate) fn frame(&self) -> Result<Option<Arc<Frame>>, BlockError> {
+        let mut held = self.frame.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some(frame) = held.as_ref() {
+            return Ok(frame.clone());
+        }
+        let frame = large_frame(&self.primal, &self.primal_norms)?.map(Arc::new);
+        *held = Some(frame.clone());
+        Ok(frame)
+    }
+
+    /// The primal's frame for its last reader (the leave-one-out folds): computed if it is not
+    /// held, and no longer held afterwards (its coordinates are N columns long).
+    pub(crate) fn take_frame(&self) -> Result<Option<Arc<Frame>>, BlockError> {
+        let frame = self.frame()?;
+        *self.frame.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = None;
+        Ok(frame)
+    }
 }
 
 /// The primal snapshots of a stored set as a [`ColumnBlocks`] source. A failed read is kept
@@ -141,5 +167,5 @@ pub(crate) fn load(store: &Store, key: &Key) -> Result<StreamedSet, CromError> {
         }
         dual.data.extend_from_slice(&d.data);
     }
-    Ok(StreamedSet { dual, primal, primal_norms: norms })
+    Ok(StreamedSet { dual, primal, primal_norms: norms, frame: Mutex::new(None) })
 }

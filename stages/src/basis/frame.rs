@@ -37,6 +37,21 @@ pub struct Frame {
     pub dropped: f64,
 }
 
+/// The blockwise frame of a large set that its POD ([`pod_blocks_framed`](super::pod_blocks_framed))
+/// and its orthogonal leave-one-out
+/// ([`LooOrth::from_blocks_framed`](crate::metrics::generalization::LooOrth::from_blocks_framed))
+/// share: above [`POD_FRAME_ABOVE`](super::POD_FRAME_ABOVE) finite snapshots, within
+/// [`frame_pays_up_to`]`(N)`, with `||S||_F` from the columns' norms. `None` at or below the
+/// switch-over size, for non-finite snapshots, or where the frame does not pay: then both read
+/// the whole matrix.
+pub fn large_frame(src: &dyn ColumnBlocks, norms: &crate::blocks::ColumnNorms) -> Result<Option<Frame>, BlockError> {
+    let count = src.ncols();
+    if count <= super::POD_FRAME_ABOVE || !norms.finite {
+        return Ok(None);
+    }
+    frame_within_blocks(src, norms.frobenius(), frame_pays_up_to(count))
+}
+
 /// The frame of `s` (n x N), built in blocks of [`FRAME_BLOCK`] columns.
 pub fn frame(s: MatRef<'_, f64>) -> Frame {
     frame_within(s, usize::MAX).unwrap_or_else(|| unreachable!("no size limit"))

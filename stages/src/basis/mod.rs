@@ -20,11 +20,11 @@ pub use cpg::{
     GRID_START,
 };
 pub use cpg_reference::cpg_reference;
-pub use frame::{frame, frame_pays_up_to, frame_within, frame_within_blocks, Frame, FRAME_BLOCK};
+pub use frame::{frame, frame_pays_up_to, frame_within, frame_within_blocks, large_frame, Frame, FRAME_BLOCK};
 pub use gram_condition::gram_condition_path;
 
 pub(crate) use lazy::LazyGreedy;
 pub use pod::{
-    numerical_rank, pod, pod_blocks, pod_direct, pod_frame, pod_full, pod_of_frame, tail_energies, truncation_rank,
-    Pod, PodError, PodParams, POD_FRAME_ABOVE,
+    numerical_rank, pod, pod_blocks, pod_blocks_framed, pod_direct, pod_frame, pod_full, pod_of_frame, tail_energies,
+    truncation_rank, Pod, PodError, PodParams, POD_FRAME_ABOVE,
 };

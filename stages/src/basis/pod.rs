@@ -85,6 +85,17 @@ pub fn pod(s: MatRef<'_, f64>, params: PodParams) -> Result<Pod, PodError> {
 /// `||S||_F` summed from the columns' norms; at or below it, or where the frame does not pay,
 /// the whole matrix is read and [`pod`] runs on it.
 pub fn pod_blocks(src: &dyn ColumnBlocks, norms: &ColumnNorms, params: PodParams) -> Result<Pod, PodError> {
+    pod_blocks_framed(src, norms, super::frame::large_frame(src, norms)?.as_ref(), params)
+}
+
+/// [`pod_blocks`] with the set's [`large_frame`](super::large_frame) computed by the caller
+/// (`frame` must be that function's answer for the same `src` and `norms`).
+pub fn pod_blocks_framed(
+    src: &dyn ColumnBlocks,
+    norms: &ColumnNorms,
+    frame: Option<&super::Frame>,
+    params: PodParams,
+) -> Result<Pod, PodError> {
     let (n, count) = (src.nrows(), src.ncols());
     if !norms.finite {
         return Err(PodError::NonFinite);
@@ -92,8 +103,8 @@ pub fn pod_blocks(src: &dyn ColumnBlocks, norms: &ColumnNorms, params: PodParams
     if count <= POD_FRAME_ABOVE {
         return pod(src.whole()?.as_ref(), params);
     }
-    match super::frame::frame_within_blocks(src, norms.frobenius(), super::frame::frame_pays_up_to(count))? {
-        Some(f) => pod_of_frame(&f, n, count, params),
+    match frame {
+        Some(f) => pod_of_frame(f, n, count, params),
         None => pod_direct(src.whole()?.as_ref(), params),
     }
 }

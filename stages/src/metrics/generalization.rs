@@ -260,16 +260,28 @@ impl LooOrth {
         src: &dyn crate::blocks::ColumnBlocks,
         norms: &crate::blocks::ColumnNorms,
     ) -> Result<Self, PodError> {
+        Self::from_blocks_framed(src, norms, crate::basis::large_frame(src, norms)?.as_ref())
+    }
+
+    /// [`from_blocks`](Self::from_blocks) with the set's
+    /// [`large_frame`](crate::basis::large_frame) computed by the caller (`frame` must be that
+    /// function's answer for the same `src` and `norms`; the POD of the set reads the same one).
+    pub fn from_blocks_framed(
+        src: &dyn crate::blocks::ColumnBlocks,
+        norms: &crate::blocks::ColumnNorms,
+        frame: Option<&crate::basis::Frame>,
+    ) -> Result<Self, PodError> {
         let count = src.ncols();
         if !norms.finite {
             return Err(PodError::NonFinite);
         }
-        if count > crate::basis::POD_FRAME_ABOVE && FoldMethod::for_snapshots(count) == FoldMethod::Downdate {
-            let pays = crate::basis::frame_pays_up_to(count);
-            if let Some(frame) = crate::basis::frame_within_blocks(src, norms.frobenius(), pays)? {
-                let single = norms.norm2.iter().map(|v| v.sqrt()).collect();
-                return Self::framed(frame, count, src.nrows(), single);
-            }
+        // Above the frame's switch-over size every fold method is the downdate.
+        debug_assert!(
+            count <= crate::basis::POD_FRAME_ABOVE || FoldMethod::for_snapshots(count) == FoldMethod::Downdate
+        );
+        if let Some(frame) = frame.filter(|_| count > crate::basis::POD_FRAME_ABOVE) {
+            let single = norms.norm2.iter().map(|v| v.sqrt()).collect();
+            return Self::framed(frame.clone(), count, src.nrows(), single);
         }
         Self::new(src.whole()?.as_ref())
     }
