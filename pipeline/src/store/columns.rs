@@ -639,31 +639,48 @@ pub fn read_columns(
         let file = hdf5::File::open(&path).map_err(|e| rerr("opening the block", &e))?;
         let pds = file.dataset("primal").map_err(|e| rerr("primal", &e))?;
         let dds = file.dataset("dual").map_err(|e| rerr("dual", &e))?;
-        // Column j of a dataset into `out` (its length is the expected row count).
-        let read = |ds: &hdf5::Dataset, what: &str, j: usize, out: &mut [f64]| -> Result<(), CromError> {
-            if out.is_empty() {
-                return Ok(());
+        // Columns j0..j0 + len of a dataset (row-major in the block) into the output columns
+        // k0..k0 + len of `out` (column-major, `rows` each): one HDF5 read per run.
+        let read =
+            |ds: &hdf5::Dataset, what: &str, (j0, k0, len): (usize, usize, usize), rows: usize, out: &mut [f64]| {
+                if rows == 0 {
+                    return Ok(());
+                }
+                let v = ds.read_slice_2d::<f64, _>((.., j0..j0 + len)).map_err(|e| rerr(what, &e))?;
+                if v.dim() != (rows, len) {
+                    return Err(rerr(what, &format!("{:?} values, expected ({rows}, {len})", v.dim())));
+                }
+                for (c, col) in out[k0 * rows..(k0 + len) * rows].chunks_exact_mut(rows).enumerate() {
+                    col.iter_mut().zip(v.column(c)).for_each(|(a, b)| *a = *b);
+                }
+                Ok(())
+            };
+        // Runs of output columns that are consecutive columns of the block.
+        let mut at = 0;
+        while at < ks.len() {
+            let (k0, j0) = (ks[at], rows[ks[at]].column);
+            let mut len = 1;
+            while at + len < ks.len() && ks[at + len] == k0 + len && rows[ks[at + len]].column == j0 + len {
+                len += 1;
             }
-            let v = ds.read_slice_1d::<f64, _>((.., j)).map_err(|e| rerr(what, &e))?;
-            if v.len() != out.len() {
-                return Err(rerr(what, &format!("{} rows, expected {}", v.len(), out.len())));
+            read(&pds, "primal columns", (j0, k0, len), n_dof, &mut primal.data)?;
+            read(&dds, "dual columns", (j0, k0, len), n_contact, &mut dual.data)?;
+            for (k, row) in rows.iter().enumerate().skip(k0).take(len) {
+                let pcol = &primal.data[k * n_dof..(k + 1) * n_dof];
+                let dcol = &dual.data[k * n_contact..(k + 1) * n_contact];
+                if column_hash(pcol, dcol) != row.blake3 {
+                    return Err(CorruptBlock::error(
+                        &path,
+                        block,
+                        format!(
+                            "column {} (snapshot {}) does not match its blake3 in the index",
+                            row.column,
+                            row.key.short()
+                        ),
+                    ));
+                }
             }
-            out.iter_mut().zip(v.iter()).for_each(|(a, b)| *a = *b);
-            Ok(())
-        };
-        for k in ks {
-            let j = rows[k].column;
-            let pcol = &mut primal.data[k * n_dof..(k + 1) * n_dof];
-            read(&pds, "primal column", j, pcol)?;
-            let dcol = &mut dual.data[k * n_contact..(k + 1) * n_contact];
-            read(&dds, "dual column", j, dcol)?;
-            if column_hash(pcol, dcol) != rows[k].blake3 {
-                return Err(CorruptBlock::error(
-                    &path,
-                    block,
-                    format!("column {j} (snapshot {}) does not match its blake3 in the index", rows[k].key.short()),
-                ));
-            }
+            at += len;
         }
     }
     Ok((primal, dual))
@@ -753,6 +770,14 @@ mod tests {
             assert_eq!(d.col(k), pending(i).dual.as_slice());
         }
         assert_eq!(again.rows[&pending(4).key].evidence.iterations, 4);
+        // Runs of consecutive columns (read in one piece), a reversed pair, a gap and a repeat.
+        let picks = [0usize, 1, 2, 4, 3, 1, 3, 4];
+        let order: Vec<&IndexRow> = picks.iter().map(|&i| &again.rows[&pending(i).key]).collect();
+        let (p, d) = read_columns(tmp.path(), 5, 3, &order).expect("read runs");
+        for (k, &i) in picks.iter().enumerate() {
+            assert_eq!(p.col(k), pending(i).primal.as_slice(), "column {k}");
+            assert_eq!(d.col(k), pending(i).dual.as_slice(), "column {k}");
+        }
     }
 
     #[test]
