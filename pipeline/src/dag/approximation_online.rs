@@ -28,7 +28,7 @@ use crom_schemas::SceneConfig;
 use crom_stages::dual::dictionary::{WorkingSet, WorkingSetScratch, WS_START};
 use crom_stages::dual::{self, Approach, DualApprox, Training};
 use crom_stages::metrics::order::quantile;
-use crom_stages::rom::{Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork};
+use crom_stages::rom::{cone_basis_columns, Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork};
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
@@ -246,7 +246,7 @@ fn run(
             let source = if model.depends_on_mu() {
                 Source::PerQuery(model.as_ref(), m)
             } else {
-                let (theta, k) = basis_at(model.as_ref(), &test_set.parameters[0], m);
+                let (theta, k) = cone_basis_columns(model.as_ref(), &test_set.parameters[0], m);
                 Source::Fixed(theta.into(), k)
             };
             let queries = solve_all(&source, &b.model, nc, &test_set.parameters, &params, errors);
@@ -293,13 +293,6 @@ fn solve_dictionary(
         .collect()
 }
 
-/// The dual basis of `model` at `mu` with at most `m` columns, column-major.
-fn basis_at(model: &dyn DualApprox, mu: &[f64], m: usize) -> (Vec<f64>, usize) {
-    let b = model.cone_basis(mu, m).unwrap_or_else(|| faer::Mat::zeros(0, 0));
-    let k = b.ncols();
-    ((0..k).flat_map(|j| b.col(j).iter().copied().collect::<Vec<_>>()).collect(), k)
-}
-
 /// Where a query's dual basis comes from.
 enum Source<'a> {
     /// Fixed, column-major with this many columns (read from `bases.h5`, or built here).
@@ -334,9 +327,9 @@ fn solve_all(
                 let mu = &points[j];
                 let (info, best) = fastest(|| {
                     if let Source::PerQuery(model, m) = source {
-                        let (theta, k) = basis_at(*model, mu, *m);
-                        debug_assert_eq!(theta.len(), nc * k);
-                        rm.set_dual(&theta, k);
+                        // the step a stored model with a registered basis takes (`dual_at`)
+                        rm.set_dual_of(*model, mu, *m);
+                        debug_assert_eq!(rm.weights().len(), nc);
                     }
                     rm.solve_in(mu, params, w)
                 });
