@@ -125,7 +125,9 @@ fn check_registered(published: &Path, model: &StoredModel, q: &Table, scene: &st
     let m = model.parts.scalar("reg_m");
     assert!(m > 0 && model.parts.scalar("reg_map") > 0, "{scene}: a registered model without its basis");
     let row = (0..online.rows())
-        .find(|&i| online.strs("approximation").expect("a")[i] == model.dual_basis && online.u64s("m").expect("m")[i] == m)
+        .find(|&i| {
+            online.strs("approximation").expect("a")[i] == model.dual_basis && online.u64s("m").expect("m")[i] == m
+        })
         .expect("the model's row of the online comparison");
     let outcome = q.strs("outcome").expect("outcome");
     assert!(outcome.iter().all(|o| o == "converged"), "{scene}: {outcome:?}");

@@ -669,11 +669,7 @@ fn check_model_dual(c: &Checker<'_>, dual: &str, cmp: Option<&ComparisonSpec>) -
             registered.join(", ")
         )
     };
-    Err(c.fail(
-        "study.model_dual",
-        format!("is \"{dual}\": not a dual approximation a stored model can carry"),
-        &fix,
-    ))
+    Err(c.fail("study.model_dual", format!("is \"{dual}\": not a dual approximation a stored model can carry"), &fix))
 }
 
 fn check_comparison(

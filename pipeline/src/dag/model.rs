@@ -35,9 +35,7 @@ mod choice;
 
 use std::collections::BTreeMap;
 
-use crom_schemas::artifact::{
-    basis as bnames, comparison as cnames, model as names, rom as rom_names, ArtifactKind,
-};
+use crom_schemas::artifact::{basis as bnames, comparison as cnames, model as names, rom as rom_names, ArtifactKind};
 use crom_schemas::comparison::ApproximationSpec;
 use crom_schemas::scene::{ContactSamplingSpec, MODEL_DUAL_CPG};
 use crom_schemas::SceneConfig;
@@ -173,7 +171,8 @@ impl ModelStage {
             .map(|(spec, input)| (RegisteredKey { approximation: spec.clone(), max_m }, input.clone()))
             .unzip();
         let settings = ModelKey::of(scene, registered);
-        let mut spec = KeySpec::of(&settings).input("train", &train.key).input("basis", &basis.key).input("rom", &rom.key);
+        let mut spec =
+            KeySpec::of(&settings).input("train", &train.key).input("basis", &basis.key).input("rom", &rom.key);
         let mesh = (!online.is_empty()).then_some(mesh);
         if let Some(mesh) = &mesh {
             spec = spec.input("mesh", &mesh.key);
@@ -265,7 +264,9 @@ impl StageDef for ModelStage {
                 Source::Registered(k) => {
                     let (key, mesh) = (settings.registered.get(*k), self.mesh.as_ref());
                     let (Some(key), Some(mesh)) = (key, mesh) else {
-                        return Err(fail("study.model_dual names a registered approximation with no online stage".into()));
+                        return Err(fail(
+                            "study.model_dual names a registered approximation with no online stage".into(),
+                        ));
                     };
                     // the online comparison's steps (`approximation_online.rs`): the model of the
                     // primal POD without a dual basis, the registered basis built from the

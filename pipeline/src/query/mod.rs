@@ -266,8 +266,7 @@ pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> 
         .map_init(
             || (QueryModel::new(model), RomWork::default()),
             |(q, w), (mu, &extrapolated)| {
-                let Answer { sol, pressure, indicator, r_dual, seconds, indicator_seconds } =
-                    answer(q, &params, mu, w);
+                let Answer { sol, pressure, indicator, r_dual, seconds, indicator_seconds } = answer(q, &params, mu, w);
                 let point = mu.clone();
                 Row { point, extrapolated, r_dual, sol, pressure, indicator, seconds, indicator_seconds, check: None }
             },

@@ -159,10 +159,8 @@ mod tests {
     fn rows(rows: &[Row]) -> Vec<Candidate> {
         rows.iter()
             .map(|&(src, ru, rl, conv, dual, primal)| Candidate {
-                source: src.map_or(
-                    Source::Exact { algorithm: "exact".into(), dual_basis: "full".into() },
-                    Source::Registered,
-                ),
+                source: src
+                    .map_or(Source::Exact { algorithm: "exact".into(), dual_basis: "full".into() }, Source::Registered),
                 r_primal: ru,
                 r_dual: rl,
                 measured: Measured {
@@ -183,15 +181,19 @@ mod tests {
     #[test]
     fn best_prefers_converged_accurate_small_models() {
         let c = rows(&[
-            (None, 8, 8, 9, 1e-8, 1e-8),     // a point failed
-            (None, 8, 4, 10, 2e-3, 1e-3),    // candidate
-            (None, 4, 4, 10, 2e-3, 1e-3),    // same errors, fewer modes: chosen
+            (None, 8, 8, 9, 1e-8, 1e-8),      // a point failed
+            (None, 8, 4, 10, 2e-3, 1e-3),     // candidate
+            (None, 4, 4, 10, 2e-3, 1e-3),     // same errors, fewer modes: chosen
             (None, 2, 2, 10, f64::NAN, 1e-4), // undefined dual error: last
         ]);
         assert_eq!(best(&c), Some(2));
         let c = rows(&[(None, 2, 2, 8, 1e-4, 1e-4), (None, 2, 2, 9, 1e-3, 1e-3)]);
         assert_eq!(best(&c), Some(1), "the most converged when none converged everywhere");
-        let c = rows(&[(None, 32, 128, 10, 2e-2, 1e-3), (Some(0), 128, 5, 10, 1e-2, 1e-3), (Some(0), 128, 10, 10, 9e-3, 1e-3)]);
+        let c = rows(&[
+            (None, 32, 128, 10, 2e-2, 1e-3),
+            (Some(0), 128, 5, 10, 1e-2, 1e-3),
+            (Some(0), 128, 10, 10, 9e-3, 1e-3),
+        ]);
         assert_eq!(best(&c), Some(2), "the registered row with the least dual error");
         let c = rows(&[(None, 32, 128, 10, 2e-2, 1e-3), (Some(0), 128, 10, 9, 1e-3, 1e-3)]);
         assert_eq!(best(&c), Some(0), "a registered row that missed a point is not a candidate");

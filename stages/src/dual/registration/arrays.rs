@@ -84,7 +84,7 @@ impl Registered {
             )));
         }
         let [start, step] = a.grid;
-        if !start.is_finite() || !(step.is_finite() && step > 0.0) {
+        if !(start.is_finite() && step.is_finite() && step > 0.0) {
             return Err(bad(format!("reference grid start {start}, step {step}")));
         }
         let table: Vec<(f64, f64, f64)> =
@@ -92,7 +92,7 @@ impl Registered {
         match a.kind {
             MapKind::Moments { .. } => {
                 if a.table.is_empty()
-                    || a.table.len() % 3 != 0
+                    || !a.table.len().is_multiple_of(3)
                     || a.table.iter().any(|v| !v.is_finite())
                     || table.iter().any(|&(_, _, w)| w <= 0.0)
                     || table.windows(2).any(|p| p[0].0 > p[1].0)
