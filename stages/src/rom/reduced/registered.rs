@@ -162,6 +162,10 @@ mod tests {
         let parts = stored.parts();
         let loaded = ReducedModel::from_parts(&parts).expect("parts make a model");
         assert_eq!(loaded.parts(), parts, "parts differ after a round trip");
+        // every array is listed (a file reader reads the listed names only)
+        assert!(parts.scalars.iter().all(|(n, _)| ModelParts::SCALARS.contains(n)));
+        assert!(parts.floats.iter().all(|(n, _)| ModelParts::FLOATS.contains(n)));
+        assert_eq!(parts.scalars.len(), ModelParts::SCALARS.len());
         let p = RomParams::default();
         let mut query = QueryModel::new(&loaded);
         let (mut wa, mut wb) = (RomWork::default(), RomWork::default());
