@@ -827,6 +827,39 @@ mod tests {
         }
     }
 
+    /// `study.model_dual`: `cpg` everywhere, a registered CPG approximation of the scene's
+    /// `[comparison]`; anything else refused naming the field, with the names the scene allows
+    /// (or, without one, how to add a registered approximation).
+    #[test]
+    fn model_dual_names_a_dual_basis_the_scene_measures() {
+        let parse = |scene: &str, dual: &str| {
+            let text = match scene {
+                "hertz" => include_str!("../../data/scenes/hertz.toml"),
+                _ => include_str!("../../data/scenes/rope.toml"),
+            };
+            let seed = if scene == "hertz" { "seed = 20232" } else { "seed = 20231" };
+            assert!(text.contains(seed), "{scene}.toml changed: update this test");
+            let edited = text.replacen(seed, &format!("{seed}\nmodel_dual = {dual:?}"), 1);
+            SceneConfig::from_toml_str(&edited, Path::new("s.toml"))
+        };
+        for (scene, ok) in [("hertz", "cpg"), ("hertz", "registered-moments-cpg"), ("rope", "cpg")] {
+            assert!(parse(scene, ok).is_ok(), "{scene}: {ok}");
+        }
+        for (scene, bad, fix_says) in [
+            ("hertz", "registered-moments-pod", "registered-moments-cpg"),
+            ("hertz", "nnmf", "registered-moments-cpg"),
+            ("rope", "registered-moments-cpg", "add a registered CPG approximation"),
+        ] {
+            match parse(scene, bad) {
+                Err(SceneError::Invalid { field, fix, .. }) => {
+                    assert_eq!(field, "study.model_dual", "{scene}: {bad}");
+                    assert!(fix.contains(fix_says), "{scene}: {bad}: {fix}");
+                }
+                other => panic!("{scene}: {bad}: {other:?}"),
+            }
+        }
+    }
+
     #[test]
     fn scene_names_cannot_leave_the_store() {
         let rope = include_str!("../../data/scenes/rope.toml");
