@@ -2,9 +2,12 @@
 //!
 //! * Before a run there is no model: exit 2, the fix names `crom run`, and nothing is written.
 //! * After `crom run`, the model queried at the scene's test points with `--check` reproduces
-//!   what the online stage measured for the same model (`tradeoff.parquet`, the row of the
-//!   model's algorithm and ranks): the same number of converged points and, bit for bit, the
-//!   median dual error (the same solve, the same pressure, the same full-order solution and the
+//!   what the study measured for the same model (the rope's: `tradeoff.parquet`, the row of the
+//!   model's algorithm and ranks; hertz's, a registered CPG basis since it is the most accurate:
+//!   `online_comparison.parquet`, the row of its approximation and m — the same number of
+//!   converged points and, bit for bit, the median and 95th-percentile dual error and the
+//!   median number of non-zero dual coefficients); the rope's: the same number of converged
+//!   points and, bit for bit, the median dual error (the same solve, the same pressure, the same full-order solution and the
 //!   same error sum — any changed bit of one point's answer near the median shows) and the
 //!   indicator's Spearman rank correlation with the primal error. The median primal error is
 //!   compared to 1e-9 relative: the online stage evaluates it from precomputed projections, the
@@ -22,7 +25,8 @@ mod common;
 use std::path::Path;
 
 use common::{crom, text};
-use crom_pipeline::io::table::read_parquet;
+use crom_pipeline::io::model::StoredModel;
+use crom_pipeline::io::table::{read_parquet, Table};
 use crom_stages::metrics::order::{quantile, spearman};
 
 /// Every file of the store with its size (a query must change none).
@@ -43,6 +47,11 @@ fn listing(store: &Path) -> Vec<(String, u64)> {
 }
 
 fn check_against_the_online_stage(store: &Path, scene: &str, param: &str, tmp: &Path) {
+    check_against(store, (scene, scene), param, tmp);
+}
+
+/// [`check_against_the_online_stage`] of the scene named `scene` given as `scene_arg` (a file).
+fn check_against(store: &Path, (scene, scene_arg): (&str, &str), param: &str, tmp: &Path) {
     let published = store.join("scenes").join(scene);
     let errors = read_parquet(&published.join("rom_errors.parquet")).expect("errors");
     let (set, alg, basis) = (
@@ -65,13 +74,25 @@ fn check_against_the_online_stage(store: &Path, scene: &str, param: &str, tmp: &
     let before = listing(store);
     let o = crom(
         store,
-        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
+        &[
+            "query",
+            scene_arg,
+            "--points",
+            points.to_str().expect("utf8"),
+            "--check",
+            "--out",
+            out.to_str().expect("utf8"),
+        ],
     );
     assert!(o.status.success(), "{}", text(&o));
     assert_eq!(listing(store), before, "{scene}: the query wrote to the store");
     let q = read_parquet(&out).expect("answers");
     assert_eq!(q.rows(), tests.len());
     assert_eq!(q.f64s(param).expect("param"), tests.as_slice(), "rows in input order");
+    let model = StoredModel::read(&published.join("model.h5")).expect("model.h5");
+    if !["full", "truncated"].contains(&model.dual_basis.as_str()) {
+        return check_registered(&published, &model, &q, scene);
+    }
     let (ru, rl) = (q.u64s("r_primal").expect("ru")[0], q.u64s("r_dual").expect("rl")[0]);
     let trade = read_parquet(&published.join("tradeoff.parquet")).expect("tradeoff");
     let row = (0..trade.rows())
@@ -94,6 +115,36 @@ fn check_against_the_online_stage(store: &Path, scene: &str, param: &str, tmp: &
     assert_eq!(rho.to_bits(), stored("indicator_spearman").to_bits(), "{scene}: spearman {rho}");
     let (pm, pm_stored) = (quantile(&perr, 0.5), stored("median_primal_error"));
     assert!((pm - pm_stored).abs() <= 1e-9 * pm_stored, "{scene}: median primal error {pm:e} vs {pm_stored:e}");
+}
+
+/// The query's answers `q` at the test points against the online comparison's row of the
+/// stored model's registered approximation and `m`, which it must have converged at every test
+/// point to be chosen.
+fn check_registered(published: &Path, model: &StoredModel, q: &Table, scene: &str) {
+    let online = read_parquet(&published.join("comparison/online_comparison.parquet")).expect("online comparison");
+    let m = model.parts.scalar("reg_m");
+    assert!(m > 0 && model.parts.scalar("reg_map") > 0, "{scene}: a registered model without its basis");
+    let row = (0..online.rows())
+        .find(|&i| {
+            online.strs("approximation").expect("a")[i] == model.dual_basis && online.u64s("m").expect("m")[i] == m
+        })
+        .expect("the model's row of the online comparison");
+    let outcome = q.strs("outcome").expect("outcome");
+    assert!(outcome.iter().all(|o| o == "converged"), "{scene}: {outcome:?}");
+    assert_eq!(online.u64s("converged").expect("c")[row], q.rows() as u64, "{scene}: converged everywhere");
+    let stored = |c: &str| online.f64s(c).expect(c)[row];
+    let col = |c: &str| q.f64s(c).expect(c).to_vec();
+    let (perr, derr) = (col("primal_error"), col("dual_error"));
+    for (what, got) in [("median_dual_error", quantile(&derr, 0.5)), ("p95_dual_error", quantile(&derr, 0.95))] {
+        assert_eq!(got.to_bits(), stored(what).to_bits(), "{scene}: {what} {got:e} vs {:e}", stored(what));
+    }
+    let nonzero: Vec<f64> = q.u64s("nonzero_dual").expect("nz").iter().map(|&v| v as f64).collect();
+    assert_eq!(quantile(&nonzero, 0.5).to_bits(), stored("median_nonzero_dual").to_bits(), "{scene}: non-zero dual");
+    let (pm, pm_stored) = (quantile(&perr, 0.5), stored("median_primal_error"));
+    assert!((pm - pm_stored).abs() <= 1e-9 * pm_stored, "{scene}: median primal error {pm:e} vs {pm_stored:e}");
+    let dual = model.measured.median_dual_error;
+    assert_eq!(dual.to_bits(), stored("median_dual_error").to_bits(), "{scene}: the measured_* attributes");
+    assert!(q.u64s("r_dual").expect("rl").iter().all(|&k| k >= 1 && k <= m), "{scene}: generators per point");
 }
 
 #[test]
@@ -193,4 +244,47 @@ fn a_model_at_the_full_ranks_answers_every_test_point_as_the_online_stage() {
             assert_eq!(a.to_bits(), b.to_bits(), "{c} at point {j}: {a:e} vs {b:e}");
         }
     }
+}
+
+/// `study.model_dual`: `cpg` keeps the study's CPG basis on hertz (where the registered basis
+/// would win), a registered approximation with `study.model_ranks = [12, 3]` stores it with 3
+/// generators per point, each answering the test points as measured; a name that is not a
+/// registered CPG approximation of the scene is refused before anything runs (exit 2, the
+/// field, the names it could be, nothing written).
+#[test]
+fn a_scene_chooses_the_dual_approximation_of_its_model() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let seed = "seed = 20232";
+    let bad = common::variant(
+        tmp.path(),
+        "hertz",
+        "hertz-bad.toml",
+        &[(seed, "seed = 20232\nmodel_dual = \"registered-translate-nodes-cpg\"")],
+    );
+    let o = crom(&store, &["run", bad.to_str().expect("utf8")]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    let t = text(&o);
+    assert!(t.contains("study.model_dual") && t.contains("registered-moments-cpg") && t.contains("fix:"), "{t}");
+    assert!(!store.exists(), "a refused scene created the store");
+    let cpg = common::variant(tmp.path(), "hertz", "hertz-cpg.toml", &[(seed, "seed = 20232\nmodel_dual = \"cpg\"")]);
+    let cpg = cpg.to_str().expect("utf8");
+    let o = crom(&store, &["--quiet", "run", cpg]);
+    assert!(o.status.success(), "{}", text(&o));
+    let model = StoredModel::read(&store.join("scenes/hertz/model.h5")).expect("model");
+    assert!(["full", "truncated"].contains(&model.dual_basis.as_str()), "{}", model.dual_basis);
+    assert_eq!(model.parts.scalar("reg_map"), 0);
+    check_against(&store, ("hertz", cpg), "d", tmp.path());
+    let pinned = common::variant(
+        tmp.path(),
+        "hertz",
+        "hertz-reg3.toml",
+        &[(seed, "seed = 20232\nmodel_dual = \"registered-moments-cpg\"\nmodel_ranks = [12, 3]")],
+    );
+    let pinned = pinned.to_str().expect("utf8");
+    let o = crom(&store, &["--quiet", "run", pinned]);
+    assert!(o.status.success(), "{}", text(&o));
+    let model = StoredModel::read(&store.join("scenes/hertz/model.h5")).expect("model");
+    assert_eq!((model.dual_basis.as_str(), model.parts.scalar("reg_m")), ("registered-moments-cpg", 3));
+    check_against(&store, ("hertz", pinned), "d", tmp.path());
 }

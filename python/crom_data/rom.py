@@ -79,7 +79,9 @@ class Result:
 
     @property
     def dual_coefficients(self) -> np.ndarray:
-        """Dual coefficients λ̂ (r_dual): pressure = Θ λ̂."""
+        """Dual coefficients λ̂ (r_dual): pressure = Θ λ̂. With a registered dual basis
+        (`info["dual_basis"]` names it) Θ = Θ(μ) is rebuilt at each point and λ̂ has one
+        coefficient per generator used there (at most r_dual; `solve_many` pads with zeros)."""
         return np.frombuffer(self._t[2])
 
     @property
@@ -203,7 +205,8 @@ class ReducedModel:
 
     def __repr__(self) -> str:
         dom = ", ".join(f"{n} in [{a}, {b}]" for n, (a, b) in self.domain.items())
-        return f"ReducedModel({self.scene.name!r}, ranks={self.ranks}, {dom}, algorithm={self.info['algorithm']!r})"
+        return (f"ReducedModel({self.scene.name!r}, ranks={self.ranks}, {dom}, algorithm={self.info['algorithm']!r}, "
+                f"dual_basis={self.info['dual_basis']!r})")
 
     @functools.cached_property
     def weights(self) -> np.ndarray:

@@ -301,7 +301,17 @@ pub struct StudySpec {
     /// exact solve that converged at every test point.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_ranks: Option<[usize; 2]>,
+    /// The dual approximation of the stored reduced model (optional): [`MODEL_DUAL_CPG`], the
+    /// study's CPG basis (the rows of the online trade-off), or the name of a registered CPG
+    /// approximation of `[comparison]` (e.g. `registered-translate-nodes-cpg`), whose basis
+    /// the model rebuilds at each query point. Default: whichever of those the study measured
+    /// as most accurate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_dual: Option<String>,
 }
+
+/// `study.model_dual` for the study's CPG basis (the online trade-off's rows).
+pub const MODEL_DUAL_CPG: &str = "cpg";
 
 /// `study.contact_sampling`: the quadrature's fit tolerance and the rank pairs it is measured
 /// at.

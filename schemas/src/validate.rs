@@ -4,10 +4,11 @@
 
 use std::path::Path;
 
-use crate::comparison::{ApproximationSpec, ComparisonSpec, InterpolationSpec, MapSpec};
+use crate::comparison::{ApproximationSpec, BasisSpec, ComparisonSpec, InterpolationSpec, MapSpec};
 use crate::external::{ArraySource, ExternalSpec, ParameterSource};
 use crate::scene::{
     ContactSamplingSpec, HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec, SceneConfig, SolverSpec, StudySpec,
+    MODEL_DUAL_CPG,
 };
 use crate::SceneError;
 
@@ -175,6 +176,9 @@ impl SceneConfig {
                 c.between(&format!("study.model_ranks ({what})"), *v, 1, MAX_COUNT)?;
             }
         }
+        if let Some(dual) = &self.study.model_dual {
+            check_model_dual(&c, dual, self.comparison.as_ref())?;
+        }
         match &self.model {
             Model::Rope(r) => check_rope(&c, r),
             Model::Hertz(h) => check_hertz(&c, h),
@@ -291,6 +295,13 @@ impl SceneConfig {
                 "study.contact_sampling",
                 "is set, but the contact quadrature needs the full-order contact operator, which an external scene does not have".into(),
                 "remove study.contact_sampling",
+            ));
+        }
+        if self.study.model_dual.is_some() {
+            return Err(c.fail(
+                "study.model_dual",
+                "is set, but an external scene has no reduced model (it needs the full-order operators)".into(),
+                "remove study.model_dual",
             ));
         }
         check_study(c, &self.study)?;
@@ -631,6 +642,36 @@ fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
     }
 }
 
+/// `study.model_dual`: `cpg` or the name of a registered CPG approximation of `[comparison]`.
+fn check_model_dual(c: &Checker<'_>, dual: &str, cmp: Option<&ComparisonSpec>) -> Result<(), SceneError> {
+    let registered: Vec<String> = cmp
+        .map(|cmp| {
+            cmp.approximations
+                .iter()
+                .filter(|a| matches!(a, ApproximationSpec::Registered { basis: BasisSpec::Cpg, .. }))
+                .map(ApproximationSpec::name)
+                .collect()
+        })
+        .unwrap_or_default();
+    if dual == MODEL_DUAL_CPG || registered.iter().any(|n| n == dual) {
+        return Ok(());
+    }
+    let fix = if registered.is_empty() {
+        format!(
+            "use \"{MODEL_DUAL_CPG}\" (the study's CPG basis), or add a registered CPG approximation to \
+             [comparison] (e.g. {{ kind = \"registered\", map = \"translate\", interpolation = \"nodes\", \
+             basis = \"cpg\" }}) and name it here (registered-translate-nodes-cpg); or remove study.model_dual"
+        )
+    } else {
+        format!(
+            "use \"{MODEL_DUAL_CPG}\" (the study's CPG basis) or one of this scene's registered CPG approximations: {}; \
+             or remove study.model_dual (the most accurate is stored)",
+            registered.join(", ")
+        )
+    };
+    Err(c.fail("study.model_dual", format!("is \"{dual}\": not a dual approximation a stored model can carry"), &fix))
+}
+
 fn check_comparison(
     c: &Checker<'_>,
     cmp: &ComparisonSpec,
@@ -783,6 +824,39 @@ mod tests {
         match SceneConfig::from_toml_str(&text, Path::new("i2.toml")) {
             Err(SceneError::Invalid { field, .. }) => assert_eq!(field, "parameter.axes[0].max"),
             other => panic!("d_y axis to 0.07: {other:?}"),
+        }
+    }
+
+    /// `study.model_dual`: `cpg` everywhere, a registered CPG approximation of the scene's
+    /// `[comparison]`; anything else refused naming the field, with the names the scene allows
+    /// (or, without one, how to add a registered approximation).
+    #[test]
+    fn model_dual_names_a_dual_basis_the_scene_measures() {
+        let parse = |scene: &str, dual: &str| {
+            let text = match scene {
+                "hertz" => include_str!("../../data/scenes/hertz.toml"),
+                _ => include_str!("../../data/scenes/rope.toml"),
+            };
+            let seed = if scene == "hertz" { "seed = 20232" } else { "seed = 20231" };
+            assert!(text.contains(seed), "{scene}.toml changed: update this test");
+            let edited = text.replacen(seed, &format!("{seed}\nmodel_dual = {dual:?}"), 1);
+            SceneConfig::from_toml_str(&edited, Path::new("s.toml"))
+        };
+        for (scene, ok) in [("hertz", "cpg"), ("hertz", "registered-moments-cpg"), ("rope", "cpg")] {
+            assert!(parse(scene, ok).is_ok(), "{scene}: {ok}");
+        }
+        for (scene, bad, fix_says) in [
+            ("hertz", "registered-moments-pod", "registered-moments-cpg"),
+            ("hertz", "nnmf", "registered-moments-cpg"),
+            ("rope", "registered-moments-cpg", "add a registered CPG approximation"),
+        ] {
+            match parse(scene, bad) {
+                Err(SceneError::Invalid { field, fix, .. }) => {
+                    assert_eq!(field, "study.model_dual", "{scene}: {bad}");
+                    assert!(fix.contains(fix_says), "{scene}: {bad}: {fix}");
+                }
+                other => panic!("{scene}: {bad}: {other:?}"),
+            }
         }
     }
 

@@ -2,7 +2,10 @@
 docs/user-guide.md ("The model artifact") describes it, and `crom query` driven from Python.
 
 Checked independently of crom's reader: the dual basis rebuilt from its compressed rows is the
-stored CPG basis's leading columns, exactly (a copy of the same doubles); `u_of_y` is the inverse
+stored CPG basis's leading columns, exactly (a copy of the same doubles); a registered dual basis
+(hertz's model) pushed forward to a point in NumPy from its `reg_*` arrays, as the store format
+describes, gives the pressure the model answers there from its coefficients (to 1e-12: the same
+products summed in another order); `u_of_y` is the inverse
 transpose of the Cholesky factor `khat_l` to 1e-10 (a triangular inverse of a well-conditioned
 factor, rounding only); every array has the length the layout gives; the training domain is the
 scene file's.
@@ -20,7 +23,7 @@ from conftest import REPO, crom_bin, only_artifact
 def _check_layout(store, scene):
     model = h5py.File(only_artifact(store, "model", "model.h5"), "r")
     a = model.attrs
-    assert a["schema_version"] == 1 and a["scene"] == scene and a["kind"] == "model"
+    assert a["schema_version"] == 2 and a["scene"] == scene and a["kind"] == "model"
     ru, rl, nc, terms = (int(a[k]) for k in ("r_primal", "r_dual", "n_contact", "lift_terms"))
     # the dual basis, rebuilt from its compressed rows
     start, col, val = model["theta_start"][:], model["theta_column"][:], model["theta_value"][:]
@@ -28,9 +31,13 @@ def _check_layout(store, scene):
     theta = np.zeros((nc, rl))
     for i in range(nc):
         theta[i, col[start[i]:start[i + 1]]] = val[start[i]:start[i + 1]]
-    basis = h5py.File(only_artifact(store, "basis", "basis.h5"), "r")
-    cpg = basis["dual_cpg/modes"][:, :rl]
-    assert np.array_equal(theta, cpg), "Theta is the stored CPG basis's leading columns"
+    if int(a.get("reg_map", 0)) > 0:
+        assert rl == 0 and len(val) == 0 and len(model["warm_points"]) == 0, "a registered basis has no fixed one"
+        _check_registered(store, scene, model)
+    else:
+        basis = h5py.File(only_artifact(store, "basis", "basis.h5"), "r")
+        cpg = basis["dual_cpg/modes"][:, :rl]
+        assert np.array_equal(theta, cpg), "Theta is the stored CPG basis's leading columns"
     # the reduced stiffness' factor and its inverse transpose (column-major r x r)
     lower = model["khat_l"][:].reshape(ru, ru).T
     u_of_y = model["u_of_y"][:].reshape(ru, ru).T
@@ -53,6 +60,57 @@ def _check_layout(store, scene):
     assert rec["phi"].shape[1] == ru and rec["lift"].shape == (rec["phi"].shape[0], terms)
     speed = pd.read_parquet(only_artifact(store, "model", "model_speed.parquet"))
     assert list(speed.columns) == ["median_online_seconds", "median_fom_seconds", "speedup"] and len(speed) == 1
+
+
+def _push(model, mu):
+    """The registered generators pushed forward to the parameter `mu` (one component), from the
+    `reg_*` arrays as docs/store-format.md describes them: n_contact x (the first reg_m that are
+    not zero there)."""
+    a = model.attrs
+    kind, length, k, m = (int(a[n]) for n in ("reg_map", "reg_len", "reg_generators", "reg_m"))
+    x, (start, step) = model["reg_surface"][:], model["reg_grid"][:]
+    modes = model["reg_modes"][:].reshape(k, length).T
+    out = np.zeros((len(x), k))
+    if kind == 1:  # whole-node shifts: sorted node j takes reference value j - round(mu / h) + start
+        order = np.argsort(x, kind="stable")
+        t = np.sign(mu / step) * np.floor(abs(mu / step) + 0.5)
+        q = np.arange(len(x)) - t + start
+        inside = (q >= 0) & (q < length)
+        out[order[inside]] = modes[q[inside].astype(int)]
+    else:
+        if kind == 2:
+            c, w = mu, 1.0
+        else:  # moments: (c, a) interpolated in mu between the table's rows, clamped at its ends
+            tab = model["reg_table"][:].reshape(-1, 3)
+            c, w = np.interp(mu, tab[:, 0], tab[:, 1]), np.interp(mu, tab[:, 0], tab[:, 2])
+        u = ((x - c) / w - start) / step
+        inside = (u >= 0) & (u <= length - 1)
+        k0 = np.minimum(np.floor(u[inside]).astype(int), length - 2)
+        th = (u[inside] - k0)[:, None]
+        out[inside] = (1 - th) * modes[k0] + th * modes[k0 + 1]
+    keep = [j for j in range(k) if np.any(out[:, j] != 0)][:m]
+    return out[:, keep]
+
+
+def _check_registered(store, scene, model):
+    """A registered dual basis: its arrays' lengths, and Θ(μ) rebuilt in NumPy against the
+    model's answers (pressure = Θ(μ) λ̂) at points across the domain."""
+    import crom_data
+
+    a = model.attrs
+    length, k, m, nc = (int(a[n]) for n in ("reg_len", "reg_generators", "reg_m", "n_contact"))
+    assert 1 <= m <= k and len(model["reg_modes"]) == length * k and len(model["reg_surface"]) == nc
+    assert len(model["reg_grid"]) == 2 and len(model["reg_table"]) % 3 == 0
+    assert int(a["reg_map"]) != 3 or len(model["reg_table"]) > 0
+    rom = crom_data.open_store(store).scene(scene).rom()
+    (name, (lo, hi)), = rom.domain.items()
+    for mu in np.linspace(lo, hi, 7):
+        r = rom.solve(**{name: float(mu)})
+        theta = _push(model, float(mu))
+        assert theta.shape[1] == len(r.dual_coefficients) <= m
+        p = theta @ r.dual_coefficients
+        assert np.allclose(p, r.pressure, rtol=0, atol=1e-12 * max(np.abs(r.pressure).max(), 1e-300)), mu
+        assert r.pressure.max() > 0, f"no contact at {mu}"
 
 
 def test_model_layout_reads_with_h5py(rope_store, hertz_store):

@@ -28,7 +28,7 @@ use crom_schemas::SceneConfig;
 use crom_stages::dual::dictionary::{WorkingSet, WorkingSetScratch, WS_START};
 use crom_stages::dual::{self, Approach, DualApprox, Training};
 use crom_stages::metrics::order::quantile;
-use crom_stages::rom::{Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork};
+use crom_stages::rom::{cone_basis_columns, Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork};
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
@@ -211,7 +211,6 @@ fn run(
         *shared = Some(OnlineBase { of, r_primal: phi.cols, model, errors, fom_median });
     }
     let Some(b) = shared.as_ref() else { return Err(fail("the shared reduced model was not built".into())) };
-    let nc = test_set.dual.rows;
     let params = settings.rom_params();
     let mut progress = ctx.progress.stage(&label, 1);
     let errors = |j: usize, rm: &ReducedModel, sol: &crom_stages::rom::ReducedSolution| {
@@ -233,7 +232,7 @@ fn run(
             }
             let basis = h5.matrix(&format!("m{m}"))?;
             let source = Source::Fixed(basis.data.as_slice().into(), basis.cols);
-            let queries = solve_all(&source, &b.model, nc, &test_set.parameters, &params, errors);
+            let queries = solve_all(&source, &b.model, &test_set.parameters, &params, errors);
             rows.push(&name, m, b.r_primal, &queries, b.fom_median);
         }
     } else {
@@ -246,10 +245,10 @@ fn run(
             let source = if model.depends_on_mu() {
                 Source::PerQuery(model.as_ref(), m)
             } else {
-                let (theta, k) = basis_at(model.as_ref(), &test_set.parameters[0], m);
+                let (theta, k) = cone_basis_columns(model.as_ref(), &test_set.parameters[0], m);
                 Source::Fixed(theta.into(), k)
             };
-            let queries = solve_all(&source, &b.model, nc, &test_set.parameters, &params, errors);
+            let queries = solve_all(&source, &b.model, &test_set.parameters, &params, errors);
             rows.push(&name, m, b.r_primal, &queries, b.fom_median);
         }
     }
@@ -293,13 +292,6 @@ fn solve_dictionary(
         .collect()
 }
 
-/// The dual basis of `model` at `mu` with at most `m` columns, column-major.
-fn basis_at(model: &dyn DualApprox, mu: &[f64], m: usize) -> (Vec<f64>, usize) {
-    let b = model.cone_basis(mu, m).unwrap_or_else(|| faer::Mat::zeros(0, 0));
-    let k = b.ncols();
-    ((0..k).flat_map(|j| b.col(j).iter().copied().collect::<Vec<_>>()).collect(), k)
-}
-
 /// Where a query's dual basis comes from.
 enum Source<'a> {
     /// Fixed, column-major with this many columns (read from `bases.h5`, or built here).
@@ -313,7 +305,6 @@ enum Source<'a> {
 fn solve_all(
     source: &Source<'_>,
     base: &ReducedModel,
-    nc: usize,
     points: &[Vec<f64>],
     params: &RomParams,
     errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64) + Sync,
@@ -334,9 +325,8 @@ fn solve_all(
                 let mu = &points[j];
                 let (info, best) = fastest(|| {
                     if let Source::PerQuery(model, m) = source {
-                        let (theta, k) = basis_at(*model, mu, *m);
-                        debug_assert_eq!(theta.len(), nc * k);
-                        rm.set_dual(&theta, k);
+                        // the step a stored model with a registered basis takes (`dual_at`)
+                        rm.set_dual_of(*model, mu, *m);
                     }
                     rm.solve_in(mu, params, w)
                 });

@@ -1,50 +1,67 @@
 //! The model stage: the reduced model a user runs (`crom query`), stored as an artifact.
 //!
-//! **Which model.** The one the online stage measured as most accurate among those that
-//! converged at every test point: of the rows of its `tradeoff.parquet` with algorithm `exact`
-//! (or `exact-sampled`, a sampled contact surface, when the scene asks for it), the fewest
-//! test points not converged (none, wherever some row converged everywhere), then the least
-//! median dual (pressure) error, then the least median primal error, then the fewest modes
-//! `r_primal + r_dual`, then the table's order (a defined error beats an undefined one). A
-//! table without such rows (no dual mode at all: a scene without contact) keeps the model of
-//! the full bases, with nothing measured (`measured_points = 0`). A scene may ask for other
-//! ranks (`study.model_ranks`, clipped to the bases): the exact solve at those ranks, with the
-//! row the online stage measured there, or nothing measured where it did not sweep them. The choice reads results only, never timings, so the artifact is
+//! **Which model** ([`choice`]). The one the study measured as most accurate among those that
+//! converged at every test point: the rows of the online stage's `tradeoff.parquet` with
+//! algorithm `exact` (or `exact-sampled`, a sampled contact surface, when the scene asks for
+//! it) — the study's CPG basis at a rank pair — and the rows of the online comparison of each
+//! registered CPG approximation of the scene's `[comparison]` (full primal rank, `m`
+//! generators pushed forward to each query's frame); the least median dual (pressure) error,
+//! then the least median primal error, then the fewest modes. A scene may restrict the
+//! candidates to one dual approximation (`study.model_dual`: `cpg` or a registered
+//! approximation's name) and ask for ranks (`study.model_ranks`, clipped to the bases; for a
+//! registered basis `[r_primal, m]`): the model at those ranks, with the row the study measured
+//! there, or nothing measured where it did not. A table without candidates (no dual mode at
+//! all: a scene without contact) keeps the model of the full bases, with nothing measured
+//! (`measured_points = 0`). The choice reads results only, never timings, so the artifact is
 //! byte-identical run to run. Its measured accuracy is stored beside it (`model.h5`'s
 //! `measured_*` attributes) and its measured speed in `model_speed.parquet` (a timing file).
 //!
-//! **The same model.** It is built by the online stage's own steps for that row: the reduced
-//! model of the full bases (`ReducedModel::new` on the POD of the training responses and the
-//! full CPG basis), its leading block at the row's ranks, for `exact-sampled` the reduced
-//! quadrature fitted to the same training subsample, and the warm starts at the training points.
-//! So a query of the stored model at a test point gives the answer the online stage measured
-//! there, bit for bit (tested end to end).
+//! **The same model.** It is built by the measuring stage's own steps for that row. The CPG
+//! basis: the reduced model of the full bases (`ReducedModel::new` on the POD of the training
+//! responses and the full CPG basis), its leading block at the row's ranks, for `exact-sampled`
+//! the reduced quadrature fitted to the same training subsample, and the warm starts at the
+//! training points (`rom.rs`). A registered basis: the reduced model of the primal POD with no
+//! dual basis, and the registered CPG basis built from the training pressures and the contact
+//! surface as the online comparison builds it (`approximation_online.rs`), which the model
+//! pushes forward to each query point (`ReducedModel::with_registered_dual`); no warm starts,
+//! as there. So a query of the stored model at a test point gives the answer the study
+//! measured there, bit for bit (tested end to end).
 //!
 //! **Files.** `model.h5` (everything the online solve reads, [`crate::io::model::StoredModel`];
 //! its size does not depend on `n_dof`), `reconstruction.h5` (the primal basis and the lift's
 //! terms, to turn coefficients into fields; optional for a reader), `model_speed.parquet`.
 
+mod choice;
+
 use std::collections::BTreeMap;
 
-use crom_schemas::artifact::{basis as bnames, model as names, rom as rom_names, ArtifactKind};
-use crom_schemas::scene::ContactSamplingSpec;
+use crom_schemas::artifact::{basis as bnames, comparison as cnames, model as names, rom as rom_names, ArtifactKind};
+use crom_schemas::comparison::ApproximationSpec;
+use crom_schemas::scene::{ContactSamplingSpec, MODEL_DUAL_CPG};
 use crom_schemas::SceneConfig;
+use crom_stages::dual::registration::Registered;
+use crom_stages::dual::{self, Approach, DualApprox, Inner, Training};
 use crom_stages::rom::{Algorithm, ReducedModel, RomParams};
 use serde::Serialize;
 use serde_json::json;
 
+use super::comparison::{contact_x, item_of};
+use super::convert::view;
 use super::graph::{Input, StageDef};
 use super::rom::{response_basis, subsample, SAMPLING_FIT_POINTS};
 use super::{Ctx, Labels, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In};
-use crate::io::model::{Measured, Reconstruction, StoredModel};
+use crate::io::model::{Reconstruction, StoredModel};
 use crate::io::table::{read_parquet, Column, Table};
+use choice::{Candidate, Source};
 
 /// What determines the model artifact besides its inputs (training set, bases, the online
-/// stage's measurements): the solver settings it stores, the sampled surface's settings, the
-/// ranks a scene asks for, and the parameter's training domain, which the file records. The
+/// stage's measurements, the registered approximations' online measurements and the mesh they
+/// read the contact surface from): the solver settings it stores, the sampled surface's
+/// settings, the ranks and the dual approximation a scene asks for, the registered
+/// approximations' settings, and the parameter's training domain, which the file records. The
 /// scene's and the parameter's names label the file and are not in the key ([`Labels`]).
 #[derive(Debug, Clone, Serialize)]
 pub(crate) struct ModelKey {
@@ -56,19 +73,35 @@ pub(crate) struct ModelKey {
     /// `study.model_ranks` (absent from the key when not asked for).
     #[serde(skip_serializing_if = "Option::is_none")]
     model_ranks: Option<[usize; 2]>,
+    /// `study.model_dual` (absent from the key when not asked for).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    model_dual: Option<String>,
+    /// The registered CPG approximations that are candidates, in `[comparison]` order.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    registered: Vec<RegisteredKey>,
     parameter_min: Vec<f64>,
     parameter_max: Vec<f64>,
 }
 
+/// A registered CPG approximation the model may carry: what its basis is built from besides
+/// the training set and the contact surface (its settings, and the comparison's `max_m`, which
+/// sets how many generators it builds).
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct RegisteredKey {
+    approximation: ApproximationSpec,
+    max_m: usize,
+}
+
 impl StageKey for ModelKey {
     const KIND: ArtifactKind = ArtifactKind::Model;
-    /// Bump when the stored model or the choice of it changes.
-    const ALGORITHM_VERSION: u32 = 1;
+    /// Bump when the stored model or the choice of it changes (2: registered dual bases).
+    const ALGORITHM_VERSION: u32 = 2;
 }
 
 impl ModelKey {
-    /// The scene's settings of the stored model.
-    fn of(scene: &SceneConfig) -> Self {
+    /// The scene's settings of the stored model; `registered`: its registered CPG
+    /// approximations that have an online stage.
+    fn of(scene: &SceneConfig, registered: Vec<RegisteredKey>) -> Self {
         let params = RomParams::default();
         let (_, parameter_min, parameter_max) = domain(scene);
         Self {
@@ -77,6 +110,8 @@ impl ModelKey {
             u_tol: params.u_tol,
             contact_sampling: scene.study.contact_sampling.clone(),
             model_ranks: scene.study.model_ranks,
+            model_dual: scene.study.model_dual.clone(),
+            registered,
             parameter_min,
             parameter_max,
         }
@@ -96,6 +131,11 @@ pub(crate) fn domain(scene: &SceneConfig) -> (Vec<&str>, Vec<f64>, Vec<f64>) {
     (p.names(), lo, hi)
 }
 
+/// Whether `spec` is a registered CPG approximation (a dual basis a model can carry).
+pub(crate) fn is_registered_cpg(spec: &ApproximationSpec) -> bool {
+    matches!(item_of(spec).approach, Approach::Registered { inner: Inner::Cpg, .. })
+}
+
 /// The reduced model a user runs.
 #[derive(Debug)]
 pub(crate) struct ModelStage {
@@ -105,13 +145,42 @@ pub(crate) struct ModelStage {
     train: Input,
     basis: Input,
     rom: Input,
+    /// The mesh (the contact surface of a registered basis); only with registered candidates.
+    mesh: Option<Input>,
+    /// The online comparison stage of each registered candidate (same order as the key's).
+    online: Vec<Input>,
 }
 
 impl ModelStage {
-    pub(crate) fn plan(scene: &SceneConfig, train: Input, basis: Input, rom: Input, labels: &Labels) -> Self {
-        let settings = ModelKey::of(scene);
-        let spec = KeySpec::of(&settings).input("train", &train.key).input("basis", &basis.key).input("rom", &rom.key);
-        Self { spec, settings, labels: labels.clone(), train, basis, rom }
+    /// `online`: the scene's online comparison stages, with their approximations' settings;
+    /// the registered CPG ones become candidates unless `study.model_dual` names another.
+    pub(crate) fn plan(
+        scene: &SceneConfig,
+        (train, basis, rom, mesh): (Input, Input, Input, Input),
+        online: &[(ApproximationSpec, Input)],
+        labels: &Labels,
+    ) -> Self {
+        let max_m = scene.comparison.as_ref().map_or(0, |c| c.max_m);
+        let wanted = |spec: &ApproximationSpec| match scene.study.model_dual.as_deref() {
+            None => true,
+            Some(name) => name == spec.name(),
+        };
+        let (registered, online): (Vec<RegisteredKey>, Vec<Input>) = online
+            .iter()
+            .filter(|(spec, _)| is_registered_cpg(spec) && wanted(spec))
+            .map(|(spec, input)| (RegisteredKey { approximation: spec.clone(), max_m }, input.clone()))
+            .unzip();
+        let settings = ModelKey::of(scene, registered);
+        let mut spec =
+            KeySpec::of(&settings).input("train", &train.key).input("basis", &basis.key).input("rom", &rom.key);
+        let mesh = (!online.is_empty()).then_some(mesh);
+        if let Some(mesh) = &mesh {
+            spec = spec.input("mesh", &mesh.key);
+        }
+        for (k, input) in settings.registered.iter().zip(&online) {
+            spec = spec.input(&format!("online-{}", k.approximation.name()), &input.key);
+        }
+        Self { spec, settings, labels: labels.clone(), train, basis, rom, mesh, online }
     }
 }
 
@@ -123,7 +192,10 @@ impl StageDef for ModelStage {
         self.spec.key()
     }
     fn inputs(&self) -> Vec<&Input> {
-        vec![&self.train, &self.basis, &self.rom]
+        let mut v = vec![&self.train, &self.basis, &self.rom];
+        v.extend(&self.mesh);
+        v.extend(&self.online);
+        v
     }
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
         let (train, basis, rom) = (&self.train.key, &self.basis.key, &self.rom.key);
@@ -133,42 +205,96 @@ impl StageDef for ModelStage {
         let physics = &mut shared.physics;
         ctx.single(ArtifactKind::Model, "model", &self.spec, |staging| {
             let fail = |m: String| CromError::Numerical { stage: "model", scene: labels.scene.clone(), message: m };
-            let rom_dir = store.dir(ArtifactKind::Rom, rom);
-            let trade = read_parquet(&rom_dir.join(rom_names::TRADEOFF))?;
-            let times = read_parquet(&rom_dir.join(rom_names::TRADEOFF_TIMINGS))?;
+            // the candidates: the trade-off's rows, then each registered approximation's
+            let mut candidates = Vec::new();
+            if settings.model_dual.as_deref().is_none_or(|d| d == MODEL_DUAL_CPG) {
+                let rom_dir = store.dir(ArtifactKind::Rom, rom);
+                let trade = read_parquet(&rom_dir.join(rom_names::TRADEOFF))?;
+                let times = read_parquet(&rom_dir.join(rom_names::TRADEOFF_TIMINGS))?;
+                candidates.extend(choice::exact_rows(&trade, &times));
+            }
+            for (k, input) in self.online.iter().enumerate() {
+                let dir = store.dir(ArtifactKind::OnlineApproximation, &input.key);
+                let online = read_parquet(&dir.join(cnames::ONLINE))?;
+                let times = read_parquet(&dir.join(cnames::ONLINE_TIMINGS))?;
+                candidates.extend(choice::registered_rows(&online, &times, k));
+            }
             let phys = physics.get()?;
             let op = phys.operator();
             let train_set = loaded.set(store, train)?;
-            let bfile = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
-            let theta = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
-            drop(bfile);
             let phi = response_basis(op, &train_set).map_err(fail)?;
+            // a registered basis when the scene names one, the CPG basis otherwise
+            let pinned_registered = settings.model_dual.as_deref().filter(|d| *d != MODEL_DUAL_CPG).map(|_| 0);
             let row = match settings.model_ranks {
-                Some([ru, rl]) => at_ranks(&trade, ru.min(phi.cols) as u64, rl.min(theta.cols) as u64),
-                None => choose(&trade),
+                Some([ru, rl]) => choice::at_ranks(&candidates, pinned_registered, ru.min(phi.cols), rl),
+                None => choice::best(&candidates),
             };
-            let mut pick = row.map_or_else(Pick::full_bases, |row| Pick::of(&trade, row));
+            let mut pick = row.map_or_else(
+                || match pinned_registered {
+                    Some(k) => Candidate { source: Source::Registered(k), ..Candidate::full_bases() },
+                    None => Candidate::full_bases(),
+                },
+                |row| candidates[row].clone(),
+            );
             if let (Some([ru, rl]), None) = (settings.model_ranks, row) {
                 (pick.r_primal, pick.r_dual) = (ru, rl);
             }
             let params = settings.params();
-            // the online stage's steps for this row (`rom.rs`)
-            let full =
-                ReducedModel::new(op, &phi.data, phi.cols, &theta.data, theta.cols).map_err(|e| fail(e.to_string()))?;
-            let mut model = full.leading(pick.r_primal.min(phi.cols), pick.r_dual.min(theta.cols));
-            if pick.algorithm == rom_names::SAMPLED {
-                let cs = settings.contact_sampling.as_ref().ok_or_else(|| {
-                    fail("the trade-off has sampled rows but the scene has no study.contact_sampling".into())
-                })?;
-                let fit_points = subsample(&train_set.parameters, SAMPLING_FIT_POINTS);
-                model = model.with_sampled_surface(&fit_points, &params, cs.tol).map_err(|e| fail(e.to_string()))?.0;
-            }
-            let model = model.with_warm_starts(&train_set.parameters, &params);
+            let (model, algorithm, dual_basis) = match &pick.source {
+                Source::Exact { algorithm, dual_basis } => {
+                    let bfile = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
+                    let theta = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
+                    drop(bfile);
+                    // the online stage's steps for this row (`rom.rs`)
+                    let full = ReducedModel::new(op, &phi.data, phi.cols, &theta.data, theta.cols)
+                        .map_err(|e| fail(e.to_string()))?;
+                    let mut model = full.leading(pick.r_primal.min(phi.cols), pick.r_dual.min(theta.cols));
+                    if algorithm == rom_names::SAMPLED {
+                        let cs = settings.contact_sampling.as_ref().ok_or_else(|| {
+                            fail("the trade-off has sampled rows but the scene has no study.contact_sampling".into())
+                        })?;
+                        let fit_points = subsample(&train_set.parameters, SAMPLING_FIT_POINTS);
+                        model = model
+                            .with_sampled_surface(&fit_points, &params, cs.tol)
+                            .map_err(|e| fail(e.to_string()))?
+                            .0;
+                    }
+                    (model.with_warm_starts(&train_set.parameters, &params), algorithm.clone(), dual_basis.clone())
+                }
+                Source::Registered(k) => {
+                    let (key, mesh) = (settings.registered.get(*k), self.mesh.as_ref());
+                    let (Some(key), Some(mesh)) = (key, mesh) else {
+                        return Err(fail(
+                            "study.model_dual names a registered approximation with no online stage".into(),
+                        ));
+                    };
+                    // the online comparison's steps (`approximation_online.rs`): the model of the
+                    // primal POD without a dual basis, the registered basis built from the
+                    // training pressures at the comparison's m grid
+                    let Approach::Registered { map, inner: Inner::Cpg } = item_of(&key.approximation).approach else {
+                        return Err(fail(format!("{} is not a registered CPG basis", key.approximation.name())));
+                    };
+                    let surface = contact_x(store, &mesh.key)?;
+                    let ms = dual::m_grid(key.max_m.min(train_set.parameters.len()));
+                    let training = Training {
+                        snapshots: view(&train_set.dual),
+                        params: &train_set.parameters,
+                        surface: &surface,
+                        ms: &ms,
+                    };
+                    let reg = Registered::build(&training, map, Inner::Cpg).map_err(|e| fail(e.to_string()))?;
+                    let m = pick.r_dual.min(reg.size());
+                    let base = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
+                    let base = if pick.r_primal < phi.cols { base.leading(pick.r_primal, 0) } else { base };
+                    let model = base.with_registered_dual(reg, m).map_err(|e| fail(e.to_string()))?;
+                    (model, Algorithm::Exact.name().to_string(), key.approximation.name())
+                }
+            };
             let stored = StoredModel {
                 parts: model.parts(),
                 scene: labels.scene.clone(),
-                algorithm: pick.algorithm.clone(),
-                dual_basis: pick.dual_basis.clone(),
+                algorithm,
+                dual_basis: dual_basis.clone(),
                 max_iter: params.max_iter as u64,
                 gap_tol: params.gap_tol,
                 u_tol: params.u_tol,
@@ -179,137 +305,24 @@ impl StageDef for ModelStage {
             };
             let key = staging.key().0.clone();
             stored.write(&staging.path(names::FILE), &key)?;
-            let r = model.ranks().0;
+            let (r, r_dual) = model.stored_ranks();
             let phi_r = ColMatrix { rows: phi.rows, cols: r, data: phi.data[..phi.rows * r].to_vec() };
             let terms = op.lift_terms();
             let lift = ColMatrix::from_columns(phi.rows, &terms.iter().map(Vec::as_slice).collect::<Vec<_>>());
             Reconstruction { phi: phi_r, lift }.write(&staging.path(names::RECONSTRUCTION), &key)?;
-            let f = |c: &str| row.and_then(|row| times.f64s(c).map(|v| v[row])).unwrap_or(f64::NAN);
             Table::default()
-                .with(names::SPEED_COLUMNS[0], Column::F64(vec![f("median_online_seconds")]))
-                .with(names::SPEED_COLUMNS[1], Column::F64(vec![f("median_fom_seconds")]))
-                .with(names::SPEED_COLUMNS[2], Column::F64(vec![f("speedup")]))
+                .with(names::SPEED_COLUMNS[0], Column::F64(vec![pick.speed[0]]))
+                .with(names::SPEED_COLUMNS[1], Column::F64(vec![pick.speed[1]]))
+                .with(names::SPEED_COLUMNS[2], Column::F64(vec![pick.speed[2]]))
                 .write_parquet(&staging.path(names::SPEED))?;
             let size = std::fs::metadata(staging.path(names::FILE)).map_or(0, |m| m.len());
             Ok(BTreeMap::from([
-                ("algorithm".to_string(), json!(pick.algorithm)),
-                ("r_primal".to_string(), json!(model.ranks().0)),
-                ("r_dual".to_string(), json!(model.ranks().1)),
+                ("algorithm".to_string(), json!(stored.algorithm)),
+                ("dual_basis".to_string(), json!(dual_basis)),
+                ("r_primal".to_string(), json!(r)),
+                ("r_dual".to_string(), json!(r_dual)),
                 ("model_bytes".to_string(), json!(size)),
             ]))
         })
-    }
-}
-
-/// The chosen row of the trade-off table.
-struct Pick {
-    algorithm: String,
-    dual_basis: String,
-    r_primal: usize,
-    r_dual: usize,
-    measured: Measured,
-}
-
-impl Pick {
-    /// Nothing measured: the full bases (`usize::MAX` ranks are clipped to the bases').
-    fn full_bases() -> Self {
-        Self {
-            algorithm: Algorithm::Exact.name().into(),
-            dual_basis: "full".into(),
-            r_primal: usize::MAX,
-            r_dual: usize::MAX,
-            measured: Measured {
-                median_primal_error: f64::NAN,
-                p95_primal_error: f64::NAN,
-                median_dual_error: f64::NAN,
-                ..Measured::default()
-            },
-        }
-    }
-
-    fn of(t: &Table, row: usize) -> Self {
-        let s = |c: &str| t.strs(c).map_or(String::new(), |v| v[row].clone());
-        let u = |c: &str| t.u64s(c).map_or(0, |v| v[row]);
-        let f = |c: &str| t.f64s(c).map_or(f64::NAN, |v| v[row]);
-        Self {
-            algorithm: s("algorithm"),
-            dual_basis: s("dual_basis"),
-            r_primal: u("r_primal") as usize,
-            r_dual: u("r_dual") as usize,
-            measured: Measured {
-                points: u("points"),
-                converged: u("converged"),
-                median_primal_error: f("median_primal_error"),
-                p95_primal_error: f("p95_primal_error"),
-                median_dual_error: f("median_dual_error"),
-            },
-        }
-    }
-}
-
-/// The row of `tradeoff.parquet` of the exact solve (full surface) at ranks `(ru, rl)`, if the
-/// online stage measured them.
-fn at_ranks(t: &Table, ru: u64, rl: u64) -> Option<usize> {
-    let (alg, r_primal, r_dual) = (t.strs("algorithm")?, t.u64s("r_primal")?, t.u64s("r_dual")?);
-    (0..t.rows()).find(|&i| alg[i] == Algorithm::Exact.name() && r_primal[i] == ru && r_dual[i] == rl)
-}
-
-/// The row of `tradeoff.parquet` to keep (see the module doc), if the table has rows of the
-/// exact solve.
-pub(crate) fn choose(t: &Table) -> Option<usize> {
-    let (alg, points, conv) = (t.strs("algorithm")?, t.u64s("points")?, t.u64s("converged")?);
-    let (ru, rl) = (t.u64s("r_primal")?, t.u64s("r_dual")?);
-    let (dual, primal) = (t.f64s("median_dual_error")?, t.f64s("median_primal_error")?);
-    // an undefined error ranks after every defined one
-    let rank = |x: f64| if x.is_nan() { f64::INFINITY } else { x };
-    (0..t.rows()).filter(|&i| alg[i] == Algorithm::Exact.name() || alg[i] == rom_names::SAMPLED).min_by(|&a, &b| {
-        let missed = |i: usize| points[i].saturating_sub(conv[i]);
-        missed(a)
-            .cmp(&missed(b))
-            .then(rank(dual[a]).total_cmp(&rank(dual[b])))
-            .then(rank(primal[a]).total_cmp(&rank(primal[b])))
-            .then((ru[a] + rl[a]).cmp(&(ru[b] + rl[b])))
-            .then(a.cmp(&b))
-    })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// (algorithm, r_primal, r_dual, converged of 10, median dual error, median primal error)
-    type Row<'a> = (&'a str, u64, u64, u64, f64, f64);
-
-    fn table(rows: &[Row<'_>]) -> Table {
-        let col = |f: &dyn Fn(&Row<'_>) -> f64| Column::F64(rows.iter().map(f).collect());
-        Table::default()
-            .with("algorithm", Column::Str(rows.iter().map(|r| r.0.to_string()).collect()))
-            .with("r_primal", Column::U64(rows.iter().map(|r| r.1).collect()))
-            .with("r_dual", Column::U64(rows.iter().map(|r| r.2).collect()))
-            .with("points", Column::U64(vec![10; rows.len()]))
-            .with("converged", Column::U64(rows.iter().map(|r| r.3).collect()))
-            .with("median_dual_error", col(&|r| r.4))
-            .with("median_primal_error", col(&|r| r.5))
-    }
-
-    /// The choice: exact algorithms only, the fewest points not converged, then the least dual
-    /// error, then the least primal error, then the fewest modes; undefined errors last;
-    /// nothing without a row of the exact solve.
-    #[test]
-    fn choose_prefers_converged_accurate_small_models() {
-        let t = table(&[
-            ("paper", 2, 2, 10, 1e-9, 1e-9),     // paper: never
-            ("exact", 8, 8, 9, 1e-8, 1e-8),      // a point failed
-            ("exact", 8, 4, 10, 2e-3, 1e-3),     // candidate
-            ("exact", 4, 4, 10, 2e-3, 1e-3),     // same errors, fewer modes: chosen
-            ("exact", 2, 2, 10, f64::NAN, 1e-4), // undefined dual error: last
-        ]);
-        assert_eq!(choose(&t), Some(3));
-        let t = table(&[("exact", 2, 2, 10, f64::NAN, 1e-4), ("exact-sampled", 2, 2, 10, f64::NAN, 1e-5)]);
-        assert_eq!(choose(&t), Some(1));
-        let t =
-            table(&[("exact", 2, 2, 8, 1e-4, 1e-4), ("exact", 2, 2, 9, 1e-3, 1e-3), ("paper", 2, 2, 10, 1e-3, 1e-3)]);
-        assert_eq!(choose(&t), Some(1), "the most converged when none converged everywhere");
-        assert_eq!(choose(&table(&[("paper", 2, 2, 10, 1e-3, 1e-3)])), None);
     }
 }

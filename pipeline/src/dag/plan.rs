@@ -16,6 +16,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use crom_schemas::artifact::{ArtifactKind, MANIFEST};
+use crom_schemas::comparison::ApproximationSpec;
 use crom_schemas::SceneConfig;
 
 use super::approximation::{ApproximationStage, SurfaceSource};
@@ -236,15 +237,20 @@ impl Plan {
             nodes.add("comparison", false, stage)
         });
         let rom = nodes.add("rom", true, RomStage::plan(scene, train.clone(), test.clone(), basis.clone(), &labels));
-        nodes.add("model", true, ModelStage::plan(scene, train.clone(), basis.clone(), rom.clone(), &labels));
         let mut online_parts: Vec<(String, Input)> = Vec::new();
+        let mut online_specs: Vec<(ApproximationSpec, Input)> = Vec::new();
         for (i, item) in items.iter().enumerate() {
             let Some((_, offline)) = parts.iter().find(|(n, _)| *n == item.name) else { continue };
             let (t, te, m, a) = (train.clone(), test.clone(), mesh.clone(), offline.clone());
             let Some(stage) = OnlineApproximationStage::plan(scene, i, t, te, m, a) else { continue };
             let name = format!("{}{}", comparison::ONLINE_NODE, item.name);
-            online_parts.push((item.name.clone(), nodes.add(&name, true, stage)));
+            let online = nodes.add(&name, true, stage);
+            online_specs.push((item.spec.clone(), online.clone()));
+            online_parts.push((item.name.clone(), online));
         }
+        // after the online comparison: a registered approximation measured there is a candidate
+        let inputs = (train.clone(), basis.clone(), rom.clone(), mesh.clone());
+        nodes.add("model", true, ModelStage::plan(scene, inputs, &online_specs, &labels));
         let online_comparison = (!online_parts.is_empty()).then(|| {
             let stage =
                 GatherStage::plan(ArtifactKind::OnlineComparison, ArtifactKind::OnlineApproximation, online_parts);

@@ -6,7 +6,9 @@
 //! attributes: the parts' integer scalars (`surface`, `r_primal`, `r_dual`, `n_contact`,
 //! `lift_terms`, `warm_dim`, and Type-2 `n_slaves`, `n_masters`); `schema_version`, `scene`,
 //! `cache_key`; the solver settings `algorithm` (`exact` or `exact-sampled`: which rows of the
-//! study's trade-off measured it), `dual_basis`, `max_iter`, `gap_tol`, `u_tol`; the parameter
+//! study's trade-off measured it), `dual_basis` (`full` or `truncated`: the study's CPG basis;
+//! or the name of a registered approximation, e.g. `registered-translate-nodes-cpg`, whose
+//! basis the `reg_*` arrays hold), `max_iter`, `gap_tol`, `u_tol`; the parameter
 //! `parameter_names` (comma-separated) with datasets `parameter_min`, `parameter_max` (the
 //! training domain, one value per component); and what the study measured for it at its test
 //! points: `measured_points`, `measured_converged`, `measured_median_primal_error`,
@@ -38,6 +40,18 @@ pub struct Measured {
     pub median_dual_error: f64,
 }
 
+impl Measured {
+    /// Nothing measured (no test point; undefined errors).
+    pub fn none() -> Self {
+        Self {
+            median_primal_error: f64::NAN,
+            p95_primal_error: f64::NAN,
+            median_dual_error: f64::NAN,
+            ..Self::default()
+        }
+    }
+}
+
 /// A reduced model with what a query needs beside its arrays.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StoredModel {
@@ -47,7 +61,7 @@ pub struct StoredModel {
     pub scene: String,
     /// `exact` or `exact-sampled`.
     pub algorithm: String,
-    /// `full` or `truncated`.
+    /// `full` or `truncated` (the study's CPG basis), or a registered approximation's name.
     pub dual_basis: String,
     /// Solver settings (`crom_stages::rom::RomParams`).
     pub max_iter: u64,
@@ -128,6 +142,16 @@ impl StoredModel {
     pub fn read(path: &Path) -> Result<Self, CromError> {
         let f = H5In::open(path)?;
         let version = f.attr_u64("schema_version")?;
+        if version < u64::from(names::SCHEMA_VERSION) {
+            return Err(CromError::artifact(
+                path,
+                format!(
+                    "model schema version {version}, written by an older crom; this crom reads version {}",
+                    names::SCHEMA_VERSION
+                ),
+                "run `crom run SCENE` again: it writes the model in the current layout (the old one can be deleted)",
+            ));
+        }
         if version != u64::from(names::SCHEMA_VERSION) {
             return Err(fix_read(
                 path,

@@ -5,12 +5,14 @@
 //! `crom run --dry-run`): absent — the study has not been run, or the scene file changed since —
 //! is a usage error whose fix is `crom run SCENE`. Each point is solved with the exact online
 //! solve and the settings stored with the model (`ReducedModel::solve_in`, the call the online
-//! stage times), then its a-posteriori indicator is evaluated; `--check` also runs the
+//! stage times; a model with a registered dual basis first pushes it to the point, as the
+//! online comparison does), then its a-posteriori indicator is evaluated; `--check` also runs the
 //! full-order solve there and reports the true relative errors (H1 displacement, reconstructed
 //! from `reconstruction.h5`; tributary-weighted L2 pressure, computed as the online stage does).
 //!
 //! One row per point, in input order: the parameter (one column per component), `extrapolated`,
-//! `outcome`, `iterations`, `linearizations`, `r_primal`, `r_dual`, the coefficients' summary
+//! `outcome`, `iterations`, `linearizations`, `r_primal`, `r_dual` (a registered basis: the
+//! generators used at the point), the coefficients' summary
 //! (`u_hat_norm` = |û|₂, `lambda_hat_norm` = |λ̂|₂, `nonzero_dual`), the pressure's
 //! (`max_pressure`, `contact_force` = Σ wᵢ pᵢ, `contact_nodes` with pᵢ > 0), the indicator
 //! (`indicator`, `penetration`, `complementarity`, `unpaired_force`), `online_seconds`,
@@ -26,7 +28,7 @@ use std::time::Instant;
 
 use crom_schemas::artifact::{model as names, ArtifactKind};
 use crom_schemas::SceneConfig;
-use crom_stages::rom::{Algorithm, Indicator, ReducedModel, ReducedSolution, RomParams, RomWork};
+use crom_stages::rom::{Algorithm, Indicator, QueryModel, ReducedModel, ReducedSolution, RomParams, RomWork};
 use rayon::prelude::*;
 
 use crate::cache::Key;
@@ -153,16 +155,23 @@ pub struct Answer {
     pub pressure: Vec<f64>,
     /// The a-posteriori indicator.
     pub indicator: Indicator,
-    /// Time of the online solve (`solve_in`), seconds.
+    /// The dual rank of the answer: the model's, or for a registered dual basis the generators
+    /// it used at this point (its first `m` that are not zero there).
+    pub r_dual: usize,
+    /// Time of the online solve (a registered basis pushed to the point, then `solve_in`),
+    /// seconds.
     pub seconds: f64,
     /// Time of the indicator, seconds.
     pub indicator_seconds: f64,
 }
 
 /// Solve `model` at `mu` with `params` in the workspace `w`, then evaluate the indicator and the
-/// pressure: the call the online stage times, and the one every query answer comes from.
-pub fn answer(model: &ReducedModel, params: &RomParams, mu: &[f64], w: &mut RomWork) -> Answer {
+/// pressure: the call the online stage times (for a registered dual basis, the online
+/// comparison: the basis pushed to `mu`, then the solve), and the one every query answer comes
+/// from. `model` is one thread's ([`QueryModel::new`]).
+pub fn answer(model: &mut QueryModel<'_>, params: &RomParams, mu: &[f64], w: &mut RomWork) -> Answer {
     let t = Instant::now();
+    let model = model.at(mu);
     let info = model.solve_in(mu, params, w);
     let seconds = t.elapsed().as_secs_f64();
     let sol = w.solution(&info);
@@ -170,7 +179,7 @@ pub fn answer(model: &ReducedModel, params: &RomParams, mu: &[f64], w: &mut RomW
     let indicator = model.indicator(mu, w);
     let indicator_seconds = t.elapsed().as_secs_f64();
     let pressure = model.pressure(&sol.lambda_hat);
-    Answer { sol, pressure, indicator, seconds, indicator_seconds }
+    Answer { sol, pressure, indicator, r_dual: model.ranks().1, seconds, indicator_seconds }
 }
 
 /// An external scene has no full-order operators, so no reduced model.
@@ -189,6 +198,7 @@ fn external_has_no_model(scene: &SceneConfig) -> CromError {
 struct Row {
     point: Vec<f64>,
     extrapolated: bool,
+    r_dual: usize,
     sol: ReducedSolution,
     pressure: Vec<f64>,
     indicator: Indicator,
@@ -253,10 +263,14 @@ pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> 
     let mut rows: Vec<Row> = points
         .par_iter()
         .zip(&flags)
-        .map_init(RomWork::default, |w, (mu, &extrapolated)| {
-            let Answer { sol, pressure, indicator, seconds, indicator_seconds } = answer(model, &params, mu, w);
-            Row { point: mu.clone(), extrapolated, sol, pressure, indicator, seconds, indicator_seconds, check: None }
-        })
+        .map_init(
+            || (QueryModel::new(model), RomWork::default()),
+            |(q, w), (mu, &extrapolated)| {
+                let Answer { sol, pressure, indicator, r_dual, seconds, indicator_seconds } = answer(q, &params, mu, w);
+                let point = mu.clone();
+                Row { point, extrapolated, r_dual, sol, pressure, indicator, seconds, indicator_seconds, check: None }
+            },
+        )
         .collect();
     if req.check {
         check(scene, &loaded, &mut rows)?;
@@ -317,7 +331,7 @@ fn check(scene: &SceneConfig, loaded: &Loaded, rows: &mut [Row]) -> Result<(), C
 fn table(loaded: &Loaded, rows: &[Row], check: bool) -> Table {
     let s = &loaded.stored;
     let w = loaded.model.weights();
-    let (ru, rl) = loaded.model.ranks();
+    let ru = loaded.model.ranks().0;
     let f = |g: &dyn Fn(&Row) -> f64| Column::F64(rows.iter().map(g).collect());
     let u = |g: &dyn Fn(&Row) -> u64| Column::U64(rows.iter().map(g).collect());
     let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -331,7 +345,7 @@ fn table(loaded: &Loaded, rows: &[Row], check: bool) -> Table {
         .with("iterations", u(&|r| r.sol.iterations as u64))
         .with("linearizations", u(&|r| r.sol.linearizations as u64))
         .with("r_primal", u(&|_| ru as u64))
-        .with("r_dual", u(&|_| rl as u64))
+        .with("r_dual", u(&|r| r.r_dual as u64))
         .with("u_hat_norm", f(&|r| norm(&r.sol.u_hat)))
         .with("lambda_hat_norm", f(&|r| norm(&r.sol.lambda_hat)))
         .with("nonzero_dual", u(&|r| r.sol.nonzero_dual as u64))

@@ -27,7 +27,7 @@ use crom_pipeline::cache::Key;
 use crom_pipeline::error::CromError;
 use crom_pipeline::io::model::Reconstruction;
 use crom_pipeline::query::{answer, fields, load_artifact, params, Answer, Loaded};
-use crom_stages::rom::{RomOutcome, RomParams, RomWork};
+use crom_stages::rom::{QueryModel, ReducedModel, RomOutcome, RomParams, RomWork};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyList, PyTuple, PyType};
 use rayon::prelude::*;
@@ -86,8 +86,10 @@ struct Model {
     loaded: Loaded,
     params: RomParams,
     bounds: Bounds,
-    /// Buffers of `solve`, reused from call to call (a concurrent call takes fresh ones).
-    work: Mutex<RomWork>,
+    /// Buffers of `solve` and, for a registered dual basis, the model's copy whose basis is
+    /// set per point ([`QueryModel`]), reused from call to call (a concurrent call takes fresh
+    /// ones).
+    work: Mutex<(RomWork, Option<ReducedModel>)>,
     /// `reconstruction.h5`, read on the first displacement (or the reason it cannot be).
     reconstruction: OnceLock<Result<Reconstruction, String>>,
 }
@@ -156,7 +158,7 @@ impl Model {
             params: params(s),
             bounds,
             loaded,
-            work: Mutex::new(RomWork::default()),
+            work: Mutex::new((RomWork::default(), None)),
             reconstruction: OnceLock::new(),
         })
     }
@@ -179,10 +181,11 @@ impl Model {
         self.bounds.max.clone()
     }
 
-    /// `(r_primal, r_dual)`.
+    /// `(r_primal, r_dual)`; for a registered dual basis `r_dual` is its most generators per
+    /// point, `m`.
     #[getter]
     fn ranks(&self) -> (usize, usize) {
-        self.loaded.model.ranks()
+        self.loaded.model.stored_ranks()
     }
 
     /// Contact nodes (the length of a pressure).
@@ -235,9 +238,22 @@ impl Model {
         let extrapolated = self.bounds.check(&mu, None, allow_extrapolation).map_err(|e| point_error(py, e))?;
         let (a, total) = py.detach(|| {
             let t = Instant::now();
+            let model = &self.loaded.model;
             let a = match self.work.try_lock() {
-                Ok(mut w) => answer(&self.loaded.model, &self.params, &mu, &mut w),
-                Err(_) => answer(&self.loaded.model, &self.params, &mu, &mut RomWork::default()),
+                Ok(mut guard) => {
+                    let (w, copy) = &mut *guard;
+                    // a registered basis: this call's copy of the model (kept between calls)
+                    let mut q = match copy.take() {
+                        Some(m) => QueryModel::Own(Box::new(m)),
+                        None => QueryModel::new(model),
+                    };
+                    let a = answer(&mut q, &self.params, &mu, w);
+                    if let QueryModel::Own(m) = q {
+                        *copy = Some(*m);
+                    }
+                    a
+                }
+                Err(_) => answer(&mut QueryModel::new(model), &self.params, &mu, &mut RomWork::default()),
             };
             (a, t.elapsed().as_secs_f64())
         });
@@ -245,7 +261,8 @@ impl Model {
     }
 
     /// Solve at `n` points (`points`: `n x p` row-major `f64` bytes) in parallel; a tuple of bytes:
-    /// pressure (n x n_contact f64), û (n x r_primal), λ̂ (n x r_dual), outcome codes (u8, see
+    /// pressure (n x n_contact f64), û (n x r_primal), λ̂ (n x r_dual; a registered basis that
+    /// used fewer generators at a point has zeros after them), outcome codes (u8, see
     /// `OUTCOMES`), iterations, linearizations, nonzero_dual (u64), indicator, penetration,
     /// complementarity, unpaired_force (f64), extrapolated (u8), seconds, indicator_seconds (f64).
     #[pyo3(signature = (points, n, allow_extrapolation, threads=None))]
@@ -272,7 +289,9 @@ impl Model {
         }
         let (model, params) = (&self.loaded.model, &self.params);
         let run = || -> Vec<Answer> {
-            rows.par_iter().map_init(RomWork::default, |w, mu| answer(model, params, mu, w)).collect()
+            rows.par_iter()
+                .map_init(|| (QueryModel::new(model), RomWork::default()), |(q, w), mu| answer(q, params, mu, w))
+                .collect()
         };
         let answers = match threads {
             None => py.detach(run),
@@ -300,7 +319,15 @@ impl Model {
             [
                 cat(&|a| &a.pressure),
                 cat(&|a| &a.sol.u_hat),
-                cat(&|a| &a.sol.lambda_hat),
+                {
+                    // a registered basis may use fewer than its m generators at a point: zeros
+                    let rl = self.loaded.model.stored_ranks().1;
+                    let v: Vec<f64> = answers
+                        .iter()
+                        .flat_map(|a| a.sol.lambda_hat.iter().copied().chain(std::iter::repeat(0.0)).take(rl))
+                        .collect();
+                    f64_bytes(py, &v).into_any()
+                },
                 PyBytes::new(py, &codes).into_any(),
                 count(&|a| a.sol.iterations),
                 count(&|a| a.sol.linearizations),

@@ -45,7 +45,11 @@
 //! their span (POD; the pushed modes are not orthonormal, so they are orthonormalised) or their
 //! cone (CPG): every error is in the physical frame, against the original snapshot.
 
+mod arrays;
+
 use faer::Mat;
+
+pub use arrays::RegisteredArrays;
 
 use super::{cpg_generators, pod_modes, ConePrefix, DualApprox, DualError, Fact, Inner, SpanPrefix, Training};
 use crate::cone::norm2;
@@ -308,7 +312,7 @@ impl Map {
             MapKind::Translate { interpolation: Interpolation::Nodes } => {
                 let t = self.shift(mu);
                 for (k, &i) in self.surface.order.iter().enumerate() {
-                    let q = k as i64 - t + self.grid_start as i64;
+                    let q = (k as i64).saturating_sub(t).saturating_add(self.grid_start as i64);
                     if q >= 0 && (q as usize) < self.len {
                         out[q as usize] = s[i];
                     }
@@ -329,7 +333,7 @@ impl Map {
             MapKind::Translate { interpolation: Interpolation::Nodes } => {
                 let t = self.shift(mu);
                 for (k, &i) in self.surface.order.iter().enumerate() {
-                    let q = k as i64 - t + self.grid_start as i64;
+                    let q = (k as i64).saturating_sub(t).saturating_add(self.grid_start as i64);
                     out[i] = if q >= 0 && (q as usize) < self.len { r[q as usize] } else { 0.0 };
                 }
             }

@@ -80,7 +80,7 @@ pub use error::PrimalErrors;
 pub use la::Factor;
 pub use qp::{solve_qp, DenseConstraints, QpConstraints, QpOutcome, QpWork};
 pub use reduced::{
-    Algorithm, Indicator, ModelParts, ReducedModel, ReducedSolution, RomError, RomOutcome, RomParams, RomWork,
-    SolveInfo, SAMPLING_DIRECTIONS, WARM_START_SAMPLES,
+    cone_basis_columns, Algorithm, Indicator, ModelParts, QueryModel, ReducedModel, ReducedSolution, RomError,
+    RomOutcome, RomParams, RomWork, SolveInfo, SAMPLING_DIRECTIONS, WARM_START_SAMPLES,
 };
 pub use saddle::solve_saddle;

@@ -203,6 +203,7 @@ impl ReducedModel {
             by_col,
             surf,
             warm_starts: WarmStarts::default(),
+            per_query: None,
         })
     }
 
@@ -265,6 +266,7 @@ impl ReducedModel {
             by_col,
             surf,
             warm_starts: WarmStarts::default(),
+            per_query: self.per_query.clone(),
         }
     }
 
@@ -294,6 +296,9 @@ impl ReducedModel {
                 ("quad", quad.as_ref().map_or(0, Vec::len)),
                 ("w_c", w_c.len()),
             ]),
+        }
+        if let Some(a) = self.registered_dual().and_then(|(basis, _)| basis.arrays()) {
+            v.extend([("reg_surface", a.surface.len()), ("reg_table", a.table.len()), ("reg_modes", a.modes.len())]);
         }
         v
     }

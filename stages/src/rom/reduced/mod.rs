@@ -9,6 +9,7 @@
 //! - `dual_basis`: replacing the dual basis per query, and the gaps a growing one checks;
 //! - `surface`: the offline data of the contact surface and its reduced quadrature;
 //! - `parts`: the model as named arrays (what a file stores) and back;
+//! - `registered`: a registered dual basis rebuilt at each query point ([`QueryModel`]);
 //! - `warm`: the warm-start library of the exact solve;
 //! - `work`: the buffers of online queries ([`RomWork`]);
 //! - `solve`: the query and the exact solve (QP per linearisation, re-pairing, zone rule);
@@ -25,6 +26,7 @@ mod linearise;
 mod oracle;
 mod paper;
 mod parts;
+mod registered;
 mod solve;
 mod surface;
 mod switches;
@@ -37,12 +39,14 @@ pub(crate) mod test_support;
 
 pub use indicator::Indicator;
 pub use parts::ModelParts;
+pub use registered::{cone_basis_columns, QueryModel};
 pub use surface::SAMPLING_DIRECTIONS;
 pub use types::{Algorithm, ReducedSolution, RomError, RomOutcome, RomParams, SolveInfo};
 pub use warm::WARM_START_SAMPLES;
 pub use work::RomWork;
 
 use build::Compressed;
+use registered::PerQueryDual;
 use surface::SurfaceData;
 use warm::WarmStarts;
 
@@ -67,6 +71,9 @@ pub struct ReducedModel {
     surf: SurfaceData,
     /// Type-1 warm starts ([`ReducedModel::with_warm_starts`]); empty unless built.
     warm_starts: WarmStarts,
+    /// A registered dual basis rebuilt at each query point ([`ReducedModel::dual_at`]); `None`
+    /// for a fixed dual basis.
+    per_query: Option<PerQueryDual>,
 }
 
 impl ReducedModel {

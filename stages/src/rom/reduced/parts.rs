@@ -30,6 +30,20 @@
 //! sampled surface's quadrature weights, absent — length 0 — for the full surface), `w_c`
 //! (`(2 nn)²`, the compliance on the contact dofs, row-major).
 //!
+//! A registered dual basis rebuilt at each query point (`reg_map` > 0; then `r_dual` is 0, the
+//! `theta_*` and `warm_*` arrays are empty, and [`ReducedModel::dual_at`] sets `Θ(μ)` before
+//! each query; [`crate::dual::registration::RegisteredArrays`] describes the arrays):
+//!
+//! | name | type | length | meaning |
+//! |---|---|---|---|
+//! | `reg_map` | scalar | | 1: translate by `μ_1`, whole-node shifts; 2: translate, linear interpolation; 3: moments map |
+//! | `reg_refine` | scalar | | reference cells per finest node spacing (2, 3) |
+//! | `reg_len`, `reg_generators`, `reg_m` | scalars | | reference grid length, generators stored, most generators per query |
+//! | `reg_surface` | f64 | `nc` | abscissa of each contact node (reference configuration) |
+//! | `reg_table` | f64 | `3 · count` or 0 | moments map: `(μ_j, c_j, a_j)` sorted by `μ_j` |
+//! | `reg_grid` | f64 | 2 | reference grid start and step |
+//! | `reg_modes` | f64 | `reg_len · reg_generators` | reference generators, column-major |
+//!
 //! Scalars: `surface`, `r_primal`, `r_dual`, `n_contact`, `lift_terms`, `warm_dim`, and for
 //! Type-2 `n_slaves`, `n_masters`. `Θ` by column and the per-node norms of `phi_c` are derived
 //! on load (by the same code that derives them offline). No array's length depends on the
@@ -37,6 +51,8 @@
 
 use super::build::{csr, node_norms, Compressed};
 use super::{ReducedModel, RomError, SurfaceData, WarmStarts};
+use crate::dual::registration::{Registered, RegisteredArrays};
+use crate::dual::{Interpolation, MapKind};
 
 /// A reduced model as named arrays (see the module doc for the names and shapes).
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -51,10 +67,23 @@ pub struct ModelParts {
 
 impl ModelParts {
     /// Names of the integer scalars, in the order [`ReducedModel::parts`] gives them.
-    pub const SCALARS: [&str; 8] =
-        ["surface", "r_primal", "r_dual", "n_contact", "lift_terms", "warm_dim", "n_slaves", "n_masters"];
+    pub const SCALARS: [&str; 13] = [
+        "surface",
+        "r_primal",
+        "r_dual",
+        "n_contact",
+        "lift_terms",
+        "warm_dim",
+        "n_slaves",
+        "n_masters",
+        "reg_map",
+        "reg_refine",
+        "reg_len",
+        "reg_generators",
+        "reg_m",
+    ];
     /// Names of the float arrays.
-    pub const FLOATS: [&str; 16] = [
+    pub const FLOATS: [&str; 20] = [
         "khat_l",
         "u_of_y",
         "weights",
@@ -71,6 +100,10 @@ impl ModelParts {
         "a_terms",
         "quad",
         "w_c",
+        "reg_surface",
+        "reg_table",
+        "reg_grid",
+        "reg_modes",
     ];
     /// Names of the integer arrays.
     pub const INTS: [&str; 7] =
@@ -212,7 +245,58 @@ impl ReducedModel {
                 ints.extend([("slave_fixed", flags(slave_fixed)), (SUPP, idx(supp))]);
             }
         }
+        if let Some((a, m)) = self.registered_dual().and_then(|(b, m)| Some((b.arrays()?, m))) {
+            let (map, refine) = match a.kind {
+                MapKind::Translate { interpolation: Interpolation::Nodes } => (1, 0),
+                MapKind::Translate { interpolation: Interpolation::Linear { refine } } => (2, refine),
+                MapKind::Moments { refine } => (3, refine),
+            };
+            scalars.extend([
+                ("reg_map", map),
+                ("reg_refine", refine as u64),
+                ("reg_len", a.len as u64),
+                ("reg_generators", a.generators as u64),
+                ("reg_m", m as u64),
+            ]);
+            floats.extend([
+                ("reg_surface", a.surface),
+                ("reg_table", a.table),
+                ("reg_grid", a.grid.to_vec()),
+                ("reg_modes", a.modes),
+            ]);
+        }
         ModelParts { scalars, floats, ints }
+    }
+
+    /// The registered dual basis stored in `p` (`reg_map` > 0) with its most generators per
+    /// query, checked; `None` where the dual basis is fixed.
+    fn registered_of(p: &ModelParts) -> Result<Option<(Registered, usize)>, RomError> {
+        let size = |name: &str| -> Result<usize, RomError> {
+            usize::try_from(p.scalar(name)).ok().filter(|&v| v <= 1 << 32).ok_or_else(|| bad(name, "too large".into()))
+        };
+        let refine = size("reg_refine")?;
+        let kind = match p.scalar("reg_map") {
+            0 => return Ok(None),
+            1 => MapKind::Translate { interpolation: Interpolation::Nodes },
+            2 => MapKind::Translate { interpolation: Interpolation::Linear { refine } },
+            3 => MapKind::Moments { refine },
+            k => return Err(bad("reg_map", format!("{k}: expected 0 to 3"))),
+        };
+        let grid = p.float("reg_grid");
+        let [start, step] = grid else {
+            return Err(bad("reg_grid", format!("{} values, expected 2", grid.len())));
+        };
+        let arrays = RegisteredArrays {
+            kind,
+            surface: p.float("reg_surface").to_vec(),
+            table: p.float("reg_table").to_vec(),
+            grid: [*start, *step],
+            len: size("reg_len")?,
+            modes: p.float("reg_modes").to_vec(),
+            generators: size("reg_generators")?,
+        };
+        let basis = Registered::from_arrays(&arrays).map_err(|e| bad("reg_modes", e.to_string()))?;
+        Ok(Some((basis, size("reg_m")?)))
     }
 
     /// The model stored as `parts` ([`Self::parts`]); every length and index is checked
@@ -300,7 +384,31 @@ impl ReducedModel {
             }
             s => return Err(bad("surface", format!("{s}: expected 0 (fixed pairs) or 1 (node-to-segment)"))),
         };
-        Ok(Self { r_u, r_l, n_contact: nc, khat_l, u_of_y, weights, by_node, by_col, surf, warm_starts })
+        let model = Self {
+            r_u,
+            r_l,
+            n_contact: nc,
+            khat_l,
+            u_of_y,
+            weights,
+            by_node,
+            by_col,
+            surf,
+            warm_starts,
+            per_query: None,
+        };
+        match Self::registered_of(p)? {
+            None => Ok(model),
+            Some((basis, m)) => {
+                if r_l != 0 || !model.warm_starts.sets.is_empty() {
+                    return Err(bad(
+                        "r_dual",
+                        "a model with a registered dual basis stores no fixed one and no warm starts".into(),
+                    ));
+                }
+                model.with_registered_dual(basis, m)
+            }
+        }
     }
 
     /// Components of the parameter the model is affine in (its lift's terms minus one).
@@ -374,7 +482,10 @@ mod tests {
         assert!(edit(&int("warm_set_start", |v| v.truncate(2))).contains("`warm_set_start`"));
         assert!(edit(&|p: &mut ModelParts| p.scalars[0].1 = 7).contains("`surface`"));
         assert!(edit(&|p: &mut ModelParts| p.scalars[1].1 = u64::MAX).contains("`r_primal`"));
-        assert_eq!(ModelParts::SCALARS.len(), good.scalars.len());
+        // every scalar listed; a fixed dual basis has all but a registered one's (`reg_*`)
+        let names: Vec<&str> = good.scalars.iter().map(|(n, _)| *n).collect();
+        let fixed: Vec<&str> = ModelParts::SCALARS.iter().copied().filter(|n| !n.starts_with("reg_")).collect();
+        assert_eq!(names, fixed);
         for (n, _) in &good.floats {
             assert!(ModelParts::FLOATS.contains(n), "{n} not listed");
         }

@@ -1,0 +1,179 @@
+//! A fitted registered basis as plain arrays ([`RegisteredArrays`]): what a stored reduced model
+//! keeps of it, and the basis rebuilt from them ([`Registered::from_arrays`]) with the same bits
+//! in every value the push-forward reads, so the rebuilt basis gives the same `Θ(μ)` at every
+//! parameter point as the one it was taken from.
+//!
+//! Kept: the map's kind (and reference refinement), the contact surface's abscissae in
+//! dual-entry order (the node order and tributary widths are derived from them by the code that
+//! derived them at the fit), the moments map's table `(μ_j, c_j, a_j)`, the reference grid
+//! (start, step, length) and the reference generators (`len x k`, column-major). The offline
+//! round-trip errors are facts of the build and are not kept.
+
+use faer::Mat;
+
+use super::{Inner, Interpolation, Map, MapKind, Registered, Surface};
+use crate::dual::DualError;
+
+/// A registered CPG basis as arrays (see the module doc).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegisteredArrays {
+    /// The map.
+    pub kind: MapKind,
+    /// Abscissa of each contact node in the reference configuration, dual-entry order.
+    pub surface: Vec<f64>,
+    /// Moments map: `(μ_j, c_j, a_j)` of the training snapshots with contact, sorted by μ,
+    /// flattened (`3 · count`); empty for a translation.
+    pub table: Vec<f64>,
+    /// Reference grid: `[start, step]` (whole-node shifts: `[largest training shift, h]`).
+    pub grid: [f64; 2],
+    /// Reference grid length.
+    pub len: usize,
+    /// Reference generators, `len x generators`, column-major.
+    pub modes: Vec<f64>,
+    /// Number of generators.
+    pub generators: usize,
+}
+
+/// A refused array: what is wrong.
+fn bad(what: String) -> DualError {
+    DualError::NotApplicable(format!("stored registered basis: {what}"))
+}
+
+impl Registered {
+    /// The basis as arrays; `None` for a registered POD (only non-negative generators make a
+    /// dual basis of the online solve).
+    pub fn arrays(&self) -> Option<RegisteredArrays> {
+        if self.inner != Inner::Cpg {
+            return None;
+        }
+        let m = &self.map;
+        let (len, k) = (self.modes.nrows(), self.modes.ncols());
+        // the surface's abscissae back in dual-entry order
+        let mut surface = vec![0.0; m.surface.x.len()];
+        for (x, &i) in m.surface.x.iter().zip(&m.surface.order) {
+            surface[i] = *x;
+        }
+        Some(RegisteredArrays {
+            kind: m.kind,
+            surface,
+            table: m.table.iter().flat_map(|&(t, c, a)| [t, c, a]).collect(),
+            grid: [m.grid_start, m.grid_step],
+            len,
+            modes: (0..k).flat_map(|j| self.modes.col(j).iter().copied().collect::<Vec<_>>()).collect(),
+            generators: k,
+        })
+    }
+
+    /// The registered CPG basis stored as `a`; every length and value the push-forward relies
+    /// on is checked, so damaged arrays are refused ([`DualError::NotApplicable`], saying
+    /// which) instead of making a basis that panics in a query.
+    pub fn from_arrays(a: &RegisteredArrays) -> Result<Self, DualError> {
+        let n = a.surface.len();
+        if n == 0 || a.surface.iter().any(|x| !x.is_finite()) {
+            return Err(bad(format!("{n} surface abscissae, not all finite or none")));
+        }
+        if a.len == 0 || a.len > 1 << 32 {
+            return Err(bad(format!("reference grid of {} points", a.len)));
+        }
+        if a.modes.len() != a.len * a.generators || a.modes.iter().any(|v| !v.is_finite()) {
+            return Err(bad(format!(
+                "{} generator values for {} generators of {} points, or a non-finite one",
+                a.modes.len(),
+                a.generators,
+                a.len
+            )));
+        }
+        let [start, step] = a.grid;
+        if !(start.is_finite() && step.is_finite() && step > 0.0) {
+            return Err(bad(format!("reference grid start {start}, step {step}")));
+        }
+        let table: Vec<(f64, f64, f64)> =
+            a.table.chunks(3).map(|c| (c[0], c[1], c.get(2).copied().unwrap_or(0.0))).collect();
+        match a.kind {
+            MapKind::Moments { .. } => {
+                if a.table.is_empty()
+                    || !a.table.len().is_multiple_of(3)
+                    || a.table.iter().any(|v| !v.is_finite())
+                    || table.iter().any(|&(_, _, w)| w <= 0.0)
+                    || table.windows(2).any(|p| p[0].0 > p[1].0)
+                {
+                    return Err(bad("the moments table is not sorted triples (mu, c, a > 0)".into()));
+                }
+            }
+            MapKind::Translate { interpolation } => {
+                if !a.table.is_empty() {
+                    return Err(bad("a translation has no moments table".into()));
+                }
+                if interpolation == Interpolation::Nodes && (start.fract() != 0.0 || start.abs() > (1u64 << 52) as f64)
+                {
+                    return Err(bad(format!("whole-node shifts with a fractional grid start {start}")));
+                }
+            }
+        }
+        let map = Map {
+            kind: a.kind,
+            surface: Surface::new(&a.surface),
+            table,
+            grid_start: start,
+            grid_step: step,
+            len: a.len,
+        };
+        let modes = Mat::from_fn(a.len, a.generators, |i, j| a.modes[i + j * a.len]);
+        Ok(Self { map, inner: Inner::Cpg, modes, round_trip: (f64::NAN, f64::NAN) })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use faer::Mat;
+
+    use crate::dual::registration::{Interpolation, MapKind, Registered};
+    use crate::dual::{DualApprox, Inner, Training};
+
+    /// Every map kind: the basis rebuilt from its arrays pushes its generators to the same bits
+    /// at training points, between them and beyond the training range (on a surface given in
+    /// a shuffled node order, so the dual-order round trip of the abscissae is exercised), and
+    /// damaged arrays are refused.
+    #[test]
+    fn a_registered_basis_survives_its_arrays_bit_for_bit() {
+        let n = 50;
+        // node i at abscissa 0.1 * perm(i): a shuffled surface order
+        let perm: Vec<usize> = (0..n).map(|i| (i * 17) % n).collect();
+        let x: Vec<f64> = perm.iter().map(|&p| 0.1 * p as f64).collect();
+        let params: Vec<Vec<f64>> = (0..9).map(|j| vec![0.5 + 0.3 * j as f64]).collect();
+        let bump = |t: f64, w: f64| (1.0 - (t / w).powi(2)).max(0.0);
+        let s = Mat::from_fn(n, params.len(), |i, j| bump(x[i] - 1.0 - params[j][0], 0.2 + 0.05 * params[j][0]));
+        let ms = [1usize, 2, 3, 4];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+        for kind in [
+            MapKind::Translate { interpolation: Interpolation::Nodes },
+            MapKind::Translate { interpolation: Interpolation::Linear { refine: 3 } },
+            MapKind::Moments { refine: 2 },
+        ] {
+            let built = Registered::build(&t, kind, Inner::Cpg).expect("build");
+            let arrays = built.arrays().expect("a cone basis");
+            let back = Registered::from_arrays(&arrays).expect("rebuilt");
+            assert_eq!(back.arrays().as_ref(), Some(&arrays), "{kind:?}");
+            for mu in [0.5, 0.77, 1.4, 3.2, -4.0, 40.0] {
+                let (a, b) = (built.cone_basis(&[mu], 3).expect("a"), back.cone_basis(&[mu], 3).expect("b"));
+                assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()), "{kind:?} at {mu}");
+                for j in 0..a.ncols() {
+                    for i in 0..n {
+                        assert_eq!(a[(i, j)].to_bits(), b[(i, j)].to_bits(), "{kind:?} at {mu}: ({i}, {j})");
+                    }
+                }
+            }
+            let mut short = arrays.clone();
+            short.modes.pop();
+            assert!(Registered::from_arrays(&short).is_err(), "{kind:?}: a short generator array");
+            let mut nan = arrays.clone();
+            nan.modes[0] = f64::NAN;
+            assert!(Registered::from_arrays(&nan).is_err(), "{kind:?}: a NaN generator");
+            let mut step = arrays.clone();
+            step.grid[1] = 0.0;
+            assert!(Registered::from_arrays(&step).is_err(), "{kind:?}: a zero grid step");
+        }
+        let pod = Registered::build(&t, MapKind::Moments { refine: 2 }, Inner::Pod).expect("pod");
+        assert!(pod.arrays().is_none(), "a registered POD is not a dual basis of the online solve");
+    }
+}
