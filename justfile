@@ -25,7 +25,7 @@ test:
     # (docs/design-notes.md#the-python-binding-is-a-thin-native-module-behind-the-reader)
     cargo build --quiet --workspace --bin crom
     if command -v cargo-nextest >/dev/null; then cargo nextest run --workspace --no-fail-fast; else cargo test --workspace --no-fail-fast; fi
-    CROM_BIN=target/debug/crom {{python}} -m pytest -q tests/python
+    CROM_BIN="${CARGO_TARGET_DIR:-target}/debug/crom" {{python}} -m pytest -q tests/python
 
 # Formatting check.
 fmt:
