@@ -8,23 +8,10 @@
 //! the wall time of the full 128-point ironing-fine sweep (d_x = 3k/127) solved on 2 threads
 //! with `std::thread::scope`. Scenes are built from the shipped `data/scenes/*.toml`.
 
-use crom_schemas::scene::Model;
-use crom_stages::contact::{
-    build_hertz, build_ironing, ContactModel, ContactSolveParams, FactoredModel, HertzParams, IroningParams,
-};
-use crom_stages::shipped::shipped_scene;
+use crom_stages::contact::{ContactModel, ContactSolveParams, FactoredModel};
+use crom_stages::shipped::shipped_contact_model;
 use crom_stages::snapshot::Snapshot;
 use std::time::{Duration, Instant};
-
-/// A scene's model, built from its shipped scene file.
-fn model(name: &str) -> ContactModel {
-    let scene = shipped_scene(name).unwrap_or_else(|e| panic!("{e}"));
-    match &scene.model {
-        Model::Hertz(h) => build_hertz(&HertzParams::from(h)).expect("hertz scene"),
-        Model::Ironing(i) => build_ironing(&IroningParams::from(i)).expect("ironing scene"),
-        Model::Rope(_) | Model::External(_) => panic!("{name} is not a 2-D scene"),
-    }
-}
 
 fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3
@@ -115,13 +102,13 @@ fn main() {
     let hertz_d: Vec<f64> = (1..=12).map(|k| 0.025 * k as f64).collect();
     let sweep: Vec<f64> = (0..128).map(|k| 3.0 * k as f64 / 127.0).collect();
     let mut rows = Vec::new();
-    let (r, _) = run("hertz", model("hertz"), &hertz_d);
+    let (r, _) = run("hertz", shipped_contact_model("hertz"), &hertz_d);
     rows.push(r);
-    let (r, _) = run("hertz-fine", model("hertz-fine"), &hertz_d);
+    let (r, _) = run("hertz-fine", shipped_contact_model("hertz-fine"), &hertz_d);
     rows.push(r);
-    let (r, _) = run("ironing-coarse", model("ironing-coarse"), &sweep);
+    let (r, _) = run("ironing-coarse", shipped_contact_model("ironing-coarse"), &sweep);
     rows.push(r);
-    let (r, fine) = run("ironing-fine", model("ironing-fine"), &sweep);
+    let (r, fine) = run("ironing-fine", shipped_contact_model("ironing-fine"), &sweep);
     rows.push(r);
 
     println!("| scene | n_dof | free dofs | contact dofs | factor + Delassus [ms] | snapshots | mean snapshot [ms] | mean / max iterations | points with vertex ties | slaves ever in contact | factor-solve [ms] | snapshot / factor-solve |");

@@ -18,31 +18,18 @@
 //! ratio also against the fastest 128-atom start.
 
 use crom_stages::basis::pod_full;
-use crom_stages::contact::{build_ironing, ContactSolveParams, FactoredModel, IroningParams, Material};
+use crom_stages::contact::{ContactSolveParams, FactoredModel};
 use crom_stages::dual::dictionary::{Dictionary, WorkingSet, WorkingSetScratch, WS_START};
 use crom_stages::dual::DualApprox;
 use crom_stages::rom::{ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};
+use crom_stages::shipped::shipped_contact_model;
 use faer::MatRef;
 use rayon::prelude::*;
 use std::time::Instant;
 
+/// ironing-fine's model, from its shipped scene file.
 fn ironing_fine() -> FactoredModel {
-    let p = IroningParams {
-        slab_length: 5.0,
-        slab_height: 1.0,
-        slab_nx: 200,
-        slab_ny: 40,
-        slab: Material::new(1.0, 0.3),
-        iron_width: 1.0,
-        iron_height: 1.0,
-        sole_radius: 2.0,
-        iron_nx: 60,
-        iron_ny: 60,
-        iron: Material::new(10.0, 0.3),
-        contact_x: 1.0,
-        d_y: Some(0.04),
-    };
-    build_ironing(&p).expect("ironing").factor().expect("factor")
+    shipped_contact_model("ironing-fine").factor().expect("factor")
 }
 
 fn median(mut v: Vec<f64>) -> f64 {

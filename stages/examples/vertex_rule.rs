@@ -5,23 +5,13 @@
 //!
 //! `cargo run --release -p crom-stages --example vertex_rule`
 
-use crom_schemas::scene::Model;
-use crom_stages::contact::{
-    build_hertz, build_ironing, ContactSolveParams, FactoredModel, HertzParams, IroningParams, SolveStart, VertexRule,
-};
-use crom_stages::shipped::shipped_scene;
+use crom_stages::contact::{ContactSolveParams, FactoredModel, SolveStart, VertexRule};
+use crom_stages::shipped::{shipped_contact_model, shipped_scene};
 use crom_stages::snapshot::Snapshot;
 
 fn factored(name: &str) -> (FactoredModel, Vec<f64>) {
     let scene = shipped_scene(name).unwrap_or_else(|e| panic!("{e}"));
-    let fm = match &scene.model {
-        Model::Hertz(h) => build_hertz(&HertzParams::from(h)).expect("hertz"),
-        Model::Ironing(i) => build_ironing(&IroningParams::from(i)).expect("ironing"),
-        Model::Rope(_) | Model::External(_) => panic!("{name} is not a 2-D scene"),
-    }
-    .factor()
-    .expect("factor");
-    (fm, scene.parameter.train())
+    (shipped_contact_model(name).factor().expect("factor"), scene.parameter.train())
 }
 
 /// Largest |a - b| over the displacement, relative to max |a|.
