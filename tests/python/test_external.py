@@ -45,18 +45,6 @@ def native_study(tmp_path_factory, name, scene_file=None):
     return store, sets
 
 
-class TmpDirs:
-    """tmp_path as a tmp_path_factory (its mktemp makes a fresh subdirectory)."""
-
-    def __init__(self, root):
-        self.root = root
-
-    def mktemp(self, name):
-        path = self.root / name
-        path.mkdir()
-        return path
-
-
 def variant(tmp_path, base, name, replacements):
     """The shipped scene `base` renamed `name`, with each (old, new) of `replacements` made
     (each old text must be in it), written to tmp_path."""
@@ -541,12 +529,12 @@ test = {list(range(n_train, n))}"""
         assert (reason in done.stderr) == skipped and (reason in index) == skipped, done.stderr
 
 
-def test_a_training_set_that_is_a_nested_grid_gets_the_native_nested_error(tmp_path):
+def test_a_training_set_that_is_a_nested_grid_gets_the_native_nested_error(tmp_path, tmp_path_factory):
     """The rope at train_level = 3 with nested levels 1 to 3 (level 3 is its training set),
     exported and imported: the external scene finds the levels in its 9 equally spaced training
     points, and its H(n) table equals the native one bit for bit."""
     native_scene = variant(tmp_path, "rope", "rope-l3", [("n_train = 10", "train_level = 3\nnested_levels = 3")])
-    native_store, sets = native_study(TmpDirs(tmp_path), "rope-l3", native_scene)
+    native_store, sets = native_study(tmp_path_factory, "rope-l3", native_scene)
     primal, dual, mu, n_train = all_columns(sets)
     assert n_train == 9
     np.save(tmp_path / "primal.npy", primal)
@@ -568,7 +556,7 @@ test = {list(range(n_train, dual.shape[1]))}""")
     assert "fig15_nested" in (store / "scenes" / "rope-nested" / "report" / "index.html").read_text()
 
 
-def test_a_two_component_nested_grid_gets_the_native_nested_error(tmp_path):
+def test_a_two_component_nested_grid_gets_the_native_nested_error(tmp_path, tmp_path_factory):
     """ironing-coarse with two components (d_x at train_level 3, d_y at train_level 2: 9 x 5
     training points) and nested levels 1 and 2, exported with its training columns reversed and
     imported: the external scene finds levels 1 and 2 as tensor grids in the shuffled columns,
@@ -578,7 +566,7 @@ def test_a_two_component_nested_grid_gets_the_native_nested_error(tmp_path):
         ("n_train = 128\nnested_levels = 7",
          'train_level = 3\nnested_levels = 2\n\n[[parameter.axes]]\nname = "d_y"\n'
          'description = "downward displacement of the iron"\nmin = 0.02\nmax = 0.06\ntrain_level = 2')])
-    native_store, sets = native_study(TmpDirs(tmp_path), "ic-2d", native_scene)
+    native_store, sets = native_study(tmp_path_factory, "ic-2d", native_scene)
     # The training columns in reverse order: the levels must come from the values, not the order.
     p, d, m = sets["train"]
     sets["train"] = (p[:, ::-1], d[:, ::-1], m[::-1])
