@@ -31,7 +31,8 @@ pub(super) struct PerQueryDual {
 pub fn cone_basis_columns(approx: &dyn DualApprox, mu: &[f64], m: usize) -> (Vec<f64>, usize) {
     let b = approx.cone_basis(mu, m).unwrap_or_else(|| faer::Mat::zeros(0, 0));
     let k = b.ncols();
-    ((0..k).flat_map(|j| b.col(j).iter().copied().collect::<Vec<_>>()).collect(), k)
+    let b = b.as_ref();
+    ((0..k).flat_map(|j| b.col(j).iter().copied()).collect(), k)
 }
 
 impl ReducedModel {
