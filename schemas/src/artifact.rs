@@ -135,7 +135,7 @@ impl ArtifactKind {
             ArtifactKind::OnlineComparison => 1,
             ArtifactKind::Views => 1,
             ArtifactKind::Rom => 4,
-            ArtifactKind::Model => 2,
+            ArtifactKind::Model => model::SCHEMA_VERSION,
             ArtifactKind::Report => 1,
         }
     }
@@ -394,9 +394,9 @@ pub mod model {
     pub const SPEED_COLUMNS: [&str; 3] = ["median_online_seconds", "median_fom_seconds", "speedup"];
     /// The schema version written into [`FILE`] as its `schema_version` attribute (the
     /// kind's), which `crom query` checks before reading (2: a registered dual basis, the
-    /// `reg_*` datasets and attributes; version 1 files are refused with the fix to run the
-    /// study again).
-    pub const SCHEMA_VERSION: u32 = 2;
+    /// `reg_*` datasets and attributes; 3: a registered neighbours basis, `reg_travels` and
+    /// `reg_weight`; older files are refused with the fix to run the study again).
+    pub const SCHEMA_VERSION: u32 = 3;
 }
 
 pub mod rom {

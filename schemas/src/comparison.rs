@@ -63,7 +63,7 @@ pub enum ApproximationSpec {
     },
     /// Every training snapshot an atom.
     Dictionary,
-    /// A change of variables of the contact surface, then POD or CPG.
+    /// A change of variables of the contact surface, then POD, CPG or neighbours.
     Registered {
         /// `translate` (by the first parameter, the iron's travel) or `moments` (centre and
         /// half-width of the pressure, interpolated in the parameter).
@@ -116,6 +116,9 @@ pub enum BasisSpec {
     Pod,
     /// CPG.
     Cpg,
+    /// Per query, the training snapshots nearest in the registered frame (translate with
+    /// whole-node shifts, one parameter component).
+    Neighbours,
 }
 
 impl ApproximationSpec {
@@ -137,6 +140,7 @@ impl ApproximationSpec {
         let basis = |b: &BasisSpec| match b {
             BasisSpec::Pod => "pod",
             BasisSpec::Cpg => "cpg",
+            BasisSpec::Neighbours => "neighbours",
         };
         match self {
             ApproximationSpec::Pod => "pod".into(),

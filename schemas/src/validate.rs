@@ -648,7 +648,9 @@ fn check_model_dual(c: &Checker<'_>, dual: &str, cmp: Option<&ComparisonSpec>) -
         .map(|cmp| {
             cmp.approximations
                 .iter()
-                .filter(|a| matches!(a, ApproximationSpec::Registered { basis: BasisSpec::Cpg, .. }))
+                .filter(|a| {
+                    matches!(a, ApproximationSpec::Registered { basis: BasisSpec::Cpg | BasisSpec::Neighbours, .. })
+                })
                 .map(ApproximationSpec::name)
                 .collect()
         })
@@ -729,7 +731,7 @@ fn check_comparison(
                     ));
                 }
             }
-            ApproximationSpec::Registered { map, interpolation, refine, .. } => {
+            ApproximationSpec::Registered { map, interpolation, refine, basis } => {
                 c.between(&format!("{field}.refine"), *refine, 1, 64)?;
                 if matches!(model, Model::Rope(_)) {
                     return Err(c.fail(
@@ -753,6 +755,24 @@ fn check_comparison(
                         &format!("{field}.map"),
                         format!("is \"moments\", which interpolates in one parameter; this scene has {dims}"),
                         "use map = \"translate\"",
+                    ));
+                }
+                if *basis == BasisSpec::Neighbours
+                    && (*map != MapSpec::Translate || *interpolation != InterpolationSpec::Nodes)
+                {
+                    return Err(c.fail(
+                        &format!("{field}.basis"),
+                        "is \"neighbours\", which orders the training snapshots by the part of a node spacing \
+                         that whole-node shifts leave"
+                            .into(),
+                        "use map = \"translate\" with interpolation = \"nodes\", or basis = \"cpg\"",
+                    ));
+                }
+                if *basis == BasisSpec::Neighbours && dims > 1 {
+                    return Err(c.fail(
+                        &format!("{field}.basis"),
+                        format!("is \"neighbours\", which measures distance by the travel alone; this scene has {dims} parameter components"),
+                        "use basis = \"cpg\"",
                     ));
                 }
             }

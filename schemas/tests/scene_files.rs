@@ -215,7 +215,7 @@ fn hertz_text() -> String {
 /// Every bad `[comparison]` setting is refused with the field and a fix.
 #[test]
 fn bad_comparison_settings_are_named() {
-    let cases: [(&str, &[&str]); 10] = [
+    let cases: [(&str, &[&str]); 11] = [
         (
             "[comparison]\napproximations = [{ kind = \"local\", cells = [12] }]\n",
             &["comparison.approximations[0].cells[0]", "12 points", "at most 11 cells"],
@@ -237,6 +237,10 @@ fn bad_comparison_settings_are_named() {
         (
             "[comparison]\napproximations = [{ kind = \"registered\", map = \"moments\", interpolation = \"nodes\", basis = \"pod\" }]\n",
             &["comparison.approximations[0].interpolation", "linear"],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"registered\", map = \"moments\", basis = \"neighbours\" }]\n",
+            &["comparison.approximations[0].basis", "interpolation = \"nodes\""],
         ),
         ("[comparison]\napproximations = [{ kind = \"svd\" }]\n", &["svd"]),
         (

@@ -10,18 +10,24 @@
 //!   gaps' averages on the modes held at 0): a signed registered basis online without a sign
 //!   condition on the pressure;
 //! * the registered CPG at m = 5, 10, alone and with the oracle added to it (whether the solve
-//!   finds the exact member when the basis holds it).
+//!   finds the exact member when the basis holds it);
+//! * the registered neighbours basis at m = 2 (the two training pressures nearest in the
+//!   sub-node shift), and, as the one dual vector, the two training pressures nearest in `d_x`
+//!   interpolated linearly in the reference frame (whole-node and linear maps);
+//! * for the registered CPG at m = 10, the pressure read instead from the reaction `K u` of the
+//!   reduced displacement at each slave node (over its tributary length).
 //!
 //! `cargo run --release -p crom-stages --example online_floor`
 //!
 //! Prints, per basis, the converged count and the median and 95th percentile of the relative
 //! dual error (tributary-weighted, as every online table) and the median relative primal error
 //! (Euclidean, of the reconstructed displacement). What the numbers show:
-//! docs/design-notes.md#the-registered-approximation-online-the-error-the-multiplier-adds.
+//! docs/design-notes.md#the-registered-approximation-online-the-error-the-multiplier-adds and
+//! the note after it.
 
 use crom_stages::basis::pod_full;
 use crom_stages::contact::{ContactSolveParams, FactoredModel};
-use crom_stages::dual::registration::{Interpolation, MapKind, Registered};
+use crom_stages::dual::registration::{Interpolation, Map, MapKind, Registered};
 use crom_stages::dual::{Inner, Training};
 use crom_stages::rom::{ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};
 use crom_stages::shipped::shipped_contact_model;
@@ -135,6 +141,58 @@ fn main() {
         }
         (theta, k)
     };
+    // The registered neighbours basis (the product's `basis = "neighbours"`) at m = 2.
+    let nb = Registered::build(&training, kind, Inner::Neighbours).expect("registered neighbours");
+    let two = |_j: usize, d: f64| crom_stages::rom::cone_basis_columns(&nb, &[d], 2);
+    print("registered neighbours, 2 generators", run(&two));
+    // The two training pressures nearest in d_x, interpolated linearly in the reference frame and
+    // pushed to the point, as the one dual vector.
+    for map_kind in [kind, MapKind::Translate { interpolation: Interpolation::Linear { refine: 4 } }] {
+        let map = Map::fit(&training, map_kind).expect("map");
+        let pulled: Vec<Vec<f64>> = train
+            .iter()
+            .zip(&snaps)
+            .map(|(&d, sn)| {
+                let mut r = vec![0.0; map.len()];
+                map.pull(&sn.pressure, &[d], &mut r);
+                r
+            })
+            .collect();
+        let between = |_j: usize, d: f64| {
+            let k = train.partition_point(|&t| t <= d).clamp(1, train.len() - 1) - 1;
+            let th = (d - train[k]) / (train[k + 1] - train[k]);
+            let r: Vec<f64> = pulled[k].iter().zip(&pulled[k + 1]).map(|(a, b)| (1.0 - th) * a + th * b).collect();
+            let mut q = vec![0.0; nc];
+            map.push(&r, &[d], &mut q);
+            let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            (q.iter().map(|v| v / norm).collect::<Vec<f64>>(), 1)
+        };
+        print(&format!("the nearest two in d_x interpolated ({}), one vector", map_kind.name()), run(&between));
+    }
+    // The pressure from the reaction of the reduced displacement (registered CPG, m = 10).
+    let cn = fm.contact_nodes();
+    let reaction: Vec<(bool, f64, f64)> = test
+        .par_iter()
+        .zip(&truth)
+        .map(|(&d, full)| {
+            let (theta, k) = cone(0, d, 10, false);
+            let mut rom = base.clone();
+            rom.set_dual(&theta, k);
+            let sol = rom.solve(&[d], &RomParams::default(), &mut RomWork::default());
+            let mut u = fm.lift(&[d]);
+            for (c, &y) in sol.u_hat.iter().enumerate() {
+                u.iter_mut().zip(phi.modes.col(c).iter()).for_each(|(a, b)| *a += y * b);
+            }
+            let mut ku = vec![0.0; n];
+            fm.stiffness_mul(&u, &mut ku);
+            let p = &full.pressure;
+            let q: Vec<f64> = (0..nc).map(|s| ku[2 * cn[s]].hypot(ku[2 * cn[s] + 1]) / w8[s]).collect();
+            let num: f64 = q.iter().zip(p).zip(w8).map(|((a, b), w)| w * (a - b) * (a - b)).sum();
+            let den: f64 = p.iter().zip(w8).map(|(b, w)| w * b * b).sum();
+            (sol.outcome == RomOutcome::Converged, (num / den).sqrt(), f64::NAN)
+        })
+        .collect();
+    print("registered CPG, 10 generators, pressure from the reaction K u", reaction);
     for m in [5usize, 10] {
         print(&format!("registered CPG, {m} generators"), run(&|j, d| cone(j, d, m, false)));
         print(&format!("the oracle and registered CPG, {m} generators"), run(&|j, d| cone(j, d, m, true)));

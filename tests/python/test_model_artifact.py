@@ -3,7 +3,7 @@ docs/user-guide.md ("The model artifact") describes it, and `crom query` driven 
 
 Checked independently of crom's reader: the dual basis rebuilt from its compressed rows is the
 stored CPG basis's leading columns, exactly (a copy of the same doubles); a registered dual basis
-(hertz's model) pushed forward to a point in NumPy from its `reg_*` arrays, as the store format
+(hertz's model; ironing-fine's, a neighbours basis whose order depends on the point) pushed forward to a point in NumPy from its `reg_*` arrays, as the store format
 describes, gives the pressure the model answers there from its coefficients (to 1e-12: the same
 products summed in another order); `u_of_y` is the inverse
 transpose of the Cholesky factor `khat_l` to 1e-10 (a triangular inverse of a well-conditioned
@@ -23,7 +23,7 @@ from conftest import REPO, crom_bin, only_artifact
 def _check_layout(store, scene):
     model = h5py.File(only_artifact(store, "model", "model.h5"), "r")
     a = model.attrs
-    assert a["schema_version"] == 2 and a["scene"] == scene and a["kind"] == "model"
+    assert a["schema_version"] == 3 and a["scene"] == scene and a["kind"] == "model"
     ru, rl, nc, terms = (int(a[k]) for k in ("r_primal", "r_dual", "n_contact", "lift_terms"))
     # the dual basis, rebuilt from its compressed rows
     start, col, val = model["theta_start"][:], model["theta_column"][:], model["theta_value"][:]
@@ -88,8 +88,34 @@ def _push(model, mu):
         k0 = np.minimum(np.floor(u[inside]).astype(int), length - 2)
         th = (u[inside] - k0)[:, None]
         out[inside] = (1 - th) * modes[k0] + th * modes[k0 + 1]
-    keep = [j for j in range(k) if np.any(out[:, j] != 0)][:m]
+    if "reg_travels" in model:  # a neighbours basis: the generators in the order at mu
+        out = out[:, _neighbour_order(model, mu, step)]
+    keep = [j for j in range(out.shape[1]) if np.any(out[:, j] != 0)][:m]
     return out[:, keep]
+
+
+def _round(t):
+    """Rounding half away from zero (Rust's f64::round; NumPy's rounds half to even)."""
+    return np.sign(t) * np.floor(np.abs(t) + 0.5)
+
+
+def _neighbour_order(model, mu, h):
+    """The generators of a neighbours basis in the order at `mu`, as docs/store-format.md gives
+    it: scored by h |Δρ| + w |μ_1 − c_j| on the two sides of Δρ, taken alternately."""
+    c, w = model["reg_travels"][:], float(model["reg_weight"][0])
+    rho = lambda t: t / h - _round(t / h)
+    d = rho(c) - rho(mu)
+    d = d - _round(d)
+    d[d <= -0.5] += 1.0
+    score = h * np.abs(d) + w * np.abs(mu - c)
+    sides = [sorted(np.flatnonzero(d <= 0), key=lambda j: (score[j], j)),
+             sorted(np.flatnonzero(d > 0), key=lambda j: (score[j], j))]
+    if sides[1] and (not sides[0] or score[sides[1][0]] < score[sides[0][0]]):
+        sides.reverse()
+    order = []
+    for k in range(max(len(sides[0]), len(sides[1]))):
+        order += [side[k] for side in sides if k < len(side)]
+    return order
 
 
 def _check_registered(store, scene, model):
@@ -101,6 +127,8 @@ def _check_registered(store, scene, model):
     length, k, m, nc = (int(a[n]) for n in ("reg_len", "reg_generators", "reg_m", "n_contact"))
     assert 1 <= m <= k and len(model["reg_modes"]) == length * k and len(model["reg_surface"]) == nc
     assert len(model["reg_grid"]) == 2 and len(model["reg_table"]) % 3 == 0
+    if "reg_travels" in model:
+        assert len(model["reg_travels"]) == k and len(model["reg_weight"]) == 1 and int(a["reg_map"]) == 1
     assert int(a["reg_map"]) != 3 or len(model["reg_table"]) > 0
     rom = crom_data.open_store(store).scene(scene).rom()
     (name, (lo, hi)), = rom.domain.items()
@@ -113,9 +141,10 @@ def _check_registered(store, scene, model):
         assert r.pressure.max() > 0, f"no contact at {mu}"
 
 
-def test_model_layout_reads_with_h5py(rope_store, hertz_store):
+def test_model_layout_reads_with_h5py(rope_store, hertz_store, ironing_fine_store):
     _check_layout(rope_store, "rope")
     _check_layout(hertz_store, "hertz")
+    _check_layout(ironing_fine_store, "ironing-fine")
 
 
 def test_query_writes_one_row_per_point(rope_store, tmp_path):

@@ -85,6 +85,7 @@ fn approach_of(spec: &ApproximationSpec) -> Approach {
             let inner = match basis {
                 BasisSpec::Pod => Inner::Pod,
                 BasisSpec::Cpg => Inner::Cpg,
+                BasisSpec::Neighbours => Inner::Neighbours,
             };
             Approach::Registered { map, inner }
         }

@@ -131,9 +131,10 @@ pub(crate) fn domain(scene: &SceneConfig) -> (Vec<&str>, Vec<f64>, Vec<f64>) {
     (p.names(), lo, hi)
 }
 
-/// Whether `spec` is a registered CPG approximation (a dual basis a model can carry).
+/// Whether `spec` is a registered cone basis, CPG or neighbours (a dual basis a model can
+/// carry).
 pub(crate) fn is_registered_cpg(spec: &ApproximationSpec) -> bool {
-    matches!(item_of(spec).approach, Approach::Registered { inner: Inner::Cpg, .. })
+    matches!(item_of(spec).approach, Approach::Registered { inner: Inner::Cpg | Inner::Neighbours, .. })
 }
 
 /// The reduced model a user runs.
@@ -271,8 +272,10 @@ impl StageDef for ModelStage {
                     // the online comparison's steps (`approximation_online.rs`): the model of the
                     // primal POD without a dual basis, the registered basis built from the
                     // training pressures at the comparison's m grid
-                    let Approach::Registered { map, inner: Inner::Cpg } = item_of(&key.approximation).approach else {
-                        return Err(fail(format!("{} is not a registered CPG basis", key.approximation.name())));
+                    let Approach::Registered { map, inner: inner @ (Inner::Cpg | Inner::Neighbours) } =
+                        item_of(&key.approximation).approach
+                    else {
+                        return Err(fail(format!("{} is not a registered cone basis", key.approximation.name())));
                     };
                     let surface = contact_x(store, &mesh.key)?;
                     let ms = dual::m_grid(key.max_m.min(train_set.parameters.len()));
@@ -282,7 +285,7 @@ impl StageDef for ModelStage {
                         surface: &surface,
                         ms: &ms,
                     };
-                    let reg = Registered::build(&training, map, Inner::Cpg).map_err(|e| fail(e.to_string()))?;
+                    let reg = Registered::build(&training, map, inner).map_err(|e| fail(e.to_string()))?;
                     let m = pick.r_dual.min(reg.size());
                     let base = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
                     let base = if pick.r_primal < phi.cols { base.leading(pick.r_primal, 0) } else { base };

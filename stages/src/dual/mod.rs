@@ -58,6 +58,9 @@ pub enum Inner {
     Pod,
     /// Cone generators (CPG of the registered snapshots).
     Cpg,
+    /// Per query, the training snapshots nearest in the registered frame
+    /// ([`registration::Neighbours`]).
+    Neighbours,
 }
 
 /// One way of approximating the contact pressure, with its settings.
@@ -83,7 +86,8 @@ pub enum Approach {
     },
     /// Every training snapshot an atom; at most m atoms per approximation.
     Dictionary,
-    /// A change of variables of the contact surface, then POD or CPG in the reference frame.
+    /// A change of variables of the contact surface, then POD, CPG or neighbours in the
+    /// reference frame.
     Registered {
         /// The map and how it is evaluated.
         map: MapKind,
@@ -115,6 +119,7 @@ impl Approach {
                 match inner {
                     Inner::Pod => "pod",
                     Inner::Cpg => "cpg",
+                    Inner::Neighbours => "neighbours",
                 }
             ),
         }
@@ -331,6 +336,7 @@ mod tests {
             Approach::Dictionary,
             Approach::Registered { map: nodes, inner: Inner::Pod },
             Approach::Registered { map: nodes, inner: Inner::Cpg },
+            Approach::Registered { map: nodes, inner: Inner::Neighbours },
         ]
     }
 

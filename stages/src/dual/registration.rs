@@ -46,10 +46,12 @@
 //! cone (CPG): every error is in the physical frame, against the original snapshot.
 
 mod arrays;
+mod neighbours;
 
 use faer::Mat;
 
 pub use arrays::RegisteredArrays;
+pub use neighbours::{Neighbours, WEIGHTS as NEIGHBOUR_WEIGHTS};
 
 use super::{cpg_generators, pod_modes, ConePrefix, DualApprox, DualError, Fact, Inner, SpanPrefix, Training};
 use crate::cone::norm2;
@@ -372,14 +374,16 @@ impl Map {
     }
 }
 
-/// POD or CPG in the reference frame of a [`Map`].
+/// POD, CPG or neighbours in the reference frame of a [`Map`].
 #[derive(Debug)]
 pub struct Registered {
     map: Map,
     inner: Inner,
-    /// Reference modes, `len x k`.
+    /// Reference modes, `len x k` (neighbours: every training snapshot, unit columns).
     modes: Mat<f64>,
     round_trip: (f64, f64),
+    /// Neighbours: the per-query order ([`neighbours`]) and the most columns an m uses.
+    neighbours: Option<(Neighbours, usize)>,
 }
 
 impl Registered {
@@ -402,25 +406,74 @@ impl Registered {
                 counted += 1;
             }
         }
+        let mean = if counted > 0 { sum / counted as f64 } else { 0.0 };
+        let round_trip = (mean, max);
         let modes = match inner {
             Inner::Pod => pod_modes(reg.as_ref(), training.max_m())?,
             Inner::Cpg => cpg_generators(reg.as_ref(), training.max_m())?,
+            Inner::Neighbours => {
+                if kind != (MapKind::Translate { interpolation: Interpolation::Nodes }) {
+                    return Err(DualError::NotApplicable(
+                        "basis = \"neighbours\" orders the training snapshots by the part of a node the whole-node \
+                         shift leaves; use map = \"translate\" with interpolation = \"nodes\""
+                            .into(),
+                    ));
+                }
+                if training.params.iter().any(|p| p.len() != 1) {
+                    return Err(DualError::NotApplicable(
+                        "basis = \"neighbours\" measures the distance between points by the travel alone; this \
+                         scene has several parameter components (use basis = \"cpg\")"
+                            .into(),
+                    ));
+                }
+                for j in 0..count {
+                    let norm = reg.col(j).norm_l2();
+                    if norm > 0.0 {
+                        (0..map.len()).for_each(|k| reg[(k, j)] /= norm);
+                    }
+                }
+                let travels = training.params.iter().map(|p| map.frame(p).0).collect();
+                let nb = Neighbours::fit(&map, reg.as_ref(), s, travels);
+                let registered = Self { map, inner, modes: reg, round_trip, neighbours: Some((nb, training.max_m())) };
+                return Ok(registered);
+            }
         };
-        let mean = if counted > 0 { sum / counted as f64 } else { 0.0 };
-        Ok(Self { map, inner, modes, round_trip: (mean, max) })
+        Ok(Self { map, inner, modes, round_trip, neighbours: None })
     }
 
-    /// The reference modes pushed forward to `mu` (n x k).
+    /// The reference columns in the order used at `mu`, at most `limit` of them: the modes'
+    /// own order, or the neighbours' order at `mu`.
+    fn order_at(&self, mu: &[f64], limit: usize) -> Vec<usize> {
+        match &self.neighbours {
+            None => (0..self.modes.ncols().min(limit)).collect(),
+            Some((nb, _)) => {
+                let mut order = nb.order(self.map.frame(mu).0);
+                order.truncate(limit);
+                order
+            }
+        }
+    }
+
+    /// The reference modes pushed forward to `mu` (n x k), in the order used at `mu`.
     pub fn modes_at(&self, mu: &[f64], n: usize) -> Mat<f64> {
-        let k = self.modes.ncols();
-        let mut out = Mat::zeros(n, k);
+        let order = self.order_at(mu, self.size());
+        let mut out = Mat::zeros(n, order.len());
         let mut v = vec![0.0; n];
-        for c in 0..k {
-            let r = self.modes.col(c).try_as_col_major().expect("contiguous column").as_slice();
-            self.map.push(r, mu, &mut v);
+        for (c, &j) in order.iter().enumerate() {
+            self.map.push(self.reference_column(j), mu, &mut v);
             (0..n).for_each(|i| out[(i, c)] = v[i]);
         }
         out
+    }
+
+    /// Reference column `j`.
+    fn reference_column(&self, j: usize) -> &[f64] {
+        self.modes.col(j).try_as_col_major().expect("contiguous column").as_slice()
+    }
+
+    /// The per-query order of a neighbours basis (`None` for POD or CPG).
+    pub fn neighbours(&self) -> Option<&Neighbours> {
+        self.neighbours.as_ref().map(|(nb, _)| nb)
     }
 
     /// The fitted map.
@@ -434,23 +487,38 @@ impl DualApprox for Registered {
         let pushed = self.modes_at(mu, s.len());
         match self.inner {
             Inner::Pod => SpanPrefix::new(pushed.as_ref()).residuals_of(s, ms, out),
-            Inner::Cpg => ConePrefix::new(pushed.as_ref()).residuals_of(s, ms, out)?,
+            Inner::Cpg | Inner::Neighbours => ConePrefix::new(pushed.as_ref()).residuals_of(s, ms, out)?,
         }
         Ok(())
     }
 
     fn size(&self) -> usize {
-        self.modes.ncols()
+        match &self.neighbours {
+            None => self.modes.ncols(),
+            Some((_, most)) => self.modes.ncols().min(*most),
+        }
     }
 
+    /// The first `m` pushed columns that are not zero, pushing no more than it needs.
     fn cone_basis(&self, mu: &[f64], m: usize) -> Option<Mat<f64>> {
-        match self.inner {
-            Inner::Pod => None,
-            Inner::Cpg => {
-                let n = self.map.surface.x.len();
-                Some(super::nonzero_prefix(self.modes_at(mu, n).as_ref(), m))
+        if self.inner == Inner::Pod {
+            return None;
+        }
+        let n = self.map.surface.x.len();
+        let mut cols: Vec<f64> = Vec::with_capacity(n * m.min(self.size()));
+        let mut v = vec![0.0; n];
+        let mut k = 0;
+        for j in self.order_at(mu, self.size()) {
+            if k == m {
+                break;
+            }
+            self.map.push(self.reference_column(j), mu, &mut v);
+            if v.iter().any(|&x| x != 0.0) {
+                cols.extend_from_slice(&v);
+                k += 1;
             }
         }
+        Some(Mat::from_fn(n, k, |i, c| cols[i + c * n]))
     }
 
     fn depends_on_mu(&self) -> bool {
@@ -458,14 +526,18 @@ impl DualApprox for Registered {
     }
 
     /// In the reference frame: the pulled-back snapshot's coordinates on the reference modes.
+    /// Neighbours: none (no modes fixed across points, as for the dictionary).
     fn coefficients(&self, s: &[f64], mu: &[f64], m: usize) -> Result<Option<(usize, Vec<f64>)>, DualError> {
+        if self.neighbours.is_some() {
+            return Ok(None);
+        }
         let mut r = vec![0.0; self.map.len()];
         self.map.pull(s, mu, &mut r);
         let k = m.min(self.modes.ncols());
         let coords = match self.inner {
             Inner::Pod => (0..k).map(|l| self.modes.col(l).iter().zip(&r).map(|(a, b)| a * b).sum()).collect(),
-            Inner::Cpg if k == 0 => Vec::new(),
-            Inner::Cpg => {
+            Inner::Cpg | Inner::Neighbours if k == 0 => Vec::new(),
+            Inner::Cpg | Inner::Neighbours => {
                 let mut p =
                     crate::cone::ConeProjector::new(self.modes.subcols(0, k), crate::cone::NnlsParams::default());
                 p.project(&r)?.coeffs
@@ -484,15 +556,19 @@ impl DualApprox for Registered {
     }
 
     fn nonnegative(&self) -> bool {
-        self.inner == Inner::Cpg
+        self.inner != Inner::Pod
     }
 
     fn facts(&self) -> Vec<Fact> {
-        vec![
+        let mut facts = vec![
             Fact::new("reference_points", None, self.map.len() as f64),
             Fact::new("round_trip_error_mean", None, self.round_trip.0),
             Fact::new("round_trip_error_max", None, self.round_trip.1),
-        ]
+        ];
+        if let Some((nb, _)) = &self.neighbours {
+            facts.push(Fact::new("neighbour_weight", None, nb.weight()));
+        }
+        facts
     }
 }
 

@@ -6,15 +6,16 @@
 //! Kept: the map's kind (and reference refinement), the contact surface's abscissae in
 //! dual-entry order (the node order and tributary widths are derived from them by the code that
 //! derived them at the fit), the moments map's table `(μ_j, c_j, a_j)`, the reference grid
-//! (start, step, length) and the reference generators (`len x k`, column-major). The offline
+//! (start, step, length) and the reference generators (`len x k`, column-major); for a
+//! neighbours basis also each column's travel and the weight of the order. The offline
 //! round-trip errors are facts of the build and are not kept.
 
 use faer::Mat;
 
-use super::{Inner, Interpolation, Map, MapKind, Registered, Surface};
+use super::{Inner, Interpolation, Map, MapKind, Neighbours, Registered, Surface};
 use crate::dual::DualError;
 
-/// A registered CPG basis as arrays (see the module doc).
+/// A registered CPG or neighbours basis as arrays (see the module doc).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegisteredArrays {
     /// The map.
@@ -32,6 +33,10 @@ pub struct RegisteredArrays {
     pub modes: Vec<f64>,
     /// Number of generators.
     pub generators: usize,
+    /// Neighbours: the travel of each generator (its training snapshot's); empty for CPG.
+    pub travels: Vec<f64>,
+    /// Neighbours: the weight `w` of the order (0 for CPG).
+    pub weight: f64,
 }
 
 /// A refused array: what is wrong.
@@ -43,7 +48,7 @@ impl Registered {
     /// The basis as arrays; `None` for a registered POD (only non-negative generators make a
     /// dual basis of the online solve).
     pub fn arrays(&self) -> Option<RegisteredArrays> {
-        if self.inner != Inner::Cpg {
+        if self.inner == Inner::Pod {
             return None;
         }
         let m = &self.map;
@@ -61,6 +66,8 @@ impl Registered {
             len,
             modes: (0..k).flat_map(|j| self.modes.col(j).iter().copied().collect::<Vec<_>>()).collect(),
             generators: k,
+            travels: self.neighbours().map(|nb| nb.centres().to_vec()).unwrap_or_default(),
+            weight: self.neighbours().map_or(0.0, |nb| nb.weight()),
         })
     }
 
@@ -119,7 +126,26 @@ impl Registered {
             len: a.len,
         };
         let modes = Mat::from_fn(a.len, a.generators, |i, j| a.modes[i + j * a.len]);
-        Ok(Self { map, inner: Inner::Cpg, modes, round_trip: (f64::NAN, f64::NAN) })
+        let neighbours = if a.travels.is_empty() {
+            None
+        } else {
+            if a.kind != (MapKind::Translate { interpolation: Interpolation::Nodes }) {
+                return Err(bad("a neighbours basis needs whole-node shifts".into()));
+            }
+            if a.travels.len() != a.generators || a.travels.iter().any(|t| !t.is_finite()) {
+                return Err(bad(format!(
+                    "{} neighbour travels for {} generators, or a non-finite one",
+                    a.travels.len(),
+                    a.generators
+                )));
+            }
+            if !(a.weight.is_finite() && a.weight >= 0.0) {
+                return Err(bad(format!("neighbour weight {}", a.weight)));
+            }
+            Some((Neighbours::with_weight(a.travels.clone(), step, a.weight), a.generators))
+        };
+        let inner = if neighbours.is_some() { Inner::Neighbours } else { Inner::Cpg };
+        Ok(Self { map, inner, modes, round_trip: (f64::NAN, f64::NAN), neighbours })
     }
 }
 
@@ -145,12 +171,14 @@ mod tests {
         let s = Mat::from_fn(n, params.len(), |i, j| bump(x[i] - 1.0 - params[j][0], 0.2 + 0.05 * params[j][0]));
         let ms = [1usize, 2, 3, 4];
         let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
-        for kind in [
-            MapKind::Translate { interpolation: Interpolation::Nodes },
-            MapKind::Translate { interpolation: Interpolation::Linear { refine: 3 } },
-            MapKind::Moments { refine: 2 },
+        let nodes = MapKind::Translate { interpolation: Interpolation::Nodes };
+        for (kind, inner) in [
+            (nodes, Inner::Cpg),
+            (nodes, Inner::Neighbours),
+            (MapKind::Translate { interpolation: Interpolation::Linear { refine: 3 } }, Inner::Cpg),
+            (MapKind::Moments { refine: 2 }, Inner::Cpg),
         ] {
-            let built = Registered::build(&t, kind, Inner::Cpg).expect("build");
+            let built = Registered::build(&t, kind, inner).expect("build");
             let arrays = built.arrays().expect("a cone basis");
             let back = Registered::from_arrays(&arrays).expect("rebuilt");
             assert_eq!(back.arrays().as_ref(), Some(&arrays), "{kind:?}");
@@ -172,6 +200,14 @@ mod tests {
             let mut step = arrays.clone();
             step.grid[1] = 0.0;
             assert!(Registered::from_arrays(&step).is_err(), "{kind:?}: a zero grid step");
+            if inner == Inner::Neighbours {
+                let mut travels = arrays.clone();
+                travels.travels.pop();
+                assert!(Registered::from_arrays(&travels).is_err(), "a travel missing");
+                let mut weight = arrays.clone();
+                weight.weight = -1.0;
+                assert!(Registered::from_arrays(&weight).is_err(), "a negative weight");
+            }
         }
         let pod = Registered::build(&t, MapKind::Moments { refine: 2 }, Inner::Pod).expect("pod");
         assert!(pod.arrays().is_none(), "a registered POD is not a dual basis of the online solve");

@@ -43,6 +43,8 @@
 //! | `reg_table` | f64 | `3 · count` or 0 | moments map: `(μ_j, c_j, a_j)` sorted by `μ_j` |
 //! | `reg_grid` | f64 | 2 | reference grid start and step |
 //! | `reg_modes` | f64 | `reg_len · reg_generators` | reference generators, column-major |
+//! | `reg_travels` | f64 | `reg_generators` or 0 | neighbours basis: each generator's travel `c_j` (absent for CPG) |
+//! | `reg_weight` | f64 | 1 or 0 | neighbours basis: the weight `w` of the per-query order |
 //!
 //! Scalars: `surface`, `r_primal`, `r_dual`, `n_contact`, `lift_terms`, `warm_dim`, and for
 //! Type-2 `n_slaves`, `n_masters`. `Θ` by column and the per-node norms of `phi_c` are derived
@@ -83,7 +85,7 @@ impl ModelParts {
         "reg_m",
     ];
     /// Names of the float arrays.
-    pub const FLOATS: [&str; 20] = [
+    pub const FLOATS: [&str; 22] = [
         "khat_l",
         "u_of_y",
         "weights",
@@ -104,6 +106,8 @@ impl ModelParts {
         "reg_table",
         "reg_grid",
         "reg_modes",
+        "reg_travels",
+        "reg_weight",
     ];
     /// Names of the integer arrays.
     pub const INTS: [&str; 7] =
@@ -264,6 +268,9 @@ impl ReducedModel {
                 ("reg_grid", a.grid.to_vec()),
                 ("reg_modes", a.modes),
             ]);
+            if !a.travels.is_empty() {
+                floats.extend([("reg_travels", a.travels), ("reg_weight", vec![a.weight])]);
+            }
         }
         ModelParts { scalars, floats, ints }
     }
@@ -294,6 +301,12 @@ impl ReducedModel {
             len: size("reg_len")?,
             modes: p.float("reg_modes").to_vec(),
             generators: size("reg_generators")?,
+            travels: p.float("reg_travels").to_vec(),
+            weight: match p.float("reg_weight") {
+                [] => 0.0,
+                [w] => *w,
+                w => return Err(bad("reg_weight", format!("{} values, expected 1", w.len()))),
+            },
         };
         let basis = Registered::from_arrays(&arrays).map_err(|e| bad("reg_modes", e.to_string()))?;
         Ok(Some((basis, size("reg_m")?)))

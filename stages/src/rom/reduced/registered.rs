@@ -130,14 +130,20 @@ mod tests {
     use crate::rom::{ContactOperator, ModelParts, ReducedModel, RomOutcome, RomParams, RomWork};
     use crate::testing::ironing_coarse;
 
-    /// A model carrying a registered CPG basis (ironing-coarse, 17 training points, whole-node
-    /// translation, at most 5 generators), written as parts and read back, answers every test
-    /// point with the bits of the online comparison's steps (a fresh copy of the model without
-    /// a dual basis, `set_dual_of` the basis at the point, the exact solve): the same solution
-    /// and the same pressure, through a [`QueryModel`] whose copy keeps the previous query's
-    /// basis in between; damaged registered parts are refused.
+    /// A model carrying a registered cone basis (ironing-coarse, 17 training points, whole-node
+    /// translation; CPG with at most 5 generators, and neighbours with 2), written as parts and
+    /// read back, answers every test point with the bits of the online comparison's steps (a
+    /// fresh copy of the model without a dual basis, `set_dual_of` the basis at the point, the
+    /// exact solve): the same solution and the same pressure, through a [`QueryModel`] whose
+    /// copy keeps the previous query's basis in between; damaged registered parts are refused.
     #[test]
     fn a_stored_registered_model_answers_as_the_online_comparison() {
+        for (inner, m) in [(Inner::Cpg, 5), (Inner::Neighbours, 2)] {
+            stored_registered_model_answers(inner, m);
+        }
+    }
+
+    fn stored_registered_model_answers(inner: Inner, m: usize) {
         let fm = ironing_coarse();
         let mus = coarse_mus();
         let (full, phi, snaps) = full_rom(fm, &mus);
@@ -155,9 +161,8 @@ mod tests {
             ms: &ms,
         };
         let kind = MapKind::Translate { interpolation: Interpolation::Nodes };
-        let reg = Registered::build(&training, kind, Inner::Cpg).expect("registered CPG");
+        let reg = Registered::build(&training, kind, inner).expect("registered cone basis");
         let copy = Registered::from_arrays(&reg.arrays().expect("cone basis")).expect("copy");
-        let m = 5;
         let stored = base.clone().with_registered_dual(copy, m).expect("registered model");
         assert_eq!(stored.stored_ranks(), (ru, m));
         let parts = stored.parts();
@@ -167,6 +172,7 @@ mod tests {
         assert!(parts.scalars.iter().all(|(n, _)| ModelParts::SCALARS.contains(n)));
         assert!(parts.floats.iter().all(|(n, _)| ModelParts::FLOATS.contains(n)));
         assert_eq!(parts.scalars.len(), ModelParts::SCALARS.len());
+        assert_eq!(parts.float("reg_travels").len(), if inner == Inner::Neighbours { mus.len() } else { 0 });
         let p = RomParams::default();
         let mut query = QueryModel::new(&loaded);
         let (mut wa, mut wb) = (RomWork::default(), RomWork::default());
@@ -177,11 +183,11 @@ mod tests {
             let a = online.solve(&mu, &p, &mut wa);
             let model = query.at(&mu);
             let b = model.solve(&mu, &p, &mut wb);
-            assert_eq!(a.outcome, RomOutcome::Converged, "d_x {d}");
-            assert_eq!(a, b, "d_x {d}");
+            assert_eq!(a.outcome, RomOutcome::Converged, "{inner:?}: d_x {d}");
+            assert_eq!(a, b, "{inner:?}: d_x {d}");
             let (pa, pb) = (online.pressure(&a.lambda_hat), model.pressure(&b.lambda_hat));
-            assert!(pa.iter().zip(&pb).all(|(s, t)| s.to_bits() == t.to_bits()), "pressure at d_x {d}");
-            assert!(pa.iter().any(|&v| v > 0.0), "no contact at d_x {d}");
+            assert!(pa.iter().zip(&pb).all(|(s, t)| s.to_bits() == t.to_bits()), "{inner:?}: pressure at d_x {d}");
+            assert!(pa.iter().any(|&v| v > 0.0), "{inner:?}: no contact at d_x {d}");
         }
         let damaged = |name: &'static str, value: u64| {
             let mut q: ModelParts = parts.clone();
@@ -190,5 +196,10 @@ mod tests {
         };
         assert!(damaged("reg_map", 9).is_some_and(|e| e.contains("reg_map")));
         assert!(damaged("reg_len", 3).is_some_and(|e| e.contains("reg_modes")));
+        if inner == Inner::Neighbours {
+            let mut q: ModelParts = parts.clone();
+            q.floats.iter_mut().filter(|(n, _)| *n == "reg_weight").for_each(|(_, v)| v.push(1.0));
+            assert!(ReducedModel::from_parts(&q).err().is_some_and(|e| e.to_string().contains("reg_weight")));
+        }
     }
 }

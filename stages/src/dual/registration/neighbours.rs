@@ -1,0 +1,248 @@
+//! Registered neighbours: at each parameter point, the dual basis is the training snapshots
+//! nearest to it in the registered frame, pushed forward to it.
+//!
+//! # Why a per-query choice
+//!
+//! With whole-node shifts ([`Interpolation::Nodes`](super::Interpolation::Nodes)) a pressure at
+//! travel `c` is pulled back by `k(c) = round(c / h)` nodes. What the shift leaves is the
+//! residual
+//!
+//! ```text
+//! ρ(c) = c / h − k(c)  ∈ [−½, ½]      (in node spacings)
+//! ```
+//!
+//! and on a node-to-segment discretisation the nodal pressure depends on it: the same sole
+//! pressed between two slave nodes or onto one gives different nodal values. Two snapshots with
+//! the same `ρ` are, after the whole-node shift, the same profile up to the slow effect of where
+//! the iron stands on the slab; two with `ρ` half a node apart are not. A basis fixed in the
+//! reference frame (POD, CPG) has to hold every residual shift at once; this one picks, at each
+//! point, the training snapshots whose residual shift is nearest.
+//!
+//! # The order
+//!
+//! At a point with travel `c`, training snapshot `j` (travel `c_j`) scores
+//!
+//! ```text
+//! score_j = h |Δρ_j| + w |c − c_j|,     Δρ_j = ρ(c_j) − ρ(c) wrapped into (−½, ½],
+//! ```
+//!
+//! the misalignment its pushed profile keeps plus `w` times how far it was taken along the
+//! surface. The snapshots with `Δρ_j ≤ 0` and those with `Δρ_j > 0` are two sides; each is
+//! sorted by `(score, j)`, and the order takes them alternately, starting with the side whose
+//! best scores lower (ties: the side `Δρ ≤ 0`). The first two columns bracket the point's
+//! residual shift, so their cone interpolates in it; the first `m` are the basis of size `m`.
+//! Every column is a training snapshot pulled back and scaled to unit norm, so the basis is
+//! non-negative and the cone projection and the online solve take it as they take CPG
+//! generators.
+//!
+//! # The weight
+//!
+//! `w` trades travel against misalignment. It is chosen from [`WEIGHTS`] by leave-one-out on the
+//! training set: for each `w`, every training snapshot is projected on the cone of its first two
+//! neighbours among the others (physical frame, Euclidean norm) and the relative residuals are
+//! averaged; the smallest mean wins (ties: the smaller `w`). The choice is a function of the
+//! training snapshots only, so a study chooses the same `w` every run.
+
+use faer::MatRef;
+
+use super::Map;
+
+/// The candidate weights `w` (travel against misalignment), ascending.
+pub const WEIGHTS: [f64; 11] = [0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0];
+
+/// The per-query order of a registered-neighbours basis (see the module doc).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Neighbours {
+    /// Travel `c_j` of each training snapshot (reference column `j`).
+    pub(super) centres: Vec<f64>,
+    /// The node spacing `h` of the whole-node shifts.
+    pub(super) step: f64,
+    /// The weight `w`.
+    pub(super) weight: f64,
+}
+
+/// `ρ(c)`: the part of the travel `c` that whole-node shifts leave, in node spacings.
+fn residual_shift(c: f64, h: f64) -> f64 {
+    let t = c / h;
+    t - t.round()
+}
+
+/// `a − b` wrapped into `(−½, ½]`.
+fn wrapped(a: f64, b: f64) -> f64 {
+    let mut d = a - b;
+    d -= d.round();
+    if d <= -0.5 {
+        d += 1.0;
+    }
+    d
+}
+
+impl Neighbours {
+    /// With the weight given (a stored basis).
+    pub(super) fn with_weight(centres: Vec<f64>, step: f64, weight: f64) -> Self {
+        Self { centres, step, weight }
+    }
+
+    /// The weight `w`.
+    pub fn weight(&self) -> f64 {
+        self.weight
+    }
+
+    /// The travels `c_j` of the training snapshots.
+    pub fn centres(&self) -> &[f64] {
+        &self.centres
+    }
+
+    /// The order of the columns at travel `c` with weight `w`, without column `skip`.
+    fn order_with(&self, c: f64, w: f64, skip: Option<usize>) -> Vec<usize> {
+        let h = self.step;
+        let rho = residual_shift(c, h);
+        let mut sides: [Vec<(f64, usize)>; 2] = [Vec::new(), Vec::new()];
+        for (j, &cj) in self.centres.iter().enumerate() {
+            if Some(j) == skip {
+                continue;
+            }
+            let d = wrapped(residual_shift(cj, h), rho);
+            let score = h * d.abs() + w * (c - cj).abs();
+            sides[usize::from(d > 0.0)].push((score, j));
+        }
+        for side in &mut sides {
+            side.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        }
+        let first = match (sides[0].first(), sides[1].first()) {
+            (Some(a), Some(b)) if b.0 < a.0 => 1,
+            (None, Some(_)) => 1,
+            _ => 0,
+        };
+        let (a, b) = (&sides[first], &sides[1 - first]);
+        let mut order = Vec::with_capacity(a.len() + b.len());
+        for k in 0..a.len().max(b.len()) {
+            order.extend(a.get(k).map(|p| p.1));
+            order.extend(b.get(k).map(|p| p.1));
+        }
+        order
+    }
+
+    /// The order of the columns at travel `c` (the module doc's rule).
+    pub(super) fn order(&self, c: f64) -> Vec<usize> {
+        self.order_with(c, self.weight, None)
+    }
+
+    /// Choose `w` from [`WEIGHTS`] by leave-one-out on the training set: `reference` holds the
+    /// pulled-back unit columns, `snapshots` the physical ones (`n x N`), `travels` the `c_j`.
+    pub(super) fn fit(map: &Map, reference: MatRef<'_, f64>, snapshots: MatRef<'_, f64>, travels: Vec<f64>) -> Self {
+        let mut me = Self { centres: travels, step: map.grid_step, weight: 0.0 };
+        let count = me.centres.len();
+        if count < 3 {
+            return me;
+        }
+        let n = snapshots.nrows();
+        let column = |j: usize| -> Vec<f64> {
+            reference.col(j).try_as_col_major().expect("contiguous column").as_slice().to_vec()
+        };
+        let mut best = (f64::INFINITY, 0.0);
+        let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+        for &w in &WEIGHTS {
+            let mut sum = 0.0;
+            for j in 0..count {
+                let s: Vec<f64> = snapshots.col(j).iter().copied().collect();
+                let norm = crate::cone::norm2(&s);
+                if norm == 0.0 {
+                    continue;
+                }
+                let order = me.order_with(me.centres[j], w, Some(j));
+                let mu = [me.centres[j]];
+                map.push(&column(order[0]), &mu, &mut a);
+                map.push(&column(order[1]), &mu, &mut b);
+                sum += cone2_residual(&s, &a, &b) / norm;
+            }
+            let mean = sum / count as f64;
+            if mean < best.0 {
+                best = (mean, w);
+            }
+        }
+        me.weight = best.1;
+        me
+    }
+}
+
+/// `min_{x, y >= 0} ||s − x a − y b||` (Euclidean), in closed form: the two-column least
+/// squares where both coefficients are non-negative, else the better single column, else `s`.
+fn cone2_residual(s: &[f64], a: &[f64], b: &[f64]) -> f64 {
+    let dot = |u: &[f64], v: &[f64]| u.iter().zip(v).map(|(x, y)| x * y).sum::<f64>();
+    let (aa, ab, bb, sa, sb, ss) = (dot(a, a), dot(a, b), dot(b, b), dot(s, a), dot(s, b), dot(s, s));
+    // each single column (0 where the column is zero or points away from s)
+    let single = |cc: f64, sc: f64| if cc > 0.0 && sc > 0.0 { sc * sc / cc } else { 0.0 };
+    let mut explained = single(aa, sa).max(single(bb, sb));
+    let det = aa * bb - ab * ab;
+    if det > 1e-14 * aa * bb {
+        let (x, y) = ((bb * sa - ab * sb) / det, (aa * sb - ab * sa) / det);
+        if x >= 0.0 && y >= 0.0 {
+            explained = explained.max(x * sa + y * sb);
+        }
+    }
+    (ss - explained).max(0.0).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::assert_close;
+    use crate::float_cmp::Tol;
+
+    /// `ρ` and the wrap, by hand: 2.3 spacings leave 0.3, 2.7 leave −0.3; 0.4 − (−0.4) wraps to
+    /// −0.2.
+    #[test]
+    fn residual_shifts_wrap_into_half_a_node() {
+        // 1e-12: one division and one rounding of numbers of order 1
+        let tol = Tol::abs(1e-12);
+        assert_close!(residual_shift(0.23, 0.1), 0.3, tol);
+        assert_close!(residual_shift(0.27, 0.1), -0.3, tol);
+        assert_close!(wrapped(0.4, -0.4), -0.2, tol);
+        assert_close!(wrapped(-0.4, 0.4), 0.2, tol);
+        // half a node either way is +½ (the interval is (−½, ½]), exactly
+        assert_eq!(wrapped(0.5, 0.0).to_bits(), 0.5f64.to_bits());
+        assert_eq!(wrapped(-0.5, 0.0).to_bits(), 0.5f64.to_bits());
+    }
+
+    /// The order brackets the residual shift and interleaves the sides by score, worked by
+    /// hand. h = 1, travels 0.0, 0.1, 0.2, 1.05, 2.95, 3.5 at c = 2.1 (ρ = 0.1): ρ_j = 0, 0.1,
+    /// 0.2, 0.05, −0.05, −0.5, so Δρ_j = −0.1, 0, 0.1, −0.05, −0.15 and −0.6, which wraps to 0.4.
+    /// Sides: Δρ ≤ 0 {0, 1, 3, 4}, Δρ > 0 {2, 5}.
+    #[test]
+    fn the_order_brackets_and_interleaves() {
+        let nb = Neighbours { centres: vec![0.0, 0.1, 0.2, 1.05, 2.95, 3.5], step: 1.0, weight: 0.0 };
+        // w = 0: side ≤ 0 by |Δρ|: 1 (0), 3 (0.05), 0 (0.1), 4 (0.15); side > 0: 2 (0.1),
+        // 5 (0.4). Side ≤ 0 starts (0 < 0.1).
+        assert_eq!(nb.order_with(2.1, 0.0, None), vec![1, 2, 3, 5, 0, 4]);
+        // w = 1: scores |Δρ| + |c − c_j| = 2.2, 2.0, 2.0, 1.1, 1.0, 1.8; side ≤ 0: 4, 3, 1, 0;
+        // side > 0: 5, 2. Side ≤ 0 starts (1.0 < 1.8).
+        assert_eq!(nb.order_with(2.1, 1.0, None), vec![4, 5, 3, 2, 1, 0]);
+        // without column 1: side ≤ 0: 3, 0, 4; side > 0: 2, 5; side ≤ 0 starts (0.05 < 0.1)
+        assert_eq!(nb.order_with(2.1, 0.0, Some(1)), vec![3, 2, 0, 5, 4]);
+    }
+
+    /// The two-column cone residual against a brute-force scan of the coefficients.
+    #[test]
+    fn cone2_residual_is_the_cone_projection() {
+        let cases: [([f64; 3], [f64; 3], [f64; 3]); 4] = [
+            ([1.0, 2.0, 0.5], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+            ([1.0, -2.0, 0.5], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+            ([-1.0, -2.0, 0.5], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+            ([1.0, 1.0, 1.0], [1.0, 0.2, 0.0], [1.0, 0.3, 0.1]),
+        ];
+        for (s, a, b) in cases {
+            let mut best = f64::INFINITY;
+            for i in 0..=400 {
+                for k in 0..=400 {
+                    let (x, y) = (i as f64 * 0.01, k as f64 * 0.01);
+                    let r: f64 = (0..3).map(|t| (s[t] - x * a[t] - y * b[t]).powi(2)).sum::<f64>().sqrt();
+                    best = best.min(r);
+                }
+            }
+            // the scan's step (0.01) bounds how far its best can be above the true minimum
+            let got = cone2_residual(&s, &a, &b);
+            assert!(got <= best + 1e-12 && best - got < 0.03, "{s:?}: {got} against a scan's {best}");
+        }
+    }
+}
