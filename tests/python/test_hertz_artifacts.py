@@ -13,6 +13,12 @@ from conftest import only_artifact
 from test_rope_artifacts import loo_orth_errors
 
 
+def _rust_e(v):
+    """`v` as Rust's `{:.2e}` writes it (`1.26e-3`; Python writes `1.26e-03`)."""
+    mantissa, exponent = f"{v:.2e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
 def hertz_train(store):
     return only_artifact(store, "trainset", "snapshots.h5", where=lambda p: h5py.File(p, "r").attrs["set"] == "train")
 
@@ -131,6 +137,13 @@ def test_online_errors_and_report(hertz_store):
     report = only_artifact(hertz_store, "report", "index.html")
     html = report.read_text()
     assert (report.parent / "table_stability.md").is_file() and "inf-sup" in html
+    # the stored model is stated with what the study measured for it and how to query it
+    model = h5py.File(only_artifact(hertz_store, "model", "model.h5"), "r").attrs
+    ranks = (int(model["r_primal"]), int(model["reg_m"] if int(model.get("reg_map", 0)) else model["r_dual"]))
+    stated = (f"primal rank {ranks[0]}", f"with {ranks[1]} dual vectors",
+              f"converged {int(model['measured_converged'])}/{int(model['measured_points'])}",
+              f"median dual error {_rust_e(model['measured_median_dual_error'])}", "crom query hertz --at d=")
+    assert all(s in html for s in stated) and model["dual_basis"] in html, stated
     for fig in ["fig_dual_snapshots", "fig04_singular_values", "fig05_sparsity", "fig09_compactness",
                 "fig10_generalization", "fig10_specificity", "fig03_rom_errors_full", "fig_tradeoff"]:
         assert f'src="{fig}.png"' in html

@@ -250,7 +250,7 @@ impl Plan {
         }
         // after the online comparison: a registered approximation measured there is a candidate
         let inputs = (train.clone(), basis.clone(), rom.clone(), mesh.clone());
-        nodes.add("model", true, ModelStage::plan(scene, inputs, &online_specs, &labels));
+        let model = nodes.add("model", true, ModelStage::plan(scene, inputs, &online_specs, &labels));
         let online_comparison = (!online_parts.is_empty()).then(|| {
             let stage =
                 GatherStage::plan(ArtifactKind::OnlineComparison, ArtifactKind::OnlineApproximation, online_parts);
@@ -269,8 +269,9 @@ impl Plan {
             nested: nested.as_ref().map(|n| n.key.clone()),
             comparison: comparison.as_ref().map(|n| n.key.clone()),
             online_comparison: online_comparison.as_ref().map(|n| n.key.clone()),
+            model: Some(model.key.clone()),
         };
-        let mut inputs = vec![mesh, train, basis, compactness, rom, generalization, specificity];
+        let mut inputs = vec![mesh, train, basis, compactness, rom, generalization, specificity, model];
         inputs.extend([nested, comparison, online_comparison].into_iter().flatten());
         nodes.add("report", true, ReportStage::plan(scene, shows, inputs));
         Self { sweeps, family, nodes: nodes.0, imported: Vec::new(), skipped: Vec::new() }
@@ -372,6 +373,7 @@ impl Plan {
             nested: nested.as_ref().map(|n| n.key.clone()),
             comparison: comparison.as_ref().map(|n| n.key.clone()),
             online_comparison: None,
+            model: None,
         };
         let mut inputs: Vec<Input> = mesh.into_iter().collect();
         inputs.extend([train, basis, compactness, generalization, specificity]);

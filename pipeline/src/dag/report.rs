@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{
     basis as bnames, compactness as cnames, comparison as cmp_names, mesh as mnames, metrics as metric_names,
-    rom as rnames, ArtifactKind,
+    model as model_names, rom as rnames, ArtifactKind,
 };
 use crom_schemas::SceneConfig;
 use serde_json::json;
@@ -17,8 +17,9 @@ use super::{basis, Ctx, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
+use crate::io::model::StoredModel;
 use crate::io::table::{read_parquet, Column, Table};
-use crate::report::{bodies, render, ComparisonData, ReportData, Surface};
+use crate::report::{bodies, render, ComparisonData, ModelFacts, ReportData, Surface};
 use crate::store::Store;
 
 /// The report is determined by its inputs and by the scene it shows: its name, description,
@@ -36,8 +37,8 @@ pub(crate) struct ReportKey {
 impl StageKey for ReportKey {
     const KIND: ArtifactKind = ArtifactKind::Report;
     /// Bump when the report's content changes (10: the sampled-surface series of the trade-off
-    /// figure). The scene joined the key without a bump: the key changed with it.
-    const ALGORITHM_VERSION: u32 = 10;
+    /// figure; 11: the stored reduced model among the facts). The scene joined the key without a bump: the key changed with it.
+    const ALGORITHM_VERSION: u32 = 11;
 }
 
 /// The artifacts a report shows.
@@ -63,6 +64,8 @@ pub struct ReportInputs {
     pub comparison: Option<Key>,
     /// Their online solves, for scenes with `[comparison]`.
     pub online_comparison: Option<Key>,
+    /// The stored reduced model (none for an external scene).
+    pub model: Option<Key>,
 }
 
 /// The report's key spec: the scene and every artifact it shows.
@@ -86,10 +89,11 @@ fn spec(key: &ReportKey, inputs: &ReportInputs) -> KeySpec {
         Some(k) => spec.input("comparison", k),
         None => spec,
     };
-    match &inputs.online_comparison {
+    let spec = match &inputs.online_comparison {
         Some(k) => spec.input("online-comparison", k),
         None => spec,
-    }
+    };
+    optional(spec, "model", &inputs.model)
 }
 
 /// The report over the artifacts it shows.
@@ -208,7 +212,12 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
         }
         None => (Table::default(), Table::default()),
     };
+    let model = match &inputs.model {
+        Some(k) => Some(model_facts(store, k)?),
+        None => None,
+    };
     Ok(ReportData {
+        model,
         contact_x,
         line_x,
         geometry,
@@ -310,5 +319,28 @@ fn joined(dir: &std::path::Path, results: &str, timings: &str, keys: &[&str]) ->
             format!("its rows do not match those of {results}"),
             "delete the rom artifact and rerun",
         )
+    })
+}
+
+/// The stored model's facts: `model.h5`'s attributes and the measured speed-up.
+fn model_facts(store: &Store, key: &Key) -> Result<ModelFacts, CromError> {
+    let dir = store.dir(ArtifactKind::Model, key);
+    let m = StoredModel::read(&dir.join(model_names::FILE))?;
+    let speed = read_parquet(&dir.join(model_names::SPEED))?;
+    let p = &m.parts;
+    let dual = if p.scalar("reg_map") > 0 { p.scalar("reg_m") } else { p.scalar("r_dual") };
+    Ok(ModelFacts {
+        dual_basis: m.dual_basis.clone(),
+        algorithm: m.algorithm.clone(),
+        ranks: (p.scalar("r_primal"), dual),
+        points: m.measured.points,
+        converged: m.measured.converged,
+        median_dual_error: m.measured.median_dual_error,
+        median_primal_error: m.measured.median_primal_error,
+        speedup: speed.f64s("speedup").and_then(|v| v.first().copied()).filter(|v| v.is_finite()),
+        example: (
+            m.parameter_names.first().cloned().unwrap_or_default(),
+            0.5 * (m.parameter_min.first().copied().unwrap_or(0.0) + m.parameter_max.first().copied().unwrap_or(0.0)),
+        ),
     })
 }

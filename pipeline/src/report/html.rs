@@ -41,6 +41,9 @@ pub(crate) fn write_index(
             facts.push((format!("online solve, test points, {basis} dual basis"), line));
         }
     }
+    if let Some(m) = &d.model {
+        facts.push(("stored reduced model (crom query)".to_string(), model_fact(scene, m)));
+    }
     let mut html = String::new();
     html.push_str(&format!(
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>crom report: {0}</title>\n<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:4px 10px;text-align:left}}.wide{{overflow-x:auto;font-size:85%}}.wide td,.wide th{{padding:2px 6px}}figure{{margin:2em 0}}img{{max-width:100%;border:1px solid #eee}}figcaption{{color:#555}}</style></head><body>\n<h1>crom report: {0}</h1>\n<table>\n",
@@ -98,6 +101,32 @@ fn parameter_fact(scene: &SceneConfig, d: &ReportData) -> String {
         })
         .collect::<Vec<_>>()
         .join(" × ")
+}
+
+/// The stored model: what it is, what the study measured for it, and how to query it.
+fn model_fact(scene: &SceneConfig, m: &super::ModelFacts) -> String {
+    let dual = match m.dual_basis.as_str() {
+        "full" | "truncated" => format!("the {} CPG basis", m.dual_basis),
+        name => format!("the registered basis <code>{}</code> (rebuilt at each point)", esc(name)),
+    };
+    let error = |v: f64| if v.is_finite() { format!("{v:.2e}") } else { "undefined".to_string() };
+    let speed =
+        m.speedup.map_or(String::new(), |s| format!(", speed-up {s:.1}x (median full-order over median online time)"));
+    format!(
+        "{} solve, primal rank {}, {dual} with {} dual vectors: converged {}/{} test points, median dual error {}, \
+         median primal error (H1) {}{speed}. Query it without rerunning the study: \
+         <code>crom query {} --at {}={}</code>",
+        esc(&m.algorithm),
+        m.ranks.0,
+        m.ranks.1,
+        m.converged,
+        m.points,
+        error(m.median_dual_error),
+        error(m.median_primal_error),
+        esc(&scene.scene.name),
+        esc(&m.example.0),
+        m.example.1
+    )
 }
 
 /// What an external scene's report leaves out, each with its reason.

@@ -80,6 +80,31 @@ pub(crate) struct ReportData {
     pub comparison: Option<ComparisonData>,
     /// Conditioning of the stiffness and of the CPG Gram (`quantity, subject, value`).
     pub conditioning: Table,
+    /// The reduced model the study stored for `crom query`, if it has one.
+    pub model: Option<ModelFacts>,
+}
+
+/// What the report says of the stored reduced model (`model.h5` and `model_speed.parquet`).
+#[derive(Debug)]
+pub(crate) struct ModelFacts {
+    /// `model.h5`'s `dual_basis` (`full`, `truncated` or a registered approximation's name).
+    pub dual_basis: String,
+    /// Its solve (`exact` or `exact-sampled`).
+    pub algorithm: String,
+    /// Primal rank and dual size (a registered basis: its most generators per query).
+    pub ranks: (u64, u64),
+    /// Test points the study measured it at, and how many converged.
+    pub points: u64,
+    /// Of which converged.
+    pub converged: u64,
+    /// Median relative error of the pressure and of the displacement there (NaN: undefined).
+    pub median_dual_error: f64,
+    /// Median relative H1 error of the displacement.
+    pub median_primal_error: f64,
+    /// Its speed-up over the full-order solve timed in the same process (a timing).
+    pub speedup: Option<f64>,
+    /// The first parameter component's name and the middle of its range (the example query).
+    pub example: (String, f64),
 }
 
 /// The comparison artifact's tables (`crom_schemas::artifact::comparison`).

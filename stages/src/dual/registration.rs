@@ -446,11 +446,7 @@ impl Registered {
     fn order_at(&self, mu: &[f64], limit: usize) -> Vec<usize> {
         match &self.neighbours {
             None => (0..self.modes.ncols().min(limit)).collect(),
-            Some((nb, _)) => {
-                let mut order = nb.order(self.map.frame(mu).0);
-                order.truncate(limit);
-                order
-            }
+            Some((nb, _)) => nb.order(self.map.frame(mu).0).take(limit).collect(),
         }
     }
 
@@ -508,7 +504,12 @@ impl DualApprox for Registered {
         let mut cols: Vec<f64> = Vec::with_capacity(n * m.min(self.size()));
         let mut v = vec![0.0; n];
         let mut k = 0;
-        for j in self.order_at(mu, self.size()) {
+        // the order is picked lazily (a neighbours basis): only as far as the m-th non-zero column
+        let order: Box<dyn Iterator<Item = usize>> = match &self.neighbours {
+            None => Box::new(0..self.size()),
+            Some((nb, most)) => Box::new(nb.order(self.map.frame(mu).0).take(*most)),
+        };
+        for j in order {
             if k == m {
                 break;
             }
