@@ -32,7 +32,8 @@ def _check_layout(store, scene):
     for i in range(nc):
         theta[i, col[start[i]:start[i + 1]]] = val[start[i]:start[i + 1]]
     if int(a.get("reg_map", 0)) > 0:
-        assert rl == 0 and len(val) == 0 and len(model["warm_points"]) == 0, "a registered basis has no fixed one"
+        # no fixed dual basis; warm starts hold primal answers only (every active set empty)
+        assert rl == 0 and len(val) == 0 and len(model["warm_set"]) == 0, "a registered basis has no fixed one"
         _check_registered(store, scene, model)
     else:
         basis = h5py.File(only_artifact(store, "basis", "basis.h5"), "r")

@@ -242,13 +242,17 @@ fn run(
             Training { snapshots: view(&train_set.dual), params: &train_set.parameters, surface: &surface, ms: &ms };
         let model = dual::build(&item.approach, &training).map_err(|e| fail(e.to_string()))?;
         for m in ONLINE_MS.into_iter().filter(|&m| m <= model.size()) {
-            let source = if model.depends_on_mu() {
-                Source::PerQuery(model.as_ref(), m)
+            // a basis that depends on the parameter: the queries start their re-pairing from the
+            // answers at the training points with the basis there (`with_primal_starts`), as a
+            // stored model with that basis does
+            let (source, base) = if model.depends_on_mu() {
+                let base = b.model.clone().with_primal_starts(model.as_ref(), m, &train_set.parameters, &params);
+                (Source::PerQuery(model.as_ref(), m), std::borrow::Cow::Owned(base))
             } else {
                 let (theta, k) = cone_basis_columns(model.as_ref(), &test_set.parameters[0], m);
-                Source::Fixed(theta.into(), k)
+                (Source::Fixed(theta.into(), k), std::borrow::Cow::Borrowed(&b.model))
             };
-            let queries = solve_all(&source, &b.model, &test_set.parameters, &params, errors);
+            let queries = solve_all(&source, &base, &test_set.parameters, &params, errors);
             rows.push(&name, m, b.r_primal, &queries, b.fom_median);
         }
     }

@@ -21,10 +21,11 @@
 //! responses and the full CPG basis), its leading block at the row's ranks, for `exact-sampled`
 //! the reduced quadrature fitted to the same training subsample, and the warm starts at the
 //! training points (`rom.rs`). A registered basis: the reduced model of the primal POD with no
-//! dual basis, and the registered CPG basis built from the training pressures and the contact
-//! surface as the online comparison builds it (`approximation_online.rs`), which the model
-//! pushes forward to each query point (`ReducedModel::with_registered_dual`); no warm starts,
-//! as there. So a query of the stored model at a test point gives the answer the study
+//! dual basis, and the registered cone basis (CPG or neighbours) built from the training
+//! pressures and the contact surface as the online comparison builds it
+//! (`approximation_online.rs`), which the model pushes forward to each query point
+//! (`ReducedModel::with_registered_dual`); the primal starts at the training points with that
+//! basis (`ReducedModel::with_primal_starts`), as there. So a query of the stored model at a test point gives the answer the study
 //! measured there, bit for bit (tested end to end).
 //!
 //! **Files.** `model.h5` (everything the online solve reads, [`crate::io::model::StoredModel`];
@@ -271,7 +272,7 @@ impl StageDef for ModelStage {
                     };
                     // the online comparison's steps (`approximation_online.rs`): the model of the
                     // primal POD without a dual basis, the registered basis built from the
-                    // training pressures at the comparison's m grid
+                    // training pressures at the comparison's m grid, the primal starts
                     let Approach::Registered { map, inner: inner @ (Inner::Cpg | Inner::Neighbours) } =
                         item_of(&key.approximation).approach
                     else {
@@ -289,7 +290,10 @@ impl StageDef for ModelStage {
                     let m = pick.r_dual.min(reg.size());
                     let base = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
                     let base = if pick.r_primal < phi.cols { base.leading(pick.r_primal, 0) } else { base };
-                    let model = base.with_registered_dual(reg, m).map_err(|e| fail(e.to_string()))?;
+                    let model = base
+                        .with_primal_starts(&reg, m, &train_set.parameters, &params)
+                        .with_registered_dual(reg, m)
+                        .map_err(|e| fail(e.to_string()))?;
                     (model, Algorithm::Exact.name().to_string(), key.approximation.name())
                 }
             };

@@ -39,7 +39,7 @@ pub struct Frame {
 
 /// The blockwise frame of a large set that its POD ([`pod_blocks_framed`](super::pod_blocks_framed))
 /// and its orthogonal leave-one-out
-/// ([`LooOrth::from_blocks_framed`](crate::metrics::generalization::LooOrth::from_blocks_framed))
+/// ([`LooOrth::from_blocks_framed`](crate::metrics::LooOrth::from_blocks_framed))
 /// share: above [`POD_FRAME_ABOVE`](super::POD_FRAME_ABOVE) finite snapshots, within
 /// [`frame_pays_up_to`]`(N)`, with `||S||_F` from the columns' norms. `None` at or below the
 /// switch-over size, for non-finite snapshots, or where the frame does not pay: then both read

@@ -36,8 +36,13 @@ impl ReducedModel {
         self.by_node = by_node;
         self.by_col = by_col;
         self.r_l = r_l;
-        // the samples' active sets index the old dual basis
-        self.warm_starts = WarmStarts::default();
+        // the samples' active sets index the old dual basis; their answers `y` are still
+        // starting points of a re-pairing (a Type-1 library keeps nothing)
+        if self.warm_starts.ys.is_empty() {
+            self.warm_starts = WarmStarts::default();
+        } else {
+            self.warm_starts.sets.iter_mut().for_each(Vec::clear);
+        }
     }
 
     /// The gap of every paired potential-contact node at the solution in `w` (after

@@ -31,7 +31,8 @@
 //! (`(2 nn)²`, the compliance on the contact dofs, row-major).
 //!
 //! A registered dual basis rebuilt at each query point (`reg_map` > 0; then `r_dual` is 0, the
-//! `theta_*` and `warm_*` arrays are empty, and [`ReducedModel::dual_at`] sets `Θ(μ)` before
+//! `theta_*` arrays are empty, the `warm_*` arrays hold primal starts only — every active set
+//! empty, [`ReducedModel::with_primal_starts`] — and [`ReducedModel::dual_at`] sets `Θ(μ)` before
 //! each query; [`crate::dual::registration::RegisteredArrays`] describes the arrays):
 //!
 //! | name | type | length | meaning |
@@ -413,10 +414,10 @@ impl ReducedModel {
         match Self::registered_of(p)? {
             None => Ok(model),
             Some((basis, m)) => {
-                if r_l != 0 || !model.warm_starts.sets.is_empty() {
+                if r_l != 0 || model.warm_starts.sets.iter().any(|s| !s.is_empty()) {
                     return Err(bad(
                         "r_dual",
-                        "a model with a registered dual basis stores no fixed one and no warm starts".into(),
+                        "a model with a registered dual basis stores no fixed one and no warm-start active sets".into(),
                     ));
                 }
                 model.with_registered_dual(basis, m)

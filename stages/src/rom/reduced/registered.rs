@@ -10,8 +10,9 @@
 //! bits the online comparison measured there. The work per query reads contact-surface data
 //! only (`O(n_contact m)` for the push and the sparse layouts), never `n_dof`.
 //!
-//! Between queries such a model holds the basis of its last query; its warm-start library is
-//! empty (the online comparison solves cold, and a library's active sets index one basis).
+//! Between queries such a model holds the basis of its last query; its warm-start library holds
+//! primal starts only ([`ReducedModel::with_primal_starts`]: the answers at the training points,
+//! no active sets, which would index one point's basis), as the online comparison's does.
 
 use std::sync::Arc;
 
@@ -131,10 +132,10 @@ mod tests {
     use crate::testing::ironing_coarse;
 
     /// A model carrying a registered cone basis (ironing-coarse, 17 training points, whole-node
-    /// translation; CPG with at most 5 generators, and neighbours with 2), written as parts and
-    /// read back, answers every test point with the bits of the online comparison's steps (a
-    /// fresh copy of the model without a dual basis, `set_dual_of` the basis at the point, the
-    /// exact solve): the same solution and the same pressure, through a [`QueryModel`] whose
+    /// translation; CPG with at most 5 generators, and neighbours with 2) and its primal starts,
+    /// written as parts and read back, answers every test point with the bits of the online
+    /// comparison's steps (a fresh copy of the model with the primal starts and no dual basis,
+    /// `set_dual_of` the basis at the point, the exact solve): the same solution and the same pressure, through a [`QueryModel`] whose
     /// copy keeps the previous query's basis in between; damaged registered parts are refused.
     #[test]
     fn a_stored_registered_model_answers_as_the_online_comparison() {
@@ -143,7 +144,10 @@ mod tests {
         }
     }
 
-    fn stored_registered_model_answers(inner: Inner, m: usize) {
+    /// ironing-coarse with 17 training points: the model of the primal POD without a dual
+    /// basis, the registered (whole-node translation) basis `inner` of the training pressures,
+    /// and the training points.
+    fn coarse_registered(inner: Inner) -> (ReducedModel, Registered, Vec<Vec<f64>>) {
         let fm = ironing_coarse();
         let mus = coarse_mus();
         let (full, phi, snaps) = full_rom(fm, &mus);
@@ -162,7 +166,47 @@ mod tests {
         };
         let kind = MapKind::Translate { interpolation: Interpolation::Nodes };
         let reg = Registered::build(&training, kind, inner).expect("registered cone basis");
+        (base, reg, params)
+    }
+
+    /// Primal starts change the steps, not the answer: with a registered basis set per query
+    /// (CPG at m = 5, neighbours at m = 2; ironing-coarse, 48 test points between the 17
+    /// training points), the answers from the training answers' `y` equal the cold ones to
+    /// 1e-8 relative (each solve stops within `u_tol` = 1e-10 of the fixed point), and take
+    /// fewer linearisations in all.
+    #[test]
+    fn primal_starts_change_the_steps_not_the_answer() {
+        for (inner, m) in [(Inner::Cpg, 5), (Inner::Neighbours, 2)] {
+            let (base, reg, params) = coarse_registered(inner);
+            let p = RomParams::default();
+            let started = base.clone().with_primal_starts(&reg, m, &params, &p);
+            let (mut cold, mut warm) = (base.clone(), started.clone());
+            let (mut wc, mut ww) = (RomWork::default(), RomWork::default());
+            let (mut worst, mut lin_cold, mut lin_warm) = (0.0f64, 0, 0);
+            for d in coarse_tests() {
+                cold.set_dual_of(&reg, &[d], m);
+                warm.set_dual_of(&reg, &[d], m);
+                let (a, b) = (cold.solve(&[d], &p, &mut wc), warm.solve(&[d], &p, &mut ww));
+                assert_eq!((a.outcome, b.outcome), (RomOutcome::Converged, RomOutcome::Converged), "d_x {d}");
+                let diff = a.u_hat.iter().zip(&b.u_hat).map(|(s, t)| (s - t) * (s - t)).sum::<f64>().sqrt();
+                worst = worst.max(diff / a.u_hat.iter().map(|s| s * s).sum::<f64>().sqrt());
+                lin_cold += a.linearizations;
+                lin_warm += b.linearizations;
+            }
+            assert!(worst <= 1e-8, "{inner:?}: started vs cold {worst:e}");
+            assert!(lin_warm < lin_cold, "{inner:?}: linearisations started {lin_warm} vs cold {lin_cold}");
+        }
+    }
+
+    fn stored_registered_model_answers(inner: Inner, m: usize) {
+        let (base, reg, params) = coarse_registered(inner);
+        let ru = base.ranks().0;
+        let mus = coarse_mus();
         let copy = Registered::from_arrays(&reg.arrays().expect("cone basis")).expect("copy");
+        // both start their re-pairings from the answers at the training points (the online
+        // comparison's and the model stage's step)
+        let p = RomParams::default();
+        let base = base.with_primal_starts(&reg, m, &params, &p);
         let stored = base.clone().with_registered_dual(copy, m).expect("registered model");
         assert_eq!(stored.stored_ranks(), (ru, m));
         let parts = stored.parts();
@@ -173,7 +217,6 @@ mod tests {
         assert!(parts.floats.iter().all(|(n, _)| ModelParts::FLOATS.contains(n)));
         assert_eq!(parts.scalars.len(), ModelParts::SCALARS.len());
         assert_eq!(parts.float("reg_travels").len(), if inner == Inner::Neighbours { mus.len() } else { 0 });
-        let p = RomParams::default();
         let mut query = QueryModel::new(&loaded);
         let (mut wa, mut wb) = (RomWork::default(), RomWork::default());
         for d in coarse_tests() {

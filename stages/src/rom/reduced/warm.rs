@@ -2,6 +2,7 @@
 //! Type-2, their answers), and how a query starts from the nearest of them.
 
 use super::{Algorithm, ReducedModel, RomOutcome, RomParams, RomWork, SurfaceData};
+use crate::dual::DualApprox;
 
 /// Sample parameters (row-major, `dim` per point) and the active sets of the exact solve there:
 /// a Type-1 query starts the QP from the set of the nearest sample.
@@ -59,6 +60,44 @@ impl ReducedModel {
                 if repairs {
                     lib.ys.push(w.u_hat.clone());
                 }
+            }
+        }
+        self.warm_starts = lib;
+        self
+    }
+
+    /// The model with a library of primal starts for a dual basis that changes per query
+    /// (`approx`'s cone basis at each point, at most `m` columns: a registered or a local basis):
+    /// at up to [`WARM_START_SAMPLES`] of `points` (evenly spaced; all 128 training points of
+    /// ironing-fine instead of 64 start no closer: the same times to 2 %) the exact solve (cold)
+    /// with the basis at that
+    /// point, and its answer `y`, with an empty active set — the active sets would index one
+    /// point's basis, the answers `y` do not. A query then starts its re-pairing from the
+    /// nearest samples' `y` (`seed_warm`) and its QP cold, so only the path changes, as
+    /// with [`Self::with_warm_starts`]. Type-2 only (a Type-1 query does not re-pair: the model
+    /// is returned unchanged), and the exact algorithm only. The model's own dual basis is left
+    /// as it is.
+    pub fn with_primal_starts(mut self, approx: &dyn DualApprox, m: usize, points: &[Vec<f64>], p: &RomParams) -> Self {
+        self.warm_starts = WarmStarts::default();
+        if p.algorithm != Algorithm::Exact || points.is_empty() || !matches!(self.surf, SurfaceData::Nts { .. }) {
+            return self;
+        }
+        let n = points.len();
+        let take = n.min(WARM_START_SAMPLES);
+        let mut lib = WarmStarts { dim: points[0].len(), ..WarmStarts::default() };
+        let mut probe = self.clone();
+        let mut w = RomWork::default();
+        for k in 0..take {
+            let mu = &points[if take == n { k } else { k * (n - 1) / (take - 1).max(1) }];
+            if mu.len() != lib.dim {
+                continue;
+            }
+            probe.set_dual_of(approx, mu, m);
+            let info = probe.solve_in(mu, p, &mut w);
+            if info.outcome == RomOutcome::Converged {
+                lib.points.extend_from_slice(mu);
+                lib.sets.push(Vec::new());
+                lib.ys.push(w.u_hat.clone());
             }
         }
         self.warm_starts = lib;
