@@ -45,7 +45,7 @@ def best_within(curves, metric, max_m, level):
 
 
 def registered_online(curves, online, max_m=10, goal=0.001, speedup=100.0):
-    """Issue 32's targets for the registered approximation online (ironing-fine): median dual
+    """The targets for the registered approximation online (ironing-fine): median dual
     error <= 0.1 % with <= 10 modes, >= 100x the full-order solve timed in the same process,
     every test point converged; and the offline curve: the projection error of the registered
     bases at those sizes, which the online solve's pressure (a member of the same span or cone)

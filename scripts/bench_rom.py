@@ -15,7 +15,7 @@ over a hot loop of 2000 points, best of 3; `solve_many` is the wall time of one 
 pool of 2 threads, best of 3, with the process's CPU time beside it (the wall time needs two
 free cores: other processes on the machine show as wall time above CPU time / 2). `--python` runs only ironing-fine's study and these rows;
 `--model` runs ironing-fine's study, the stored model's rows (the study's choice, a registered
-CPG basis where it is the most accurate: its measured accuracy and speed, `crom query --check`
+cone basis where it is the most accurate: its measured accuracy and speed, `crom query --check`
 at the test points against them, its size, one whole query process) and the Python rows.
 
 All times are medians over the test points of the fastest of up to 3 repetitions, measured on
@@ -90,7 +90,7 @@ def model_rows(store):
         conv == points)
     dual = float(a["measured_median_dual_error"])
     row(f"ironing-fine stored model ({label}): median pressure error at the test points (as measured)",
-        "<= 0.1 % (issue 32; not expected, docs/design-notes.md)", f"{100 * dual:.3f} %", dual <= 1e-3)
+        "<= 0.1 %", f"{100 * dual:.3f} %", dual <= 1e-3)
     row(f"ironing-fine stored model ({label}): speed-up over the full-order solve (same process)", ">= 100x",
         f"{speed.speedup:.1f}x ({1e3 * speed.median_online_seconds:.3f} ms against "
         f"{1e3 * speed.median_fom_seconds:.2f} ms)", speed.speedup >= 100)
