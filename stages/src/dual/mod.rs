@@ -210,6 +210,15 @@ pub trait DualApprox: Send + Sync {
         None
     }
 
+    /// [`cone_basis`](Self::cone_basis) as its columns, concatenated (column-major), with
+    /// their count: what the online solve sets per query. The default copies the matrix.
+    fn cone_columns(&self, mu: &[f64], m: usize) -> Option<(Vec<f64>, usize)> {
+        let b = self.cone_basis(mu, m)?;
+        let k = b.ncols();
+        let b = b.as_ref();
+        Some(((0..k).flat_map(|j| b.col(j).iter().copied()).collect(), k))
+    }
+
     /// Whether [`cone_basis`](Self::cone_basis) depends on the parameter (then the online
     /// solve sets it per query, inside the timed region).
     fn depends_on_mu(&self) -> bool {

@@ -495,8 +495,14 @@ impl DualApprox for Registered {
         }
     }
 
-    /// The first `m` pushed columns that are not zero, pushing no more than it needs.
     fn cone_basis(&self, mu: &[f64], m: usize) -> Option<Mat<f64>> {
+        let (cols, k) = self.cone_columns(mu, m)?;
+        let n = self.map.surface.x.len();
+        Some(Mat::from_fn(n, k, |i, c| cols[i + c * n]))
+    }
+
+    /// The first `m` pushed columns that are not zero, pushing no more than it needs.
+    fn cone_columns(&self, mu: &[f64], m: usize) -> Option<(Vec<f64>, usize)> {
         if self.inner == Inner::Pod {
             return None;
         }
@@ -519,7 +525,7 @@ impl DualApprox for Registered {
                 k += 1;
             }
         }
-        Some(Mat::from_fn(n, k, |i, c| cols[i + c * n]))
+        Some((cols, k))
     }
 
     fn depends_on_mu(&self) -> bool {

@@ -59,6 +59,8 @@ pub struct Neighbours {
     pub(super) step: f64,
     /// The weight `w`.
     pub(super) weight: f64,
+    /// `ρ(c_j)` of each column (computed once).
+    rho: Vec<f64>,
 }
 
 /// `ρ(c)`: the part of the travel `c` that whole-node shifts leave, in node spacings.
@@ -80,7 +82,8 @@ fn wrapped(a: f64, b: f64) -> f64 {
 impl Neighbours {
     /// With the weight given (a stored basis).
     pub(super) fn with_weight(centres: Vec<f64>, step: f64, weight: f64) -> Self {
-        Self { centres, step, weight }
+        let rho = centres.iter().map(|&c| residual_shift(c, step)).collect();
+        Self { centres, step, weight, rho }
     }
 
     /// The weight `w`.
@@ -133,7 +136,7 @@ impl Neighbours {
     /// Choose `w` from [`WEIGHTS`] by leave-one-out on the training set: `reference` holds the
     /// pulled-back unit columns, `snapshots` the physical ones (`n x N`), `travels` the `c_j`.
     pub(super) fn fit(map: &Map, reference: MatRef<'_, f64>, snapshots: MatRef<'_, f64>, travels: Vec<f64>) -> Self {
-        let mut me = Self { centres: travels, step: map.grid_step, weight: 0.0 };
+        let mut me = Self::with_weight(travels, map.grid_step, 0.0);
         let count = me.centres.len();
         if count < 3 {
             return me;
@@ -186,9 +189,10 @@ impl Picks {
         let keys = nb
             .centres
             .iter()
+            .zip(&nb.rho)
             .enumerate()
-            .map(|(j, &cj)| {
-                let d = wrapped(residual_shift(cj, h), rho);
+            .map(|(j, (&cj, &rj))| {
+                let d = wrapped(rj, rho);
                 (d > 0.0, h * d.abs() + w * (c - cj).abs(), Some(j) != skip)
             })
             .collect();
@@ -269,7 +273,7 @@ mod tests {
     /// Sides: Δρ ≤ 0 {0, 1, 3, 4}, Δρ > 0 {2, 5}.
     #[test]
     fn the_order_brackets_and_interleaves() {
-        let nb = Neighbours { centres: vec![0.0, 0.1, 0.2, 1.05, 2.95, 3.5], step: 1.0, weight: 0.0 };
+        let nb = Neighbours::with_weight(vec![0.0, 0.1, 0.2, 1.05, 2.95, 3.5], 1.0, 0.0);
         // w = 0: side ≤ 0 by |Δρ|: 1 (0), 3 (0.05), 0 (0.1), 4 (0.15); side > 0: 2 (0.1),
         // 5 (0.4). Side ≤ 0 starts (0 < 0.1).
         assert_eq!(nb.order_with(2.1, 0.0, None), vec![1, 2, 3, 5, 0, 4]);
@@ -286,7 +290,7 @@ mod tests {
     fn picks_are_the_sorted_order() {
         let mut centres: Vec<f64> = (0..60).map(|j| ((j * 37) % 61) as f64 * 0.0473).collect();
         centres.extend([1.0, 1.2, 0.8, 1.1, 0.9]);
-        let nb = Neighbours { centres, step: 0.025, weight: 0.0 };
+        let nb = Neighbours::with_weight(centres, 0.025, 0.0);
         for &w in &[0.0, 0.001, 0.05, 1.0] {
             for &c in &[1.0, 0.013, 2.7, 1.4125] {
                 for skip in [None, Some(3), Some(61)] {

@@ -12,13 +12,24 @@ pub(super) type Compressed = (Vec<usize>, Vec<usize>, Vec<f64>);
 
 /// `Theta[:, :rl]` by node (CSR) and by column (CSC).
 pub(super) fn csr(theta: &[f64], nc: usize, rl: usize) -> (Compressed, Compressed) {
-    let at = |i: usize, a: usize| theta[i + a * nc];
-    (compress(nc, rl, at), compress(rl, nc, |a, i| at(i, a)))
+    let (mut by_node, mut by_col) = Default::default();
+    csr_into(theta, nc, rl, &mut by_node, &mut by_col);
+    (by_node, by_col)
 }
 
-/// The non-zeros of `value(o, k)` row by row over `o < outer`, `k < inner`.
-fn compress(outer: usize, inner: usize, value: impl Fn(usize, usize) -> f64) -> Compressed {
-    let mut c = (vec![0], Vec::new(), Vec::new());
+/// [`csr`] into existing layouts (their buffers reused: a dual basis set per query).
+pub(super) fn csr_into(theta: &[f64], nc: usize, rl: usize, by_node: &mut Compressed, by_col: &mut Compressed) {
+    let at = |i: usize, a: usize| theta[i + a * nc];
+    compress(nc, rl, at, by_node);
+    compress(rl, nc, |a, i| at(i, a), by_col);
+}
+
+/// The non-zeros of `value(o, k)` row by row over `o < outer`, `k < inner`, into `c`.
+fn compress(outer: usize, inner: usize, value: impl Fn(usize, usize) -> f64, c: &mut Compressed) {
+    c.0.clear();
+    c.1.clear();
+    c.2.clear();
+    c.0.push(0);
     for o in 0..outer {
         for k in 0..inner {
             let t = value(o, k);
@@ -29,7 +40,6 @@ fn compress(outer: usize, inner: usize, value: impl Fn(usize, usize) -> f64) -> 
         }
         c.0.push(c.1.len());
     }
-    c
 }
 
 /// Per contact node the Frobenius norm of its two rows of `Phi_c` (row-major `n_cd x r`), and

@@ -2,7 +2,7 @@
 //! the whole surface that a growing dual basis checks its candidates against
 //! ([`ReducedModel::node_gaps`]).
 
-use super::build::{csr, reduce_fixed};
+use super::build::{csr_into, reduce_fixed};
 use super::linearise::set_positions;
 use super::{ReducedModel, RomWork, SurfaceData, WarmStarts};
 use crate::contact::pairing::GapRow;
@@ -18,14 +18,14 @@ impl ReducedModel {
     pub fn set_dual(&mut self, theta: &[f64], r_l: usize) {
         let nc = self.n_contact;
         assert_eq!(theta.len(), nc * r_l, "theta shape");
-        let (by_node, by_col) = csr(theta, nc, r_l);
-        let r_u = self.r_u;
+        csr_into(theta, nc, r_l, &mut self.by_node, &mut self.by_col);
+        let (r_u, by_node) = (self.r_u, &self.by_node);
         match &mut self.surf {
             SurfaceData::Fixed { cphi, cu0, chat, ghat, .. } => {
                 chat.clear();
                 chat.resize(r_l * r_u, 0.0);
                 *ghat = vec![vec![0.0; r_l]; cu0.len()];
-                reduce_fixed(&by_node, &self.weights, r_u, cphi, cu0, chat, ghat);
+                reduce_fixed(by_node, &self.weights, r_u, cphi, cu0, chat, ghat);
             }
             SurfaceData::Nts { ns, slave_fixed, supp, quad, .. } => {
                 supp.clear();
@@ -33,8 +33,6 @@ impl ReducedModel {
                 *quad = None;
             }
         }
-        self.by_node = by_node;
-        self.by_col = by_col;
         self.r_l = r_l;
         // the samples' active sets index the old dual basis; their answers `y` are still
         // starting points of a re-pairing (a Type-1 library keeps nothing)

@@ -30,10 +30,7 @@ pub(super) struct PerQueryDual {
 /// The online solve's dual basis of `approx` at `mu`: its cone basis with at most `m` columns
 /// ([`DualApprox::cone_basis`]; none for signed modes), column-major, and its column count.
 pub fn cone_basis_columns(approx: &dyn DualApprox, mu: &[f64], m: usize) -> (Vec<f64>, usize) {
-    let b = approx.cone_basis(mu, m).unwrap_or_else(|| faer::Mat::zeros(0, 0));
-    let k = b.ncols();
-    let b = b.as_ref();
-    ((0..k).flat_map(|j| b.col(j).iter().copied()).collect(), k)
+    approx.cone_columns(mu, m).unwrap_or_default()
 }
 
 impl ReducedModel {
