@@ -154,6 +154,9 @@ impl OnlineApproximationStage {
 }
 
 impl StageDef for OnlineApproximationStage {
+    fn times_solves(&self) -> bool {
+        true
+    }
     fn kind(&self) -> ArtifactKind {
         ArtifactKind::OnlineApproximation
     }

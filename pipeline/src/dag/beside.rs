@@ -77,6 +77,12 @@ impl<'scope, 'p, 'a: 'p> Beside<'scope, 'p, 'a> {
         out
     }
 
+    /// Every pending job, the worker kept for later ones.
+    pub(super) fn drain(&mut self) -> Vec<(&'p Node, Done<'a>)> {
+        let pending = std::mem::take(&mut self.pending);
+        pending.into_iter().map(|(node, rx)| (node, self.receive(&rx))).collect()
+    }
+
     /// Every pending job, then the worker's end.
     pub(super) fn finish(mut self) -> Vec<(&'p Node, Done<'a>)> {
         let pending = std::mem::take(&mut self.pending);

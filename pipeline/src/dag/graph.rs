@@ -67,6 +67,12 @@ pub(crate) trait StageDef: Debug + Send + Sync {
     fn placement(&self) -> Placement {
         Placement::Main
     }
+    /// Whether it times solves against each other (a speed-up): then nothing runs beside it,
+    /// so that a job on the other core does not slow one of the timed solves more than the
+    /// other.
+    fn times_solves(&self) -> bool {
+        false
+    }
     /// Make its artifact, or find it in the store; returns its key.
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError>;
 }

@@ -349,7 +349,10 @@ pub fn run_scene(ctx: &mut Ctx<'_>, scene: &SceneConfig, online: bool) -> Result
 ///
 /// The views (XDMF over stored columns: HDF5 metadata, one core, no numerics) run on one
 /// worker beside the main loop ([`beside`]) as soon as their inputs exist: the heavy stages
-/// after them (the basis' greedy path is mostly sequential) leave a core idle.
+/// after them (the basis' greedy path is mostly sequential) leave a core idle. Before a stage
+/// that times solves against each other (the online ROM's trade-off, each online
+/// approximation) every job beside is waited for, so the speed-ups are measured on a quiet
+/// machine.
 /// `scene` builds the high-fidelity model on first use ([`LazyPhysics`]) and nothing else:
 /// the stages read their settings from the plan.
 pub(crate) fn execute(
@@ -383,6 +386,12 @@ fn execute_in<'scope, 'env, 'a: 'env>(
         }
         for done in beside.wait_for(&node.inputs) {
             join_beside(ctx, done, &mut keys)?;
+        }
+        if node.stage.times_solves() {
+            // nothing beside a timed comparison of solves
+            for done in beside.drain() {
+                join_beside(ctx, done, &mut keys)?;
+            }
         }
         if node.stage.placement() == graph::Placement::Beside {
             // Reserve the summary line in plan order; the worker adds its counts.

@@ -162,6 +162,9 @@ impl RomStage {
 }
 
 impl StageDef for RomStage {
+    fn times_solves(&self) -> bool {
+        true
+    }
     fn kind(&self) -> ArtifactKind {
         ArtifactKind::Rom
     }
