@@ -441,18 +441,18 @@ impl Registered {
         Ok(Self { map, inner, modes, round_trip, neighbours: None })
     }
 
-    /// The reference columns in the order used at `mu`, at most `limit` of them: the modes'
-    /// own order, or the neighbours' order at `mu`.
-    fn order_at(&self, mu: &[f64], limit: usize) -> Vec<usize> {
+    /// The reference columns in the order used at `mu` (the first [`DualApprox::size`]): the
+    /// modes' own order, or the neighbours' order at `mu`, picked lazily.
+    fn order_at(&self, mu: &[f64]) -> Box<dyn Iterator<Item = usize> + '_> {
         match &self.neighbours {
-            None => (0..self.modes.ncols().min(limit)).collect(),
-            Some((nb, _)) => nb.order(self.map.frame(mu).0).take(limit).collect(),
+            None => Box::new(0..self.size()),
+            Some((nb, _)) => Box::new(nb.order(self.map.frame(mu).0).take(self.size())),
         }
     }
 
     /// The reference modes pushed forward to `mu` (n x k), in the order used at `mu`.
     pub fn modes_at(&self, mu: &[f64], n: usize) -> Mat<f64> {
-        let order = self.order_at(mu, self.size());
+        let order: Vec<usize> = self.order_at(mu).collect();
         let mut out = Mat::zeros(n, order.len());
         let mut v = vec![0.0; n];
         for (c, &j) in order.iter().enumerate() {
@@ -510,12 +510,8 @@ impl DualApprox for Registered {
         let mut cols: Vec<f64> = Vec::with_capacity(n * m.min(self.size()));
         let mut v = vec![0.0; n];
         let mut k = 0;
-        // the order is picked lazily (a neighbours basis): only as far as the m-th non-zero column
-        let order: Box<dyn Iterator<Item = usize>> = match &self.neighbours {
-            None => Box::new(0..self.size()),
-            Some((nb, most)) => Box::new(nb.order(self.map.frame(mu).0).take(*most)),
-        };
-        for j in order {
+        // only as far as the m-th non-zero column
+        for j in self.order_at(mu) {
             if k == m {
                 break;
             }

@@ -142,25 +142,29 @@ impl Neighbours {
             return me;
         }
         let n = snapshots.nrows();
-        let column = |j: usize| -> Vec<f64> {
-            reference.col(j).try_as_col_major().expect("contiguous column").as_slice().to_vec()
-        };
+        let column = |j: usize| reference.col(j).try_as_col_major().expect("contiguous column").as_slice();
+        // each training snapshot with its norm, read once for every weight
+        let physical: Vec<(Vec<f64>, f64)> = (0..count)
+            .map(|j| {
+                let s: Vec<f64> = snapshots.col(j).iter().copied().collect();
+                let norm = crate::cone::norm2(&s);
+                (s, norm)
+            })
+            .collect();
         let mut best = (f64::INFINITY, 0.0);
         let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
         for &w in &WEIGHTS {
             let mut sum = 0.0;
-            for j in 0..count {
-                let s: Vec<f64> = snapshots.col(j).iter().copied().collect();
-                let norm = crate::cone::norm2(&s);
-                if norm == 0.0 {
+            for (j, (s, norm)) in physical.iter().enumerate() {
+                if *norm == 0.0 {
                     continue;
                 }
                 let mut order = Picks::new(&me, me.centres[j], w, Some(j));
                 let (first, second) = (order.next().expect("3 columns or more"), order.next().expect("a second"));
                 let mu = [me.centres[j]];
-                map.push(&column(first), &mu, &mut a);
-                map.push(&column(second), &mu, &mut b);
-                sum += cone2_residual(&s, &a, &b) / norm;
+                map.push(column(first), &mu, &mut a);
+                map.push(column(second), &mu, &mut b);
+                sum += cone2_residual(s, &a, &b) / norm;
             }
             let mean = sum / count as f64;
             if mean < best.0 {

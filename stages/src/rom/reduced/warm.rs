@@ -43,26 +43,7 @@ impl ReducedModel {
         if p.algorithm != Algorithm::Exact || points.is_empty() {
             return self;
         }
-        let repairs = matches!(self.surf, SurfaceData::Nts { .. });
-        let n = points.len();
-        let take = n.min(WARM_START_SAMPLES);
-        let mut lib = WarmStarts { dim: points[0].len(), ..WarmStarts::default() };
-        let mut w = RomWork::default();
-        for k in 0..take {
-            let mu = &points[if take == n { k } else { k * (n - 1) / (take - 1).max(1) }];
-            if mu.len() != lib.dim {
-                continue;
-            }
-            let info = self.solve_in(mu, p, &mut w);
-            if info.outcome == RomOutcome::Converged {
-                lib.points.extend_from_slice(mu);
-                lib.sets.push(w.qp.active.clone());
-                if repairs {
-                    lib.ys.push(w.u_hat.clone());
-                }
-            }
-        }
-        self.warm_starts = lib;
+        self.warm_starts = sample(&mut self, points, p, true, |_, _| {});
         self
     }
 
@@ -82,25 +63,8 @@ impl ReducedModel {
         if p.algorithm != Algorithm::Exact || points.is_empty() || !matches!(self.surf, SurfaceData::Nts { .. }) {
             return self;
         }
-        let n = points.len();
-        let take = n.min(WARM_START_SAMPLES);
-        let mut lib = WarmStarts { dim: points[0].len(), ..WarmStarts::default() };
         let mut probe = self.clone();
-        let mut w = RomWork::default();
-        for k in 0..take {
-            let mu = &points[if take == n { k } else { k * (n - 1) / (take - 1).max(1) }];
-            if mu.len() != lib.dim {
-                continue;
-            }
-            probe.set_dual_of(approx, mu, m);
-            let info = probe.solve_in(mu, p, &mut w);
-            if info.outcome == RomOutcome::Converged {
-                lib.points.extend_from_slice(mu);
-                lib.sets.push(Vec::new());
-                lib.ys.push(w.u_hat.clone());
-            }
-        }
-        self.warm_starts = lib;
+        self.warm_starts = sample(&mut probe, points, p, false, |model, mu| model.set_dual_of(approx, mu, m));
         self
     }
 
@@ -150,6 +114,40 @@ impl ReducedModel {
             }
         }
     }
+}
+
+/// A library from the exact solve (cold, `model` holding no library) at up to
+/// [`WARM_START_SAMPLES`] of `points`, evenly spaced: `prepare` readies the model at each point
+/// (its dual basis there, for a basis set per query); every converged point is kept with its
+/// active set (empty unless `sets`) and, Type-2, its answer `y`.
+fn sample(
+    model: &mut ReducedModel,
+    points: &[Vec<f64>],
+    p: &RomParams,
+    sets: bool,
+    mut prepare: impl FnMut(&mut ReducedModel, &[f64]),
+) -> WarmStarts {
+    let repairs = matches!(model.surf, SurfaceData::Nts { .. });
+    let n = points.len();
+    let take = n.min(WARM_START_SAMPLES);
+    let mut lib = WarmStarts { dim: points[0].len(), ..WarmStarts::default() };
+    let mut w = RomWork::default();
+    for k in 0..take {
+        let mu = &points[if take == n { k } else { k * (n - 1) / (take - 1).max(1) }];
+        if mu.len() != lib.dim {
+            continue;
+        }
+        prepare(model, mu);
+        let info = model.solve_in(mu, p, &mut w);
+        if info.outcome == RomOutcome::Converged {
+            lib.points.extend_from_slice(mu);
+            lib.sets.push(if sets { w.qp.active.clone() } else { Vec::new() });
+            if repairs {
+                lib.ys.push(w.u_hat.clone());
+            }
+        }
+    }
+    lib
 }
 
 #[cfg(test)]
