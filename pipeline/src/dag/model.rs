@@ -25,8 +25,8 @@
 //! pressures and the contact surface as the online comparison builds it
 //! (`approximation_online.rs`), which the model pushes forward to each query point
 //! (`ReducedModel::with_registered_dual`); the primal starts at the training points with that
-//! basis (`ReducedModel::with_primal_starts`), as there. So a query of the stored model at a test point gives the answer the study
-//! measured there, bit for bit (tested end to end).
+//! basis (`ReducedModel::with_primal_starts`), as there. So a query of the stored model at a
+//! test point gives the answer the study measured there, bit for bit (tested end to end).
 //!
 //! **Files.** `model.h5` (everything the online solve reads, [`crate::io::model::StoredModel`];
 //! its size does not depend on `n_dof`), `reconstruction.h5` (the primal basis and the lift's
@@ -134,7 +134,7 @@ pub(crate) fn domain(scene: &SceneConfig) -> (Vec<&str>, Vec<f64>, Vec<f64>) {
 
 /// Whether `spec` is a registered cone basis, CPG or neighbours (a dual basis a model can
 /// carry).
-pub(crate) fn is_registered_cpg(spec: &ApproximationSpec) -> bool {
+pub(crate) fn is_registered_cone(spec: &ApproximationSpec) -> bool {
     matches!(item_of(spec).approach, Approach::Registered { inner: Inner::Cpg | Inner::Neighbours, .. })
 }
 
@@ -169,7 +169,7 @@ impl ModelStage {
         };
         let (registered, online): (Vec<RegisteredKey>, Vec<Input>) = online
             .iter()
-            .filter(|(spec, _)| is_registered_cpg(spec) && wanted(spec))
+            .filter(|(spec, _)| is_registered_cone(spec) && wanted(spec))
             .map(|(spec, input)| (RegisteredKey { approximation: spec.clone(), max_m }, input.clone()))
             .unzip();
         let settings = ModelKey::of(scene, registered);

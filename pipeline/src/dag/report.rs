@@ -9,6 +9,7 @@ use crom_schemas::artifact::{
     model as model_names, rom as rnames, ArtifactKind,
 };
 use crom_schemas::SceneConfig;
+use crom_stages::rom::ReducedModel;
 use serde_json::json;
 
 use super::graph::{Input, StageDef};
@@ -37,7 +38,8 @@ pub(crate) struct ReportKey {
 impl StageKey for ReportKey {
     const KIND: ArtifactKind = ArtifactKind::Report;
     /// Bump when the report's content changes (10: the sampled-surface series of the trade-off
-    /// figure; 11: the stored reduced model among the facts). The scene joined the key without a bump: the key changed with it.
+    /// figure; 11: the stored reduced model among the facts). The scene joined the key without
+    /// a bump: the key changed with it.
     const ALGORITHM_VERSION: u32 = 11;
 }
 
@@ -325,14 +327,17 @@ fn joined(dir: &std::path::Path, results: &str, timings: &str, keys: &[&str]) ->
 /// The stored model's facts: `model.h5`'s attributes and the measured speed-up.
 fn model_facts(store: &Store, key: &Key) -> Result<ModelFacts, CromError> {
     let dir = store.dir(ArtifactKind::Model, key);
-    let m = StoredModel::read(&dir.join(model_names::FILE))?;
+    let file = dir.join(model_names::FILE);
+    let m = StoredModel::read(&file)?;
     let speed = read_parquet(&dir.join(model_names::SPEED))?;
-    let p = &m.parts;
-    let dual = if p.scalar("reg_map") > 0 { p.scalar("reg_m") } else { p.scalar("r_dual") };
+    // the ranks as `crom query` reports them (a registered basis: its most generators per query)
+    let ranks = ReducedModel::from_parts(&m.parts)
+        .map_err(|e| CromError::artifact(&file, e, "run `crom run SCENE` again: it rebuilds the model"))?
+        .stored_ranks();
     Ok(ModelFacts {
         dual_basis: m.dual_basis.clone(),
         algorithm: m.algorithm.clone(),
-        ranks: (p.scalar("r_primal"), dual),
+        ranks,
         points: m.measured.points,
         converged: m.measured.converged,
         median_dual_error: m.measured.median_dual_error,

@@ -92,12 +92,12 @@ pub(crate) struct ModelFacts {
     /// Its solve (`exact` or `exact-sampled`).
     pub algorithm: String,
     /// Primal rank and dual size (a registered basis: its most generators per query).
-    pub ranks: (u64, u64),
-    /// Test points the study measured it at, and how many converged.
+    pub ranks: (usize, usize),
+    /// Test points the study measured it at.
     pub points: u64,
     /// Of which converged.
     pub converged: u64,
-    /// Median relative error of the pressure and of the displacement there (NaN: undefined).
+    /// Median relative error of the pressure there (NaN: undefined).
     pub median_dual_error: f64,
     /// Median relative H1 error of the displacement.
     pub median_primal_error: f64,
