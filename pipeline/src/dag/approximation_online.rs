@@ -37,7 +37,7 @@ use super::approximation::ONLINE_MS;
 use super::comparison::{self, contact_x, item};
 use super::convert::view;
 use super::graph::{Input, StageDef};
-use super::rom::{dual_error, fastest, fom_seconds, response_basis};
+use super::rom::{dual_error, fastest, response_basis};
 use super::{Ctx, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -198,19 +198,22 @@ fn run(
         scene: scene.to_string(),
         message: format!("{name}: {m}"),
     };
-    let phys = physics.get()?;
-    let op = phys.operator();
     let (train_set, test_set) = (ctx.loaded.set(ctx.store, train)?, ctx.loaded.set(ctx.store, test)?);
     let start = Instant::now();
     let of = (train.clone(), test.clone());
-    if shared.as_ref().is_none_or(|b| b.of != of) {
+    let rebuild = shared.as_ref().is_none_or(|b| b.of != of);
+    // measured by the trade-off's stage when it ran earlier in this process
+    let fom = if rebuild { physics.fom_seconds(test, &test_set.parameters)? } else { Vec::new() };
+    let phys = physics.get()?;
+    let op = phys.operator();
+    if rebuild {
         let phi = response_basis(op, &train_set).map_err(&fail)?;
         let model = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
         let refs: Vec<(&[f64], &[f64])> =
             test_set.parameters.iter().enumerate().map(|(j, mu)| (mu.as_slice(), test_set.primal.col(j))).collect();
         let errors = PrimalErrors::new(op, &phi.data, phi.cols, &refs)
             .ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
-        let fom_median = quantile(&fom_seconds(phys, &test_set.parameters), 0.5);
+        let fom_median = quantile(&fom, 0.5);
         *shared = Some(OnlineBase { of, r_primal: phi.cols, model, errors, fom_median });
     }
     let Some(b) = shared.as_ref() else { return Err(fail("the shared reduced model was not built".into())) };

@@ -490,12 +490,30 @@ impl<'s> Shared<'s> {
 pub(crate) struct LazyPhysics<'s> {
     scene: &'s SceneConfig,
     built: Option<Physics>,
+    /// The full-order solve times at the points of one set (its key), measured on first use.
+    fom: Option<(Key, Vec<f64>)>,
 }
 
 impl<'s> LazyPhysics<'s> {
     /// Nothing built yet.
     pub(crate) fn new(scene: &'s SceneConfig) -> Self {
-        Self { scene, built: None }
+        Self { scene, built: None, fom: None }
+    }
+
+    /// The full-order solve time at each point of the set `set` (its key; `parameters` its
+    /// points), measured on the first call in this process ([`rom::fom_seconds`]) and handed to
+    /// every later stage that asks for the same set: the trade-off and the online comparison
+    /// then state their speed-ups against one measurement, and the full-order solves are timed
+    /// once per run instead of once per stage.
+    pub(crate) fn fom_seconds(&mut self, set: &Key, parameters: &[Vec<f64>]) -> Result<Vec<f64>, CromError> {
+        if let Some((of, seconds)) = &self.fom {
+            if of == set && seconds.len() == parameters.len() {
+                return Ok(seconds.clone());
+            }
+        }
+        let seconds = rom::fom_seconds(self.get()?, parameters);
+        self.fom = Some((set.clone(), seconds.clone()));
+        Ok(seconds)
     }
 
     /// The model, building it if needed.
@@ -509,5 +527,28 @@ impl<'s> LazyPhysics<'s> {
             self.built = Some(p);
         }
         Ok(self.built.as_ref().expect("built above"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The full-order times are measured once per set and handed out again: a second
+    /// measurement of wall-clock times would not repeat the first to the bit.
+    #[test]
+    fn the_full_order_times_are_measured_once_per_set() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes");
+        let scene = SceneConfig::load(&dir.join("rope.toml")).expect("shipped scene");
+        let mut physics = LazyPhysics::new(&scene);
+        let points: Vec<Vec<f64>> = (0..64).map(|k| vec![-0.3 + 0.01 * f64::from(k)]).collect();
+        let (a, b) = (Key("a".into()), Key("b".into()));
+        let first = physics.fom_seconds(&a, &points).expect("rope");
+        assert_eq!(first.len(), points.len());
+        assert!(first.iter().all(|&t| t > 0.0 && t.is_finite()));
+        assert_eq!(physics.fom_seconds(&a, &points).expect("rope"), first, "the same set is not re-timed");
+        let other = physics.fom_seconds(&b, &points).expect("rope");
+        assert_ne!(other, first, "another set is timed afresh");
+        assert_eq!(physics.fom_seconds(&b, &points).expect("rope"), other);
     }
 }
