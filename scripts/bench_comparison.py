@@ -6,7 +6,10 @@ reads the comparison artifacts (`comparison.parquet`, `comparison_timings.parque
 online comparison (`online_comparison.parquet` and its timings). The error of the targets is the
 mean relative dual error over the scene's test set, each snapshot at its own parameter, in the
 physical frame (the `test` metric); G(m) (leave-one-out) is printed beside it. Times are this
-2-core VM's; they vary by up to ~30 % between runs.
+2-core VM's; they vary by up to ~30 % between runs, so ironing-fine's study is run
+`BENCH_REPEATS` times (default 3, each into a fresh store) and the speed-up target is judged on
+the median of the runs, every run's value printed beside it; the other rows are the first run's
+(their numbers are byte-identical from run to run).
 
 The dictionary row runs `stages/examples/bench_dictionary.rs` (its own table is printed after).
 
@@ -15,6 +18,7 @@ Usage: scripts/bench_comparison.py
 
 import os
 import pathlib
+import statistics
 import subprocess
 import tempfile
 
@@ -23,6 +27,8 @@ import pandas as pd
 REPO = pathlib.Path(__file__).resolve().parent.parent
 # The release binary `cargo build --release` writes (under CARGO_TARGET_DIR when that is set).
 CROM = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target")) / "release" / "crom"
+# Cold runs of ironing-fine's study whose speed-ups the speed-up target is judged on (median).
+REPEATS = int(os.environ.get("BENCH_REPEATS", "3"))
 
 
 def row(what, target, measured, met):
@@ -44,7 +50,7 @@ def best_within(curves, metric, max_m, level):
     return r.approximation, int(r.m), float(r["mean"])
 
 
-def registered_online(curves, online, max_m=10, goal=0.001, speedup=100.0):
+def registered_online(curves, online, timings, max_m=10, goal=0.001, speedup=100.0):
     """The targets for the registered approximation online (ironing-fine): median dual
     error <= 0.1 % with <= 10 modes, >= 100x the full-order solve timed in the same process,
     every test point converged; and the offline curve: the projection error of the registered
@@ -62,9 +68,13 @@ def registered_online(curves, online, max_m=10, goal=0.001, speedup=100.0):
         + ", ".join(f"{r.approximation} {100 * r.median_dual_error:.2f} %" for _, r in
                     online[online.approximation.str.startswith("registered") & (online.m == 32)].iterrows())
         + ")", b.median_dual_error <= goal)
-    row("... at that setting: speed-up over the full-order solve (same process)", f">= {speedup:.0f}x",
-        f"{b.speedup:.0f}x ({b.median_online_ms:.3f} ms against {b.median_full_order_ms:.1f} ms)",
-        b.speedup >= speedup)
+    # The same row in every run (the errors are byte-identical across runs, the times are not).
+    same = [t[(t.approximation == b.approximation) & (t.m == b.m)].iloc[0] for t in timings]
+    median = statistics.median(float(t.speedup) for t in same)
+    runs = "; ".join(f"{t.speedup:.1f}x ({t.median_online_ms:.3f} ms against {t.median_full_order_ms:.2f} ms)"
+                     for t in same)
+    row(f"... at that setting: speed-up over the full-order solve (same process), median of {len(same)} cold runs",
+        f">= {speedup:.0f}x", f"{median:.1f}x (runs: {runs})", median >= speedup)
     row("... at that setting: test points converged", "all", f"{int(b.converged)}/{int(b.points)}",
         int(b.converged) == int(b.points))
     off = curves[(curves.metric == "test") & curves.approximation.str.startswith("registered") & (curves.m <= max_m)]
@@ -82,17 +92,20 @@ def main():
     print("| target | goal | measured | met |")
     print("|---|---|---|---|")
     for scene, max_m in [("ironing-fine", 5), ("hertz", 3)]:
-        with tempfile.TemporaryDirectory() as tmp:
-            store = pathlib.Path(tmp) / "store"
-            subprocess.run([str(CROM), "--store", str(store), "--quiet", "run", scene], cwd=REPO, check=True,
-                           stdout=subprocess.DEVNULL)
-            cmp_dir = only(store, "comparison")
-            curves = pd.read_parquet(cmp_dir / "comparison.parquet")
-            builds = pd.read_parquet(cmp_dir / "comparison_timings.parquet")
-            online_dir = only(store, "online-comparison")
-            online = pd.read_parquet(online_dir / "online_comparison.parquet").merge(
-                pd.read_parquet(online_dir / "online_comparison_timings.parquet"),
-                on=["scene", "approximation", "m"], validate="one_to_one")
+        timings = []
+        for run in range(max(1, REPEATS) if scene == "ironing-fine" else 1):
+            with tempfile.TemporaryDirectory() as tmp:
+                store = pathlib.Path(tmp) / "store"
+                subprocess.run([str(CROM), "--store", str(store), "--quiet", "run", scene], cwd=REPO, check=True,
+                               stdout=subprocess.DEVNULL)
+                online_dir = only(store, "online-comparison")
+                timings.append(pd.read_parquet(online_dir / "online_comparison_timings.parquet"))
+                if run == 0:
+                    cmp_dir = only(store, "comparison")
+                    curves = pd.read_parquet(cmp_dir / "comparison.parquet")
+                    builds = pd.read_parquet(cmp_dir / "comparison_timings.parquet")
+                    online = pd.read_parquet(online_dir / "online_comparison.parquet").merge(
+                        timings[0], on=["scene", "approximation", "m"], validate="one_to_one")
         best = best_within(curves, "test", max_m, 0.01)
         if best:
             name, m, err = best
@@ -122,7 +135,7 @@ def main():
         row(f"{scene}: ... with a non-negative basis whose online solve converges everywhere", goal, measured,
             found is not None)
         if scene == "ironing-fine":
-            registered_online(curves, online)
+            registered_online(curves, online, timings)
             worst = builds.sort_values("build_seconds").iloc[-1]
             row("ironing-fine: every approach's offline build at N = 128", "<= 2 s",
                 f"{worst.build_seconds:.2f} s ({worst.approximation}, the slowest)", worst.build_seconds <= 2.0)

@@ -20,8 +20,9 @@ at the test points against them, its size, one whole query process) and the Pyth
 
 All times are medians over the test points of the fastest of up to 3 repetitions, measured on
 2 threads in the same process as the full-order solves they are compared with (see
-pipeline/src/dag/rom.rs). This machine's timings vary by up to ~30 % between runs; the script
-prints what it measured.
+pipeline/src/dag/rom.rs). This machine's timings vary by up to ~30 % between runs: `--model`
+runs the study `BENCH_REPEATS` times (default 3) and judges the stored model's speed-up on the
+median, every run's value beside it; the script prints what it measured.
 
 Usage: scripts/bench_rom.py [--python | --model]
 """
@@ -37,6 +38,9 @@ import pandas as pd
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 CROM = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target")) / "release" / "crom"
+# Cold runs of ironing-fine's study whose stored-model speed-ups `--model` judges the target on
+# (median): this machine's timings vary by up to ~30 % between runs.
+REPEATS = int(os.environ.get("BENCH_REPEATS", "3"))
 # Relative residual of the reduced quadrature in the mesh table (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints).
 SAMPLING_TOL = 3e-2
 
@@ -68,13 +72,20 @@ def model_label(store):
         return f"{a['dual_basis']}, ({int(a['r_primal'])}, {m})"
 
 
-def model_rows(store):
+def model_speed(store):
+    """The stored model's `model_speed.parquet` row (a timing file)."""
+    model = next((store / "model").iterdir())
+    return pd.read_parquet(model / "model_speed.parquet").iloc[0]
+
+
+def model_rows(store, speeds):
     """The stored reduced model of ironing-fine (the study's choice: a registered CPG basis where
     it is the most accurate, docs/store-format.md): what the study measured for it (`measured_*`
     attributes, `model_speed.parquet`), the query's own accuracy at the test points (`crom query
     --points --check`, which must give the measured median dual error bit for bit), its size
     without the reconstruction bases, and one `crom query` as a whole process (load, solve,
-    print), the median of 20 runs."""
+    print), the median of 20 runs. `speeds` are the model's speed rows of every cold run of the
+    study (this store's first): the speed-up target is judged on their median."""
     import h5py
     import statistics
     import time
@@ -84,16 +95,17 @@ def model_rows(store):
     label = model_label(store)
     with h5py.File(model / "model.h5", "r") as f:
         a = dict(f.attrs)
-    speed = pd.read_parquet(model / "model_speed.parquet").iloc[0]
     points, conv = int(a["measured_points"]), int(a["measured_converged"])
     row(f"ironing-fine stored model ({label}): converged test points", f"{points}/{points}", f"{conv}/{points}",
         conv == points)
     dual = float(a["measured_median_dual_error"])
     row(f"ironing-fine stored model ({label}): median pressure error at the test points (as measured)",
         "<= 0.1 %", f"{100 * dual:.3f} %", dual <= 1e-3)
-    row(f"ironing-fine stored model ({label}): speed-up over the full-order solve (same process)", ">= 100x",
-        f"{speed.speedup:.1f}x ({1e3 * speed.median_online_seconds:.3f} ms against "
-        f"{1e3 * speed.median_fom_seconds:.2f} ms)", speed.speedup >= 100)
+    median = statistics.median(float(v.speedup) for v in speeds)
+    runs = "; ".join(f"{v.speedup:.1f}x ({1e3 * v.median_online_seconds:.3f} ms against "
+                     f"{1e3 * v.median_fom_seconds:.2f} ms)" for v in speeds)
+    row(f"ironing-fine stored model ({label}): speed-up over the full-order solve (same process), median of "
+        f"{len(speeds)} cold runs", ">= 100x", f"{median:.1f}x (runs: {runs})", median >= 100)
     # the query itself at the test points, with the full-order check
     errors = pd.read_parquet(store / "scenes" / "ironing-fine" / "rom_errors.parquet")
     tests = sorted(set(errors[errors.set == "test"].parameter))
@@ -194,7 +206,12 @@ def main():
         with tempfile.TemporaryDirectory() as tmp:
             run(pathlib.Path(tmp) / "ironing-fine", "ironing-fine")
             if "--model" in sys.argv[1:]:
-                model_rows(pathlib.Path(tmp) / "ironing-fine")
+                speeds = [model_speed(pathlib.Path(tmp) / "ironing-fine")]
+                for _ in range(1, max(1, REPEATS)):
+                    with tempfile.TemporaryDirectory() as again:
+                        run(pathlib.Path(again) / "ironing-fine", "ironing-fine")
+                        speeds.append(model_speed(pathlib.Path(again) / "ironing-fine"))
+                model_rows(pathlib.Path(tmp) / "ironing-fine", speeds)
             python_rows(pathlib.Path(tmp) / "ironing-fine")
         return
     with tempfile.TemporaryDirectory() as tmp:
