@@ -193,6 +193,51 @@ fn query_answers_as_the_online_stage_measured_and_refuses_bad_input() {
     assert!(String::from_utf8_lossy(&o.stdout).lines().nth(1).is_some_and(|l| l.starts_with("0.6,true,")));
     assert_eq!(listing(&store), before, "a query wrote to the store");
     check_against_the_online_stage(&store, "hertz", "d", tmp.path());
+    damaged_parts_are_caught_where_they_are_read(&store);
+}
+
+/// A query verifies what it reads: `model.h5` in full, `reconstruction.h5` by its size until a
+/// `--check` reads it. A flipped byte of `reconstruction.h5` (same size) leaves a one-point
+/// query answering and stops `--check` with exit 1 naming the file; a truncated one stops both;
+/// a flipped byte of `model.h5` stops the one-point query.
+fn damaged_parts_are_caught_where_they_are_read(store: &Path) {
+    let model_dir = std::fs::read_dir(store.join("model"))
+        .expect("model dir")
+        .flatten()
+        .map(|e| e.path())
+        .find(|d| {
+            let m: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(d.join("manifest.json")).expect("manifest"))
+                    .expect("json");
+            m["scene"] == "rope"
+        })
+        .expect("the rope's model");
+    let flip = |path: &Path| {
+        let mut bytes = std::fs::read(path).expect("read");
+        let mid = bytes.len() / 2;
+        bytes[mid] ^= 0x01;
+        std::fs::write(path, bytes).expect("write");
+    };
+    let one = ["query", "rope", "--at", "gamma=0.1"];
+    let checked = ["query", "rope", "--at", "gamma=0.1", "--check"];
+    let rec = model_dir.join("reconstruction.h5");
+    let pristine = std::fs::read(&rec).expect("read");
+    flip(&rec);
+    let o = crom(store, &one);
+    assert!(o.status.success(), "the one-point query does not read reconstruction.h5: {}", text(&o));
+    let o = crom(store, &checked);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("failed verification") && text(&o).contains("reconstruction.h5"), "{}", text(&o));
+    std::fs::write(&rec, &pristine[..pristine.len() / 2]).expect("truncate");
+    let o = crom(store, &one);
+    assert_eq!(o.status.code(), Some(1), "a truncated part is caught by its size: {}", text(&o));
+    assert!(text(&o).contains("reconstruction.h5") && text(&o).contains("size"), "{}", text(&o));
+    std::fs::write(&rec, &pristine).expect("restore");
+    assert!(crom(store, &checked).status.success(), "restored");
+    flip(&model_dir.join("model.h5"));
+    let o = crom(store, &one);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("failed verification") && text(&o).contains("model.h5"), "{}", text(&o));
 }
 
 #[test]

@@ -40,7 +40,7 @@ pub(super) fn write(
     let contact = mesh.vec_u64(mesh_names::CONTACT_NODES)?;
     let dofs_per_node = mesh.attr_u64("dofs_per_node")? as usize;
     let rec_path = loaded.dir.join(names::RECONSTRUCTION);
-    let rec = Reconstruction::read(&rec_path)?;
+    let rec = loaded.reconstruction("run `crom run SCENE` again")?;
     let n = nodes.rows;
     let (r, dim) = (loaded.model.ranks().0, loaded.stored.parameter_names.len());
     let damaged = |what: String| CromError::artifact(&rec_path, what, "run `crom run SCENE` again");

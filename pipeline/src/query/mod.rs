@@ -69,6 +69,27 @@ pub struct Loaded {
     pub dir: PathBuf,
     /// The key of the scene's mesh artifact (for `--fields`).
     pub mesh: Option<crate::cache::Key>,
+    /// The store's root and the model artifact's key (to verify `reconstruction.h5` when it is
+    /// read, [`Loaded::reconstruction`]).
+    pub root: PathBuf,
+    /// The model artifact's key.
+    pub key: Key,
+}
+
+impl Loaded {
+    /// The optional reconstruction part (`reconstruction.h5`), verified against the artifact's
+    /// manifest (size and blake3) before it is read: [`load_artifact`] checks it by size only.
+    pub fn reconstruction(&self, fix: &str) -> Result<Reconstruction, CromError> {
+        let path = self.dir.join(names::RECONSTRUCTION);
+        Store::open_read_only(&self.root)
+            .verify_reading(ArtifactKind::Model, &self.key, &[names::RECONSTRUCTION])
+            .map_err(|problem| CromError::Artifact {
+                path: path.clone(),
+                message: format!("the stored reduced model failed verification: {problem}"),
+                fix: fix.to_string(),
+            })?;
+        Reconstruction::read(&path)
+    }
 }
 
 /// Load the stored model of `scene` from the store at `root` (read-only, no lock).
@@ -107,14 +128,15 @@ pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded,
 }
 
 /// Load the model artifact `key` of the store at `root` (read-only, no lock): verified against
-/// its manifest, `model.h5` read, the model rebuilt from its parts. `fix` is the fix every error
+/// its manifest (`model.h5` by size and blake3, the other files by size,
+/// [`Store::verify_reading`]), `model.h5` read, the model rebuilt from its parts. `fix` is the fix every error
 /// names (how to get a sound artifact back). The entry of every reader of a stored model: `crom
 /// query` (through [`load`]) and the Python extension (which finds the key in the published
 /// study). `mesh` is left `None`.
 pub fn load_artifact(root: &Path, key: &Key, fix: &str) -> Result<Loaded, CromError> {
     let store = Store::open_read_only(root);
     let dir = store.dir(ArtifactKind::Model, key);
-    store.verify(ArtifactKind::Model, key).map_err(|problem| CromError::Artifact {
+    store.verify_reading(ArtifactKind::Model, key, &[names::FILE]).map_err(|problem| CromError::Artifact {
         path: dir.clone(),
         message: format!("the stored reduced model failed verification: {problem}"),
         fix: fix.to_string(),
@@ -133,7 +155,7 @@ pub fn load_artifact(root: &Path, key: &Key, fix: &str) -> Result<Loaded, CromEr
             fix,
         ));
     }
-    Ok(Loaded { stored, model, dir, mesh: None })
+    Ok(Loaded { stored, model, dir, mesh: None, root: root.to_path_buf(), key: key.clone() })
 }
 
 /// The exact online solve's settings stored with the model.
@@ -294,7 +316,7 @@ fn check(scene: &SceneConfig, loaded: &Loaded, rows: &mut [Row]) -> Result<(), C
     let numerical =
         |message: String| CromError::Numerical { stage: "query --check", scene: scene.scene.name.clone(), message };
     let phys = Physics::build(scene).map_err(numerical)?;
-    let rec = Reconstruction::read(&loaded.dir.join(names::RECONSTRUCTION))?;
+    let rec = loaded.reconstruction("run `crom run SCENE` again")?;
     let op = phys.operator();
     if rec.phi.rows != op.n_dof() || rec.phi.cols != loaded.model.ranks().0 {
         return Err(CromError::artifact(

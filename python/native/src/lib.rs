@@ -99,7 +99,7 @@ impl Model {
         self.reconstruction
             .get_or_init(|| {
                 let path = self.loaded.dir.join(crom_schemas::artifact::model::RECONSTRUCTION);
-                let rec = Reconstruction::read(&path).map_err(|e| e.to_string())?;
+                let rec = self.loaded.reconstruction("run the study again").map_err(|e| e.to_string())?;
                 let (r, dim) = (self.loaded.model.ranks().0, self.bounds.names.len());
                 if rec.phi.cols != r || rec.lift.rows != rec.phi.rows || rec.lift.cols != 1 + dim {
                     return Err(format!(
