@@ -81,15 +81,22 @@ impl Loaded {
     /// manifest (size and blake3) before it is read: [`load_artifact`] checks it by size only.
     pub fn reconstruction(&self, fix: &str) -> Result<Reconstruction, CromError> {
         let path = self.dir.join(names::RECONSTRUCTION);
-        Store::open_read_only(&self.root)
-            .verify_reading(ArtifactKind::Model, &self.key, &[names::RECONSTRUCTION])
-            .map_err(|problem| CromError::Artifact {
-                path: path.clone(),
-                message: format!("the stored reduced model failed verification: {problem}"),
-                fix: fix.to_string(),
-            })?;
+        verify_model(&self.root, &self.key, names::RECONSTRUCTION, &path, fix)?;
         Reconstruction::read(&path)
     }
+}
+
+/// The model artifact `key` of the store at `root` verified for a reader of its file `read`
+/// ([`Store::verify_reading`]); an error names `path` and `fix`.
+fn verify_model(root: &Path, key: &Key, read: &str, path: &Path, fix: &str) -> Result<(), CromError> {
+    Store::open_read_only(root).verify_reading(ArtifactKind::Model, key, &[read]).map_err(|problem| {
+        CromError::Artifact {
+            path: path.to_path_buf(),
+            message: format!("the stored reduced model failed verification: {problem}"),
+            fix: fix.to_string(),
+        }
+    })?;
+    Ok(())
 }
 
 /// Load the stored model of `scene` from the store at `root` (read-only, no lock).
@@ -136,11 +143,7 @@ pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded,
 pub fn load_artifact(root: &Path, key: &Key, fix: &str) -> Result<Loaded, CromError> {
     let store = Store::open_read_only(root);
     let dir = store.dir(ArtifactKind::Model, key);
-    store.verify_reading(ArtifactKind::Model, key, &[names::FILE]).map_err(|problem| CromError::Artifact {
-        path: dir.clone(),
-        message: format!("the stored reduced model failed verification: {problem}"),
-        fix: fix.to_string(),
-    })?;
+    verify_model(root, key, names::FILE, &dir, fix)?;
     let stored = StoredModel::read(&dir.join(names::FILE))?;
     let model =
         ReducedModel::from_parts(&stored.parts).map_err(|e| CromError::artifact(dir.join(names::FILE), e, fix))?;
