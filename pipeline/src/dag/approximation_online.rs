@@ -294,7 +294,8 @@ fn solve_dictionary(
             || (base.clone(), RomWork::default(), WorkingSetScratch::default()),
             |(rm, w, sc), j| {
                 let mu = &points[j];
-                let (info, best) = fastest(|| ws.solve(rm, mu, params, w, sc));
+                let (info, best) =
+                    fastest(|| ws.solve(rm, mu, params, w, sc), |i| i.info.outcome == RomOutcome::Converged);
                 let sol = w.solution(&info.info);
                 let (primal, dual) = errors(j, rm, &sol);
                 Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
@@ -334,13 +335,16 @@ fn solve_all(
             },
             |(rm, w), j| {
                 let mu = &points[j];
-                let (info, best) = fastest(|| {
-                    if let Source::PerQuery(model, m) = source {
-                        // the step a stored model with a registered basis takes (`dual_at`)
-                        rm.set_dual_of(*model, mu, *m);
-                    }
-                    rm.solve_in(mu, params, w)
-                });
+                let (info, best) = fastest(
+                    || {
+                        if let Source::PerQuery(model, m) = source {
+                            // the step a stored model with a registered basis takes (`dual_at`)
+                            rm.set_dual_of(*model, mu, *m);
+                        }
+                        rm.solve_in(mu, params, w)
+                    },
+                    |i| i.outcome == RomOutcome::Converged,
+                );
                 let sol = w.solution(&info);
                 let (primal, dual) = errors(j, rm, &sol);
                 Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
