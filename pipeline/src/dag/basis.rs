@@ -313,7 +313,13 @@ fn write_pod(f: &H5Out, group: &str, p: &Pod, tol: f64) -> Result<(), CromError>
     g.attr_f64("tolerance", tol)?;
     g.attr_u64("rank", p.modes.ncols() as u64)?;
     g.attr_u64("numerical_rank", p.rank as u64)?;
-    g.matrix(names::MODES, &to_col(p.modes.as_ref()), "orthonormal modes, one per column")?;
+    let (modes, units) = (to_col(p.modes.as_ref()), "orthonormal modes, one per column");
+    // the primal modes (over every dof) raw, the dual ones (over the contact nodes) deflated
+    if group == names::PRIMAL_POD {
+        g.matrix_raw(names::MODES, &modes, units)?;
+    } else {
+        g.matrix(names::MODES, &modes, units)?;
+    }
     g.vec_f64(names::SINGULAR_VALUES, &p.singular_values, "singular values, descending")
 }
 

@@ -209,8 +209,8 @@ impl Reconstruction {
         let f = H5Out::create(path)?;
         f.attr_u64("schema_version", u64::from(names::SCHEMA_VERSION))?;
         f.attr_str("cache_key", key)?;
-        f.matrix("phi", &self.phi, "primal basis, one mode per column")?;
-        f.matrix("lift", &self.lift, "affine terms of the lift u0(mu), one per column")
+        f.matrix_raw("phi", &self.phi, "primal basis, one mode per column")?;
+        f.matrix_raw("lift", &self.lift, "affine terms of the lift u0(mu), one per column")
     }
 
     /// Read `reconstruction.h5` at `path`.
