@@ -37,7 +37,7 @@ use super::approximation::ONLINE_MS;
 use super::comparison::{self, contact_x, item};
 use super::convert::view;
 use super::graph::{Input, StageDef};
-use super::rom::{dual_error, fastest, response_basis};
+use super::rom::{dual_error, fastest};
 use super::{Ctx, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -205,10 +205,10 @@ fn run(
     let rebuild = shared.as_ref().is_none_or(|b| b.of != of);
     // measured by the trade-off's stage when it ran earlier in this process
     let fom = if rebuild { physics.fom_seconds(test, &test_set.parameters)? } else { Vec::new() };
+    let phi = if rebuild { Some(physics.responses(train, &train_set, fail)?) } else { None };
     let phys = physics.get()?;
     let op = phys.operator();
-    if rebuild {
-        let phi = response_basis(op, &train_set).map_err(&fail)?;
+    if let Some(phi) = phi {
         let model = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
         let refs: Vec<(&[f64], &[f64])> =
             test_set.parameters.iter().enumerate().map(|(j, mu)| (mu.as_slice(), test_set.primal.col(j))).collect();

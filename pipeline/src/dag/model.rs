@@ -49,7 +49,7 @@ use serde_json::json;
 use super::comparison::{contact_x, item_of};
 use super::convert::view;
 use super::graph::{Input, StageDef};
-use super::rom::{response_basis, subsample, SAMPLING_FIT_POINTS};
+use super::rom::{subsample, SAMPLING_FIT_POINTS};
 use super::{Ctx, Labels, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -221,10 +221,10 @@ impl StageDef for ModelStage {
                 let times = read_parquet(&dir.join(cnames::ONLINE_TIMINGS))?;
                 candidates.extend(choice::registered_rows(&online, &times, k));
             }
+            let train_set = loaded.set(store, train)?;
+            let phi = physics.responses(train, &train_set, fail)?;
             let phys = physics.get()?;
             let op = phys.operator();
-            let train_set = loaded.set(store, train)?;
-            let phi = response_basis(op, &train_set).map_err(fail)?;
             // a registered basis when the scene names one, the CPG basis otherwise
             let pinned_registered = settings.model_dual.as_deref().filter(|d| *d != MODEL_DUAL_CPG).map(|_| 0);
             let row = match settings.model_ranks {

@@ -25,6 +25,7 @@
 //! the true errors (Spearman) and its median effectivity (indicator / error).
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::time::Instant;
 
 use crom_schemas::artifact::{basis as bnames, rom as names, ArtifactKind};
@@ -197,7 +198,10 @@ fn run(
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
     let (manifest, computed) = ctx.cached(ArtifactKind::Rom, spec, |staging| {
         let fom = physics.fom_seconds(keys[1], &loaded.set(store, keys[1])?.parameters)?;
-        measure(physics.get()?, (store, &loaded, progress), settings, keys, fom, staging)
+        let scene = settings.1.scene.as_str();
+        let fail = |m: String| CromError::Numerical { stage: "rom", scene: scene.to_string(), message: m };
+        let phi = physics.responses(keys[0], &*loaded.set(store, keys[0])?, fail)?;
+        measure(physics.get()?, (store, &loaded, progress), settings, keys, (fom, phi), staging)
     })?;
     if !computed {
         progress.stage("online ROM", 1).finish("cached");
@@ -214,7 +218,7 @@ struct Online<'a> {
     scene: &'a str,
     train: &'a trainset::TrainingSet,
     test: &'a trainset::TrainingSet,
-    phi: ColMatrix,
+    phi: Arc<ColMatrix>,
     /// Columns of the full and the truncated CPG basis; whether the truncated one is a prefix.
     theta: (usize, usize, bool),
     full: ReducedModel,
@@ -227,7 +231,7 @@ fn measure(
     (store, loaded, progress): (&crate::store::Store, &super::loaded::Loaded, crate::progress::Progress),
     (settings, labels): (&RomKey, &Labels),
     [train, test, basis]: [&Key; 3],
-    test_fom: Vec<f64>,
+    (test_fom, phi): (Vec<f64>, Arc<ColMatrix>),
     staging: &crate::store::Staging,
 ) -> Result<BTreeMap<String, serde_json::Value>, CromError> {
     let params = settings.params();
@@ -239,7 +243,6 @@ fn measure(
     let theta_trunc = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG_TRUNCATED, bnames::MODES))?;
     drop(bfile);
     let op = phys.operator();
-    let phi = response_basis(op, &train_set).map_err(fail)?;
     let sweep = sweep_pairs(phi.cols, theta_full.cols, theta_trunc.cols);
     let queries = train_set.parameters.len() + test_set.parameters.len();
     let paper_pairs = sweep.iter().filter(|s| paper_pair(s, &sweep)).count();
