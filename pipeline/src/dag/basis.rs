@@ -254,8 +254,10 @@ impl BasisStage {
             f.attr_str("kind", "basis")?;
             f.attr_u64("schema_version", u64::from(ArtifactKind::Basis.schema_version()))?;
             f.attr_str("cache_key", &staging.key().0)?;
-            write_pod(&f, names::PRIMAL_POD, &primal, st.primal_tol)?;
-            write_pod(&f, names::DUAL_POD, &dual, st.dual_orth_tol)?;
+            // the primal modes (over every dof) uncompressed, the dual ones (over the contact
+            // nodes) deflated (`H5Out::matrix_raw`)
+            write_pod(&f, names::PRIMAL_POD, &primal, st.primal_tol, true)?;
+            write_pod(&f, names::DUAL_POD, &dual, st.dual_orth_tol, false)?;
             // Both are prefixes of one path, so one condition path (of the longer) serves both;
             // 1 / kappa is finite always (0 = a generator in the span of the earlier ones).
             let longer = if full.basis.ncols() >= trunc.basis.ncols() { &full } else { &trunc };
@@ -308,14 +310,14 @@ pub(crate) fn load_full(store: &crate::store::Store, key: &Key) -> Result<BasisF
     })
 }
 
-fn write_pod(f: &H5Out, group: &str, p: &Pod, tol: f64) -> Result<(), CromError> {
+/// A POD group; its modes uncompressed if `raw` ([`H5Out::matrix_raw`]).
+fn write_pod(f: &H5Out, group: &str, p: &Pod, tol: f64, raw: bool) -> Result<(), CromError> {
     let g = f.group(group)?;
     g.attr_f64("tolerance", tol)?;
     g.attr_u64("rank", p.modes.ncols() as u64)?;
     g.attr_u64("numerical_rank", p.rank as u64)?;
     let (modes, units) = (to_col(p.modes.as_ref()), "orthonormal modes, one per column");
-    // the primal modes (over every dof) raw, the dual ones (over the contact nodes) deflated
-    if group == names::PRIMAL_POD {
+    if raw {
         g.matrix_raw(names::MODES, &modes, units)?;
     } else {
         g.matrix(names::MODES, &modes, units)?;

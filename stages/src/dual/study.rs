@@ -268,7 +268,6 @@ mod tests {
     use crate::rng::Rng;
     use faer::Mat;
 
-    /// Non-negative bumps moving along a line (a small contact-like set).
     /// The plain scan [`Nearest`] replaces.
     fn nearest_reference(cols: &[Vec<f64>], norms: &[f64], owners: &[usize], member: &[f64]) -> f64 {
         owners
@@ -295,6 +294,7 @@ mod tests {
         }
     }
 
+    /// Non-negative bumps moving along a line (a small contact-like set).
     fn bumps(n: usize, count: usize, seed: u64) -> (Mat<f64>, Vec<Vec<f64>>) {
         let mut rng = Rng::new(seed);
         let params: Vec<Vec<f64>> = (0..count).map(|j| vec![j as f64 / (count - 1) as f64]).collect();
