@@ -11,7 +11,12 @@
 //! W[:, k] <- max(0, W[:, k] + (S H^T - W H H^T)[:, k] / (H H^T)[k, k])
 //! ```
 //!
-//! after which the columns of W are scaled to unit norm (H's rows take the scale). The start is
+//! with every product summed by fused multiply-adds in ascending index from 0. The columns of W
+//! are scaled to unit norm once, after the last sweep (H's rows take the scale). The updates
+//! are equivariant under that scaling (scaling W's column k by `c` and H's row k by `1/c`
+//! scales the next iterates the same way), so scaling after every sweep, as HALS is often
+//! written, changes only the rounding; it cost a third Gram product and `m (n + N)`
+//! divisions and products a sweep. The start is
 //! NNDSVD (Boutsidis and Gallopoulos 2008): from the thin SVD of S, the first pair
 //! `sqrt(s_1) (|u_1|, |v_1|)` and, for each further singular triple, the dominant one of the
 //! positive and negative parts of `(u_j, v_j)`. Everything is deterministic: the start is a
@@ -115,15 +120,27 @@ pub fn nnmf(s: MatRef<'_, f64>, m: usize, iterations: usize) -> Result<Nnmf, Dua
     Ok(nnmf_from(s, &Sparse::of(s), Spectrum::of(s)?.as_ref(), m, iterations))
 }
 
+/// W's columns scaled to unit norm, H's rows taking the scale (`W H` unchanged; a zero column
+/// stays zero).
+fn normalise(w: &mut Mat<f64>, h: &mut Mat<f64>) {
+    for k in 0..w.ncols() {
+        let norm = w.col(k).iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm > 0.0 {
+            w.col_mut(k).iter_mut().for_each(|x| *x /= norm);
+            h.row_mut(k).iter_mut().for_each(|x| *x *= norm);
+        }
+    }
+}
+
 /// [`nnmf`] from S's non-zeros and thin SVD (shared by the ranks of a family).
 fn nnmf_from(s: MatRef<'_, f64>, sparse: &Sparse, spectrum: Option<&Spectrum>, m: usize, iterations: usize) -> Nnmf {
-    let (mut w, mut h) = nndsvd_from(spectrum, s.nrows(), s.ncols(), m);
+    let (w, h) = nndsvd_from(spectrum, s.nrows(), s.ncols(), m);
     let total = s.squared_norm_l2();
     let mut f = objective(s, w.as_ref(), h.as_ref());
     let mut done = 0;
-    let mut work = Sweep::new(s.nrows(), m, s.ncols());
+    let mut work = Sweep::new(w.as_ref(), h.as_ref());
     for _ in 0..iterations {
-        let next = work.run(sparse, &mut w, &mut h, total);
+        let next = work.run(sparse, total);
         done += 1;
         let stalled = f - next <= STALL_REL * f;
         f = next;
@@ -132,6 +149,8 @@ fn nnmf_from(s: MatRef<'_, f64>, sparse: &Sparse, spectrum: Option<&Spectrum>, m
         }
     }
     let relative_residual = if total > 0.0 { (2.0 * f / total).sqrt() } else { 0.0 };
+    let (mut w, mut h) = work.factors();
+    normalise(&mut w, &mut h);
     Nnmf { w, h, iterations: done, relative_residual }
 }
 
@@ -199,7 +218,7 @@ fn padded(m: usize) -> usize {
 }
 
 /// `out[o * m + k] = sum over (j, v) in nz(o) of v * rows[j * stride + k]` for `o < outputs`,
-/// `k < m`, each by fused multiply-adds in the order of `nz(o)` from 0. Up to four blocks of
+/// `k < m`, each by fused multiply-adds in the order of `nz(o)` from 0. One, two or four blocks of
 /// [`BLOCK`] entries at a time, their sums held in registers over the pass through `nz(o)`
 /// (each block one chain of dependent adds, so up to four for the core to overlap).
 fn products<'a>(
@@ -214,14 +233,19 @@ fn products<'a>(
         let out = &mut out[o * m..(o + 1) * m];
         let mut kb = 0;
         while kb < m {
-            let blocks = (m - kb).div_ceil(BLOCK);
+            // three blocks as two and one: LLVM compiles three 8-wide accumulators into
+            // shuffles (ironing-fine's factorisations at m = 20 and 24 took longer than at 32)
+            let blocks = match (m - kb).div_ceil(BLOCK) {
+                1 => 1,
+                2 | 3 => 2,
+                _ => 4,
+            };
             match blocks {
                 1 => block_sums::<1>(nz(o), rows, stride, kb, out),
                 2 => block_sums::<2>(nz(o), rows, stride, kb, out),
-                3 => block_sums::<3>(nz(o), rows, stride, kb, out),
                 _ => block_sums::<4>(nz(o), rows, stride, kb, out),
             }
-            kb += blocks.min(4) * BLOCK;
+            kb += blocks * BLOCK;
         }
     }
 }
@@ -265,156 +289,226 @@ fn block_sums<const NB: usize>(nz: &[(usize, f64)], rows: &[f64], stride: usize,
 /// on ironing-fine's factorisations 8 % faster than one register, and 32 lanes slower again).
 const LANES: usize = 16;
 
-/// One HALS sweep's scratch, allocated once per factorisation: the coefficient matrix of the
-/// block being updated (row k at `k * m`), the lanes' unknowns and right-hand sides,
-/// interleaved by lane (`[l * LANES + lane]`), and the products with S ([`Sparse`]) with the
-/// copies of W (by row) and H (by column) they read.
+/// The factors and one HALS sweep's scratch, allocated once per factorisation.
+///
+/// - H is held by rows (`h[l * np + c]`) and W by columns (`w[l * nw + i]`), each padded with
+///   zero columns (rows) to `np` (`nw`), a whole number of [`LANES`]: the Gauss-Seidel passes
+///   update [`LANES`] columns of H (rows of W) in place, each unknown's lanes contiguous. A
+///   zero lane stays zero.
+/// - `w_rows` (W by rows) and `h_cols` (H by columns), each padded to a whole number of
+///   [`BLOCK`]s, are the copies the products with S ([`Sparse`]) and the Gram matrices read.
+/// - `a` is the coefficient matrix of the block being updated (row k at `k * m`), `nz` its
+///   non-zeros by row; `b` the lanes' right-hand sides, interleaved by lane
+///   (`[l * LANES + lane]`).
+/// - `wtw` is W's Gram matrix at the W the next sweep starts from: the sweep that updates W
+///   forms it for its objective, and W is not rescaled between sweeps.
 struct Sweep {
     m: usize,
+    n: usize,
+    count: usize,
+    np: usize,
+    nw: usize,
+    h: Vec<f64>,
+    w: Vec<f64>,
     a: Vec<f64>,
-    x: Vec<f64>,
+    nz: Vec<(usize, f64)>,
+    nz_ptr: Vec<usize>,
     b: Vec<f64>,
     w_rows: Vec<f64>,
     h_cols: Vec<f64>,
     wts: Vec<f64>,
     sht: Vec<f64>,
-    /// Per column of W: the two sums of the objective and the scaling.
-    cols: Vec<f64>,
+    wtw: Vec<f64>,
+    hht: Vec<f64>,
+    /// Per column of W: `sum_i W[i, k] (S Hᵀ)[i, k]`.
+    dots: Vec<f64>,
 }
 
 impl Sweep {
-    fn new(n: usize, m: usize, count: usize) -> Self {
-        Self {
+    /// The sweeps from W (n x m) and H (m x N), with W's Gram matrix formed for the first one.
+    fn new(w: MatRef<'_, f64>, h: MatRef<'_, f64>) -> Self {
+        let (n, m, count) = (w.nrows(), w.ncols(), h.ncols());
+        let (np, nw) = (count.div_ceil(LANES) * LANES, n.div_ceil(LANES) * LANES);
+        let mut sweep = Self {
             m,
+            n,
+            count,
+            np,
+            nw,
+            h: vec![0.0; m * np],
+            w: vec![0.0; m * nw],
             a: vec![0.0; m * m],
-            x: vec![0.0; m * LANES],
+            nz: Vec::with_capacity(m * m),
+            nz_ptr: vec![0; m + 1],
             b: vec![0.0; m * LANES],
             w_rows: vec![0.0; n * padded(m)],
             h_cols: vec![0.0; padded(m) * count],
             wts: vec![0.0; m * count],
             sht: vec![0.0; n * m],
-            cols: vec![0.0; 2 * m],
+            wtw: vec![0.0; m * m],
+            hht: vec![0.0; m * m],
+            dots: vec![0.0; m],
+        };
+        for l in 0..m {
+            sweep.w[l * nw..l * nw + n].iter_mut().zip(w.col(l).iter()).for_each(|(o, &x)| *o = x);
+            sweep.h[l * np..l * np + count].iter_mut().zip(h.row(l).iter()).for_each(|(o, &x)| *o = x);
+        }
+        sweep.copy_w();
+        gram(&sweep.w_rows, n, m, padded(m), &mut sweep.wtw);
+        sweep
+    }
+
+    /// The factors (W, H).
+    fn factors(&self) -> (Mat<f64>, Mat<f64>) {
+        let (m, n, count) = (self.m, self.n, self.count);
+        let w = Mat::from_fn(n, m, |i, l| self.w[l * self.nw + i]);
+        let h = Mat::from_fn(m, count, |l, c| self.h[l * self.np + c]);
+        (w, h)
+    }
+
+    /// W by rows into `w_rows`.
+    fn copy_w(&mut self) {
+        let stride = padded(self.m);
+        for (k, col) in self.w.chunks_exact(self.nw).enumerate() {
+            for (i, &x) in col[..self.n].iter().enumerate() {
+                self.w_rows[i * stride + k] = x;
+            }
         }
     }
 
-    /// One HALS sweep (H rows, then W columns, then the column scaling). Each update is, for
-    /// k ascending, `x[k] <- max(0, x[k] + (b[k] - sum_l a[k, l] x[l]) / a[k, k])` over one
-    /// column of H (`a = W^T W`, `b` its column of `W^T S`) or one row of W (`a = (H H^T)^T`,
-    /// `b` its row of `S H^T`); H's column c depends only on column c and W's row i only on row
-    /// i, so the sums and operations are those of the formulas in the module docs in the same
-    /// order ([`sweep_reference`](tests) checks it bit for bit), [`LANES`] columns or rows at a
-    /// time.
+    /// H by columns into `h_cols`.
+    fn copy_h(&mut self) {
+        let stride = padded(self.m);
+        for (k, row) in self.h.chunks_exact(self.np).enumerate() {
+            for (c, &x) in row[..self.count].iter().enumerate() {
+                self.h_cols[c * stride + k] = x;
+            }
+        }
+    }
+
+    /// `a` (row-major) from a symmetric Gram matrix and its non-zeros by row, ascending.
+    fn coefficients(&mut self, g: &[f64]) {
+        let m = self.m;
+        self.a.copy_from_slice(&g[..m * m]);
+        self.nz.clear();
+        for k in 0..m {
+            let row = self.a[k * m..(k + 1) * m].iter().enumerate();
+            self.nz.extend(row.filter(|(_, &v)| v != 0.0).map(|(l, &v)| (l, v)));
+            self.nz_ptr[k + 1] = self.nz.len();
+        }
+    }
+
+    /// The right-hand sides of the lanes from `first` (of `outputs`) out of `prod`
+    /// (`[o * m + k]`), zero beyond the last output.
+    fn rhs(&mut self, prod: &[f64], first: usize, outputs: usize) {
+        let m = self.m;
+        for j in 0..LANES {
+            let o = first + j;
+            for l in 0..m {
+                self.b[l * LANES + j] = if o < outputs { prod[o * m + l] } else { 0.0 };
+            }
+        }
+    }
+
+    /// One HALS sweep (H rows, then W columns). Each update is, for k ascending,
+    /// `x[k] <- max(0, x[k] + (b[k] - sum_l a[k, l] x[l]) / a[k, k])` over one column of H
+    /// (`a = W^T W`, `b` its column of `W^T S`) or one row of W (`a = H H^T`, `b` its row of
+    /// `S H^T`); H's column c depends only on column c and W's row i only on row i, so the
+    /// sums and operations are those of the formulas in the module docs in the same order
+    /// ([`sweep_reference`](tests) checks it bit for bit), [`LANES`] columns or rows at a
+    /// time. A Gram entry that is zero (W and H are non-negative and sparse: on ironing-fine
+    /// 12-15 % of W's entries and 17-19 % of H's are non-zero, and about half the Gram entries
+    /// are zero) is skipped: its term `0 x[l]` is `±0`, and `g - (±0)` is `g` bit for bit, since
+    /// `g` is never `-0` (it starts from a sum of fused multiply-adds from `+0`, and an exact
+    /// cancellation rounds to `+0`).
     ///
     /// Returns the objective after the sweep from the products the W update has already formed
-    /// (`S Hᵀ` and `H Hᵀ` at the new H), with `total = ||S||²`:
+    /// (`S Hᵀ` and `H Hᵀ` at the new H, `Wᵀ W` at the new W), with `total = ||S||²`:
     ///
     /// ```text
     /// 2 f = ||S||² - 2 <W, S Hᵀ> + <Wᵀ W, H Hᵀ>
     /// ```
     ///
-    /// at the new W before its columns are scaled (the scaling leaves `W H` unchanged). This
-    /// costs `m² n` where the explicit residual `S - W H` costs `m n N` and an `n x N` matrix;
-    /// the cancellation against `||S||²` leaves `f` within about 1e-15 `||S||²` of the
-    /// explicit value (tested), far below the [`STALL_REL`] `f` the stopping test reads at
-    /// the residuals reached here (ironing-fine: the same sweeps and bit-identical bases as
-    /// with the explicit residual, 20 % less time).
-    fn run(&mut self, s: &Sparse, w: &mut Mat<f64>, h: &mut Mat<f64>, total: f64) -> f64 {
-        let (n, m, count) = (w.nrows(), self.m, h.ncols());
-        let wtw = w.transpose() * w.as_ref();
+    /// This costs `m² n` where the explicit residual `S - W H` costs `m n N` and an `n x N`
+    /// matrix; the cancellation against `||S||²` leaves `f` within about 1e-15 `||S||²` of the
+    /// explicit value (tested), far below the [`STALL_REL`] `f` the stopping test reads at the
+    /// residuals reached here.
+    fn run(&mut self, s: &Sparse, total: f64) -> f64 {
+        let (n, m, count) = (self.n, self.m, self.count);
         let stride = padded(m);
-        for i in 0..n {
-            for k in 0..m {
-                self.w_rows[i * stride + k] = w[(i, k)];
-            }
-        }
         s.wt_s(&self.w_rows, m, stride, &mut self.wts);
-        for k in 0..m {
-            for l in 0..m {
-                self.a[k * m + l] = wtw[(k, l)];
-            }
+        let wtw = std::mem::take(&mut self.wtw);
+        self.coefficients(&wtw);
+        self.wtw = wtw;
+        for first in (0..self.np).step_by(LANES) {
+            let wts = std::mem::take(&mut self.wts);
+            self.rhs(&wts, first, count);
+            self.wts = wts;
+            gauss_seidel(&self.a, (&self.nz, &self.nz_ptr), m, &self.b, (&mut self.h, self.np, first));
         }
-        for first in (0..count).step_by(LANES) {
-            let lanes = LANES.min(count - first);
-            for l in 0..m {
-                for j in 0..LANES {
-                    let (x, b) =
-                        if j < lanes { (h[(l, first + j)], self.wts[(first + j) * m + l]) } else { (0.0, 0.0) };
-                    self.x[l * LANES + j] = x;
-                    self.b[l * LANES + j] = b;
-                }
-            }
-            gauss_seidel(&self.a, m, &self.b, &mut self.x);
-            for l in 0..m {
-                for j in 0..lanes {
-                    h[(l, first + j)] = self.x[l * LANES + j];
-                }
-            }
-        }
-        let hht = h.as_ref() * h.transpose();
-        for c in 0..count {
-            for k in 0..m {
-                self.h_cols[c * stride + k] = h[(k, c)];
-            }
-        }
+        self.copy_h();
+        gram(&self.h_cols, count, m, stride, &mut self.hht);
         s.s_ht(&self.h_cols, m, stride, &mut self.sht);
-        for k in 0..m {
-            for l in 0..m {
-                self.a[k * m + l] = hht[(l, k)];
-            }
+        let hht = std::mem::take(&mut self.hht);
+        self.coefficients(&hht);
+        self.hht = hht;
+        for first in (0..self.nw).step_by(LANES) {
+            let sht = std::mem::take(&mut self.sht);
+            self.rhs(&sht, first, n);
+            self.sht = sht;
+            gauss_seidel(&self.a, (&self.nz, &self.nz_ptr), m, &self.b, (&mut self.w, self.nw, first));
         }
-        for first in (0..n).step_by(LANES) {
-            let lanes = LANES.min(n - first);
-            for l in 0..m {
-                for j in 0..LANES {
-                    let (x, b) =
-                        if j < lanes { (w[(first + j, l)], self.sht[(first + j) * m + l]) } else { (0.0, 0.0) };
-                    self.x[l * LANES + j] = x;
-                    self.b[l * LANES + j] = b;
-                }
-            }
-            gauss_seidel(&self.a, m, &self.b, &mut self.x);
-            for l in 0..m {
-                for j in 0..lanes {
-                    w[(first + j, l)] = self.x[l * LANES + j];
-                }
-            }
-        }
-        let wtw = w.transpose() * w.as_ref();
-        // per column k of W, `sum_i W[i, k] (S Hᵀ)[i, k]` and `sum_i W[i, k]²`, each summed
-        // over i ascending from -0 as `Iterator::sum` does, all m columns' sums side by side
-        let (dots, squares) = self.cols.split_at_mut(m);
-        dots.fill(-0.0);
-        squares.fill(-0.0);
-        for i in 0..n {
-            for k in 0..m {
-                let x = w[(i, k)];
-                dots[k] += x * self.sht[i * m + k];
-                squares[k] += x * x;
+        self.copy_w();
+        gram(&self.w_rows, n, m, stride, &mut self.wtw);
+        // per column k of W, `sum_i W[i, k] (S Hᵀ)[i, k]`, summed over i ascending from -0 as
+        // `Iterator::sum` does, all m columns side by side
+        self.dots.fill(-0.0);
+        for (w, sht) in self.w_rows.chunks_exact(stride).zip(self.sht.chunks_exact(m)) {
+            for ((d, &x), &y) in self.dots.iter_mut().zip(w).zip(sht) {
+                *d += x * y;
             }
         }
         let mut cross = 0.0;
         let mut quad = 0.0;
         for k in 0..m {
-            cross += dots[k];
-            quad += (0..m).map(|l| wtw[(l, k)] * hht[(l, k)]).sum::<f64>();
+            cross += self.dots[k];
+            quad += (0..m).map(|l| self.wtw[l * m + k] * self.hht[l * m + k]).sum::<f64>();
         }
-        let f = (0.5 * (total - 2.0 * cross + quad)).max(0.0);
-        for k in 0..m {
-            let norm = squares[k].sqrt();
-            if norm > 0.0 {
-                (0..n).for_each(|i| w[(i, k)] /= norm);
-                (0..count).for_each(|c| h[(k, c)] *= norm);
+        (0.5 * (total - 2.0 * cross + quad)).max(0.0)
+    }
+}
+
+/// `out[k * m + l] = sum over r ascending of rows[r][k] rows[r][l]` (a Gram matrix: W's from
+/// its rows, H's from its columns; `rows[r * stride + k]`), each entry by fused multiply-adds
+/// from `+0`, the rows whose entry k is zero skipped (their term is `±0`, which leaves such a
+/// sum unchanged bit for bit: see [`Sparse`]). The result is symmetric bit for bit (`fma(a, b,
+/// c) = fma(b, a, c)`).
+fn gram(rows: &[f64], count: usize, m: usize, stride: usize, out: &mut [f64]) {
+    out[..m * m].fill(0.0);
+    for r in 0..count {
+        let row = &rows[r * stride..r * stride + m];
+        for (k, &v) in row.iter().enumerate() {
+            if v != 0.0 {
+                for (o, &x) in out[k * m..(k + 1) * m].iter_mut().zip(row) {
+                    *o = v.mul_add(x, *o);
+                }
             }
         }
-        f
     }
 }
 
 /// One projected Gauss-Seidel pass over [`LANES`] independent systems sharing `a` (m x m,
-/// row-major): for k ascending with `a[k, k] > 0`, each lane's
-/// `x[k] <- max(0, x[k] + (b[k] - sum_{l ascending} a[k, l] x[l]) / a[k, k])`. `x` and `b` are
-/// interleaved by lane. A lane of zeros stays zero.
-fn gauss_seidel(a: &[f64], m: usize, b: &[f64], x: &mut [f64]) {
+/// row-major, its non-zeros by row in `nz`, row k at `nz[ptr[k]..ptr[k + 1]]`): for k ascending
+/// with `a[k, k] > 0`, each lane's `x[k] <- max(0, x[k] + (b[k] - sum_{l ascending, a[k, l] !=
+/// 0} a[k, l] x[l]) / a[k, k])`. `b` is interleaved by lane; the unknowns are updated in place,
+/// unknown l's lanes at `x[l * stride + first..][..LANES]`. A lane of zeros stays zero.
+fn gauss_seidel(
+    a: &[f64],
+    (nz, ptr): (&[(usize, f64)], &[usize]),
+    m: usize,
+    b: &[f64],
+    (x, stride, first): (&mut [f64], usize, usize),
+) {
     for k in 0..m {
         let d = a[k * m + k];
         if d <= 0.0 {
@@ -422,12 +516,15 @@ fn gauss_seidel(a: &[f64], m: usize, b: &[f64], x: &mut [f64]) {
         }
         let mut g = [0.0; LANES];
         g.copy_from_slice(&b[k * LANES..(k + 1) * LANES]);
-        for (&akl, xl) in a[k * m..(k + 1) * m].iter().zip(x.chunks_exact(LANES)) {
+        for &(l, akl) in &nz[ptr[k]..ptr[k + 1]] {
+            let at = l * stride + first;
+            let xl: &[f64; LANES] = x[at..at + LANES].try_into().expect("a lane block");
             for (gj, xj) in g.iter_mut().zip(xl) {
                 *gj -= akl * xj;
             }
         }
-        for (xj, gj) in x[k * LANES..(k + 1) * LANES].iter_mut().zip(&g) {
+        let at = k * stride + first;
+        for (xj, gj) in x[at..at + LANES].iter_mut().zip(&g) {
             *xj = (*xj + gj / d).max(0.0);
         }
     }
@@ -582,8 +679,8 @@ mod tests {
     }
 
     /// `A B` (p x q times q x r) by the formula, every entry `sum_l A[i, l] B[l, j]` by fused
-    /// multiply-adds in ascending l from 0, zeros included: the products of S that a sweep forms
-    /// ([`Sparse`]), written independently of it.
+    /// multiply-adds in ascending l from 0, zeros included: the products of S and the Gram
+    /// matrices that a sweep forms ([`Sparse`], [`gram`]), written independently of it.
     fn fma_product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
         Mat::from_fn(a.nrows(), b.ncols(), |i, j| (0..a.ncols()).fold(0.0, |acc, l| a[(i, l)].mul_add(b[(l, j)], acc)))
     }
@@ -592,7 +689,7 @@ mod tests {
     /// H with k outer, then columns of W with k outer); kept to check [`Sweep::run`] against.
     fn sweep_reference(s: MatRef<'_, f64>, w: &mut Mat<f64>, h: &mut Mat<f64>) {
         let (n, m, count) = (w.nrows(), w.ncols(), h.ncols());
-        let wtw = w.transpose() * w.as_ref();
+        let wtw = fma_product(w.transpose(), w.as_ref());
         let wts = fma_product(w.transpose(), s);
         for k in 0..m {
             let d = wtw[(k, k)];
@@ -607,7 +704,7 @@ mod tests {
                 h[(k, c)] = (h[(k, c)] + g / d).max(0.0);
             }
         }
-        let hht = h.as_ref() * h.transpose();
+        let hht = fma_product(h.as_ref(), h.transpose());
         let sht = fma_product(s, h.transpose());
         for k in 0..m {
             let d = hht[(k, k)];
@@ -620,13 +717,6 @@ mod tests {
                     g -= w[(i, l)] * hht[(l, k)];
                 }
                 w[(i, k)] = (w[(i, k)] + g / d).max(0.0);
-            }
-        }
-        for k in 0..m {
-            let norm = (0..n).map(|i| w[(i, k)] * w[(i, k)]).sum::<f64>().sqrt();
-            if norm > 0.0 {
-                (0..n).for_each(|i| w[(i, k)] /= norm);
-                (0..count).for_each(|c| h[(k, c)] *= norm);
             }
         }
     }
@@ -642,18 +732,23 @@ mod tests {
         let random = Mat::from_fn(23, 17, |_, _| rng.uniform());
         let banded = Mat::from_fn(40, 19, |i, c| if i >= 2 * c / 3 && i < 2 * c / 3 + 6 { rng.uniform() } else { 0.0 });
         assert!((0..40).any(|i| (0..19).all(|c| banded[(i, c)] == 0.0)), "a zero row");
-        for (s, m) in [(random, 6), (banded, 5), (exact(31, 12, 3, 2), 5)] {
-            let (mut w, mut h) = nndsvd(s.as_ref(), m).expect("start");
+        for (case, (s, m)) in [(random, 6), (banded, 5), (exact(31, 12, 3, 2), 5)].into_iter().enumerate() {
+            let (w, h) = nndsvd(s.as_ref(), m).expect("start");
             let (mut wr, mut hr) = (w.clone(), h.clone());
             let sparse = Sparse::of(s.as_ref());
-            let mut work = Sweep::new(s.nrows(), m, s.ncols());
+            let mut work = Sweep::new(w.as_ref(), h.as_ref());
             let zero_columns = w.col_iter().filter(|c| c.iter().all(|&x| x == 0.0)).count();
             assert!(zero_columns >= m.saturating_sub(s.ncols()), "{zero_columns} zero columns at rank {m}");
+            let mut skipped = 0;
             for sweep in 0..40 {
-                work.run(&sparse, &mut w, &mut h, s.squared_norm_l2());
+                work.run(&sparse, s.squared_norm_l2());
+                skipped += m * m - work.nz.len();
                 sweep_reference(s.as_ref(), &mut wr, &mut hr);
-                assert!(w == wr && h == hr, "sweep {sweep} of rank {m} differs");
+                assert!(work.factors() == (wr.clone(), hr.clone()), "sweep {sweep} of rank {m} differs");
             }
+            let w = work.factors().0;
+            // the banded S's factors have disjoint supports: zero Gram entries are skipped
+            assert!(case != 1 || skipped > 0, "no zero Gram entry met");
             assert!(w.col_iter().any(|c| c.iter().any(|&x| x > 0.0)), "a trivial run checks nothing");
         }
     }
@@ -668,10 +763,11 @@ mod tests {
         let mut rng = Rng::new(37);
         let s = Mat::from_fn(23, 17, |_, _| rng.uniform());
         let total = s.squared_norm_l2();
-        let (mut w, mut h) = nndsvd(s.as_ref(), 6).expect("start");
-        let (sparse, mut work) = (Sparse::of(s.as_ref()), Sweep::new(23, 6, 17));
+        let (w, h) = nndsvd(s.as_ref(), 6).expect("start");
+        let (sparse, mut work) = (Sparse::of(s.as_ref()), Sweep::new(w.as_ref(), h.as_ref()));
         for sweep in 0..60 {
-            let f = work.run(&sparse, &mut w, &mut h, total);
+            let f = work.run(&sparse, total);
+            let (w, h) = work.factors();
             let explicit = objective(s.as_ref(), w.as_ref(), h.as_ref());
             assert!((f - explicit).abs() <= 4e-13 * total, "sweep {sweep}: {f} vs {explicit}");
             assert!(explicit > 1e-4 * total, "a residual this small would not test the cancellation");
