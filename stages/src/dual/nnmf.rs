@@ -297,9 +297,7 @@ const LANES: usize = 16;
 ///   zero lane stays zero.
 /// - `w_rows` (W by rows) and `h_cols` (H by columns), each padded to a whole number of
 ///   [`BLOCK`]s, are the copies the products with S ([`Sparse`]) and the Gram matrices read.
-/// - `a` is the coefficient matrix of the block being updated (row k at `k * m`), `nz` its
-///   non-zeros by row; `b` the lanes' right-hand sides, interleaved by lane
-///   (`[l * LANES + lane]`).
+/// - `system` holds the Gauss-Seidel passes' coefficients and right-hand sides ([`Lanes`]).
 /// - `wtw` is W's Gram matrix at the W the next sweep starts from: the sweep that updates W
 ///   forms it for its objective, and W is not rescaled between sweeps.
 struct Sweep {
@@ -310,10 +308,7 @@ struct Sweep {
     nw: usize,
     h: Vec<f64>,
     w: Vec<f64>,
-    a: Vec<f64>,
-    nz: Vec<(usize, f64)>,
-    nz_ptr: Vec<usize>,
-    b: Vec<f64>,
+    system: Lanes,
     w_rows: Vec<f64>,
     h_cols: Vec<f64>,
     wts: Vec<f64>,
@@ -337,10 +332,13 @@ impl Sweep {
             nw,
             h: vec![0.0; m * np],
             w: vec![0.0; m * nw],
-            a: vec![0.0; m * m],
-            nz: Vec::with_capacity(m * m),
-            nz_ptr: vec![0; m + 1],
-            b: vec![0.0; m * LANES],
+            system: Lanes {
+                m,
+                a: vec![0.0; m * m],
+                nz: Vec::with_capacity(m * m),
+                nz_ptr: vec![0; m + 1],
+                b: vec![0.0; m * LANES],
+            },
             w_rows: vec![0.0; n * padded(m)],
             h_cols: vec![0.0; padded(m) * count],
             wts: vec![0.0; m * count],
@@ -386,30 +384,6 @@ impl Sweep {
         }
     }
 
-    /// `a` (row-major) from a symmetric Gram matrix and its non-zeros by row, ascending.
-    fn coefficients(&mut self, g: &[f64]) {
-        let m = self.m;
-        self.a.copy_from_slice(&g[..m * m]);
-        self.nz.clear();
-        for k in 0..m {
-            let row = self.a[k * m..(k + 1) * m].iter().enumerate();
-            self.nz.extend(row.filter(|(_, &v)| v != 0.0).map(|(l, &v)| (l, v)));
-            self.nz_ptr[k + 1] = self.nz.len();
-        }
-    }
-
-    /// The right-hand sides of the lanes from `first` (of `outputs`) out of `prod`
-    /// (`[o * m + k]`), zero beyond the last output.
-    fn rhs(&mut self, prod: &[f64], first: usize, outputs: usize) {
-        let m = self.m;
-        for j in 0..LANES {
-            let o = first + j;
-            for l in 0..m {
-                self.b[l * LANES + j] = if o < outputs { prod[o * m + l] } else { 0.0 };
-            }
-        }
-    }
-
     /// One HALS sweep (H rows, then W columns). Each update is, for k ascending,
     /// `x[k] <- max(0, x[k] + (b[k] - sum_l a[k, l] x[l]) / a[k, k])` over one column of H
     /// (`a = W^T W`, `b` its column of `W^T S`) or one row of W (`a = H H^T`, `b` its row of
@@ -437,27 +411,11 @@ impl Sweep {
         let (n, m, count) = (self.n, self.m, self.count);
         let stride = padded(m);
         s.wt_s(&self.w_rows, m, stride, &mut self.wts);
-        let wtw = std::mem::take(&mut self.wtw);
-        self.coefficients(&wtw);
-        self.wtw = wtw;
-        for first in (0..self.np).step_by(LANES) {
-            let wts = std::mem::take(&mut self.wts);
-            self.rhs(&wts, first, count);
-            self.wts = wts;
-            gauss_seidel(&self.a, (&self.nz, &self.nz_ptr), m, &self.b, (&mut self.h, self.np, first));
-        }
+        self.system.update(&self.wtw, &self.wts, count, (&mut self.h, self.np));
         self.copy_h();
         gram(&self.h_cols, count, m, stride, &mut self.hht);
         s.s_ht(&self.h_cols, m, stride, &mut self.sht);
-        let hht = std::mem::take(&mut self.hht);
-        self.coefficients(&hht);
-        self.hht = hht;
-        for first in (0..self.nw).step_by(LANES) {
-            let sht = std::mem::take(&mut self.sht);
-            self.rhs(&sht, first, n);
-            self.sht = sht;
-            gauss_seidel(&self.a, (&self.nz, &self.nz_ptr), m, &self.b, (&mut self.w, self.nw, first));
-        }
+        self.system.update(&self.hht, &self.sht, n, (&mut self.w, self.nw));
         self.copy_w();
         gram(&self.w_rows, n, m, stride, &mut self.wtw);
         // per column k of W, `sum_i W[i, k] (S Hᵀ)[i, k]`, summed over i ascending from -0 as
@@ -475,6 +433,44 @@ impl Sweep {
             quad += (0..m).map(|l| self.wtw[l * m + k] * self.hht[l * m + k]).sum::<f64>();
         }
         (0.5 * (total - 2.0 * cross + quad)).max(0.0)
+    }
+}
+
+/// The Gauss-Seidel passes' systems: the coefficient matrix of the factor being updated
+/// (row k at `k * m`), its non-zeros by row (row k at `nz[nz_ptr[k]..nz_ptr[k + 1]]`), and the
+/// right-hand sides of one group of [`LANES`] outputs, interleaved by lane (`[l * LANES +
+/// lane]`).
+struct Lanes {
+    m: usize,
+    a: Vec<f64>,
+    nz: Vec<(usize, f64)>,
+    nz_ptr: Vec<usize>,
+    b: Vec<f64>,
+}
+
+impl Lanes {
+    /// One factor's update: the coefficients from the symmetric Gram matrix `g`, then a pass
+    /// over each group of [`LANES`] of the `outputs` columns of H (rows of W), whose
+    /// right-hand sides are `prod[o * m + k]` (zero beyond the last output) and whose
+    /// unknowns are `x[k * stride + o]`.
+    fn update(&mut self, g: &[f64], prod: &[f64], outputs: usize, (x, stride): (&mut [f64], usize)) {
+        let m = self.m;
+        self.a.copy_from_slice(&g[..m * m]);
+        self.nz.clear();
+        for k in 0..m {
+            let row = self.a[k * m..(k + 1) * m].iter().enumerate();
+            self.nz.extend(row.filter(|(_, &v)| v != 0.0).map(|(l, &v)| (l, v)));
+            self.nz_ptr[k + 1] = self.nz.len();
+        }
+        for first in (0..stride).step_by(LANES) {
+            for j in 0..LANES {
+                let o = first + j;
+                for l in 0..m {
+                    self.b[l * LANES + j] = if o < outputs { prod[o * m + l] } else { 0.0 };
+                }
+            }
+            gauss_seidel(&self.a, (&self.nz, &self.nz_ptr), m, &self.b, (x, stride, first));
+        }
     }
 }
 
@@ -742,7 +738,7 @@ mod tests {
             let mut skipped = 0;
             for sweep in 0..40 {
                 work.run(&sparse, s.squared_norm_l2());
-                skipped += m * m - work.nz.len();
+                skipped += m * m - work.system.nz.len();
                 sweep_reference(s.as_ref(), &mut wr, &mut hr);
                 assert!(work.factors() == (wr.clone(), hr.clone()), "sweep {sweep} of rank {m} differs");
             }
