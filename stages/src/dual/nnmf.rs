@@ -719,16 +719,20 @@ mod tests {
 
     /// The contiguous sweep gives the reference sweep's bits, sweep after sweep: on a random
     /// matrix, on a sparse one shaped like pressure snapshots (each column non-zero on a band
-    /// of rows, some rows zero throughout: the products skip the zeros), and at a rank above
-    /// S's column count (the NNDSVD start then has zero columns, whose zero diagonal skips
-    /// their updates).
+    /// of rows, some rows zero throughout: the products skip the zeros), at a rank above S's
+    /// column count (the NNDSVD start then has zero columns, whose zero diagonal skips their
+    /// updates), and at ranks whose products take two and three blocks.
     #[test]
     fn the_sweep_is_the_reference_sweep_bit_for_bit() {
         let mut rng = Rng::new(29);
         let random = Mat::from_fn(23, 17, |_, _| rng.uniform());
         let banded = Mat::from_fn(40, 19, |i, c| if i >= 2 * c / 3 && i < 2 * c / 3 + 6 { rng.uniform() } else { 0.0 });
         assert!((0..40).any(|i| (0..19).all(|c| banded[(i, c)] == 0.0)), "a zero row");
-        for (case, (s, m)) in [(random, 6), (banded, 5), (exact(31, 12, 3, 2), 5)].into_iter().enumerate() {
+        // ranks 12 and 20: products of two 8-wide blocks, and of three taken as two and one
+        // ([`products`])
+        let wide = Mat::from_fn(45, 33, |i, c| if i >= c && i < c + 14 { rng.uniform() } else { 0.0 });
+        let cases = [(random, 6), (banded, 5), (exact(31, 12, 3, 2), 5), (wide.clone(), 12), (wide, 20)];
+        for (case, (s, m)) in cases.into_iter().enumerate() {
             let (w, h) = nndsvd(s.as_ref(), m).expect("start");
             let (mut wr, mut hr) = (w.clone(), h.clone());
             let sparse = Sparse::of(s.as_ref());
