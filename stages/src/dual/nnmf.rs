@@ -11,13 +11,14 @@
 //! W[:, k] <- max(0, W[:, k] + (S H^T - W H H^T)[:, k] / (H H^T)[k, k])
 //! ```
 //!
-//! with every product summed by fused multiply-adds in ascending index from 0. The columns of W
-//! are scaled to unit norm once, after the last sweep (H's rows take the scale). The updates
-//! are equivariant under that scaling (scaling W's column k by `c` and H's row k by `1/c`
-//! scales the next iterates the same way), so scaling after every sweep, as HALS is often
-//! written, changes only the rounding; it cost a third Gram product and `m (n + N)`
-//! divisions and products a sweep. The start is
-//! NNDSVD (Boutsidis and Gallopoulos 2008): from the thin SVD of S, the first pair
+//! with `W^T S`, `S H^T` and the Gram matrices `W^T W`, `H H^T` each summed by fused
+//! multiply-adds in ascending index from 0, and the terms of `W^T W H` (`W H H^T`) subtracted
+//! in ascending order. The columns of W are scaled to unit norm once, after the last sweep
+//! (H's rows take the scale). The updates are equivariant under that scaling (scaling W's
+//! column k by `c` and H's row k by `1/c` scales the next iterates the same way), so scaling
+//! after every sweep, as HALS is often written, changes only the rounding; it cost a third
+//! Gram product and `m (n + N)` divisions and products a sweep. The start is NNDSVD
+//! (Boutsidis and Gallopoulos 2008): from the thin SVD of S, the first pair
 //! `sqrt(s_1) (|u_1|, |v_1|)` and, for each further singular triple, the dominant one of the
 //! positive and negative parts of `(u_j, v_j)`. Everything is deterministic: the start is a
 //! function of S, the sweeps are in a fixed order, and the run stops after `iterations` sweeps or
