@@ -368,8 +368,8 @@ impl Sweep {
     /// W by rows into `w_rows`.
     fn copy_w(&mut self) {
         let stride = padded(self.m);
-        for (k, col) in self.w.chunks_exact(self.nw).enumerate() {
-            for (i, &x) in col[..self.n].iter().enumerate() {
+        for k in 0..self.m {
+            for (i, &x) in self.w[k * self.nw..k * self.nw + self.n].iter().enumerate() {
                 self.w_rows[i * stride + k] = x;
             }
         }
@@ -378,8 +378,8 @@ impl Sweep {
     /// H by columns into `h_cols`.
     fn copy_h(&mut self) {
         let stride = padded(self.m);
-        for (k, row) in self.h.chunks_exact(self.np).enumerate() {
-            for (c, &x) in row[..self.count].iter().enumerate() {
+        for k in 0..self.m {
+            for (c, &x) in self.h[k * self.np..k * self.np + self.count].iter().enumerate() {
                 self.h_cols[c * stride + k] = x;
             }
         }
@@ -792,6 +792,21 @@ mod tests {
             let single = nnmf(s.as_ref(), m, 80).expect("single");
             assert_eq!(one.cones[k].basis().to_owned(), single.w, "rank {m}, one thread");
             assert_eq!(four.cones[k].basis().to_owned(), single.w, "rank {m}, four threads");
+        }
+    }
+
+    /// An S without rows or without columns factors to zeros, at any rank, without a sweep
+    /// reading past its (empty) factors.
+    #[test]
+    fn empty_snapshot_matrices_factor_to_zeros() {
+        for (n, count) in [(0, 5), (7, 0), (0, 0)] {
+            let s = Mat::<f64>::zeros(n, count);
+            for m in [1, 3, 12] {
+                let f = nnmf(s.as_ref(), m, 10).expect("an empty S");
+                assert_eq!((f.w.nrows(), f.w.ncols(), f.h.nrows(), f.h.ncols()), (n, m, m, count));
+                assert!(f.w.col_iter().chain(f.h.col_iter()).all(|c| c.iter().all(|&x| x == 0.0)));
+                assert!(f.relative_residual == 0.0, "residual {}", f.relative_residual);
+            }
         }
     }
 
