@@ -333,13 +333,7 @@ impl Sweep {
             nw,
             h: vec![0.0; m * np],
             w: vec![0.0; m * nw],
-            system: Lanes {
-                m,
-                a: vec![0.0; m * m],
-                nz: Vec::with_capacity(m * m),
-                nz_ptr: vec![0; m + 1],
-                b: vec![0.0; m * LANES],
-            },
+            system: Lanes { m, nz: Vec::with_capacity(m * m), nz_ptr: vec![0; m + 1], b: vec![0.0; m * LANES] },
             w_rows: vec![0.0; n * padded(m)],
             h_cols: vec![0.0; padded(m) * count],
             wts: vec![0.0; m * count],
@@ -437,13 +431,11 @@ impl Sweep {
     }
 }
 
-/// The Gauss-Seidel passes' systems: the coefficient matrix of the factor being updated
-/// (row k at `k * m`), its non-zeros by row (row k at `nz[nz_ptr[k]..nz_ptr[k + 1]]`), and the
-/// right-hand sides of one group of [`LANES`] outputs, interleaved by lane (`[l * LANES +
-/// lane]`).
+/// The Gauss-Seidel passes' systems: the non-zeros by row of the coefficient matrix of the
+/// factor being updated (row k at `nz[nz_ptr[k]..nz_ptr[k + 1]]`), and the right-hand sides of
+/// one group of [`LANES`] outputs, interleaved by lane (`[l * LANES + lane]`).
 struct Lanes {
     m: usize,
-    a: Vec<f64>,
     nz: Vec<(usize, f64)>,
     nz_ptr: Vec<usize>,
     b: Vec<f64>,
@@ -456,10 +448,9 @@ impl Lanes {
     /// unknowns are `x[k * stride + o]`.
     fn update(&mut self, g: &[f64], prod: &[f64], outputs: usize, (x, stride): (&mut [f64], usize)) {
         let m = self.m;
-        self.a.copy_from_slice(&g[..m * m]);
         self.nz.clear();
         for k in 0..m {
-            let row = self.a[k * m..(k + 1) * m].iter().enumerate();
+            let row = g[k * m..(k + 1) * m].iter().enumerate();
             self.nz.extend(row.filter(|(_, &v)| v != 0.0).map(|(l, &v)| (l, v)));
             self.nz_ptr[k + 1] = self.nz.len();
         }
@@ -470,7 +461,7 @@ impl Lanes {
                     self.b[l * LANES + j] = if o < outputs { prod[o * m + l] } else { 0.0 };
                 }
             }
-            gauss_seidel(&self.a, (&self.nz, &self.nz_ptr), m, &self.b, (x, stride, first));
+            gauss_seidel(g, (&self.nz, &self.nz_ptr), m, &self.b, (x, stride, first));
         }
     }
 }
