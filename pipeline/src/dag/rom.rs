@@ -198,9 +198,7 @@ fn run(
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
     let (manifest, computed) = ctx.cached(ArtifactKind::Rom, spec, |staging| {
         let fom = physics.fom_seconds(keys[1], &loaded.set(store, keys[1])?.parameters)?;
-        let scene = settings.1.scene.as_str();
-        let fail = |m: String| CromError::Numerical { stage: "rom", scene: scene.to_string(), message: m };
-        let phi = physics.responses(keys[0], &*loaded.set(store, keys[0])?, fail)?;
+        let phi = physics.responses(keys[0], &*loaded.set(store, keys[0])?, failure(&settings.1.scene))?;
         measure(physics.get()?, (store, &loaded, progress), settings, keys, (fom, phi), staging)
     })?;
     if !computed {
@@ -208,6 +206,11 @@ fn run(
     }
     ctx.record("rom", usize::from(computed), usize::from(!computed), store.dir(ArtifactKind::Rom, &manifest.key));
     Ok(manifest.key)
+}
+
+/// The online stage's numerical failure in `scene`, from its message.
+fn failure(scene: &str) -> impl Fn(String) -> CromError + Copy + '_ {
+    move |message| CromError::Numerical { stage: "rom", scene: scene.to_string(), message }
 }
 
 /// What the measurements of the online stage share: the operator, the sets, the primal basis,
@@ -236,7 +239,7 @@ fn measure(
 ) -> Result<BTreeMap<String, serde_json::Value>, CromError> {
     let params = settings.params();
     let scene = labels.scene.as_str();
-    let fail = |m: String| CromError::Numerical { stage: "rom", scene: scene.to_string(), message: m };
+    let fail = failure(scene);
     let (train_set, test_set) = (loaded.set(store, train)?, loaded.set(store, test)?);
     let bfile = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
     let theta_full = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
