@@ -41,46 +41,49 @@ pub const ITERATIONS: usize = 60;
 /// Power and inverse iteration on an SPD operator of size `n` given by its product `mul(x, y)`
 /// (`y = A x`) and its solve `solve(x)` (`x <- A^{-1} x`), from a fixed, non-symmetric start (so
 /// the estimate is deterministic and has a component along every eigenvector of a generic
-/// operator). `None` for `n == 0` or a non-positive or non-finite quotient (not SPD).
+/// operator). The two iterations are independent and run side by side (`rayon::join`); each is
+/// sequential, so the estimate is the same whatever the thread count. `None` for `n == 0` or a
+/// non-positive or non-finite quotient (not SPD).
 pub fn estimate(
     n: usize,
     iterations: usize,
-    mul: &dyn Fn(&[f64], &mut [f64]),
-    solve: &dyn Fn(&mut [f64]),
+    mul: &(dyn Fn(&[f64], &mut [f64]) + Sync),
+    solve: &(dyn Fn(&mut [f64]) + Sync),
 ) -> Option<Condition> {
     if n == 0 {
         return None;
     }
-    let start = || -> Vec<f64> {
-        let x: Vec<f64> = (0..n).map(|i| 1.0 + ((i * 7919) % 101) as f64 / 101.0).collect();
-        let norm = x.iter().map(|v| v * v).sum::<f64>().sqrt();
-        x.into_iter().map(|v| v / norm).collect()
-    };
-    let (mut x, mut y) = (start(), vec![0.0; n]);
-    let mut lambda_max = 0.0;
-    for _ in 0..iterations.max(1) {
-        mul(&x, &mut y);
-        lambda_max = x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>();
+    let steps = iterations.max(1);
+    let (lambda_max, inv) = rayon::join(
+        || rayleigh(n, steps, |x, y| mul(x, y)),
+        || {
+            rayleigh(n, steps, |x, y| {
+                y.copy_from_slice(x);
+                solve(y);
+            })
+        },
+    );
+    let c = Condition { lambda_max: lambda_max?, lambda_min: 1.0 / inv? };
+    (c.lambda_max > 0.0 && c.lambda_min > 0.0 && c.ratio().is_finite()).then_some(c)
+}
+
+/// `steps` normalised applications of `apply(x, y)` (`y = B x`) from the fixed start; the last
+/// Rayleigh quotient `xᵀ B x`, or `None` once `|B x|` is zero or not finite.
+fn rayleigh(n: usize, steps: usize, apply: impl Fn(&[f64], &mut [f64])) -> Option<f64> {
+    let x: Vec<f64> = (0..n).map(|i| 1.0 + ((i * 7919) % 101) as f64 / 101.0).collect();
+    let norm = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let (mut x, mut y): (Vec<f64>, _) = (x.into_iter().map(|v| v / norm).collect(), vec![0.0; n]);
+    let mut quotient = 0.0;
+    for _ in 0..steps {
+        apply(&x, &mut y);
+        quotient = x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>();
         let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
         if !(norm > 0.0 && norm.is_finite()) {
             return None;
         }
         x.iter_mut().zip(&y).for_each(|(a, b)| *a = b / norm);
     }
-    let mut z = start();
-    let mut inv = 0.0;
-    for _ in 0..iterations.max(1) {
-        let mut w = z.clone();
-        solve(&mut w);
-        inv = z.iter().zip(&w).map(|(a, b)| a * b).sum::<f64>();
-        let norm = w.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if !(norm > 0.0 && norm.is_finite()) {
-            return None;
-        }
-        z.iter_mut().zip(&w).for_each(|(a, b)| *a = b / norm);
-    }
-    let c = Condition { lambda_max, lambda_min: 1.0 / inv };
-    (c.lambda_max > 0.0 && c.lambda_min > 0.0 && c.ratio().is_finite()).then_some(c)
+    Some(quotient)
 }
 
 #[cfg(test)]
