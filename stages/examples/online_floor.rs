@@ -22,8 +22,10 @@
 //! added (an oracle: what the dual basis gives once the primal space holds the answer), and
 //! the POD, truncated at r_u, of the training responses together with their finite-difference
 //! sensitivities `(u(d_x + δ) - u(d_x)) h / δ` (δ = 1e-4, h the training spacing: 128 more
-//! full-order solves). Per row: converged, the median dual error, the mean linearisations and
-//! the median online time (fastest of 20 runs, one thread).
+//! full-order solves), and the POD, truncated at r_u, of the training responses together with
+//! their translates along the slab by ±8 slab node spacings (no further full-order solve). Per
+//! row: converged, the median dual error, the mean linearisations and the median online time
+//! (fastest of 20 runs, one thread).
 //!
 //! `cargo run --release -p crom-stages --example online_floor`
 //!
@@ -296,4 +298,43 @@ fn primal_space(
         let model = model_of(&both, 2 * train.len(), r);
         row("the training responses and their sensitivities", &|_| model.clone());
     }
+    let translated = translates(fm, responses, &[-8, 8]);
+    for r in [112, 128] {
+        let model = model_of(&translated, 3 * train.len(), r);
+        row("the training responses and their translates by ±8 slab nodes", &|_| model.clone());
+    }
+}
+
+/// `responses` (column-major, `n_dof` rows) followed by each of them translated along the slab
+/// by `k` node columns for each `k` of `shifts`: the slab's part moved (zero where nothing moves
+/// in), the iron's part as it is. No full-order solve: the slab is a regular grid, so a
+/// response translated by whole node spacings is, away from the slab's ends, the response the
+/// iron would cause that much further on with the same sub-node offset.
+fn translates(fm: &FactoredModel, responses: &[f64], shifts: &[i64]) -> Vec<f64> {
+    let mesh = fm.model().mesh();
+    let cn = &fm.contact_nodes()[..fm.n_contact()];
+    let slab = mesh.node_body[cn[0]];
+    let x = |i: usize| mesh.nodes[i][0];
+    let (lo, hi) = cn.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &i| (a.min(x(i)), b.max(x(i))));
+    let h = (hi - lo) / (cn.len() - 1) as f64;
+    let column = |i: usize| ((x(i) - lo) / h).round() as i64;
+    let at: std::collections::HashMap<(i64, u64), usize> = (0..mesh.nodes.len())
+        .filter(|&i| mesh.node_body[i] == slab)
+        .map(|i| ((column(i), mesh.nodes[i][1].to_bits()), i))
+        .collect();
+    let n = fm.n_dof();
+    let mut out = responses.to_vec();
+    for &k in shifts {
+        for r in responses.chunks_exact(n) {
+            let mut t = r.to_vec();
+            for (&(c, y), &i) in &at {
+                let from = at.get(&(c - k, y));
+                for d in 0..2 {
+                    t[2 * i + d] = from.map_or(0.0, |&j| r[2 * j + d]);
+                }
+            }
+            out.extend(t);
+        }
+    }
+    out
 }
