@@ -325,12 +325,15 @@ fn translates(fm: &FactoredModel, responses: &[f64], shifts: &[i64]) -> Vec<f64>
     let n = fm.n_dof();
     let mut out = responses.to_vec();
     for &k in shifts {
+        // each slab node and the node its values come from (none: they become zero), once per
+        // shift rather than once per response
+        let from: Vec<(usize, Option<usize>)> =
+            at.iter().map(|(&(c, y), &i)| (i, at.get(&(c - k, y)).copied())).collect();
         for r in responses.chunks_exact(n) {
             let mut t = r.to_vec();
-            for (&(c, y), &i) in &at {
-                let from = at.get(&(c - k, y));
+            for &(i, j) in &from {
                 for d in 0..2 {
-                    t[2 * i + d] = from.map_or(0.0, |&j| r[2 * j + d]);
+                    t[2 * i + d] = j.map_or(0.0, |j| r[2 * j + d]);
                 }
             }
             out.extend(t);

@@ -55,7 +55,7 @@ pub fn estimate(
     }
     let steps = iterations.max(1);
     let (lambda_max, inv) = rayon::join(
-        || rayleigh(n, steps, |x, y| mul(x, y)),
+        || rayleigh(n, steps, mul),
         || {
             rayleigh(n, steps, |x, y| {
                 y.copy_from_slice(x);
