@@ -23,9 +23,13 @@
 //! the POD, truncated at r_u, of the training responses together with their finite-difference
 //! sensitivities `(u(d_x + δ) - u(d_x)) h / δ` (δ = 1e-4, h the training spacing: 128 more
 //! full-order solves), and the POD, truncated at r_u, of the training responses together with
-//! their translates along the slab by ±8 slab node spacings (no further full-order solve). Per
-//! row: converged, the median dual error, the mean linearisations and the median online time
-//! (fastest of 20 runs, one thread).
+//! their translates along the slab by ±8 slab node spacings (no further full-order solve), the
+//! exact interface (the responses to unit forces on every contact dof: the reduced problem with
+//! the full-order primal side), and the POD, truncated at r_u, of the training responses
+//! together with the responses to the product query's contact force at the points a quarter of
+//! a training spacing from each training point (one back-substitution each, no contact solve;
+//! no test point is used). Per row: converged, the median dual error, the mean linearisations
+//! and the median online time (fastest of 20 runs, one thread).
 //!
 //! `cargo run --release -p crom-stages --example online_floor`
 //!
@@ -39,7 +43,7 @@ use crom_stages::basis::pod_full;
 use crom_stages::contact::{ContactSolveParams, FactoredModel};
 use crom_stages::dual::registration::{Interpolation, Map, MapKind, Registered};
 use crom_stages::dual::{Inner, Training};
-use crom_stages::rom::{ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};
+use crom_stages::rom::{ContactOperator, Linearized, ReducedModel, RomOutcome, RomParams, RomWork};
 use crom_stages::shipped::shipped_contact_model;
 use faer::MatRef;
 use rayon::prelude::*;
@@ -302,6 +306,58 @@ fn primal_space(
     for r in [112, 128] {
         let model = model_of(&translated, 3 * train.len(), r);
         row("the training responses and their translates by ±8 slab nodes", &|_| model.clone());
+    }
+    // The exact interface: the responses to a unit force on each contact dof (zero for a
+    // Dirichlet dof, left out). Every contact response is a combination of them.
+    let mut interface = Vec::new();
+    for &node in fm.contact_nodes() {
+        for c in 0..2 {
+            let mut f = vec![0.0; n];
+            f[2 * node + c] = 1.0;
+            let v = fm.response(&f);
+            if v.iter().any(|&x| x != 0.0) {
+                interface.extend(v);
+            }
+        }
+    }
+    let model = model_of(&interface, interface.len() / n, usize::MAX);
+    row("the exact interface: the responses to unit forces on the contact dofs", &|_| model.clone());
+    // The responses to the product query's contact force (its pressure through the full-order
+    // gap rows at its displacement) at the points a quarter of a training spacing from each
+    // training point: no test point, one back-substitution each, no contact solve.
+    let quarter: Vec<f64> =
+        train.windows(2).flat_map(|t| [0.75 * t[0] + 0.25 * t[1], 0.25 * t[0] + 0.75 * t[1]]).collect();
+    let phi = pod_full(MatRef::from_column_major_slice(responses, n, train.len())).expect("pod");
+    let phi_c: Vec<f64> =
+        (0..phi.modes.ncols()).flat_map(|j| phi.modes.col(j).iter().copied().collect::<Vec<_>>()).collect();
+    let corrections: Vec<f64> = quarter
+        .par_iter()
+        .flat_map(|&d| {
+            let mut rom = base.clone();
+            rom.set_dual_of(nb, &[d], 2);
+            let sol = rom.solve(&[d], &RomParams::default(), &mut RomWork::default());
+            let p = rom.pressure(&sol.lambda_hat);
+            let u = ReducedModel::displacement(fm, &phi_c, &[d], &sol.u_hat);
+            let mut lin = Linearized::default();
+            fm.linearize(&[d], &u, &mut lin);
+            let mut f = vec![0.0; n];
+            for (i, (&wi, &pi)) in w8.iter().zip(&p).enumerate() {
+                if lin.paired[i] && pi > 0.0 {
+                    for k in lin.start[i]..lin.start[i + 1] {
+                        f[lin.dofs[k]] += lin.coeffs[k] * wi * pi;
+                    }
+                }
+            }
+            fm.response(&f)
+        })
+        .collect();
+    let mut enriched = responses.to_vec();
+    enriched.extend_from_slice(&corrections);
+    for r in [112, 128, 160] {
+        let model = model_of(&enriched, train.len() + quarter.len(), r);
+        row("the training responses and the responses to the product query's force at quarter points", &|_| {
+            model.clone()
+        });
     }
 }
 
