@@ -62,8 +62,9 @@ impl StageKey for OnlineApproximationKey {
     /// Bump when a number of the online solve changes (3: Newton-corrected re-pairing steps,
     /// docs/design-notes.md#newton-corrected-re-pairing-steps; 4: a row at m = 10; 5: NNMF's
     /// basis at m = 1 to the last bits, its products with S over S's non-zeros; 6: NNMF's W
-    /// scaled once after the sweeps, its Gram products by fused multiply-adds, to rounding).
-    const ALGORITHM_VERSION: u32 = 6;
+    /// scaled once after the sweeps, its Gram products by fused multiply-adds, to rounding; 7: a
+    /// dual basis of at most three columns summed into reduced rows, the same answers to 1e-10).
+    const ALGORITHM_VERSION: u32 = 7;
 }
 
 impl OnlineApproximationKey {

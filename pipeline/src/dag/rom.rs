@@ -83,8 +83,10 @@ impl StageKey for RomKey {
     /// Type-2 warm starts, the vertex-zone rule asked before the round's fixed point, a dot
     /// product summed in another order — docs/design-notes.md#certificates-instead-of-searches;
     /// 11: Newton-corrected re-pairing steps and interpolated warm starts, the same answers to
-    /// 1e-10 — docs/design-notes.md#newton-corrected-re-pairing-steps).
-    const ALGORITHM_VERSION: u32 = 11;
+    /// 1e-10 — docs/design-notes.md#newton-corrected-re-pairing-steps; 12: a dual basis of at
+    /// most three columns summed into reduced rows at each linearisation, the same answers to
+    /// 1e-10 — docs/design-notes.md#small-dual-bases-are-summed-once-per-linearisation).
+    const ALGORITHM_VERSION: u32 = 12;
 }
 
 /// Timing repetitions of a solve whose first run took less than [`REPEAT_BELOW`] seconds (the

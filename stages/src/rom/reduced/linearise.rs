@@ -45,7 +45,7 @@ fn budget_until(travel: f64, r: f64, speed: f64) -> f64 {
 
 /// `out = sum_j coef_j Phi_c[dof_j, :]` over the entries of a gap row, in one pass over `out`
 /// (each element written once, not read back per entry).
-fn combine_rows(row: &GapRow, phi_c: &[f64], r: usize, out: &mut [f64]) {
+pub(super) fn combine_rows(row: &GapRow, phi_c: &[f64], r: usize, out: &mut [f64]) {
     let rows: [&[f64]; 6] = std::array::from_fn(|j| {
         let cd = row.dof[j.min(row.len - 1)];
         &phi_c[cd * r..(cd + 1) * r]
@@ -76,6 +76,10 @@ fn combine_rows(row: &GapRow, phi_c: &[f64], r: usize, out: &mut [f64]) {
     }
 }
 
+/// The largest dual basis whose reduced rows [`ReducedModel::assemble`] sums at each
+/// linearisation instead of keeping one row per slave.
+pub(super) const SUMMED_MAX_RL: usize = 3;
+
 /// Linearisation state of a Type-2 query.
 #[derive(Debug, Clone, Default)]
 pub(super) struct LinState {
@@ -92,6 +96,13 @@ pub(super) struct LinState {
     pub(super) ps_of: Vec<usize>,
     pub(super) cphi: Vec<f64>,
     pub(super) g0: Vec<f64>,
+    /// Whether the last assembly also summed the rows under the dual basis (`chat`, `ghat0`).
+    pub(super) summed: bool,
+    /// The reduced rows `Ĉ` (row-major `r_l x r_u`) and offsets `ĝ0` when `summed`, and the
+    /// weights `θ_as w_s` of the slaves' rows in them (`r_l x ps.len()`).
+    pub(super) chat: Vec<f64>,
+    pub(super) ghat0: Vec<f64>,
+    pub(super) dof_coef: Vec<f64>,
     /// The Newton correction's buffers: forces per slave (zero between uses), the step and
     /// `H` times it.
     pub(super) force: Vec<f64>,
@@ -426,10 +437,17 @@ impl ReducedModel {
         changed
     }
 
-    /// Gap rows of the paired supported slaves: `C Phi` rows and constant parts.
+    /// Gap rows of the paired supported slaves: their `C Phi` rows (`cphi`) and constant
+    /// parts, and for a dual basis of at most [`SUMMED_MAX_RL`] columns the reduced rows
+    /// themselves (`chat`, and `ĝ0` in `ghat0`).
+    ///
+    /// Summed: reduced row `a` is `Σ_k t_ak cphi_k` with `t_ak = θ_a,s w_s` over the paired
+    /// supported slaves `s = ps[k]` (gap weight `w_s`), four rows per pass over the output. The
+    /// QP then evaluates `r_l` dot products per call instead of one per slave, and a row is a
+    /// copy instead of a sum over the slaves of its column.
     pub(super) fn assemble(&self, w: &mut RomWork) {
         let SurfaceData::Nts { ns, supp, phi_c, .. } = &self.surf else { return };
-        let ru = self.r_u;
+        let (ru, rl) = (self.r_u, self.r_l);
         let l = &mut w.lin;
         l.ps.clear();
         l.g0.clear();
@@ -450,14 +468,101 @@ impl ReducedModel {
             combine_rows(&row, phi_c, ru, &mut l.cphi[at..at + ru]);
             l.g0.push(row.apply(&l.base));
         }
+        l.summed = rl <= SUMMED_MAX_RL;
+        if !l.summed {
+            return;
+        }
+        let np = l.ps.len();
+        l.dof_coef.clear();
+        l.dof_coef.resize(rl * np, 0.0);
+        l.ghat0.clear();
+        l.ghat0.resize(rl, 0.0);
+        for (k, &s) in l.ps.iter().enumerate() {
+            let gw = self.gap_weight(s);
+            for e in self.by_node.0[s]..self.by_node.0[s + 1] {
+                let (a, t) = (self.by_node.1[e], self.by_node.2[e] * gw);
+                l.dof_coef[a * np + k] = t;
+                l.ghat0[a] += t * l.g0[k];
+            }
+        }
+        l.chat.clear();
+        l.chat.resize(rl * ru, 0.0);
+        for (a, out) in l.chat.chunks_exact_mut(ru).enumerate() {
+            let t = &l.dof_coef[a * np..(a + 1) * np];
+            let mut k = 0;
+            while k + 4 <= np {
+                let r = |i: usize| &l.cphi[(k + i) * ru..(k + i + 1) * ru];
+                let (r0, r1, r2, r3) = (r(0), r(1), r(2), r(3));
+                let (c0, c1, c2, c3) = (t[k], t[k + 1], t[k + 2], t[k + 3]);
+                for (j, o) in out.iter_mut().enumerate() {
+                    *o += c0 * r0[j] + c1 * r1[j] + c2 * r2[j] + c3 * r3[j];
+                }
+                k += 4;
+            }
+            for (kk, &c) in t.iter().enumerate().skip(k) {
+                axpy(c, &l.cphi[kk * ru..(kk + 1) * ru], out);
+            }
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::SUMMED_MAX_RL;
+    use crate::assert_all_close;
+    use crate::float_cmp::Tol;
     use crate::rom::reduced::test_support::{coarse_mus, coarse_tests, full_rom, points};
     use crate::rom::{RomParams, RomWork};
     use crate::testing::ironing_coarse;
+
+    /// The reduced rows a small dual basis sums at each linearisation are its slaves' rows
+    /// summed under it: on ironing-coarse (full primal rank, the leading 1, 2 and 3 CPG
+    /// generators), re-linearised at each test point's answer, `chat` and `ghat0` against
+    /// `Σ_s θ_as w_s cphi_s` and `Σ_s θ_as w_s g0_s` summed here from the per-slave rows. The
+    /// two add the same terms in other orders, so they agree to rounding: 1e-13 of the largest
+    /// term's magnitude times the number of terms. A basis of `SUMMED_MAX_RL + 1` columns is
+    /// not summed.
+    #[test]
+    fn summed_rows_are_the_slave_rows_summed() {
+        let fm = ironing_coarse();
+        let mus = coarse_mus();
+        let (rom, _, _) = full_rom(fm, &mus);
+        let p = RomParams::default();
+        let mut checked = 0;
+        for rl in 1..=SUMMED_MAX_RL + 1 {
+            let model = rom.leading(17, rl);
+            let ru = model.r_u;
+            for d in coarse_tests() {
+                let mut w = RomWork::default();
+                model.solve(&[d], &p, &mut w);
+                model.linearize(&mut w);
+                let l = &w.lin;
+                assert_eq!(l.summed, rl <= SUMMED_MAX_RL, "r_l {rl}");
+                if !l.summed || l.ps.is_empty() {
+                    continue;
+                }
+                let (mut chat, mut ghat0) = (vec![0.0; rl * ru], vec![0.0; rl]);
+                let mut largest = 0.0f64;
+                for (k, &s) in l.ps.iter().enumerate() {
+                    for e in model.by_node.0[s]..model.by_node.0[s + 1] {
+                        let (a, t) = (model.by_node.1[e], model.by_node.2[e] * model.gap_weight(s));
+                        for (o, c) in chat[a * ru..(a + 1) * ru].iter_mut().zip(&l.cphi[k * ru..(k + 1) * ru]) {
+                            *o += t * c;
+                            largest = largest.max((t * c).abs());
+                        }
+                        ghat0[a] += t * l.g0[k];
+                        largest = largest.max((t * l.g0[k]).abs());
+                    }
+                }
+                let tol = Tol::abs(1e-13 * largest * l.ps.len() as f64);
+                assert_all_close!(&l.chat, &chat, tol);
+                assert_all_close!(&l.ghat0, &ghat0, tol);
+                assert!(chat.iter().any(|&v| v != 0.0), "r_l {rl} d_x {d}: rows under the basis");
+                checked += 1;
+            }
+        }
+        assert!(checked >= 3 * coarse_tests().len() / 2, "summed rows checked at {checked} states");
+    }
 
     /// The proofs that spare searches in a linearisation (budgets and certificates,
     /// `ReducedModel::linearize_with`) change nothing: on ironing-coarse, 17 training points,

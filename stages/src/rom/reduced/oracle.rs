@@ -1,6 +1,7 @@
 //! The reduced constraints at the current linearisation as the QP sees them ([`Oracle`]):
 //! Type-1 the precomputed `Ĉ` and `ĝ0(mu)`, Type-2 the gap rows of the paired supported slaves
-//! summed under the dual basis.
+//! summed under the dual basis, either as the assembly summed them (a small dual basis) or
+//! from the rows kept per slave.
 
 use super::linearise::LinState;
 use super::{ReducedModel, SurfaceData};
@@ -26,6 +27,14 @@ impl QpConstraints for Oracle<'_> {
                     *sa = dot(&chat[a * ru..(a + 1) * ru], x) + self.lin.g_mu[a];
                 }
             }
+            SurfaceData::Nts { .. } if self.lin.summed => {
+                let l = &*self.lin;
+                // at x = 0 (the QP's warm start) the values are the constant parts
+                let zero = x.iter().all(|&v| v == 0.0);
+                for (a, sa) in s.iter_mut().enumerate() {
+                    *sa = if zero { l.ghat0[a] } else { dot(&l.chat[a * ru..(a + 1) * ru], x) + l.ghat0[a] };
+                }
+            }
             SurfaceData::Nts { .. } => {
                 s.iter_mut().for_each(|v| *v = 0.0);
                 let l = &*self.lin;
@@ -46,6 +55,7 @@ impl QpConstraints for Oracle<'_> {
         let (m, ru) = (self.m, self.m.r_u);
         match &m.surf {
             SurfaceData::Fixed { chat, .. } => out.copy_from_slice(&chat[a * ru..(a + 1) * ru]),
+            SurfaceData::Nts { .. } if self.lin.summed => out.copy_from_slice(&self.lin.chat[a * ru..(a + 1) * ru]),
             SurfaceData::Nts { .. } => {
                 out.iter_mut().for_each(|v| *v = 0.0);
                 let l = &*self.lin;

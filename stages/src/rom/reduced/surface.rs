@@ -2,7 +2,9 @@
 //! Type-2 contact-surface rows) and its reduced quadrature
 //! ([`ReducedModel::with_sampled_surface`]).
 
+use super::linearise::combine_rows;
 use super::{ReducedModel, RomError, RomOutcome, RomParams, RomWork, WarmStarts};
+use crate::contact::pairing::GapRow;
 use crate::rom::la::dot;
 
 /// The offline data of the contact surface, by problem type.
@@ -166,6 +168,8 @@ impl ReducedModel {
         let mut values: Vec<f64> = Vec::new();
         let mut w = RomWork::default();
         let mut d = [0.0; SAMPLING_DIRECTIONS];
+        let SurfaceData::Nts { ns, phi_c, .. } = &self.surf else { return Vec::new() };
+        let mut row = vec![0.0; ru];
         let mut record = |w: &RomWork, values: &mut Vec<f64>| {
             let at = values.len();
             values.resize(at + per_state * cols.len(), 0.0);
@@ -176,7 +180,9 @@ impl ReducedModel {
                 if c == usize::MAX {
                     continue;
                 }
-                let row = &l.cphi[k * ru..(k + 1) * ru];
+                // the slave's own row (the assembly may have summed the rows instead)
+                combine_rows(&GapRow::new(s, *ns, &l.pairs[s]), phi_c, ru, &mut row);
+                let row = &row[..];
                 let g = dot(row, &w.u_hat) + l.g0[k];
                 d.iter_mut().zip(&dirs).for_each(|(dt, z)| *dt = dot(row, z));
                 for e in self.by_node.0[s]..self.by_node.0[s + 1] {
