@@ -102,7 +102,7 @@ pub(super) struct LinState {
     /// weights `θ_as w_s` of the slaves' rows in them (`r_l x ps.len()`).
     pub(super) chat: Vec<f64>,
     pub(super) ghat0: Vec<f64>,
-    pub(super) dof_coef: Vec<f64>,
+    pub(super) slave_weight: Vec<f64>,
     /// The Newton correction's buffers: forces per slave (zero between uses), the step and
     /// `H` times it.
     pub(super) force: Vec<f64>,
@@ -473,22 +473,22 @@ impl ReducedModel {
             return;
         }
         let np = l.ps.len();
-        l.dof_coef.clear();
-        l.dof_coef.resize(rl * np, 0.0);
+        l.slave_weight.clear();
+        l.slave_weight.resize(rl * np, 0.0);
         l.ghat0.clear();
         l.ghat0.resize(rl, 0.0);
         for (k, &s) in l.ps.iter().enumerate() {
             let gw = self.gap_weight(s);
             for e in self.by_node.0[s]..self.by_node.0[s + 1] {
                 let (a, t) = (self.by_node.1[e], self.by_node.2[e] * gw);
-                l.dof_coef[a * np + k] = t;
+                l.slave_weight[a * np + k] = t;
                 l.ghat0[a] += t * l.g0[k];
             }
         }
         l.chat.clear();
         l.chat.resize(rl * ru, 0.0);
         for (a, out) in l.chat.chunks_exact_mut(ru).enumerate() {
-            let t = &l.dof_coef[a * np..(a + 1) * np];
+            let t = &l.slave_weight[a * np..(a + 1) * np];
             let mut k = 0;
             while k + 4 <= np {
                 let r = |i: usize| &l.cphi[(k + i) * ru..(k + i + 1) * ru];
