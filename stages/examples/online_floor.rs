@@ -227,13 +227,15 @@ fn main() {
         };
         print(&format!("registered POD, ±{m} modes (bilateral, sign not imposed)"), run(&signed));
     }
-    primal_space(&fm, (&train, &responses), (&test, &truth), &nb);
+    primal_space(&fm, (&train, &responses), (&phi_c, &base), (&test, &truth), &nb);
 }
 
-/// The second table: the neighbours basis at m = 2 with other primal spaces.
+/// The second table: the neighbours basis at m = 2 with other primal spaces; `phi_c` and
+/// `base` are the product's (the POD of the training responses, as `main` built them).
 fn primal_space(
     fm: &FactoredModel,
     (train, responses): (&[f64], &[f64]),
+    (phi_c, base): (&[f64], &ReducedModel),
     (test, truth): (&[f64], &[crom_stages::snapshot::Snapshot]),
     nb: &Registered,
 ) {
@@ -284,7 +286,6 @@ fn primal_space(
         "| primal space (neighbours, m = 2) | r_u | converged | median dual error | linearisations | median time |"
     );
     println!("|---|---|---|---|---|---|");
-    let base = model_of(responses, train.len(), usize::MAX);
     row("the training responses", &|_| base.clone());
     row("the training responses and the point's own (oracle)", &|j| {
         let mut cols = responses.to_vec();
@@ -327,9 +328,6 @@ fn primal_space(
     // training point: no test point, one back-substitution each, no contact solve.
     let quarter: Vec<f64> =
         train.windows(2).flat_map(|t| [0.75 * t[0] + 0.25 * t[1], 0.25 * t[0] + 0.75 * t[1]]).collect();
-    let phi = pod_full(MatRef::from_column_major_slice(responses, n, train.len())).expect("pod");
-    let phi_c: Vec<f64> =
-        (0..phi.modes.ncols()).flat_map(|j| phi.modes.col(j).iter().copied().collect::<Vec<_>>()).collect();
     let corrections: Vec<f64> = quarter
         .par_iter()
         .flat_map(|&d| {
@@ -337,17 +335,11 @@ fn primal_space(
             rom.set_dual_of(nb, &[d], 2);
             let sol = rom.solve(&[d], &RomParams::default(), &mut RomWork::default());
             let p = rom.pressure(&sol.lambda_hat);
-            let u = ReducedModel::displacement(fm, &phi_c, &[d], &sol.u_hat);
+            let u = ReducedModel::displacement(fm, phi_c, &[d], &sol.u_hat);
             let mut lin = Linearized::default();
             fm.linearize(&[d], &u, &mut lin);
             let mut f = vec![0.0; n];
-            for (i, (&wi, &pi)) in w8.iter().zip(&p).enumerate() {
-                if lin.paired[i] && pi > 0.0 {
-                    for k in lin.start[i]..lin.start[i + 1] {
-                        f[lin.dofs[k]] += lin.coeffs[k] * wi * pi;
-                    }
-                }
-            }
+            lin.add_forces(w8, &p, &mut f);
             fm.response(&f)
         })
         .collect();

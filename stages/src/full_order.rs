@@ -47,6 +47,18 @@ impl Linearized {
         self.pairing.clear();
     }
 
+    /// `f += Cᵀ W p`: the nodal forces (all dofs) of the pressures `p` on the paired rows,
+    /// `weights` the tributary lengths (pressure → nodal force); unpaired rows carry none.
+    pub fn add_forces(&self, weights: &[f64], p: &[f64], f: &mut [f64]) {
+        for (i, (&wi, &pi)) in weights.iter().zip(p).enumerate() {
+            if self.paired[i] {
+                for k in self.start[i]..self.start[i + 1] {
+                    f[self.dofs[k]] += self.coeffs[k] * wi * pi;
+                }
+            }
+        }
+    }
+
     /// `gap_i(v)` for row `i`.
     pub fn gap(&self, i: usize, v: &[f64]) -> f64 {
         let r = self.start[i]..self.start[i + 1];

@@ -96,9 +96,8 @@ pub(super) struct LinState {
     pub(super) ps_of: Vec<usize>,
     pub(super) cphi: Vec<f64>,
     pub(super) g0: Vec<f64>,
-    /// Whether the last assembly also summed the rows under the dual basis (`chat`, `ghat0`).
-    pub(super) summed: bool,
-    /// The reduced rows `Ĉ` (row-major `r_l x r_u`) and offsets `ĝ0` when `summed`, and the
+    /// The reduced rows `Ĉ` (row-major `r_l x r_u`) and offsets `ĝ0` where the model sums its
+    /// rows ([`ReducedModel::sums_rows`]), and the
     /// weights `θ_as w_s` of the slaves' rows in them (`r_l x ps.len()`).
     pub(super) chat: Vec<f64>,
     pub(super) ghat0: Vec<f64>,
@@ -437,6 +436,12 @@ impl ReducedModel {
         changed
     }
 
+    /// Whether [`Self::assemble`] also sums the rows under the dual basis: for a basis of at
+    /// most [`SUMMED_MAX_RL`] columns.
+    pub(super) fn sums_rows(&self) -> bool {
+        self.r_l <= SUMMED_MAX_RL
+    }
+
     /// Gap rows of the paired supported slaves: their `C Phi` rows (`cphi`) and constant
     /// parts, and for a dual basis of at most [`SUMMED_MAX_RL`] columns the reduced rows
     /// themselves (`chat`, and `ĝ0` in `ghat0`).
@@ -468,8 +473,7 @@ impl ReducedModel {
             combine_rows(&row, phi_c, ru, &mut l.cphi[at..at + ru]);
             l.g0.push(row.apply(&l.base));
         }
-        l.summed = rl <= SUMMED_MAX_RL;
-        if !l.summed {
+        if !self.sums_rows() {
             return;
         }
         let np = l.ps.len();
@@ -537,8 +541,9 @@ mod tests {
                 model.solve(&[d], &p, &mut w);
                 model.linearize(&mut w);
                 let l = &w.lin;
-                assert_eq!(l.summed, rl <= SUMMED_MAX_RL, "r_l {rl}");
-                if !l.summed || l.ps.is_empty() {
+                // a fresh work's `chat` is formed only where the rows are summed
+                assert_eq!(l.chat.len(), if rl <= SUMMED_MAX_RL { rl * ru } else { 0 }, "r_l {rl}");
+                if rl > SUMMED_MAX_RL || l.ps.is_empty() {
                     continue;
                 }
                 let (mut chat, mut ghat0) = (vec![0.0; rl * ru], vec![0.0; rl]);

@@ -27,7 +27,7 @@ impl QpConstraints for Oracle<'_> {
                     *sa = dot(&chat[a * ru..(a + 1) * ru], x) + self.lin.g_mu[a];
                 }
             }
-            SurfaceData::Nts { .. } if self.lin.summed => {
+            SurfaceData::Nts { .. } if m.sums_rows() => {
                 let l = &*self.lin;
                 // at x = 0 (the QP's warm start) the values are the constant parts
                 let zero = x.iter().all(|&v| v == 0.0);
@@ -55,7 +55,7 @@ impl QpConstraints for Oracle<'_> {
         let (m, ru) = (self.m, self.m.r_u);
         match &m.surf {
             SurfaceData::Fixed { chat, .. } => out.copy_from_slice(&chat[a * ru..(a + 1) * ru]),
-            SurfaceData::Nts { .. } if self.lin.summed => out.copy_from_slice(&self.lin.chat[a * ru..(a + 1) * ru]),
+            SurfaceData::Nts { .. } if m.sums_rows() => out.copy_from_slice(&self.lin.chat[a * ru..(a + 1) * ru]),
             SurfaceData::Nts { .. } => {
                 out.iter_mut().for_each(|v| *v = 0.0);
                 let l = &*self.lin;
