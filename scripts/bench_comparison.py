@@ -73,8 +73,13 @@ def registered_online(curves, online, timings, max_m=10, goal=0.001, speedup=100
     median = statistics.median(float(t.speedup) for t in same)
     runs = "; ".join(f"{t.speedup:.1f}x ({t.median_online_ms:.3f} ms against {t.median_full_order_ms:.2f} ms)"
                      for t in same)
+    # "That setting" is one that meets the error target: a speed-up measured where the error
+    # misses it is shown, and not counted as met.
+    accurate = b.median_dual_error <= goal
+    caveat = "" if accurate else (f"; measured at the most accurate registered setting, whose "
+                                  f"{100 * b.median_dual_error:.2f} % misses 0.1 %")
     row(f"... at that setting: speed-up over the full-order solve (same process), median of {len(same)} cold runs",
-        f">= {speedup:.0f}x", f"{median:.1f}x (runs: {runs})", median >= speedup)
+        f">= {speedup:.0f}x", f"{median:.1f}x (runs: {runs}){caveat}", accurate and median >= speedup)
     row("... at that setting: test points converged", "all", f"{int(b.converged)}/{int(b.points)}",
         int(b.converged) == int(b.points))
     off = curves[(curves.metric == "test") & curves.approximation.str.startswith("registered") & (curves.m <= max_m)]

@@ -104,8 +104,11 @@ def model_rows(store, speeds):
     median = statistics.median(float(v.speedup) for v in speeds)
     runs = "; ".join(f"{v.speedup:.1f}x ({1e3 * v.median_online_seconds:.3f} ms against "
                      f"{1e3 * v.median_fom_seconds:.2f} ms)" for v in speeds)
+    # the target is the speed-up at the setting that meets 0.1 %: shown here, met only there
+    caveat = "" if dual <= 1e-3 else f"; this model's {100 * dual:.3f} % misses 0.1 %"
     row(f"ironing-fine stored model ({label}): speed-up over the full-order solve (same process), median of "
-        f"{len(speeds)} cold runs", ">= 100x", f"{median:.1f}x (runs: {runs})", median >= 100)
+        f"{len(speeds)} cold runs", ">= 100x at <= 0.1 %", f"{median:.1f}x (runs: {runs}){caveat}",
+        median >= 100 and dual <= 1e-3)
     # the query itself at the test points, with the full-order check
     errors = pd.read_parquet(store / "scenes" / "ironing-fine" / "rom_errors.parquet")
     tests = sorted(set(errors[errors.set == "test"].parameter))
