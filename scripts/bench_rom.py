@@ -38,9 +38,11 @@ import pandas as pd
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 CROM = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target")) / "release" / "crom"
-# Cold runs of ironing-fine's study whose stored-model speed-ups `--model` judges the target on
+# Cold runs of ironing-fine's study whose stored-model speed-ups the model rows judge the target on
 # (median): this machine's timings vary by up to ~30 % between runs.
 REPEATS = int(os.environ.get("BENCH_REPEATS", "3"))
+# The stored model's target median pressure (dual) error; its speed-up target counts only where it is met.
+DUAL_GOAL = 1e-3
 # Relative residual of the reduced quadrature in the mesh table (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints).
 SAMPLING_TOL = 3e-2
 
@@ -99,16 +101,17 @@ def model_rows(store, speeds):
     row(f"ironing-fine stored model ({label}): converged test points", f"{points}/{points}", f"{conv}/{points}",
         conv == points)
     dual = float(a["measured_median_dual_error"])
+    accurate = dual <= DUAL_GOAL
     row(f"ironing-fine stored model ({label}): median pressure error at the test points (as measured)",
-        "<= 0.1 %", f"{100 * dual:.3f} %", dual <= 1e-3)
+        f"<= {100 * DUAL_GOAL:g} %", f"{100 * dual:.3f} %", accurate)
     median = statistics.median(float(v.speedup) for v in speeds)
     runs = "; ".join(f"{v.speedup:.1f}x ({1e3 * v.median_online_seconds:.3f} ms against "
                      f"{1e3 * v.median_fom_seconds:.2f} ms)" for v in speeds)
-    # the target is the speed-up at the setting that meets 0.1 %: shown here, met only there
-    caveat = "" if dual <= 1e-3 else f"; this model's {100 * dual:.3f} % misses 0.1 %"
+    # the target is the speed-up at the setting that meets the error goal: shown here, met only there
+    caveat = "" if accurate else f"; this model's {100 * dual:.3f} % misses {100 * DUAL_GOAL:g} %"
     row(f"ironing-fine stored model ({label}): speed-up over the full-order solve (same process), median of "
-        f"{len(speeds)} cold runs", ">= 100x at <= 0.1 %", f"{median:.1f}x (runs: {runs}){caveat}",
-        median >= 100 and dual <= 1e-3)
+        f"{len(speeds)} cold runs", f">= 100x at <= {100 * DUAL_GOAL:g} %", f"{median:.1f}x (runs: {runs}){caveat}",
+        median >= 100 and accurate)
     # the query itself at the test points, with the full-order check
     errors = pd.read_parquet(store / "scenes" / "ironing-fine" / "rom_errors.parquet")
     tests = sorted(set(errors[errors.set == "test"].parameter))
