@@ -39,6 +39,8 @@ impl ReducedModel {
         let mut history: Vec<(u64, PaperState)> = Vec::new();
         let (mut c_a, mut g_a, mut lam_a, mut work, mut row) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), vec![0.0; ru]);
+        // the active constraints' indices and the next mask, refilled each iteration
+        let (mut idx, mut new): (Vec<usize>, Vec<bool>) = (Vec::with_capacity(rl), Vec::with_capacity(rl));
         let mut prev = vec![0.0; ru];
         let repairs = matches!(self.surf, SurfaceData::Nts { .. });
         for it in 1..=p.max_iter {
@@ -47,7 +49,8 @@ impl ReducedModel {
             self.offsets(w);
             c_a.clear();
             g_a.clear();
-            let idx: Vec<usize> = (0..rl).filter(|&a| mask[a]).collect();
+            idx.clear();
+            idx.extend((0..rl).filter(|&a| mask[a]));
             for &a in &idx {
                 let RomWork { lin, .. } = w;
                 Oracle { m: self, lin }.row(a, &mut row);
@@ -70,8 +73,8 @@ impl ReducedModel {
             // sign test cycles on degenerate constraints (zero gap, multiplier zero up to
             // rounding; measured -6e-12 relative on hertz with full bases)
             let lam_tol = PAPER_LAM_TOL * w.lam.iter().fold(0.0f64, |m, l| m.max(l.abs()));
-            let new: Vec<bool> =
-                (0..rl).map(|a| if mask[a] { w.lam[a] >= -lam_tol } else { violated(w.s[a]) }).collect();
+            new.clear();
+            new.extend((0..rl).map(|a| if mask[a] { w.lam[a] >= -lam_tol } else { violated(w.s[a]) }));
             let settled = new == mask && !changed;
             let du = w.u_hat.iter().zip(&prev).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
             let un = w.u_hat.iter().map(|a| a * a).sum::<f64>().sqrt();
@@ -91,7 +94,7 @@ impl ReducedModel {
                 return (it, active, RomOutcome::Cycled);
             }
             history.push((h, state));
-            mask = new;
+            std::mem::swap(&mut mask, &mut new);
         }
         (p.max_iter, mask.iter().filter(|m| **m).count(), RomOutcome::NotConverged)
     }
