@@ -62,9 +62,13 @@ def registered_online(curves, online, timings, max_m=10, goal=0.001, speedup=100
         row(f"ironing-fine online, registered, <= {max_m} modes: median dual error", "<= 0.1 %",
             "no registered approximation converged everywhere", False)
         return
-    b = reg.sort_values(["median_dual_error", "m"]).iloc[0]
+    # The setting: the fewest modes that meet the error target (then the least error), or the
+    # most accurate where none does. Chosen by errors, which are the same bytes in every run.
+    meeting = reg[reg.median_dual_error <= goal]
+    b = (meeting.sort_values(["m", "median_dual_error"]) if not meeting.empty
+         else reg.sort_values(["median_dual_error", "m"])).iloc[0]
     row(f"ironing-fine online, registered, <= {max_m} modes: median dual error", "<= 0.1 %",
-        f"{100 * b.median_dual_error:.2f} % ({b.approximation}, m = {int(b.m)}; at m = 32: "
+        f"{100 * b.median_dual_error:.3f} % ({b.approximation}, m = {int(b.m)}; at m = 32: "
         + ", ".join(f"{r.approximation} {100 * r.median_dual_error:.2f} %" for _, r in
                     online[online.approximation.str.startswith("registered") & (online.m == 32)].iterrows())
         + ")", b.median_dual_error <= goal)

@@ -44,7 +44,7 @@ except ImportError:  # pragma: no cover - depends on the environment
 #: Layout version of each stage's files this reader reads (crom-schemas `schema_version`).
 SCHEMA_VERSIONS = {"mesh": 2, "trainset": 4, "basis": 2, "compactness": 1, "generalization": 1,
                    "specificity": 1, "nested": 1, "views": 1, "rom": 4, "report": 1, "comparison": 1,
-                   "online-comparison": 1, "model": 3}
+                   "online-comparison": 1, "model": 4}
 #: Layout version of `study.json` this reader reads.
 LAYOUT_VERSION = 1
 BASIS_GROUPS = ("primal_pod", "dual_pod", "dual_cpg", "dual_cpg_truncated")

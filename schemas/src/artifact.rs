@@ -395,8 +395,10 @@ pub mod model {
     /// The schema version written into [`FILE`] as its `schema_version` attribute (the
     /// kind's), which `crom query` checks before reading (2: a registered dual basis, the
     /// `reg_*` datasets and attributes; 3: a registered neighbours basis, `reg_travels` and
-    /// `reg_weight`; older files are refused with the fix to run the study again).
-    pub const SCHEMA_VERSION: u32 = 3;
+    /// `reg_weight`; 4: the `exact_step` attribute, the corrected re-pairing step of a model
+    /// whose primal space holds translated responses; older files are refused with the fix to
+    /// run the study again).
+    pub const SCHEMA_VERSION: u32 = 4;
 }
 
 pub mod rom {

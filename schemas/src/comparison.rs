@@ -10,6 +10,8 @@
 //!   { kind = "local", cells = [2, 4, 8], overlap = 0.1 },
 //!   { kind = "dictionary" },
 //!   { kind = "registered", map = "translate", interpolation = "nodes", basis = "pod" },
+//!   { kind = "registered", map = "translate", interpolation = "nodes", basis = "neighbours",
+//!     primal_translates = 8 },
 //! ]
 //! ```
 
@@ -76,6 +78,13 @@ pub enum ApproximationSpec {
         refine: usize,
         /// Basis built in the reference frame.
         basis: BasisSpec,
+        /// Online only: the primal space of this approximation's online solve is the POD of the
+        /// training responses and their translates by this many slave-surface node spacings
+        /// either way (a slave body meshed as a regular grid along the travel), truncated at
+        /// the training set's size, with the exact corrected re-pairing step. Absent: the POD of
+        /// the training responses, as every other online solve.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        primal_translates: Option<usize>,
     },
 }
 

@@ -731,8 +731,36 @@ fn check_comparison(
                     ));
                 }
             }
-            ApproximationSpec::Registered { map, interpolation, refine, basis } => {
+            ApproximationSpec::Registered { map, interpolation, refine, basis, primal_translates } => {
                 c.between(&format!("{field}.refine"), *refine, 1, 64)?;
+                if let Some(k) = primal_translates {
+                    if *basis == BasisSpec::Pod {
+                        return Err(c.fail(
+                            &format!("{field}.primal_translates"),
+                            "is set for a registered POD, which has no online solve (its modes are signed)".into(),
+                            "remove primal_translates, or use basis = \"cpg\" or \"neighbours\"",
+                        ));
+                    }
+                    if *map != MapSpec::Translate {
+                        return Err(c.fail(
+                            &format!("{field}.primal_translates"),
+                            "is set with map = \"moments\"; translates of the responses follow a master that \
+                             travels along a regular slave body, which a translation map describes"
+                                .into(),
+                            "use map = \"translate\", or remove primal_translates",
+                        ));
+                    }
+                    c.between(&format!("{field}.primal_translates"), *k, 1, 10_000)?;
+                    if matches!(model, Model::Hertz(_)) {
+                        return Err(c.fail(
+                            &format!("{field}.primal_translates"),
+                            "is set for hertz, whose slave surface is an arc: its translates are not \
+                             responses of anything (they need a slave body meshed as a regular grid along x)"
+                                .into(),
+                            "remove primal_translates from this entry",
+                        ));
+                    }
+                }
                 if matches!(model, Model::Rope(_)) {
                     return Err(c.fail(
                         &format!("{field}.map"),

@@ -221,7 +221,7 @@ fn hertz_text() -> String {
 /// Every bad `[comparison]` setting is refused with the field and a fix.
 #[test]
 fn bad_comparison_settings_are_named() {
-    let cases: [(&str, &[&str]); 11] = [
+    let cases: [(&str, &[&str]); 15] = [
         (
             "[comparison]\napproximations = [{ kind = \"local\", cells = [12] }]\n",
             &["comparison.approximations[0].cells[0]", "12 points", "at most 11 cells"],
@@ -247,6 +247,22 @@ fn bad_comparison_settings_are_named() {
         (
             "[comparison]\napproximations = [{ kind = \"registered\", map = \"moments\", basis = \"neighbours\" }]\n",
             &["comparison.approximations[0].basis", "interpolation = \"nodes\""],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"registered\", map = \"translate\", basis = \"pod\", primal_translates = 8 }]\n",
+            &["comparison.approximations[0].primal_translates", "no online solve", "basis = \"cpg\""],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"registered\", map = \"moments\", basis = \"cpg\", primal_translates = 8 }]\n",
+            &["comparison.approximations[0].primal_translates", "map = \"translate\""],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"registered\", map = \"translate\", basis = \"cpg\", primal_translates = 4 }]\n",
+            &["comparison.approximations[0].primal_translates", "arc", "remove primal_translates"],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"registered\", map = \"translate\", basis = \"cpg\", primal_translates = 0 }]\n",
+            &["comparison.approximations[0].primal_translates", "at least 1"],
         ),
         ("[comparison]\napproximations = [{ kind = \"svd\" }]\n", &["svd"]),
         (

@@ -20,10 +20,25 @@ import pandas as pd
 from conftest import REPO, crom_bin, only_artifact
 
 
+def _registered_name(entry):
+    """The tables' name of a registered `[comparison]` entry (`ApproximationSpec::name`)."""
+    if entry.get("kind") != "registered":
+        return None
+    interpolation = entry.get("interpolation", "linear")
+    kind = "moments" if entry["map"] == "moments" else f"translate-{interpolation}"
+    return f"registered-{kind}-{entry['basis']}"
+
+
 def _check_layout(store, scene):
     model = h5py.File(only_artifact(store, "model", "model.h5"), "r")
     a = model.attrs
-    assert a["schema_version"] == 3 and a["scene"] == scene and a["kind"] == "model"
+    assert a["schema_version"] == 4 and a["scene"] == scene and a["kind"] == "model"
+    # the corrected step: first-order (0) unless the model's registered basis is a comparison
+    # entry with its own primal space (`primal_translates`), which stores 2
+    scene_toml = tomllib.loads((REPO / "data" / "scenes" / f"{scene}.toml").read_text())
+    entries = scene_toml.get("comparison", {}).get("approximations", [])
+    own_primal = [e for e in entries if e.get("primal_translates") and _registered_name(e) == a["dual_basis"]]
+    assert int(a["exact_step"]) == (2 if own_primal else 0), (a["dual_basis"], int(a["exact_step"]))
     ru, rl, nc, terms = (int(a[k]) for k in ("r_primal", "r_dual", "n_contact", "lift_terms"))
     # the dual basis, rebuilt from its compressed rows
     start, col, val = model["theta_start"][:], model["theta_column"][:], model["theta_value"][:]

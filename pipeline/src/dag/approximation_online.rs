@@ -28,7 +28,9 @@ use crom_schemas::SceneConfig;
 use crom_stages::dual::dictionary::{WorkingSet, WorkingSetScratch, WS_START};
 use crom_stages::dual::{self, Approach, DualApprox, Training};
 use crom_stages::metrics::order::quantile;
-use crom_stages::rom::{cone_basis_columns, Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork};
+use crom_stages::rom::{
+    cone_basis_columns, Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork, EXACT_STEP_ITERATIONS,
+};
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
@@ -90,7 +92,17 @@ impl OnlineApproximationKey {
 
     /// The exact online solve's settings.
     fn rom_params(&self) -> RomParams {
-        RomParams { algorithm: Algorithm::Exact, max_iter: self.max_iter, gap_tol: self.gap_tol, u_tol: self.u_tol }
+        RomParams {
+            algorithm: Algorithm::Exact,
+            max_iter: self.max_iter,
+            gap_tol: self.gap_tol,
+            u_tol: self.u_tol,
+            exact_step: if comparison::primal_translates(&self.approximation).is_some() {
+                EXACT_STEP_ITERATIONS
+            } else {
+                0
+            },
+        }
     }
 }
 
@@ -209,6 +221,11 @@ fn run(
     // measured by the trade-off's stage when it ran earlier in this process
     let fom = if rebuild { physics.fom_seconds(test, &test_set.parameters)? } else { Vec::new() };
     let phi = if rebuild { Some(physics.responses(train, &train_set, fail)?) } else { None };
+    // an approximation with its own primal space (`primal_translates`)
+    let translated = match comparison::primal_translates(&settings.approximation) {
+        Some(shift) => Some(physics.translated_responses(train, &train_set, shift, fail)?),
+        None => None,
+    };
     let phys = physics.get()?;
     let op = phys.operator();
     if let Some(phi) = phi {
@@ -221,10 +238,23 @@ fn run(
         *shared = Some(OnlineBase { of, r_primal: phi.cols, model, errors, fom_median });
     }
     let Some(b) = shared.as_ref() else { return Err(fail("the shared reduced model was not built".into())) };
+    let own = match &translated {
+        Some(phi) => {
+            let model = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
+            let refs: Vec<(&[f64], &[f64])> =
+                test_set.parameters.iter().enumerate().map(|(j, mu)| (mu.as_slice(), test_set.primal.col(j))).collect();
+            let errors = PrimalErrors::new(op, &phi.data, phi.cols, &refs)
+                .ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
+            Some((model, errors, phi.cols))
+        }
+        None => None,
+    };
+    let (base_model, primal_errors, r_primal) =
+        own.as_ref().map_or((&b.model, &b.errors, b.r_primal), |(m, e, r)| (m, e, *r));
     let params = settings.rom_params();
     let mut progress = ctx.progress.stage(&label, 1);
     let errors = |j: usize, rm: &ReducedModel, sol: &crom_stages::rom::ReducedSolution| {
-        (b.errors.relative(j, &sol.u_hat), dual_error(op, rm, sol, &test_set, j))
+        (primal_errors.relative(j, &sol.u_hat), dual_error(op, rm, sol, &test_set, j))
     };
     let mut rows = Rows::default();
     let bases_path = ctx.store.dir(ArtifactKind::Approximation, approximation).join(names::BASES);
@@ -256,14 +286,14 @@ fn run(
             // answers at the training points with the basis there (`with_primal_starts`), as a
             // stored model with that basis does
             let (source, base) = if model.depends_on_mu() {
-                let base = b.model.clone().with_primal_starts(model.as_ref(), m, &train_set.parameters, &params);
+                let base = base_model.clone().with_primal_starts(model.as_ref(), m, &train_set.parameters, &params);
                 (Source::PerQuery(model.as_ref(), m), std::borrow::Cow::Owned(base))
             } else {
                 let (theta, k) = cone_basis_columns(model.as_ref(), &test_set.parameters[0], m);
-                (Source::Fixed(theta.into(), k), std::borrow::Cow::Borrowed(&b.model))
+                (Source::Fixed(theta.into(), k), std::borrow::Cow::Borrowed(base_model))
             };
             let queries = solve_all(&source, &base, &test_set.parameters, &params, errors);
-            rows.push(&name, m, b.r_primal, &queries, b.fom_median);
+            rows.push(&name, m, r_primal, &queries, b.fom_median);
         }
     }
     let staging = ctx.store.stage(spec)?;
@@ -272,7 +302,7 @@ fn run(
     times.write_parquet(&staging.path(names::ONLINE_TIMINGS))?;
     let summary = std::collections::BTreeMap::from([
         ("approximation".to_string(), json!(name)),
-        ("r_primal".to_string(), json!(b.r_primal)),
+        ("r_primal".to_string(), json!(r_primal)),
         ("test_points".to_string(), json!(test_set.parameters.len())),
     ]);
     ctx.commit(staging, start.elapsed().as_secs_f64(), summary)?;

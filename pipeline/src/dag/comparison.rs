@@ -72,7 +72,7 @@ fn approach_of(spec: &ApproximationSpec) -> Approach {
             Approach::Local { cells: cells.first().copied().unwrap_or(1), overlap: *overlap }
         }
         ApproximationSpec::Dictionary => Approach::Dictionary,
-        ApproximationSpec::Registered { map, interpolation, refine, basis } => {
+        ApproximationSpec::Registered { map, interpolation, refine, basis, .. } => {
             let map = match (map, interpolation) {
                 (MapSpec::Translate, InterpolationSpec::Nodes) => {
                     MapKind::Translate { interpolation: Interpolation::Nodes }
@@ -89,6 +89,15 @@ fn approach_of(spec: &ApproximationSpec) -> Approach {
             };
             Approach::Registered { map, inner }
         }
+    }
+}
+
+/// The translates of the training responses an online solve with `spec` adds to its primal
+/// space (`primal_translates`), if any.
+pub(crate) fn primal_translates(spec: &ApproximationSpec) -> Option<usize> {
+    match spec {
+        ApproximationSpec::Registered { primal_translates, .. } => *primal_translates,
+        _ => None,
     }
 }
 
@@ -222,7 +231,13 @@ mod tests {
     /// gives the approaches they build.
     #[test]
     fn item_names_are_the_approaches_names() {
-        let reg = |map, interpolation, basis| ApproximationSpec::Registered { map, interpolation, refine: 4, basis };
+        let reg = |map, interpolation, basis| ApproximationSpec::Registered {
+            map,
+            interpolation,
+            refine: 4,
+            basis,
+            primal_translates: None,
+        };
         let cmp = ComparisonSpec {
             max_m: 8,
             loo_folds: 4,

@@ -494,12 +494,14 @@ pub(crate) struct LazyPhysics<'s> {
     fom: Option<(Key, Vec<f64>)>,
     /// The POD of one training set's responses (its key), computed on first use.
     responses: Option<(Key, std::sync::Arc<crate::io::h5::ColMatrix>)>,
+    /// The POD of one training set's responses and their translates (its key and the shift).
+    translated: Option<((Key, usize), std::sync::Arc<crate::io::h5::ColMatrix>)>,
 }
 
 impl<'s> LazyPhysics<'s> {
     /// Nothing built yet.
     pub(crate) fn new(scene: &'s SceneConfig) -> Self {
-        Self { scene, built: None, fom: None, responses: None }
+        Self { scene, built: None, fom: None, responses: None, translated: None }
     }
 
     /// The full-order solve time at each point of the set `set` (its key; `parameters` its
@@ -536,6 +538,27 @@ impl<'s> LazyPhysics<'s> {
         }
         let phi = std::sync::Arc::new(rom::response_basis(self.get()?.operator(), train).map_err(fail)?);
         self.responses = Some((set.clone(), std::sync::Arc::clone(&phi)));
+        Ok(phi)
+    }
+
+    /// The primal basis of an online solve with `primal_translates = shift`: the POD of the
+    /// training set's responses and their translates ([`rom::translated_response_basis`]),
+    /// computed on the first call in this process for that set and shift, and handed to the
+    /// model stage after the online comparison.
+    pub(crate) fn translated_responses(
+        &mut self,
+        set: &Key,
+        train: &trainset::TrainingSet,
+        shift: usize,
+        fail: impl Fn(String) -> CromError,
+    ) -> Result<std::sync::Arc<crate::io::h5::ColMatrix>, CromError> {
+        if let Some(((of, k), phi)) = &self.translated {
+            if of == set && *k == shift {
+                return Ok(std::sync::Arc::clone(phi));
+            }
+        }
+        let phi = std::sync::Arc::new(rom::translated_response_basis(self.get()?, train, shift).map_err(fail)?);
+        self.translated = Some(((set.clone(), shift), std::sync::Arc::clone(&phi)));
         Ok(phi)
     }
 

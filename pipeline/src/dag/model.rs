@@ -42,11 +42,11 @@ use crom_schemas::scene::{ContactSamplingSpec, MODEL_DUAL_CPG};
 use crom_schemas::SceneConfig;
 use crom_stages::dual::registration::Registered;
 use crom_stages::dual::{self, Approach, DualApprox, Inner, Training};
-use crom_stages::rom::{Algorithm, ReducedModel, RomParams};
+use crom_stages::rom::{Algorithm, ReducedModel, RomParams, EXACT_STEP_ITERATIONS};
 use serde::Serialize;
 use serde_json::json;
 
-use super::comparison::{contact_x, item_of};
+use super::comparison::{self, contact_x, item_of};
 use super::convert::view;
 use super::graph::{Input, StageDef};
 use super::rom::{subsample, SAMPLING_FIT_POINTS};
@@ -97,8 +97,9 @@ impl StageKey for ModelKey {
     const KIND: ArtifactKind = ArtifactKind::Model;
     /// Bump when the stored model or the choice of it changes (2: registered dual bases; 3: its
     /// warm starts and measured errors from the online solve that sums a small dual basis's
-    /// rows, the same answers to 1e-10).
-    const ALGORITHM_VERSION: u32 = 3;
+    /// rows, the same answers to 1e-10; 4: the `exact_step` attribute, and a registered
+    /// approximation's own primal space with translates).
+    const ALGORITHM_VERSION: u32 = 4;
 }
 
 impl ModelKey {
@@ -122,7 +123,13 @@ impl ModelKey {
 
     /// The exact solve's settings.
     fn params(&self) -> RomParams {
-        RomParams { algorithm: Algorithm::Exact, max_iter: self.max_iter, gap_tol: self.gap_tol, u_tol: self.u_tol }
+        RomParams {
+            algorithm: Algorithm::Exact,
+            max_iter: self.max_iter,
+            gap_tol: self.gap_tol,
+            u_tol: self.u_tol,
+            exact_step: 0,
+        }
     }
 }
 
@@ -225,8 +232,6 @@ impl StageDef for ModelStage {
             }
             let train_set = loaded.set(store, train)?;
             let phi = physics.responses(train, &train_set, fail)?;
-            let phys = physics.get()?;
-            let op = phys.operator();
             // a registered basis when the scene names one, the CPG basis otherwise
             let pinned_registered = settings.model_dual.as_deref().filter(|d| *d != MODEL_DUAL_CPG).map(|_| 0);
             let row = match settings.model_ranks {
@@ -243,7 +248,23 @@ impl StageDef for ModelStage {
             if let (Some([ru, rl]), None) = (settings.model_ranks, row) {
                 (pick.r_primal, pick.r_dual) = (ru, rl);
             }
-            let params = settings.params();
+            // a registered approximation with its own primal space (`primal_translates`): the
+            // online comparison's basis, and its exact corrected step
+            let translates = match &pick.source {
+                Source::Registered(k) => {
+                    settings.registered.get(*k).and_then(|key| comparison::primal_translates(&key.approximation))
+                }
+                Source::Exact { .. } => None,
+            };
+            let (phi, params) = match translates {
+                Some(shift) => (
+                    physics.translated_responses(train, &train_set, shift, fail)?,
+                    RomParams { exact_step: EXACT_STEP_ITERATIONS, ..settings.params() },
+                ),
+                None => (phi, settings.params()),
+            };
+            let phys = physics.get()?;
+            let op = phys.operator();
             let (model, algorithm, dual_basis) = match &pick.source {
                 Source::Exact { algorithm, dual_basis } => {
                     let bfile = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
@@ -307,6 +328,7 @@ impl StageDef for ModelStage {
                 max_iter: params.max_iter as u64,
                 gap_tol: params.gap_tol,
                 u_tol: params.u_tol,
+                exact_step: params.exact_step as u64,
                 parameter_names: labels.names.clone(),
                 parameter_min: settings.parameter_min.clone(),
                 parameter_max: settings.parameter_max.clone(),

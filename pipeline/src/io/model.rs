@@ -8,7 +8,7 @@
 //! `cache_key`; the solver settings `algorithm` (`exact` or `exact-sampled`: which rows of the
 //! study's trade-off measured it), `dual_basis` (`full` or `truncated`: the study's CPG basis;
 //! or the name of a registered approximation, e.g. `registered-translate-nodes-cpg`, whose
-//! basis the `reg_*` arrays hold), `max_iter`, `gap_tol`, `u_tol`; the parameter
+//! basis the `reg_*` arrays hold), `max_iter`, `gap_tol`, `u_tol`, `exact_step`; the parameter
 //! `parameter_names` (comma-separated) with datasets `parameter_min`, `parameter_max` (the
 //! training domain, one value per component); and what the study measured for it at its test
 //! points: `measured_points`, `measured_converged`, `measured_median_primal_error`,
@@ -69,6 +69,8 @@ pub struct StoredModel {
     pub gap_tol: f64,
     /// See `RomParams::u_tol`.
     pub u_tol: f64,
+    /// See `RomParams::exact_step` (0: the first-order corrected step).
+    pub exact_step: u64,
     /// Parameter component names.
     pub parameter_names: Vec<String>,
     /// Training domain, lower bounds.
@@ -109,6 +111,7 @@ impl StoredModel {
         f.attr_u64("max_iter", self.max_iter)?;
         f.attr_f64("gap_tol", self.gap_tol)?;
         f.attr_f64("u_tol", self.u_tol)?;
+        f.attr_u64("exact_step", self.exact_step)?;
         f.attr_str("parameter_names", &self.parameter_names.join(","))?;
         f.vec_f64("parameter_min", &self.parameter_min, "lower bound of each parameter component")?;
         f.vec_f64("parameter_max", &self.parameter_max, "upper bound of each parameter component")?;
@@ -184,6 +187,7 @@ impl StoredModel {
             max_iter: f.attr_u64("max_iter")?,
             gap_tol: f.attr_f64("gap_tol")?,
             u_tol: f.attr_f64("u_tol")?,
+            exact_step: f.attr_u64("exact_step")?,
             parameter_names: names_attr.split(',').map(str::to_string).collect(),
             parameter_min: f.vec_f64("parameter_min")?,
             parameter_max: f.vec_f64("parameter_max")?,
@@ -195,6 +199,16 @@ impl StoredModel {
                 median_dual_error: optional("measured_median_dual_error")?,
             },
         };
+        if model.exact_step > crom_stages::rom::MAX_EXACT_STEP as u64 {
+            return Err(fix_read(
+                path,
+                format!(
+                    "exact_step is {}; the corrected step takes at most {}",
+                    model.exact_step,
+                    crom_stages::rom::MAX_EXACT_STEP
+                ),
+            ));
+        }
         let dim = model.parameter_names.len();
         if model.parameter_min.len() != dim || model.parameter_max.len() != dim {
             return Err(fix_read(path, format!("{dim} parameter names but {} bounds", model.parameter_min.len())));
@@ -246,6 +260,7 @@ mod tests {
             max_iter: 100,
             gap_tol: 1e-12,
             u_tol: 1e-10,
+            exact_step: 2,
             parameter_names: vec!["d_x".into(), "d_y".into()],
             parameter_min: vec![0.0, -0.1],
             parameter_max: vec![3.0, 0.1],

@@ -168,6 +168,7 @@ pub fn params(stored: &StoredModel) -> RomParams {
         max_iter: usize::try_from(stored.max_iter).unwrap_or(usize::MAX),
         gap_tol: stored.gap_tol,
         u_tol: stored.u_tol,
+        exact_step: usize::try_from(stored.exact_step).unwrap_or(0),
     }
 }
 

@@ -200,7 +200,7 @@ impl Model {
     }
 
     /// The stored settings and measurements: a dict of `algorithm`, `dual_basis`, `max_iter`,
-    /// `gap_tol`, `u_tol`, `measured_points`, `measured_converged`,
+    /// `gap_tol`, `u_tol`, `exact_step`, `measured_points`, `measured_converged`,
     /// `measured_median_primal_error`, `measured_p95_primal_error`, `measured_median_dual_error`.
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
         let s = &self.loaded.stored;
@@ -210,6 +210,7 @@ impl Model {
         d.set_item("max_iter", s.max_iter)?;
         d.set_item("gap_tol", s.gap_tol)?;
         d.set_item("u_tol", s.u_tol)?;
+        d.set_item("exact_step", s.exact_step)?;
         let m = &s.measured;
         d.set_item("measured_points", m.points)?;
         d.set_item("measured_converged", m.converged)?;

@@ -12,6 +12,7 @@ mod cpg;
 mod cpg_reference;
 mod frame;
 mod gram_condition;
+mod gram_pod;
 mod lazy;
 mod pod;
 
@@ -22,6 +23,7 @@ pub use cpg::{
 pub use cpg_reference::cpg_reference;
 pub use frame::{frame, frame_pays_up_to, frame_within, frame_within_blocks, large_frame, Frame, FRAME_BLOCK};
 pub use gram_condition::gram_condition_path;
+pub use gram_pod::{pod_by_gram, GRAM_CUT};
 
 pub(crate) use lazy::LazyGreedy;
 pub use pod::{

@@ -74,6 +74,7 @@ mod reduced;
 pub(crate) use reduced::test_support;
 mod saddle;
 pub mod sampling;
+pub mod translates;
 
 pub use crate::full_order::{Compliance, ContactOperator, Linearized, Surface};
 pub use error::PrimalErrors;
@@ -81,6 +82,7 @@ pub use la::Factor;
 pub use qp::{solve_qp, DenseConstraints, QpConstraints, QpOutcome, QpWork};
 pub use reduced::{
     cone_basis_columns, Algorithm, Indicator, ModelParts, QueryModel, ReducedModel, ReducedSolution, RomError,
-    RomOutcome, RomParams, RomWork, SolveInfo, SAMPLING_DIRECTIONS, WARM_START_SAMPLES,
+    RomOutcome, RomParams, RomWork, SolveInfo, EXACT_STEP_ITERATIONS, MAX_EXACT_STEP, SAMPLING_DIRECTIONS,
+    WARM_START_SAMPLES,
 };
 pub use saddle::solve_saddle;

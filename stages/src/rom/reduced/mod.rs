@@ -13,6 +13,7 @@
 //! - `warm`: the warm-start library of the exact solve;
 //! - `work`: the buffers of online queries ([`RomWork`]);
 //! - `solve`: the query and the exact solve (QP per linearisation, re-pairing, zone rule);
+//! - `exact_step`: the exact corrected re-pairing step (GMRES on the SQP step's equation);
 //! - `paper`: the paper's Algorithm 1;
 //! - `linearise`: the Type-2 linearisation state and the re-pairing with proofs;
 //! - `oracle`: the reduced constraints as the QP sees them;
@@ -21,6 +22,7 @@
 
 mod build;
 mod dual_basis;
+mod exact_step;
 mod indicator;
 mod linearise;
 mod oracle;
@@ -37,11 +39,12 @@ mod work;
 #[cfg(test)]
 pub(crate) mod test_support;
 
+pub use exact_step::MAX_EXACT_STEP;
 pub use indicator::Indicator;
 pub use parts::ModelParts;
 pub use registered::{cone_basis_columns, QueryModel};
 pub use surface::SAMPLING_DIRECTIONS;
-pub use types::{Algorithm, ReducedSolution, RomError, RomOutcome, RomParams, SolveInfo};
+pub use types::{Algorithm, ReducedSolution, RomError, RomOutcome, RomParams, SolveInfo, EXACT_STEP_ITERATIONS};
 pub use warm::WARM_START_SAMPLES;
 pub use work::RomWork;
 

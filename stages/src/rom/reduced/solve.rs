@@ -165,7 +165,7 @@ impl ReducedModel {
             // outside the curvature's reach; measured, correcting those too made the ironing-fine
             // queries 8 % slower: more corrections than linearisations saved)
             if newton && smooth && w.lin.newton() {
-                self.curvature_step(w);
+                self.curvature_step(w, p.exact_step);
             }
             w.u_hat.copy_from_slice(&w.x);
             let changed = self.linearize(w);
@@ -228,7 +228,7 @@ impl ReducedModel {
     /// active constraints' null space), which turns the re-pairing's linear rate from `|H|`
     /// (about 1e-2) to `|H|²` plus the step's second-order term. At a fixed point `x = y_k`
     /// the correction vanishes, so the answers are the QP's own.
-    fn curvature_step(&self, w: &mut RomWork) {
+    fn curvature_step(&self, w: &mut RomWork, exact_step: usize) {
         let SurfaceData::Nts { ns, phi_c, .. } = &self.surf else { return };
         let (ns, ru) = (*ns, self.r_u);
         let l = &mut w.lin;
@@ -243,6 +243,10 @@ impl ReducedModel {
         }
         l.step.clear();
         l.step.extend(w.x.iter().zip(&w.u_hat).map(|(a, b)| a - b));
+        if exact_step > 0 {
+            self.exact_step(w, exact_step);
+            return;
+        }
         l.hv.clear();
         l.hv.resize(ru, 0.0);
         for &s in &l.ps {

@@ -29,6 +29,8 @@ pub struct RomWork {
     pub(super) forced: Vec<Option<usize>>,
     /// Pressure per slave (the vertex-zone rule).
     pub(super) pressures: Vec<f64>,
+    /// The exact corrected step's buffers ([`super::exact_step`]).
+    pub(super) exact: super::exact_step::ExactStepWork,
 }
 
 impl RomWork {
