@@ -22,11 +22,15 @@ def drop_section(text, section):
 def variant(tmp, base, name, edits, drop=()):
     """`data/scenes/<base>.toml` with every `(old, new)` of `edits` applied (each `old` must be
     present; every occurrence is replaced), the tables in `drop` removed (e.g. `comparison`, for
-    the paper's study alone) and the scene renamed `name`; its path in `tmp`."""
+    the paper's study alone, with the `study.model_dual` and `model_ranks` that pin a stored
+    model to one of its entries) and the scene renamed `name`; its path in `tmp`."""
     text = (REPO / "data" / "scenes" / f"{base}.toml").read_text()
     for section in drop:
         assert f"[{section}]" in text, f"{base}.toml has no [{section}]: update the script's drops"
         text = drop_section(text, section)
+    if "comparison" in drop:
+        # a stored model pinned to a comparison entry goes with the comparison
+        text = re.sub(r"(?m)^model_(dual|ranks) = .*\n", "", text)
     for a, b in edits:
         assert a in text, f"{base}.toml has no `{a}`: update the script's edits"
         text = text.replace(a, b)

@@ -43,6 +43,29 @@ fn dot_lanes<const L: usize>(a: &[f64], b: &[f64]) -> f64 {
     reduce_lanes(acc) + s
 }
 
+/// `(x · v, y · v)` in one pass over `v` (equal lengths), each in eight interleaved partial sums
+/// reduced pairwise: one fixed order, as [`dot`]'s (two products of one row pair, as the online
+/// solve's curvature takes them for a contact node's two rows).
+#[inline]
+pub fn dot_pair(x: &[f64], y: &[f64], v: &[f64]) -> (f64, f64) {
+    const L: usize = 8;
+    let (mut ax, mut ay) = ([0.0f64; L], [0.0f64; L]);
+    let n = v.len().min(x.len()).min(y.len());
+    let main = n / L * L;
+    for ((cx, cy), cv) in x[..main].chunks_exact(L).zip(y[..main].chunks_exact(L)).zip(v[..main].chunks_exact(L)) {
+        for k in 0..L {
+            ax[k] += cx[k] * cv[k];
+            ay[k] += cy[k] * cv[k];
+        }
+    }
+    let (mut sx, mut sy) = (0.0, 0.0);
+    for i in main..n {
+        sx += x[i] * v[i];
+        sy += y[i] * v[i];
+    }
+    (reduce_lanes(ax) + sx, reduce_lanes(ay) + sy)
+}
+
 /// The partial sums of a [`dot`] reduced pairwise (`L` a power of two): one fixed order.
 #[inline]
 fn reduce_lanes<const L: usize>(mut acc: [f64; L]) -> f64 {
@@ -156,6 +179,25 @@ pub fn out_of_span_norms(s: MatRef<'_, f64>, basis: MatRef<'_, f64>, coords: Mat
 mod tests {
     use super::*;
     use crate::rng::Rng;
+
+    /// `dot_pair` is the two products: against a plain sum at every length from 0 to 40 (the
+    /// remainder and the lanes), tolerance 1e-14 of `Σ |x_i v_i|` (another summation order of
+    /// at most 40 terms: a few ulps of the sum of magnitudes).
+    #[test]
+    fn dot_pair_is_the_two_products() {
+        let mut rng = Rng::new(9);
+        for n in 0..=40 {
+            let x: Vec<f64> = (0..n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
+            let y: Vec<f64> = (0..n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
+            let v: Vec<f64> = (0..n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
+            let (px, py) = dot_pair(&x, &y, &v);
+            for (p, a) in [(px, &x), (py, &y)] {
+                let exact: f64 = a.iter().zip(&v).map(|(a, b)| a * b).sum();
+                let scale: f64 = a.iter().zip(&v).map(|(a, b)| (a * b).abs()).sum();
+                assert!((p - exact).abs() <= 1e-14 * scale.max(f64::MIN_POSITIVE), "n = {n}: {p} vs {exact}");
+            }
+        }
+    }
 
     #[test]
     fn out_of_span_is_the_two_buffer_difference_bit_for_bit() {

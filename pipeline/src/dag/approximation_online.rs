@@ -13,7 +13,10 @@
 //!
 //! The reduced model is built once per run (`K̂`, the contact-dof rows of the primal basis;
 //! [`OnlineBase`], shared by every approximation's stage in the process) and only its dual part
-//! is replaced per approximation ([`ReducedModel::set_dual`], `O(n_contact m)`). A fixed basis
+//! is replaced per approximation ([`ReducedModel::set_dual`], `O(n_contact m)`). A registered
+//! approximation with `primal_translates` has a primal space of its own (the training responses
+//! and their translates, [`super::rom::translated_response_basis`]) and the exact corrected
+//! re-pairing step; its stage builds that model and its primal references. A fixed basis
 //! is set before the timer starts; a basis that depends on the parameter (a registered one is
 //! pushed forward to the query's frame, a local one is its cell's) is evaluated and set inside
 //! the timed query, so its online time includes that work — which reads only contact-surface

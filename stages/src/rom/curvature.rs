@@ -42,6 +42,7 @@
 
 use super::la::{axpy, dot};
 use crate::contact::pairing::{dot as dot2, segment_normal, sub, Pair, PairKind};
+use crate::kernels::dot_pair;
 
 /// One slave's term of `H`: `p [A (B·v) + B (A·v) + gamma A (A·v)]` on a segment, `p B (A·v)`
 /// at a tie (`symmetric` false), with `A` and `B` as coefficients on the two rows of up to four
@@ -180,8 +181,7 @@ impl CurvatureOp {
         self.d.clear();
         for &c in &self.nodes {
             // a node's two rows are adjacent: both products in one pass over `v`
-            let (dx, dy) =
-                row_pair_dots(&psi_c[2 * c * r..(2 * c + 1) * r], &psi_c[(2 * c + 1) * r..(2 * c + 2) * r], v);
+            let (dx, dy) = dot_pair(&psi_c[2 * c * r..(2 * c + 1) * r], &psi_c[(2 * c + 1) * r..(2 * c + 2) * r], v);
             self.d.push(dx);
             self.d.push(dy);
         }
@@ -212,38 +212,6 @@ impl CurvatureOp {
             }
         }
     }
-}
-
-/// `(x · v, y · v)` in one pass, each in eight interleaved partial sums reduced pairwise: one
-/// fixed order.
-#[inline]
-fn row_pair_dots(x: &[f64], y: &[f64], v: &[f64]) -> (f64, f64) {
-    const L: usize = 8;
-    let (mut ax, mut ay) = ([0.0f64; L], [0.0f64; L]);
-    let n = v.len().min(x.len()).min(y.len());
-    let main = n / L * L;
-    for ((cx, cy), cv) in x[..main].chunks_exact(L).zip(y[..main].chunks_exact(L)).zip(v[..main].chunks_exact(L)) {
-        for k in 0..L {
-            ax[k] += cx[k] * cv[k];
-            ay[k] += cy[k] * cv[k];
-        }
-    }
-    let reduce = |mut a: [f64; L]| {
-        let mut w = L;
-        while w > 1 {
-            w /= 2;
-            for k in 0..w {
-                a[k] += a[k + w];
-            }
-        }
-        a[0]
-    };
-    let (mut sx, mut sy) = (0.0, 0.0);
-    for i in main..n {
-        sx += x[i] * v[i];
-        sy += y[i] * v[i];
-    }
-    (reduce(ax) + sx, reduce(ay) + sy)
 }
 
 #[cfg(test)]
