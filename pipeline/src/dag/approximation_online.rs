@@ -46,7 +46,7 @@ use super::rom::{dual_error, fastest};
 use super::{Ctx, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
-use crate::io::h5::H5In;
+use crate::io::h5::{ColMatrix, H5In};
 use crate::io::table::{Column, Table};
 
 /// What determines one approximation's online artifact besides its inputs.
@@ -231,23 +231,25 @@ fn run(
     };
     let phys = physics.get()?;
     let op = phys.operator();
-    if let Some(phi) = phi {
+    // the reduced model on a primal basis, without a dual basis, and the test points' primal
+    // references in its coordinates
+    let primal_part = |phi: &ColMatrix| -> Result<(ReducedModel, PrimalErrors), CromError> {
         let model = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
         let refs: Vec<(&[f64], &[f64])> =
             test_set.parameters.iter().enumerate().map(|(j, mu)| (mu.as_slice(), test_set.primal.col(j))).collect();
         let errors = PrimalErrors::new(op, &phi.data, phi.cols, &refs)
             .ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
+        Ok((model, errors))
+    };
+    if let Some(phi) = phi {
+        let (model, errors) = primal_part(&phi)?;
         let fom_median = quantile(&fom, 0.5);
         *shared = Some(OnlineBase { of, r_primal: phi.cols, model, errors, fom_median });
     }
     let Some(b) = shared.as_ref() else { return Err(fail("the shared reduced model was not built".into())) };
     let own = match &translated {
         Some(phi) => {
-            let model = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
-            let refs: Vec<(&[f64], &[f64])> =
-                test_set.parameters.iter().enumerate().map(|(j, mu)| (mu.as_slice(), test_set.primal.col(j))).collect();
-            let errors = PrimalErrors::new(op, &phi.data, phi.cols, &refs)
-                .ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
+            let (model, errors) = primal_part(phi)?;
             Some((model, errors, phi.cols))
         }
         None => None,

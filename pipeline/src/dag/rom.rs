@@ -473,14 +473,20 @@ pub(crate) fn fom_seconds(phys: &Physics, parameters: &[Vec<f64>]) -> Vec<f64> {
 
 /// POD (numerical rank) of the training contact responses `u_k - u0(mu_k)`.
 pub(crate) fn response_basis(op: &dyn ContactOperator, train: &trainset::TrainingSet) -> Result<ColMatrix, String> {
-    let n = train.primal.rows;
-    let mut data = Vec::with_capacity(n * train.primal.cols);
+    let data = responses(op, train);
+    let pod = pod_full(MatRef::from_column_major_slice(&data, train.primal.rows, train.primal.cols))
+        .map_err(|e| e.to_string())?;
+    Ok(super::convert::to_col(pod.modes.as_ref()))
+}
+
+/// The training contact responses `u_k - u0(mu_k)`, column-major.
+fn responses(op: &dyn ContactOperator, train: &trainset::TrainingSet) -> Vec<f64> {
+    let mut data = Vec::with_capacity(train.primal.rows * train.primal.cols);
     for (j, mu) in train.parameters.iter().enumerate() {
         let u0 = op.lift(mu);
         data.extend(train.primal.col(j).iter().zip(&u0).map(|(u, l)| u - l));
     }
-    let pod = pod_full(MatRef::from_column_major_slice(&data, n, train.primal.cols)).map_err(|e| e.to_string())?;
-    Ok(super::convert::to_col(pod.modes.as_ref()))
+    data
 }
 
 /// The primal basis of an online solve with `primal_translates = shift`
@@ -498,13 +504,7 @@ pub(crate) fn translated_response_basis(
     let crate::physics::Physics::Contact(fm, _) = phys else {
         return Err("primal_translates needs a two-body contact scene".into());
     };
-    let op = phys.operator();
-    let n = train.primal.rows;
-    let mut data = Vec::with_capacity(n * train.primal.cols);
-    for (j, mu) in train.parameters.iter().enumerate() {
-        let u0 = op.lift(mu);
-        data.extend(train.primal.col(j).iter().zip(&u0).map(|(u, l)| u - l));
-    }
+    let (n, data) = (train.primal.rows, responses(phys.operator(), train));
     let model = fm.model();
     let all = crom_stages::rom::translates::with_translates(model.mesh(), model.slave_nodes(), &data, shift)
         .map_err(|e| format!("primal_translates: {e}; remove primal_translates from this [comparison] entry"))?;

@@ -176,6 +176,14 @@ impl CurvatureOp {
         self.terms.is_empty()
     }
 
+    /// `out += H v` term by term, in the order the terms were pushed (each term's
+    /// [`GapCurvature::apply`]): the first-order corrected step's sum.
+    pub(super) fn apply_by_term(&self, psi_c: &[f64], r: usize, v: &[f64], out: &mut [f64]) {
+        for (c, p, _) in &self.terms {
+            c.apply(*p, psi_c, r, v, out);
+        }
+    }
+
     /// `out = H v`.
     pub(super) fn apply(&mut self, psi_c: &[f64], r: usize, v: &[f64], out: &mut [f64]) {
         self.d.clear();

@@ -98,11 +98,10 @@ pub fn with_translates(
         }
         at[c * rows + r] = i;
     }
-    let count = responses.len().checked_div(n).unwrap_or(0);
     let mut out = Vec::with_capacity(3 * responses.len());
     out.extend_from_slice(responses);
     for k in [-(shift as i64), shift as i64] {
-        for u in responses.chunks_exact(n).take(count) {
+        for u in responses.chunks_exact(n) {
             let mut t = u.to_vec();
             for &(i, c, r) in &cells {
                 let from = c as i64 - k;

@@ -23,7 +23,7 @@
 //! step; only the path to them changes.
 
 use super::{ReducedModel, RomWork, SurfaceData};
-use crate::rom::curvature::{CurvatureOp, GapCurvature};
+use crate::rom::curvature::CurvatureOp;
 use crate::rom::la::{axpy, dot};
 
 /// The largest number of Krylov iterations (the size of the small least-squares problem).
@@ -32,7 +32,8 @@ pub const MAX_EXACT_STEP: usize = 8;
 /// Buffers of the exact step.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ExactStepWork {
-    op: CurvatureOp,
+    /// The terms of `H` at the corrected step (filled by [`ReducedModel::curvature_step`]).
+    pub(super) op: CurvatureOp,
     /// The Krylov basis, `r_u` per vector.
     basis: Vec<f64>,
     /// The next vector.
@@ -41,26 +42,12 @@ pub(crate) struct ExactStepWork {
 
 impl ReducedModel {
     /// The exact corrected step with `k` (1..=[`MAX_EXACT_STEP`]) GMRES iterations, after
-    /// [`Self::curvature_step`] has scattered the active multipliers' forces into
-    /// `w.lin.force` and the QP's step into `w.lin.step`; leaves `w.lin.force` zero.
+    /// [`Self::curvature_step`] has put the QP's step into `w.lin.step` and the terms of `H`
+    /// into `w.exact.op`.
     pub(super) fn exact_step(&self, w: &mut RomWork, k: usize) {
-        let SurfaceData::Nts { ns, nm, phi_c, .. } = &self.surf else { return };
-        let (ns, ru, k) = (*ns, self.r_u, k.min(MAX_EXACT_STEP));
+        let SurfaceData::Nts { phi_c, .. } = &self.surf else { return };
+        let (ru, k) = (self.r_u, k.min(MAX_EXACT_STEP));
         let RomWork { lin: l, qp, x, exact: e, .. } = w;
-        e.op.clear(ns + nm);
-        for &s in &l.ps {
-            let p = self.gap_weight(s) * l.force[s];
-            if p > 0.0 {
-                if let Some(c) = GapCurvature::new(s, ns, &l.pairs[s], &l.xm) {
-                    e.op.push(c, p);
-                }
-            }
-        }
-        for &a in &qp.active {
-            for i in self.by_col.0[a]..self.by_col.0[a + 1] {
-                l.force[self.by_col.1[i]] = 0.0;
-            }
-        }
         if e.op.is_empty() {
             return;
         }

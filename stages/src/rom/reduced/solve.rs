@@ -229,7 +229,7 @@ impl ReducedModel {
     /// (about 1e-2) to `|H|²` plus the step's second-order term. At a fixed point `x = y_k`
     /// the correction vanishes, so the answers are the QP's own.
     fn curvature_step(&self, w: &mut RomWork, exact_step: usize) {
-        let SurfaceData::Nts { ns, phi_c, .. } = &self.surf else { return };
+        let SurfaceData::Nts { ns, nm, phi_c, .. } = &self.surf else { return };
         let (ns, ru) = (*ns, self.r_u);
         let l = &mut w.lin;
         // the forces of the active multipliers on the slaves, scattered by column: only the
@@ -243,17 +243,14 @@ impl ReducedModel {
         }
         l.step.clear();
         l.step.extend(w.x.iter().zip(&w.u_hat).map(|(a, b)| a - b));
-        if exact_step > 0 {
-            self.exact_step(w, exact_step);
-            return;
-        }
-        l.hv.clear();
-        l.hv.resize(ru, 0.0);
+        // the terms of the slaves with pressure
+        let op = &mut w.exact.op;
+        op.clear(ns + nm);
         for &s in &l.ps {
             let p = self.gap_weight(s) * l.force[s];
             if p > 0.0 {
                 if let Some(c) = GapCurvature::new(s, ns, &l.pairs[s], &l.xm) {
-                    c.apply(p, phi_c, ru, &l.step, &mut l.hv);
+                    op.push(c, p);
                 }
             }
         }
@@ -262,6 +259,14 @@ impl ReducedModel {
                 l.force[self.by_col.1[e]] = 0.0;
             }
         }
+        if exact_step > 0 {
+            self.exact_step(w, exact_step);
+            return;
+        }
+        let l = &mut w.lin;
+        l.hv.clear();
+        l.hv.resize(ru, 0.0);
+        w.exact.op.apply_by_term(phi_c, ru, &l.step, &mut l.hv);
         w.qp.remove_active_span(ru, &mut l.hv);
         axpy(-1.0, &l.hv, &mut w.x);
     }
