@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use crom_schemas::comparison::ApproximationSpec;
 use crom_schemas::SceneConfig;
 
 use super::tables::ReportTable;
@@ -110,14 +111,26 @@ fn model_fact(scene: &SceneConfig, m: &super::ModelFacts) -> String {
         name => format!("the registered basis <code>{}</code> (rebuilt at each point)", esc(name)),
     };
     let error = |v: f64| if v.is_finite() { format!("{v:.2e}") } else { "undefined".to_string() };
+    // a registered approximation with its own primal space (`primal_translates`)
+    let translates = scene.comparison.iter().flat_map(|c| &c.approximations).find_map(|a| match a {
+        ApproximationSpec::Registered { primal_translates: Some(k), .. } if a.name() == m.dual_basis => Some(*k),
+        _ => None,
+    });
+    let primal = match translates {
+        Some(k) => format!(
+            "primal rank {} (the POD of the training responses and their translates by ±{k} slave-surface node \
+             spacings; corrected steps by GMRES)",
+            m.ranks.0
+        ),
+        None => format!("primal rank {}", m.ranks.0),
+    };
     let speed =
         m.speedup.map_or(String::new(), |s| format!(", speed-up {s:.1}x (median full-order over median online time)"));
     format!(
-        "{} solve, primal rank {}, {dual} with {} dual vectors: converged {}/{} test points, median dual error {}, \
+        "{} solve, {primal}, {dual} with {} dual vectors: converged {}/{} test points, median dual error {}, \
          median primal error (H1) {}{speed}. Query it without rerunning the study: \
          <code>crom query {} --at {}={}</code>",
         esc(&m.algorithm),
-        m.ranks.0,
         m.ranks.1,
         m.converged,
         m.points,
@@ -197,4 +210,50 @@ fn online_summary(d: &ReportData, basis: &str) -> Option<String> {
         converged,
         rows.len()
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::report::ModelFacts;
+
+    fn facts(dual_basis: &str) -> ModelFacts {
+        ModelFacts {
+            dual_basis: dual_basis.into(),
+            algorithm: "exact".into(),
+            ranks: (128, 2),
+            points: 127,
+            converged: 127,
+            median_dual_error: 9.8e-4,
+            median_primal_error: 6.4e-5,
+            speedup: Some(80.0),
+            example: ("d_x".into(), 1.5),
+        }
+    }
+
+    /// The stored model's line says which primal space it solves in: ironing-fine's
+    /// neighbours entry sets `primal_translates = 8` in the shipped scene, so its model's line
+    /// names the translates by ±8 (read from the scene file, not written here); a model on the
+    /// study's CPG basis, or on an entry without the option (the registered CPG), says the
+    /// primal rank alone.
+    #[test]
+    fn the_model_line_names_a_primal_space_with_translates() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes");
+        let scene = SceneConfig::load(&dir.join("ironing-fine.toml")).expect("shipped scene");
+        let shift = scene
+            .comparison
+            .iter()
+            .flat_map(|c| &c.approximations)
+            .find_map(|a| match a {
+                ApproximationSpec::Registered { primal_translates: Some(k), .. } => Some((a.name(), *k)),
+                _ => None,
+            })
+            .expect("ironing-fine has an entry with primal_translates");
+        let line = model_fact(&scene, &facts(&shift.0));
+        assert!(line.contains(&format!("translates by ±{} slave-surface", shift.1)), "{line}");
+        for plain in ["full", "registered-translate-nodes-cpg"] {
+            let line = model_fact(&scene, &facts(plain));
+            assert!(line.contains("primal rank 128,") && !line.contains("translates"), "{line}");
+        }
+    }
 }
