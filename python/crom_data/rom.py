@@ -57,10 +57,15 @@ class Result:
     """The answer at one point (see the module doc). Arrays are read-only NumPy views of the
     bytes the solve returned; `displacement` is reconstructed on first access."""
 
-    __slots__ = ("_rom", "point", "_t", "_displacement")
+    __slots__ = ("_rom", "_kw", "_t", "_displacement")
 
-    def __init__(self, rom: "ReducedModel", point: list, t: tuple):
-        self._rom, self.point, self._t, self._displacement = rom, point, t, None
+    def __init__(self, rom: "ReducedModel", kw: dict, t: tuple):
+        self._rom, self._kw, self._t, self._displacement = rom, kw, t, None
+
+    @property
+    def point(self) -> list:
+        """The point's components, in `rom.names` order."""
+        return [self._kw[n] for n in self._rom.names]
 
     def __repr__(self) -> str:
         at = ", ".join(f"{n}={v!r}" for n, v in zip(self._rom.names, self.point))
@@ -225,11 +230,12 @@ class ReducedModel:
 
     def solve(self, allow_extrapolation: bool = False, **point) -> Result:
         """Solve at one point given by name, e.g. `rom.solve(d_x=1.2345)`."""
-        names = self.names
-        if len(point) != len(names) or not self._set.issuperset(point):
+        # the native call checks that every component is given once by name (None if not): one
+        # crossing of the boundary per call, which the hot loop of an optimisation pays
+        t = self._native.solve(point, allow_extrapolation)
+        if t is None:
             raise self._components(point)
-        values = [point[n] for n in names]
-        return Result(self, values, self._native.solve(values, allow_extrapolation))
+        return Result(self, point, t)
 
     def solve_many(self, points, allow_extrapolation: bool = False, threads: int | None = None) -> Batch:
         """Solve at every row of `points`, an (n, p) array of the components in `self.names`

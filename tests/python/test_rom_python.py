@@ -158,6 +158,8 @@ def test_bad_points_raise_the_packages_exceptions(rope_store):
         rom.solve(gamma="abc")
     with pytest.raises(OutsideDomain, match=r"gamma = .* outside the training domain .*allow_extrapolation=True"):
         rom.solve(gamma=hi + 0.25)
+    # the point as given, in the model's order (an int is a number too)
+    assert rom.solve(gamma=lo).point == [lo] and rom.solve(gamma=0).point == [0]
     r = rom.solve(gamma=hi + 0.25, allow_extrapolation=True)
     assert r.extrapolated and np.all(np.isfinite(r.pressure))
     assert not rom.solve(gamma=hi, allow_extrapolation=True).extrapolated  # the boundary is inside

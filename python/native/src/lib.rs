@@ -29,7 +29,7 @@ use crom_pipeline::io::model::Reconstruction;
 use crom_pipeline::query::{answer, fields, load_artifact, params, Answer, Loaded};
 use crom_stages::rom::{QueryModel, ReducedModel, RomOutcome, RomParams, RomWork};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyList, PyTuple, PyType};
+use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
 use rayon::prelude::*;
 
 use points::{Bounds, PointError};
@@ -68,10 +68,17 @@ fn crom_error(py: Python<'_>, e: CromError) -> PyErr {
     error(py, class, e.to_string())
 }
 
+/// `v` as native-endian bytes, written straight into the Python object (no second buffer).
 fn f64_bytes<'py>(py: Python<'py>, v: &[f64]) -> Bound<'py, PyBytes> {
-    let mut out = Vec::with_capacity(8 * v.len());
-    v.iter().for_each(|x| out.extend_from_slice(&x.to_ne_bytes()));
-    PyBytes::new(py, &out)
+    let filled = PyBytes::new_with(py, 8 * v.len(), |buf| {
+        buf.chunks_exact_mut(8).zip(v).for_each(|(b, x)| b.copy_from_slice(&x.to_ne_bytes()));
+        Ok(())
+    });
+    // the closure cannot fail; a failed allocation of the object itself falls back to a copy
+    filled.unwrap_or_else(|_| {
+        let out: Vec<u8> = v.iter().flat_map(|x| x.to_ne_bytes()).collect();
+        PyBytes::new(py, &out)
+    })
 }
 
 fn u64_bytes<'py>(py: Python<'py>, v: impl Iterator<Item = u64>) -> Bound<'py, PyBytes> {
@@ -220,18 +227,26 @@ impl Model {
         Ok(d)
     }
 
-    /// Solve at one point (`point`: a list of the components in the model's order); a tuple
+    /// Solve at one point (`point`: the keyword arguments of `crom_data`'s `rom.solve`, a dict
+    /// of every component by name; `None` if a name is missing or extra, which the Python layer
+    /// then words, knowing the arguments as given — checked here so that a call costs one
+    /// crossing of the boundary and no Python-side list); a tuple
     /// (pressure, û, λ̂ as bytes; outcome; iterations; linearizations; nonzero_dual; indicator,
     /// penetration, complementarity, unpaired_force; extrapolated; seconds, indicator_seconds;
     /// the time of the whole answer: solve, indicator and pressure).
     fn solve<'py>(
         &self,
         py: Python<'py>,
-        point: &Bound<'py, PyList>,
+        point: &Bound<'py, PyDict>,
         allow_extrapolation: bool,
-    ) -> PyResult<Bound<'py, PyTuple>> {
-        let mut mu = Vec::with_capacity(point.len());
-        for (c, item) in point.iter().enumerate() {
+    ) -> PyResult<Option<Bound<'py, PyTuple>>> {
+        let names = &self.bounds.names;
+        if point.len() != names.len() {
+            return Ok(None);
+        }
+        let mut mu = Vec::with_capacity(names.len());
+        for (c, name) in names.iter().enumerate() {
+            let Some(item) = point.get_item(name)? else { return Ok(None) };
             mu.push(
                 item.extract::<f64>().map_err(|_| point_error(py, self.bounds.not_a_number(c, &item.to_string())))?,
             );
@@ -258,7 +273,7 @@ impl Model {
             };
             (a, t.elapsed().as_secs_f64())
         });
-        answer_tuple(py, &a, extrapolated, total)
+        answer_tuple(py, &a, extrapolated, total).map(Some)
     }
 
     /// Solve at `n` points (`points`: `n x p` row-major `f64` bytes) in parallel; a tuple of bytes:

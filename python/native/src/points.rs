@@ -1,8 +1,9 @@
 //! The points a Python caller gives, checked before anything is solved: every component a
 //! finite number, inside the training domain `[min, max]` unless extrapolation is allowed (then
-//! the answer is flagged `extrapolated`). Which components are given, by name, is checked by the
-//! Python layer (`crom_data.rom`), which knows the keyword arguments; here a point is a list of
-//! values in the model's order. The rules are `crom query`'s (`crom_pipeline::query::points`);
+//! the answer is flagged `extrapolated`). Whether every component is given once by name is
+//! checked by `Model::solve`, which reports a mismatch to the Python layer (`crom_data.rom`) to
+//! word, as it knows the keyword arguments as given; here a point is a list of values in the
+//! model's order. The rules are `crom query`'s (`crom_pipeline::query::points`);
 //! the messages name the Python argument to change instead of the command-line flag.
 
 /// A refused point: the message, and whether it is refused for lying outside the domain
