@@ -186,8 +186,11 @@ def python_rows(store):
         wheel, = wheels.glob("crom_native-*.whl")
         zipfile.ZipFile(wheel).extractall(site)
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), str(REPO / "python")]))
-        out = subprocess.run([sys.executable, "-c", PYTHON_MEASURE, str(store)], cwd=REPO, env=env, check=True,
-                             capture_output=True, text=True).stdout
+        done = subprocess.run([sys.executable, "-c", PYTHON_MEASURE, str(store)], cwd=REPO, env=env,
+                              capture_output=True, text=True)
+        if done.returncode != 0:
+            sys.exit(f"the Python measurement failed (exit {done.returncode}):\n{done.stderr}")
+        out = done.stdout
     m = json.loads(out)
     us = m["overhead"] * 1e6
     label = model_label(store)
