@@ -2,11 +2,11 @@
 
 use std::path::Path;
 
-use crom_schemas::comparison::ApproximationSpec;
 use crom_schemas::SceneConfig;
 
 use super::tables::ReportTable;
 use super::{Figure, ReportData};
+use crate::dag::comparison::primal_translates;
 use crate::error::CromError;
 
 fn esc(s: &str) -> String {
@@ -112,10 +112,12 @@ fn model_fact(scene: &SceneConfig, m: &super::ModelFacts) -> String {
     };
     let error = |v: f64| if v.is_finite() { format!("{v:.2e}") } else { "undefined".to_string() };
     // a registered approximation with its own primal space (`primal_translates`)
-    let translates = scene.comparison.iter().flat_map(|c| &c.approximations).find_map(|a| match a {
-        ApproximationSpec::Registered { primal_translates: Some(k), .. } if a.name() == m.dual_basis => Some(*k),
-        _ => None,
-    });
+    let translates = scene
+        .comparison
+        .iter()
+        .flat_map(|c| &c.approximations)
+        .find(|a| a.name() == m.dual_basis)
+        .and_then(primal_translates);
     let primal = match translates {
         Some(k) => format!(
             "primal rank {} (the POD of the training responses and their translates by ±{k} slave-surface node \
@@ -244,10 +246,7 @@ mod tests {
             .comparison
             .iter()
             .flat_map(|c| &c.approximations)
-            .find_map(|a| match a {
-                ApproximationSpec::Registered { primal_translates: Some(k), .. } => Some((a.name(), *k)),
-                _ => None,
-            })
+            .find_map(|a| primal_translates(a).map(|k| (a.name(), k)))
             .expect("ironing-fine has an entry with primal_translates");
         let line = model_fact(&scene, &facts(&shift.0));
         assert!(line.contains(&format!("translates by ±{} slave-surface", shift.1)), "{line}");
