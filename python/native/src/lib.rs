@@ -68,23 +68,18 @@ fn crom_error(py: Python<'_>, e: CromError) -> PyErr {
     error(py, class, e.to_string())
 }
 
-/// `v` as native-endian bytes, written straight into the Python object (no second buffer).
-fn f64_bytes<'py>(py: Python<'py>, v: &[f64]) -> Bound<'py, PyBytes> {
-    let filled = PyBytes::new_with(py, 8 * v.len(), |buf| {
-        buf.chunks_exact_mut(8).zip(v).for_each(|(b, x)| b.copy_from_slice(&x.to_ne_bytes()));
+/// Values as native-endian bytes, 8 per value, written straight into the Python object (no
+/// second buffer); a failed allocation of the object is Python's `MemoryError`.
+fn ne_bytes<'py>(py: Python<'py>, values: impl ExactSizeIterator<Item = [u8; 8]>) -> PyResult<Bound<'py, PyBytes>> {
+    PyBytes::new_with(py, 8 * values.len(), |buf| {
+        buf.chunks_exact_mut(8).zip(values).for_each(|(b, x)| b.copy_from_slice(&x));
         Ok(())
-    });
-    // the closure cannot fail; a failed allocation of the object itself falls back to a copy
-    filled.unwrap_or_else(|_| {
-        let out: Vec<u8> = v.iter().flat_map(|x| x.to_ne_bytes()).collect();
-        PyBytes::new(py, &out)
     })
 }
 
-fn u64_bytes<'py>(py: Python<'py>, v: impl Iterator<Item = u64>) -> Bound<'py, PyBytes> {
-    let mut out = Vec::new();
-    v.for_each(|x| out.extend_from_slice(&x.to_ne_bytes()));
-    PyBytes::new(py, &out)
+/// `v` as native-endian bytes ([`ne_bytes`]).
+fn f64_bytes<'py>(py: Python<'py>, v: &[f64]) -> PyResult<Bound<'py, PyBytes>> {
+    ne_bytes(py, v.iter().map(|x| x.to_ne_bytes()))
 }
 
 /// A stored reduced model, loaded.
@@ -132,9 +127,9 @@ fn answer_tuple<'py>(py: Python<'py>, a: &Answer, extrapolated: bool, total: f64
     PyTuple::new(
         py,
         [
-            f64_bytes(py, &a.pressure).into_any(),
-            f64_bytes(py, &a.sol.u_hat).into_any(),
-            f64_bytes(py, &a.sol.lambda_hat).into_any(),
+            f64_bytes(py, &a.pressure)?.into_any(),
+            f64_bytes(py, &a.sol.u_hat)?.into_any(),
+            f64_bytes(py, &a.sol.lambda_hat)?.into_any(),
             a.sol.outcome.name().into_pyobject(py)?.into_any(),
             a.sol.iterations.into_pyobject(py)?.into_any(),
             a.sol.linearizations.into_pyobject(py)?.into_any(),
@@ -202,7 +197,7 @@ impl Model {
     }
 
     /// The contact nodes' tributary weights, `bytes` of `f64`.
-    fn weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+    fn weights<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
         f64_bytes(py, self.loaded.model.weights())
     }
 
@@ -321,20 +316,20 @@ impl Model {
         };
         let cat = |f: &dyn Fn(&Answer) -> &[f64]| {
             let v: Vec<f64> = answers.iter().flat_map(|a| f(a).iter().copied()).collect();
-            f64_bytes(py, &v).into_any()
+            f64_bytes(py, &v).map(Bound::into_any)
         };
-        let each = |f: &dyn Fn(&Answer) -> f64| {
-            let v: Vec<f64> = answers.iter().map(f).collect();
-            f64_bytes(py, &v).into_any()
+        let each =
+            |f: &dyn Fn(&Answer) -> f64| ne_bytes(py, answers.iter().map(|a| f(a).to_ne_bytes())).map(Bound::into_any);
+        let count = |f: &dyn Fn(&Answer) -> usize| {
+            ne_bytes(py, answers.iter().map(|a| (f(a) as u64).to_ne_bytes())).map(Bound::into_any)
         };
-        let count = |f: &dyn Fn(&Answer) -> usize| u64_bytes(py, answers.iter().map(|a| f(a) as u64)).into_any();
         let codes: Vec<u8> = answers.iter().map(|a| outcome_code(a.sol.outcome)).collect();
         let extrapolated: Vec<u8> = flags.iter().map(|&f| u8::from(f)).collect();
         PyTuple::new(
             py,
             [
-                cat(&|a| &a.pressure),
-                cat(&|a| &a.sol.u_hat),
+                cat(&|a| &a.pressure)?,
+                cat(&|a| &a.sol.u_hat)?,
                 {
                     // a registered basis may use fewer than its m generators at a point: zeros
                     let rl = self.loaded.model.stored_ranks().1;
@@ -342,19 +337,19 @@ impl Model {
                         .iter()
                         .flat_map(|a| a.sol.lambda_hat.iter().copied().chain(std::iter::repeat(0.0)).take(rl))
                         .collect();
-                    f64_bytes(py, &v).into_any()
+                    f64_bytes(py, &v)?.into_any()
                 },
                 PyBytes::new(py, &codes).into_any(),
-                count(&|a| a.sol.iterations),
-                count(&|a| a.sol.linearizations),
-                count(&|a| a.sol.nonzero_dual),
-                each(&|a| a.indicator.residual),
-                each(&|a| a.indicator.penetration),
-                each(&|a| a.indicator.complementarity),
-                each(&|a| a.indicator.unpaired_force),
+                count(&|a| a.sol.iterations)?,
+                count(&|a| a.sol.linearizations)?,
+                count(&|a| a.sol.nonzero_dual)?,
+                each(&|a| a.indicator.residual)?,
+                each(&|a| a.indicator.penetration)?,
+                each(&|a| a.indicator.complementarity)?,
+                each(&|a| a.indicator.unpaired_force)?,
                 PyBytes::new(py, &extrapolated).into_any(),
-                each(&|a| a.seconds),
-                each(&|a| a.indicator_seconds),
+                each(&|a| a.seconds)?,
+                each(&|a| a.indicator_seconds)?,
             ],
         )
     }
@@ -383,7 +378,7 @@ impl Model {
             py.detach(|| self.reconstruction().map(|rec| fields::displacement(rec, &point, &coefficients))).map_err(
                 |m| error(py, "CorruptArtifact", format!("{m}; run `crom verify`, then `crom run SCENE` again")),
             )?;
-        Ok(f64_bytes(py, &u))
+        f64_bytes(py, &u)
     }
 }
 
