@@ -21,7 +21,8 @@
 //! pushed forward to the query's frame, a local one is its cell's) is evaluated and set inside
 //! the timed query, so its online time includes that work — which reads only contact-surface
 //! data. The full-order solve is timed in the same process at the same points, as in the
-//! online stage (once per process, in [`OnlineBase`]).
+//! online stage (once per process, in [`OnlineBase`]); every timed solve runs alone, one at a
+//! time.
 
 use std::time::Instant;
 
@@ -34,7 +35,6 @@ use crom_stages::metrics::order::quantile;
 use crom_stages::rom::{
     cone_basis_columns, Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork, EXACT_STEP_ITERATIONS,
 };
-use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
 
@@ -69,8 +69,9 @@ impl StageKey for OnlineApproximationKey {
     /// basis at m = 1 to the last bits, its products with S over S's non-zeros; 6: NNMF's W
     /// scaled once after the sweeps, its Gram products by fused multiply-adds, to rounding; 7: a
     /// dual basis of at most three columns summed into reduced rows, the same answers to 1e-10;
-    /// 8: solves up to 0.1 s timed as the fastest of three, the results the same).
-    const ALGORITHM_VERSION: u32 = 8;
+    /// 8: solves up to 0.1 s timed as the fastest of three, the results the same; 9: every
+    /// query timed alone, one at a time, the results the same).
+    const ALGORITHM_VERSION: u32 = 9;
 }
 
 impl OnlineApproximationKey {
@@ -317,28 +318,25 @@ fn run(
     Ok(key)
 }
 
-/// Every test point with the dictionary's working-set solve (in parallel, one reduced model,
-/// work buffer and scratch per thread); the whole working-set loop is timed.
+/// Every test point with the dictionary's working-set solve, one at a time (every timed solve
+/// runs alone: [`fastest`]); the whole working-set loop is timed.
 fn solve_dictionary(
     ws: &WorkingSet,
     base: &ReducedModel,
     points: &[Vec<f64>],
     params: &RomParams,
-    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64) + Sync,
+    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64),
 ) -> Vec<Query> {
+    let (mut rm, mut w, mut sc) = (base.clone(), RomWork::default(), WorkingSetScratch::default());
     (0..points.len())
-        .into_par_iter()
-        .map_init(
-            || (base.clone(), RomWork::default(), WorkingSetScratch::default()),
-            |(rm, w, sc), j| {
-                let mu = &points[j];
-                let (info, best) =
-                    fastest(|| ws.solve(rm, mu, params, w, sc), |i| i.info.outcome == RomOutcome::Converged);
-                let sol = w.solution(&info.info);
-                let (primal, dual) = errors(j, rm, &sol);
-                Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
-            },
-        )
+        .map(|j| {
+            let mu = &points[j];
+            let (info, best) =
+                fastest(|| ws.solve(&mut rm, mu, params, &mut w, &mut sc), |i| i.info.outcome == RomOutcome::Converged);
+            let sol = w.solution(&info.info);
+            let (primal, dual) = errors(j, &rm, &sol);
+            Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
+        })
         .collect()
 }
 
@@ -350,44 +348,37 @@ enum Source<'a> {
     PerQuery(&'a dyn DualApprox, usize),
 }
 
-/// Every test point with the dual basis from `source` (in parallel, one reduced model and
-/// work buffer per thread).
+/// Every test point with the dual basis from `source`, one at a time (every timed solve runs
+/// alone: [`fastest`]).
 fn solve_all(
     source: &Source<'_>,
     base: &ReducedModel,
     points: &[Vec<f64>],
     params: &RomParams,
-    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64) + Sync,
+    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64),
 ) -> Vec<Query> {
-    let prepared = |rm: &mut ReducedModel| match source {
-        Source::Fixed(theta, k) => rm.set_dual(theta, *k),
-        Source::PerQuery(..) => {}
-    };
+    let mut rm = base.clone();
+    if let Source::Fixed(theta, k) = source {
+        rm.set_dual(theta, *k);
+    }
+    let mut w = RomWork::default();
     (0..points.len())
-        .into_par_iter()
-        .map_init(
-            || {
-                let mut rm = base.clone();
-                prepared(&mut rm);
-                (rm, RomWork::default())
-            },
-            |(rm, w), j| {
-                let mu = &points[j];
-                let (info, best) = fastest(
-                    || {
-                        if let Source::PerQuery(model, m) = source {
-                            // the step a stored model with a registered basis takes (`dual_at`)
-                            rm.set_dual_of(*model, mu, *m);
-                        }
-                        rm.solve_in(mu, params, w)
-                    },
-                    |i| i.outcome == RomOutcome::Converged,
-                );
-                let sol = w.solution(&info);
-                let (primal, dual) = errors(j, rm, &sol);
-                Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
-            },
-        )
+        .map(|j| {
+            let mu = &points[j];
+            let (info, best) = fastest(
+                || {
+                    if let Source::PerQuery(model, m) = source {
+                        // the step a stored model with a registered basis takes (`dual_at`)
+                        rm.set_dual_of(*model, mu, *m);
+                    }
+                    rm.solve_in(mu, params, &mut w)
+                },
+                |i| i.outcome == RomOutcome::Converged,
+            );
+            let sol = w.solution(&info);
+            let (primal, dual) = errors(j, &rm, &sol);
+            Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
+        })
         .collect()
 }
 
