@@ -42,7 +42,7 @@ use super::approximation::ONLINE_MS;
 use super::comparison::{self, contact_x, item};
 use super::convert::view;
 use super::graph::{Input, StageDef};
-use super::rom::{dual_error, fastest};
+use super::rom::{dual_error, fastest, one_at_a_time};
 use super::{Ctx, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -319,7 +319,7 @@ fn run(
 }
 
 /// Every test point with the dictionary's working-set solve, one at a time (every timed solve
-/// runs alone: [`fastest`]); the whole working-set loop is timed.
+/// runs alone: [`one_at_a_time`]); the whole working-set loop is timed.
 fn solve_dictionary(
     ws: &WorkingSet,
     base: &ReducedModel,
@@ -327,17 +327,13 @@ fn solve_dictionary(
     params: &RomParams,
     errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64),
 ) -> Vec<Query> {
-    let (mut rm, mut w, mut sc) = (base.clone(), RomWork::default(), WorkingSetScratch::default());
-    (0..points.len())
-        .map(|j| {
-            let mu = &points[j];
-            let (info, best) =
-                fastest(|| ws.solve(&mut rm, mu, params, &mut w, &mut sc), |i| i.info.outcome == RomOutcome::Converged);
-            let sol = w.solution(&info.info);
-            let (primal, dual) = errors(j, &rm, &sol);
-            Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
-        })
-        .collect()
+    let state = (base.clone(), RomWork::default(), WorkingSetScratch::default());
+    one_at_a_time(points.iter().enumerate(), state, |(rm, w, sc), (j, mu)| {
+        let (info, best) = fastest(|| ws.solve(rm, mu, params, w, sc), |i| i.info.outcome == RomOutcome::Converged);
+        let sol = w.solution(&info.info);
+        let (primal, dual) = errors(j, rm, &sol);
+        Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
+    })
 }
 
 /// Where a query's dual basis comes from.
@@ -349,7 +345,7 @@ enum Source<'a> {
 }
 
 /// Every test point with the dual basis from `source`, one at a time (every timed solve runs
-/// alone: [`fastest`]).
+/// alone: [`one_at_a_time`]).
 fn solve_all(
     source: &Source<'_>,
     base: &ReducedModel,
@@ -361,25 +357,21 @@ fn solve_all(
     if let Source::Fixed(theta, k) = source {
         rm.set_dual(theta, *k);
     }
-    let mut w = RomWork::default();
-    (0..points.len())
-        .map(|j| {
-            let mu = &points[j];
-            let (info, best) = fastest(
-                || {
-                    if let Source::PerQuery(model, m) = source {
-                        // the step a stored model with a registered basis takes (`dual_at`)
-                        rm.set_dual_of(*model, mu, *m);
-                    }
-                    rm.solve_in(mu, params, &mut w)
-                },
-                |i| i.outcome == RomOutcome::Converged,
-            );
-            let sol = w.solution(&info);
-            let (primal, dual) = errors(j, &rm, &sol);
-            Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
-        })
-        .collect()
+    one_at_a_time(points.iter().enumerate(), (rm, RomWork::default()), |(rm, w), (j, mu)| {
+        let (info, best) = fastest(
+            || {
+                if let Source::PerQuery(model, m) = source {
+                    // the step a stored model with a registered basis takes (`dual_at`)
+                    rm.set_dual_of(*model, mu, *m);
+                }
+                rm.solve_in(mu, params, w)
+            },
+            |i| i.outcome == RomOutcome::Converged,
+        );
+        let sol = w.solution(&info);
+        let (primal, dual) = errors(j, rm, &sol);
+        Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
+    })
 }
 
 /// One (approximation, m) row: name, m, primal rank, counts (points, converged, infeasible,

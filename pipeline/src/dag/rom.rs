@@ -120,8 +120,9 @@ pub(crate) const MAX_REPEATS: usize = 1000;
 /// stage's 3.4 s on ironing-fine).
 ///
 /// Its callers time one solve at a time, on one thread, with nothing beside it (the executor
-/// runs no job beside a stage that times solves): the full-order solves ([`fom_seconds`]), the
-/// online queries of this stage and of every online approximation. Two solves timed side by
+/// runs no job beside a stage that times solves; their loops are [`one_at_a_time`]): the
+/// full-order solves ([`fom_seconds`]), the online queries of this stage and of every online
+/// approximation. Two solves timed side by
 /// side on the two cores of the machine crom is measured on slowed the online query by about
 /// 40 % and not the full-order solve, so a speed-up measured that way was a property of the
 /// pairing, not of the solves
@@ -143,6 +144,17 @@ pub(crate) fn fastest<T>(mut query: impl FnMut() -> T, solved: impl Fn(&T) -> bo
             return (result, best);
         }
     }
+}
+
+/// `f(state, item)` for each of `items` in order, one at a time on the calling thread, with one
+/// `state` (a work buffer) for every call: the loop of every stage that times solves
+/// ([`fastest`]), which must not run two solves at once. The results in the order of `items`.
+pub(crate) fn one_at_a_time<I, S, T>(
+    items: impl IntoIterator<Item = I>,
+    mut state: S,
+    mut f: impl FnMut(&mut S, I) -> T,
+) -> Vec<T> {
+    items.into_iter().map(|item| f(&mut state, item)).collect()
 }
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];
@@ -478,7 +490,7 @@ fn write_online(
 /// [`TIMING_REPEATS`] when faster than [`REPEAT_BELOW`], see [`fastest`]); a failed solve is
 /// timed all the same, by its one run.
 pub(crate) fn fom_seconds(phys: &Physics, parameters: &[Vec<f64>]) -> Vec<f64> {
-    parameters.iter().map(|mu| fastest(|| phys.solve(mu), Result::is_ok).1).collect()
+    one_at_a_time(parameters, (), |(), mu| fastest(|| phys.solve(mu), Result::is_ok).1)
 }
 
 /// POD (numerical rank) of the training contact responses `u_k - u0(mu_k)`.
@@ -546,22 +558,16 @@ const INF_SUP_SAMPLES: usize = 8;
 /// timing the solve and the indicator separately.
 fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -> Vec<Query> {
     let stride = set.parameters.len().div_ceil(INF_SUP_SAMPLES).max(1);
-    let mut w = RomWork::default();
-    set.parameters
-        .iter()
-        .enumerate()
-        .map(|(j, mu)| {
-            let w = &mut w;
-            let (info, best) = fastest(|| model.solve_in(mu, p, w), |i| i.outcome == RomOutcome::Converged);
-            let sol = w.solution(&info);
-            // at the solve's own linearisation, before the indicator re-pairs
-            let inf_sup = if j % stride == 0 { model.inf_sup(w) } else { None };
-            let t = Instant::now();
-            let indicator = model.indicator(mu, w);
-            let indicator_seconds = t.elapsed().as_secs_f64();
-            Query { sol, seconds: best, indicator, indicator_seconds, inf_sup }
-        })
-        .collect()
+    one_at_a_time(set.parameters.iter().enumerate(), RomWork::default(), |w, (j, mu)| {
+        let (info, best) = fastest(|| model.solve_in(mu, p, w), |i| i.outcome == RomOutcome::Converged);
+        let sol = w.solution(&info);
+        // at the solve's own linearisation, before the indicator re-pairs
+        let inf_sup = if j % stride == 0 { model.inf_sup(w) } else { None };
+        let t = Instant::now();
+        let indicator = model.indicator(mu, w);
+        let indicator_seconds = t.elapsed().as_secs_f64();
+        Query { sol, seconds: best, indicator, indicator_seconds, inf_sup }
+    })
 }
 
 /// Relative dual error (tributary-weighted L2) against column `j` of the set.
@@ -841,6 +847,27 @@ mod tests {
         assert!(runs(true, 0.02) >= TIMING_REPEATS);
         assert_eq!(runs(true, REPEAT_BELOW), 1);
         assert_eq!(runs(false, 0.0), 1);
+    }
+
+    /// The loop of the timed solves runs its calls in order, never two at once, even from a
+    /// pool with two threads (a parallel loop would overlap the sleeping calls).
+    #[test]
+    fn timed_loops_run_one_call_at_a_time() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("a pool");
+        let (running, most) = (AtomicUsize::new(0), AtomicUsize::new(0));
+        let order = pool.install(|| {
+            one_at_a_time(0..16, 0usize, |calls, k| {
+                let now = running.fetch_add(1, Ordering::SeqCst) + 1;
+                most.fetch_max(now, Ordering::SeqCst);
+                std::thread::sleep(std::time::Duration::from_millis(2));
+                running.fetch_sub(1, Ordering::SeqCst);
+                *calls += 1;
+                (k, *calls)
+            })
+        });
+        assert_eq!(most.load(Ordering::SeqCst), 1, "two timed calls overlapped");
+        assert_eq!(order, (0..16).map(|k| (k, k + 1)).collect::<Vec<_>>(), "in order, one state");
     }
 
     #[test]
