@@ -20,9 +20,9 @@ at the test points against them, its size, one whole query process) and the Pyth
 
 All times are medians over the test points of the fastest of up to 3 repetitions, each solve
 timed alone (one at a time, nothing beside it) in the same process as the full-order solves they
-are compared with (see pipeline/src/dag/rom.rs). This machine's timings vary by up to ~30 % between runs: `--model`
-runs the study `BENCH_REPEATS` times (default 3) and judges the stored model's speed-up on the
-median, every run's value beside it; the script prints what it measured.
+are compared with (see pipeline/src/dag/rom.rs). This machine's timings vary by up to ~30 %
+between runs: `--model` runs the study `BENCH_REPEATS` times (default 3) and judges the stored
+model's speed-up on the median, every run's value beside it; the script prints what it measured.
 
 Usage: scripts/bench_rom.py [--python | --model]
 """

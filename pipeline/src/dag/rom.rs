@@ -122,10 +122,9 @@ pub(crate) const MAX_REPEATS: usize = 1000;
 /// Its callers time one solve at a time, on one thread, with nothing beside it (the executor
 /// runs no job beside a stage that times solves; their loops are [`one_at_a_time`]): the
 /// full-order solves ([`fom_seconds`]), the online queries of this stage and of every online
-/// approximation. Two solves timed side by
-/// side on the two cores of the machine crom is measured on slowed the online query by about
-/// 40 % and not the full-order solve, so a speed-up measured that way was a property of the
-/// pairing, not of the solves
+/// approximation. Two solves timed side by side on the two cores of the machine crom is
+/// measured on slowed the online query by about 40 % and not the full-order solve, so a
+/// speed-up measured that way was a property of the pairing, not of the solves
 /// (docs/design-notes.md#what-the-online-stage-times-and-reports).
 pub(crate) fn fastest<T>(mut query: impl FnMut() -> T, solved: impl Fn(&T) -> bool) -> (T, f64) {
     let mut best = f64::INFINITY;
@@ -484,8 +483,8 @@ fn write_online(
 }
 
 /// High-fidelity solve time at each parameter, measured here — same build, same process, one
-/// solve at a time like the online queries ([`fastest`]) — rather than read from the snapshot artifacts, which may
-/// have been computed by another build (once per run and set:
+/// solve at a time like the online queries ([`one_at_a_time`]) — rather than read from the
+/// snapshot artifacts, which may have been computed by another build (once per run and set:
 /// [`LazyPhysics::fom_seconds`](super::LazyPhysics::fom_seconds)). Timed like the online queries (minimum of up to
 /// [`TIMING_REPEATS`] when faster than [`REPEAT_BELOW`], see [`fastest`]); a failed solve is
 /// timed all the same, by its one run.
@@ -554,8 +553,8 @@ struct Query {
 /// the stage's time).
 const INF_SUP_SAMPLES: usize = 8;
 
-/// Solve every point of the set, one at a time (every timed solve runs alone: [`fastest`]),
-/// timing the solve and the indicator separately.
+/// Solve every point of the set, one at a time (every timed solve runs alone:
+/// [`one_at_a_time`]), timing the solve and the indicator separately.
 fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -> Vec<Query> {
     let stride = set.parameters.len().div_ceil(INF_SUP_SAMPLES).max(1);
     one_at_a_time(set.parameters.iter().enumerate(), RomWork::default(), |w, (j, mu)| {
