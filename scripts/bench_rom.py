@@ -19,7 +19,8 @@ cone basis where it is the most accurate: its measured accuracy and speed, `crom
 at the test points against them, its size, one whole query process) and the Python rows.
 
 All times are medians over the test points of the fastest of up to 3 repetitions, each solve
-timed alone (one at a time, nothing beside it) in the same process as the full-order solves they
+timed alone (one at a time, nothing beside it; the repetitions in rounds over the test points,
+pipeline/src/dag/timing.rs) in the same process as the full-order solves they
 are compared with (see pipeline/src/dag/rom.rs). This machine's timings vary by up to ~30 %
 between runs: `--model` runs the study `BENCH_REPEATS` times (default 3) and judges the stored
 model's speed-up on the median, every run's value beside it; the script prints what it measured.

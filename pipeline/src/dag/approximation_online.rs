@@ -42,7 +42,8 @@ use super::approximation::ONLINE_MS;
 use super::comparison::{self, contact_x, item};
 use super::convert::view;
 use super::graph::{Input, StageDef};
-use super::rom::{dual_error, fastest, one_at_a_time};
+use super::rom::dual_error;
+use super::timing::time_each;
 use super::{Ctx, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -70,8 +71,9 @@ impl StageKey for OnlineApproximationKey {
     /// scaled once after the sweeps, its Gram products by fused multiply-adds, to rounding; 7: a
     /// dual basis of at most three columns summed into reduced rows, the same answers to 1e-10;
     /// 8: solves up to 0.1 s timed as the fastest of three, the results the same; 9: every
-    /// query timed alone, one at a time, the results the same).
-    const ALGORITHM_VERSION: u32 = 9;
+    /// query timed alone, one at a time, the results the same; 10: the timing runs in rounds
+    /// over the points, the results the same).
+    const ALGORITHM_VERSION: u32 = 10;
 }
 
 impl OnlineApproximationKey {
@@ -318,8 +320,8 @@ fn run(
     Ok(key)
 }
 
-/// Every test point with the dictionary's working-set solve, one at a time (every timed solve
-/// runs alone: [`one_at_a_time`]); the whole working-set loop is timed.
+/// Every test point with the dictionary's working-set solve, each timed alone
+/// ([`time_each`]); the whole working-set loop is timed.
 fn solve_dictionary(
     ws: &WorkingSet,
     base: &ReducedModel,
@@ -328,12 +330,20 @@ fn solve_dictionary(
     errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64),
 ) -> Vec<Query> {
     let state = (base.clone(), RomWork::default(), WorkingSetScratch::default());
-    one_at_a_time(points.iter().enumerate(), state, |(rm, w, sc), (j, mu)| {
-        let (info, best) = fastest(|| ws.solve(rm, mu, params, w, sc), |i| i.info.outcome == RomOutcome::Converged);
-        let sol = w.solution(&info.info);
-        let (primal, dual) = errors(j, rm, &sol);
-        Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
-    })
+    time_each(
+        points.iter().enumerate(),
+        state,
+        |(rm, w, sc), (_, mu)| ws.solve(rm, mu, params, w, sc),
+        |i| i.info.outcome == RomOutcome::Converged,
+        |(rm, w, _), &(j, _), info| {
+            let sol = w.solution(&info.info);
+            let (primal, dual) = errors(j, rm, &sol);
+            Query { outcome: sol.outcome, seconds: 0.0, primal, dual, nonzero: sol.nonzero_dual }
+        },
+    )
+    .into_iter()
+    .map(|(q, seconds)| Query { seconds, ..q })
+    .collect()
 }
 
 /// Where a query's dual basis comes from.
@@ -344,8 +354,7 @@ enum Source<'a> {
     PerQuery(&'a dyn DualApprox, usize),
 }
 
-/// Every test point with the dual basis from `source`, one at a time (every timed solve runs
-/// alone: [`one_at_a_time`]).
+/// Every test point with the dual basis from `source`, each solve timed alone ([`time_each`]).
 fn solve_all(
     source: &Source<'_>,
     base: &ReducedModel,
@@ -357,21 +366,26 @@ fn solve_all(
     if let Source::Fixed(theta, k) = source {
         rm.set_dual(theta, *k);
     }
-    one_at_a_time(points.iter().enumerate(), (rm, RomWork::default()), |(rm, w), (j, mu)| {
-        let (info, best) = fastest(
-            || {
-                if let Source::PerQuery(model, m) = source {
-                    // the step a stored model with a registered basis takes (`dual_at`)
-                    rm.set_dual_of(*model, mu, *m);
-                }
-                rm.solve_in(mu, params, w)
-            },
-            |i| i.outcome == RomOutcome::Converged,
-        );
-        let sol = w.solution(&info);
-        let (primal, dual) = errors(j, rm, &sol);
-        Query { outcome: sol.outcome, seconds: best, primal, dual, nonzero: sol.nonzero_dual }
-    })
+    time_each(
+        points.iter().enumerate(),
+        (rm, RomWork::default()),
+        |(rm, w), (_, mu)| {
+            if let Source::PerQuery(model, m) = source {
+                // the step a stored model with a registered basis takes (`dual_at`)
+                rm.set_dual_of(*model, mu, *m);
+            }
+            rm.solve_in(mu, params, w)
+        },
+        |i| i.outcome == RomOutcome::Converged,
+        |(rm, w), &(j, _), info| {
+            let sol = w.solution(&info);
+            let (primal, dual) = errors(j, rm, &sol);
+            Query { outcome: sol.outcome, seconds: 0.0, primal, dual, nonzero: sol.nonzero_dual }
+        },
+    )
+    .into_iter()
+    .map(|(q, seconds)| Query { seconds, ..q })
+    .collect()
 }
 
 /// One (approximation, m) row: name, m, primal rank, counts (points, converged, infeasible,

@@ -41,6 +41,7 @@ mod report;
 mod rom;
 mod snapshots;
 mod streamed;
+mod timing;
 pub(crate) mod trainset;
 mod views;
 

@@ -13,7 +13,7 @@
 //! **Timing.** The online time of a query is [`ReducedModel::solve_in`] alone (reads only the
 //! reduced model: cost independent of `n_dof`); the indicator is timed separately; the
 //! full-order time is measured here, in the same process, at the test points; every timed solve
-//! runs alone, one at a time ([`fastest`]). Every model of
+//! runs alone, one at a time, the fastest of repeated runs ([`super::timing`]). Every model of
 //! the exact solve carries its answers and active sets at (up to 64 of) the training points,
 //! computed offline ([`ReducedModel::with_warm_starts`]); a query starts from the nearest one's
 //! active set and, Type-2, from its `y` interpolated toward the sample on the other side of the
@@ -43,6 +43,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::graph::{Input, StageDef};
+use super::timing::time_each;
 use super::{trainset, Ctx, Labels, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -89,71 +90,9 @@ impl StageKey for RomKey {
     /// 1e-10 — docs/design-notes.md#small-dual-bases-are-summed-once-per-linearisation; 13:
     /// solves up to 0.1 s timed as the fastest of three, the results the same —
     /// docs/design-notes.md#what-the-online-stage-times-and-reports; 14: every solve timed
-    /// alone, one at a time, the results the same).
-    const ALGORITHM_VERSION: u32 = 14;
-}
-
-/// Timing repetitions of a solve whose first run took less than [`REPEAT_BELOW`] seconds (the
-/// minimum is kept: short solves are otherwise dominated by noise, cold caches first).
-pub(crate) const TIMING_REPEATS: usize = 3;
-/// Solves slower than this are timed once. It lies well above every shipped scene's
-/// full-order solve on the machines crom has been measured on (ironing-fine's takes 3–5 ms on
-/// a fast one and 8–18 ms on one about 2.5 times slower), so that both sides of each speed-up
-/// are the minimum of repeated runs: with a bound of 2 ms, and again with 10 ms on the slower
-/// machine, the full-order side was partly one cold run, slower than the minimum of three,
-/// which inflated the speed-ups (docs/design-notes.md#what-the-online-stage-times-and-reports).
-pub(crate) const REPEAT_BELOW: f64 = 0.1;
-/// A query faster than this in all is repeated beyond [`TIMING_REPEATS`] until its runs add up
-/// to it (at most [`MAX_REPEATS`] runs): a microsecond solve (the rope's) timed three times is
-/// at the mercy of the first run's cold caches and the clock's granularity; the full-order
-/// solves it is compared with are timed by the same rule.
-pub(crate) const MIN_TIMED: f64 = 2e-5;
-/// Cap on the repetitions of [`MIN_TIMED`].
-pub(crate) const MAX_REPEATS: usize = 1000;
-
-/// Run `query` up to [`TIMING_REPEATS`] times (once if it takes [`REPEAT_BELOW`] or more, and
-/// more often while the runs add up to less than [`MIN_TIMED`]); returns the last run's result
-/// and the fastest time in seconds. A run whose result is not `solved` (a query that did not
-/// converge, a full-order solve that failed) is not repeated: its time is that of a failure,
-/// which no speed-up target reads, and repeating it made the paper algorithm's rows, most of
-/// whose failures run to the iteration cap, three times as long (about 1.1 of the online
-/// stage's 3.4 s on ironing-fine).
-///
-/// Its callers time one solve at a time, on one thread, with nothing beside it (the executor
-/// runs no job beside a stage that times solves; their loops are [`one_at_a_time`]): the
-/// full-order solves ([`fom_seconds`]), the online queries of this stage and of every online
-/// approximation. Two solves timed side by side on the two cores of the machine crom is
-/// measured on slowed the online query by about 40 % and not the full-order solve, so a
-/// speed-up measured that way was a property of the pairing, not of the solves
-/// (docs/design-notes.md#what-the-online-stage-times-and-reports).
-pub(crate) fn fastest<T>(mut query: impl FnMut() -> T, solved: impl Fn(&T) -> bool) -> (T, f64) {
-    let mut best = f64::INFINITY;
-    let mut total = 0.0;
-    let mut result;
-    let mut runs = 0;
-    loop {
-        let t = Instant::now();
-        result = query();
-        let dt = t.elapsed().as_secs_f64();
-        best = best.min(dt);
-        total += dt;
-        runs += 1;
-        let enough = runs >= TIMING_REPEATS && (total >= MIN_TIMED || runs >= MAX_REPEATS);
-        if enough || best >= REPEAT_BELOW || !solved(&result) {
-            return (result, best);
-        }
-    }
-}
-
-/// `f(state, item)` for each of `items` in order, one at a time on the calling thread, with one
-/// `state` (a work buffer) for every call: the loop of every stage that times solves
-/// ([`fastest`]), which must not run two solves at once. The results in the order of `items`.
-pub(crate) fn one_at_a_time<I, S, T>(
-    items: impl IntoIterator<Item = I>,
-    mut state: S,
-    mut f: impl FnMut(&mut S, I) -> T,
-) -> Vec<T> {
-    items.into_iter().map(|item| f(&mut state, item)).collect()
+    /// alone, one at a time, the results the same; 15: the timing runs in rounds over the points,
+    /// the results the same).
+    const ALGORITHM_VERSION: u32 = 15;
 }
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];
@@ -482,14 +421,16 @@ fn write_online(
     f.vec_u64("converged", &converged)
 }
 
-/// High-fidelity solve time at each parameter, measured here — same build, same process, one
-/// solve at a time like the online queries ([`one_at_a_time`]) — rather than read from the
-/// snapshot artifacts, which may have been computed by another build (once per run and set:
-/// [`LazyPhysics::fom_seconds`](super::LazyPhysics::fom_seconds)). Timed like the online queries (minimum of up to
-/// [`TIMING_REPEATS`] when faster than [`REPEAT_BELOW`], see [`fastest`]); a failed solve is
-/// timed all the same, by its one run.
+/// High-fidelity solve time at each parameter, measured here — same build, same process, by
+/// the same rules as the online queries ([`time_each`]: alone, the fastest of repeated runs, a
+/// failed solve by its one run) — rather than read from the snapshot artifacts, which may have
+/// been computed by another build (once per run and set:
+/// [`LazyPhysics::fom_seconds`](super::LazyPhysics::fom_seconds)).
 pub(crate) fn fom_seconds(phys: &Physics, parameters: &[Vec<f64>]) -> Vec<f64> {
-    one_at_a_time(parameters, (), |(), mu| fastest(|| phys.solve(mu), Result::is_ok).1)
+    time_each(parameters, (), |(), mu| phys.solve(mu), Result::is_ok, |(), _, _| ())
+        .into_iter()
+        .map(|(_, s)| s)
+        .collect()
 }
 
 /// POD (numerical rank) of the training contact responses `u_k - u0(mu_k)`.
@@ -553,20 +494,28 @@ struct Query {
 /// the stage's time).
 const INF_SUP_SAMPLES: usize = 8;
 
-/// Solve every point of the set, one at a time (every timed solve runs alone:
-/// [`one_at_a_time`]), timing the solve and the indicator separately.
+/// Solve every point of the set, each solve timed alone ([`time_each`]), and the indicator
+/// timed separately, once, right after the point's first solve.
 fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -> Vec<Query> {
     let stride = set.parameters.len().div_ceil(INF_SUP_SAMPLES).max(1);
-    one_at_a_time(set.parameters.iter().enumerate(), RomWork::default(), |w, (j, mu)| {
-        let (info, best) = fastest(|| model.solve_in(mu, p, w), |i| i.outcome == RomOutcome::Converged);
-        let sol = w.solution(&info);
-        // at the solve's own linearisation, before the indicator re-pairs
-        let inf_sup = if j % stride == 0 { model.inf_sup(w) } else { None };
-        let t = Instant::now();
-        let indicator = model.indicator(mu, w);
-        let indicator_seconds = t.elapsed().as_secs_f64();
-        Query { sol, seconds: best, indicator, indicator_seconds, inf_sup }
-    })
+    time_each(
+        set.parameters.iter().enumerate(),
+        RomWork::default(),
+        |w, (_, mu)| model.solve_in(mu, p, w),
+        |i| i.outcome == RomOutcome::Converged,
+        |w, &(j, mu), info| {
+            let sol = w.solution(&info);
+            // at the solve's own linearisation, before the indicator re-pairs
+            let inf_sup = if j % stride == 0 { model.inf_sup(w) } else { None };
+            let t = Instant::now();
+            let indicator = model.indicator(mu, w);
+            let indicator_seconds = t.elapsed().as_secs_f64();
+            Query { sol, seconds: 0.0, indicator, indicator_seconds, inf_sup }
+        },
+    )
+    .into_iter()
+    .map(|(q, seconds)| Query { seconds, ..q })
+    .collect()
 }
 
 /// Relative dual error (tributary-weighted L2) against column `j` of the set.
@@ -823,50 +772,6 @@ mod tests {
 
     fn cols(t: &Table) -> Vec<String> {
         t.columns.iter().map(|(n, _)| n.clone()).collect()
-    }
-
-    /// A fast query that succeeds is timed [`TIMING_REPEATS`] times at least, and a slow one
-    /// once; a failure is not repeated, whatever its time.
-    #[test]
-    fn only_fast_successes_are_repeated() {
-        let runs = |ok: bool, secs: f64| {
-            let mut n = 0;
-            fastest(
-                || {
-                    n += 1;
-                    std::thread::sleep(std::time::Duration::from_secs_f64(secs));
-                    ok
-                },
-                |&ok| ok,
-            );
-            n
-        };
-        assert!(runs(true, 0.0) >= TIMING_REPEATS);
-        // ironing-fine's full-order solve on a slow machine (8–18 ms) is repeated
-        assert!(runs(true, 0.02) >= TIMING_REPEATS);
-        assert_eq!(runs(true, REPEAT_BELOW), 1);
-        assert_eq!(runs(false, 0.0), 1);
-    }
-
-    /// The loop of the timed solves runs its calls in order, never two at once, even from a
-    /// pool with two threads (a parallel loop would overlap the sleeping calls).
-    #[test]
-    fn timed_loops_run_one_call_at_a_time() {
-        use std::sync::atomic::{AtomicUsize, Ordering};
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("a pool");
-        let (running, most) = (AtomicUsize::new(0), AtomicUsize::new(0));
-        let order = pool.install(|| {
-            one_at_a_time(0..16, 0usize, |calls, k| {
-                let now = running.fetch_add(1, Ordering::SeqCst) + 1;
-                most.fetch_max(now, Ordering::SeqCst);
-                std::thread::sleep(std::time::Duration::from_millis(2));
-                running.fetch_sub(1, Ordering::SeqCst);
-                *calls += 1;
-                (k, *calls)
-            })
-        });
-        assert_eq!(most.load(Ordering::SeqCst), 1, "two timed calls overlapped");
-        assert_eq!(order, (0..16).map(|k| (k, k + 1)).collect::<Vec<_>>(), "in order, one state");
     }
 
     #[test]
