@@ -7,7 +7,8 @@
 
 use faer::{Mat, MatRef};
 
-use super::cpg::{scan, Cpg, CpgParams, CPG_FLOOR};
+use super::cpg::{Cpg, CpgParams};
+use super::pick::{scan, CPG_FLOOR};
 use crate::cone::{copy_column, ConeError, GrowingCone};
 
 /// Greedy cone basis of the snapshots `s` (n x N), by definition (see [`cpg`](super::cpg)).

@@ -10,7 +10,7 @@ use std::collections::BinaryHeap;
 
 use faer::{Mat, MatRef};
 
-use super::cpg::{scan, BAND_ABS, BAND_REL, CPG_FLOOR};
+use super::pick::{scan, BAND_ABS, BAND_REL, CPG_FLOOR};
 use crate::cone::{copy_column, ColumnIndex, ConeError, ConeProjector, NnlsParams, WideNnls};
 
 /// A candidate's bound in the max-heap (larger error first, then lower index).

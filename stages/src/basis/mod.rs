@@ -14,6 +14,7 @@ mod frame;
 mod gram_condition;
 mod gram_pod;
 mod lazy;
+mod pick;
 mod pod;
 
 pub use cpg::{
