@@ -33,7 +33,8 @@ use crom_stages::dual::dictionary::{WorkingSet, WorkingSetScratch, WS_START};
 use crom_stages::dual::{self, Approach, DualApprox, Training};
 use crom_stages::metrics::order::quantile;
 use crom_stages::rom::{
-    cone_basis_columns, Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork, EXACT_STEP_ITERATIONS,
+    cone_basis_columns, Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork, SolveInfo,
+    EXACT_STEP_ITERATIONS,
 };
 use serde::Serialize;
 use serde_json::json;
@@ -335,11 +336,7 @@ fn solve_dictionary(
         state,
         |(rm, w, sc), (_, mu)| ws.solve(rm, mu, params, w, sc),
         |i| i.info.outcome == RomOutcome::Converged,
-        |(rm, w, _), &(j, _), info| {
-            let sol = w.solution(&info.info);
-            let (primal, dual) = errors(j, rm, &sol);
-            Query { outcome: sol.outcome, seconds: 0.0, primal, dual, nonzero: sol.nonzero_dual }
-        },
+        |(rm, w, _), &(j, _), info| answer_row(rm, w, j, &info.info, &errors),
     )
     .into_iter()
     .map(|(q, seconds)| Query { seconds, ..q })
@@ -377,15 +374,25 @@ fn solve_all(
             rm.solve_in(mu, params, w)
         },
         |i| i.outcome == RomOutcome::Converged,
-        |(rm, w), &(j, _), info| {
-            let sol = w.solution(&info);
-            let (primal, dual) = errors(j, rm, &sol);
-            Query { outcome: sol.outcome, seconds: 0.0, primal, dual, nonzero: sol.nonzero_dual }
-        },
+        |(rm, w), &(j, _), info| answer_row(rm, w, j, &info, &errors),
     )
     .into_iter()
     .map(|(q, seconds)| Query { seconds, ..q })
     .collect()
+}
+
+/// The row of test point `j`'s answer, held in `w` after its first solve (`info`): outcome,
+/// errors and non-zero dual coefficients; its time is set by the caller from [`time_each`].
+fn answer_row(
+    rm: &ReducedModel,
+    w: &RomWork,
+    j: usize,
+    info: &SolveInfo,
+    errors: &impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64),
+) -> Query {
+    let sol = w.solution(info);
+    let (primal, dual) = errors(j, rm, &sol);
+    Query { outcome: sol.outcome, seconds: 0.0, primal, dual, nonzero: sol.nonzero_dual }
 }
 
 /// One (approximation, m) row: name, m, primal rank, counts (points, converged, infeasible,

@@ -7,9 +7,9 @@
 //! skipped); add the snapshot with the largest `e_j` (ties within a relative 1e-12: larger
 //! norm, then lower index), normalised to unit Euclidean norm. After each addition record
 //! `C(m) = ||S - Pi_m(S)||_F / ||S||_F` (eq. 16). Stop when `C(m) <= tol`, or when every
-//! snapshot has `e_j <= CPG_FLOOR` (represented by the cone to the accuracy the snapshots are
-//! known to — so a duplicate, a positive multiple of a selected snapshot or a near-duplicate
-//! that differs from the cone by solver noise is never added). Tolerance 0 keeps every snapshot
+//! snapshot has `e_j <= CPG_FLOOR` ([`super::pick`]: represented by the cone to the accuracy
+//! the snapshots are known to — so a duplicate, a positive multiple of a selected snapshot or a
+//! near-duplicate that differs from the cone by solver noise is never added). Tolerance 0 keeps every snapshot
 //! that the cone does not represent to that accuracy.
 //!
 //! # Lazy selection
@@ -37,7 +37,6 @@ use faer::{Mat, MatRef};
 use rayon::prelude::*;
 
 use super::lazy::{sparse, LazyGreedy, Refresh, Step};
-pub use super::pick::CPG_FLOOR;
 use super::pick::{scan, scan_trajectory};
 use crate::cone::{copy_column, norm2, ColumnIndex, ConeError, ConeProjector, GrowingCone, NnlsParams, WideNnls};
 
@@ -447,6 +446,7 @@ fn mark_divergence(step: &Step, norms: &[f64], t: usize, diverge: &mut [usize]) 
 mod tests {
     use super::*;
     use crate::assert_close;
+    use crate::basis::CPG_FLOOR;
     use crate::cone::ConeProjector;
     use crate::float_cmp::Tol;
     use crate::rng::Rng;

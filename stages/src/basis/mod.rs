@@ -18,13 +18,13 @@ mod pick;
 mod pod;
 
 pub use cpg::{
-    cpg, cpg_path, cpg_path_refined, cpg_prefix, Cpg, CpgParams, CpgPath, CpgPathParams, CPG_FLOOR, DENSE_CURVE_MAX,
-    GRID_START,
+    cpg, cpg_path, cpg_path_refined, cpg_prefix, Cpg, CpgParams, CpgPath, CpgPathParams, DENSE_CURVE_MAX, GRID_START,
 };
 pub use cpg_reference::cpg_reference;
 pub use frame::{frame, frame_pays_up_to, frame_within, frame_within_blocks, large_frame, Frame, FRAME_BLOCK};
 pub use gram_condition::gram_condition_path;
 pub use gram_pod::{pod_by_gram, GRAM_CUT};
+pub use pick::CPG_FLOOR;
 
 pub(crate) use lazy::LazyGreedy;
 pub use pod::{
