@@ -66,6 +66,22 @@ pub fn dot_pair(x: &[f64], y: &[f64], v: &[f64]) -> (f64, f64) {
     (reduce_lanes(ax) + sx, reduce_lanes(ay) + sy)
 }
 
+/// `out += Σ_i (f_i0 x_i + f_i1 y_i)` over `N` row pairs `[x_i, y_i]` in one pass over `out`,
+/// the pairs added in order: each element gets the same operations in the same order as `N`
+/// passes of `*o += f_i0 x_i[j] + f_i1 y_i[j]` (the same bits), with `out` read and written
+/// once.
+#[inline]
+pub fn add_row_pairs<const N: usize>(f: [[f64; 2]; N], rows: [[&[f64]; 2]; N], out: &mut [f64]) {
+    let n = rows.iter().fold(out.len(), |n, [x, y]| n.min(x.len()).min(y.len()));
+    for (j, o) in out[..n].iter_mut().enumerate() {
+        let mut acc = *o;
+        for (fi, [x, y]) in f.iter().zip(&rows) {
+            acc += fi[0] * x[j] + fi[1] * y[j];
+        }
+        *o = acc;
+    }
+}
+
 /// The partial sums of a [`dot`] reduced pairwise (`L` a power of two): one fixed order.
 #[inline]
 fn reduce_lanes<const L: usize>(mut acc: [f64; L]) -> f64 {
@@ -179,6 +195,38 @@ pub fn out_of_span_norms(s: MatRef<'_, f64>, basis: MatRef<'_, f64>, coords: Mat
 mod tests {
     use super::*;
     use crate::rng::Rng;
+
+    /// `add_row_pairs` over four pairs is, bit for bit, four passes of one pair each in order
+    /// (exact equality: the same operations in the same order), at lengths 0 to 20; with the
+    /// pairs summed first and added to `out` once, the bits differ (checked below, so the test
+    /// can tell the two orders apart).
+    #[test]
+    fn add_row_pairs_adds_the_pairs_in_order() {
+        let mut rng = Rng::new(3);
+        let mut orders_differ = false;
+        for n in 0..=20 {
+            let rows: Vec<Vec<f64>> = (0..8).map(|_| (0..n).map(|_| rng.uniform_in(-1.0, 1.0)).collect()).collect();
+            let f: [[f64; 2]; 4] = std::array::from_fn(|_| [rng.uniform_in(-3.0, 3.0), rng.uniform_in(-3.0, 3.0)]);
+            let out0: Vec<f64> = (0..n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
+            let pair = |i: usize| [&rows[2 * i][..], &rows[2 * i + 1][..]];
+            let mut one_pass = out0.clone();
+            add_row_pairs(f, [pair(0), pair(1), pair(2), pair(3)], &mut one_pass);
+            let mut four_passes = out0.clone();
+            for (i, fi) in f.iter().enumerate() {
+                add_row_pairs([*fi], [pair(i)], &mut four_passes);
+            }
+            assert_eq!(
+                one_pass.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                four_passes.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                "n = {n}"
+            );
+            let summed_first: Vec<f64> = (0..n)
+                .map(|j| out0[j] + (0..4).map(|i| f[i][0] * rows[2 * i][j] + f[i][1] * rows[2 * i + 1][j]).sum::<f64>())
+                .collect();
+            orders_differ |= summed_first.iter().zip(&one_pass).any(|(a, b)| a.to_bits() != b.to_bits());
+        }
+        assert!(orders_differ, "the two summation orders agreed everywhere: the test cannot tell them apart");
+    }
 
     /// `dot_pair` is the two products: against a plain sum at every length from 0 to 40 (the
     /// remainder and the lanes), tolerance 1e-14 of `Σ |x_i v_i|` (another summation order of

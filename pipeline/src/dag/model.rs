@@ -98,8 +98,10 @@ impl StageKey for ModelKey {
     /// Bump when the stored model or the choice of it changes (2: registered dual bases; 3: its
     /// warm starts and measured errors from the online solve that sums a small dual basis's
     /// rows, the same answers to 1e-10; 4: the `exact_step` attribute, and a registered
-    /// approximation's own primal space with translates).
-    const ALGORITHM_VERSION: u32 = 4;
+    /// approximation's own primal space with translates; 5: warm starts and measured errors
+    /// from the exact step that applies the curvature through each term's two rows, the same
+    /// answers to 1e-10).
+    const ALGORITHM_VERSION: u32 = 5;
 }
 
 impl ModelKey {

@@ -91,8 +91,9 @@ impl StageKey for RomKey {
     /// solves up to 0.1 s timed as the fastest of three, the results the same —
     /// docs/design-notes.md#what-the-online-stage-times-and-reports; 14: every solve timed
     /// alone, one at a time, the results the same; 15: the timing runs in rounds over the points,
-    /// the results the same).
-    const ALGORITHM_VERSION: u32 = 15;
+    /// the results the same; 16: the exact step's curvature applied through each term's two
+    /// rows, the same answers to 1e-10 — docs/design-notes.md#an-exact-corrected-step).
+    const ALGORITHM_VERSION: u32 = 16;
 }
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];

@@ -37,12 +37,15 @@
 //! H v = Σ_segments p_s [A_s (B_s·v) + B_s (A_s·v) + g_s A_s (A_s·v)] + Σ_ties p_s B_s (A_s·v)
 //! ```
 //!
-//! costs two row products and two row updates per node of each slave with pressure, `O(r_u)`
-//! each; no `r_u x r_u` matrix is formed.
+//! costs, term by term, two row products and two row updates per node of each slave with
+//! pressure, `O(r_u)` each; no `r_u x r_u` matrix is formed. Where `H` is applied several times
+//! at one state (the exact step's Krylov iterations), [`CurvatureOp`] forms each term's `A` and
+//! `B` as rows over the reduced coordinates once, and each product is then two row products and
+//! two row updates per term.
 
-use super::la::{axpy, dot};
-use crate::contact::pairing::{dot as dot2, segment_normal, sub, Pair, PairKind};
-use crate::kernels::dot_pair;
+use super::la::{axpy, combine_rows, dot};
+use crate::contact::pairing::{dot as dot2, segment_normal, sub, GapRow, Pair, PairKind};
+use crate::kernels::{add_row_pairs, dot_pair};
 
 /// One slave's term of `H`: `p [A (B·v) + B (A·v) + gamma A (A·v)]` on a segment, `p B (A·v)`
 /// at a tie (`symmetric` false), with `A` and `B` as coefficients on the two rows of up to four
@@ -113,6 +116,24 @@ impl GapCurvature {
         Some(c)
     }
 
+    /// `side` (this term's `a` or `b`) as a row over the contact dofs, skipping the nodes it
+    /// does not touch (a segment's `A` the slave; a tie's `B` the vertex's neighbours): four or
+    /// six entries.
+    fn side(&self, side: &[[f64; 2]; 4]) -> GapRow {
+        let mut row = GapRow { dof: [0; 6], coef: [0.0; 6], len: 0 };
+        for (&c, k) in self.nodes.iter().zip(side).take(self.len) {
+            if k[0] == 0.0 && k[1] == 0.0 {
+                continue;
+            }
+            for (i, &coef) in k.iter().enumerate() {
+                row.dof[row.len] = 2 * c + i;
+                row.coef[row.len] = coef;
+                row.len += 1;
+            }
+        }
+        row
+    }
+
     /// `out += ` this term times `v`, `psi_c` the contact-dof rows (row-major, `r` columns).
     pub(super) fn apply(&self, p: f64, psi_c: &[f64], r: usize, v: &[f64], out: &mut [f64]) {
         let row = |cd: usize| &psi_c[cd * r..(cd + 1) * r];
@@ -135,40 +156,38 @@ impl GapCurvature {
     }
 }
 
-/// `H` over the slaves with pressure at one corrected step, applied by contact node: the rows
-/// of `Psi_c` of every node some term reads are multiplied once per product (two dots and two
-/// row updates per node, not per term), for the exact step's Krylov iterations.
+/// `H` over the slaves with pressure at one corrected step, applied by term through each
+/// term's two rows over the reduced coordinates, `a = Aᵀ Psi_c` and `b = Bᵀ Psi_c`:
+///
+/// ```text
+/// H v = Σ_terms p [a (b·v) + b (a·v) + gamma a (a·v)]     (a tie: p b (a·v))
+/// ```
+///
+/// The rows are formed once per corrected step, at its first product (each a combination of
+/// four or six rows of `Psi_c`), and each product is then two dot products and two row
+/// updates per term. By contact node it would be two of each per node of the terms: on
+/// ironing-fine about 57 nodes against 23 terms, the node rows streamed from the L2 cache at
+/// each of the exact step's three products (docs/design-notes.md#an-exact-corrected-step).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct CurvatureOp {
-    terms: Vec<(GapCurvature, f64, [usize; 4])>,
-    nodes: Vec<usize>,
-    local: Vec<usize>,
-    d: Vec<f64>,
-    f: Vec<f64>,
+    terms: Vec<(GapCurvature, f64)>,
+    /// `a` and `b` of each term, `2 r` per term, for the first `formed` terms.
+    rows: Vec<f64>,
+    formed: usize,
+    /// Each term's coefficients of `a` and `b` in the product being formed.
+    coef: Vec<[f64; 2]>,
 }
 
 impl CurvatureOp {
-    /// Start an operator over `n_nodes` contact nodes.
-    pub(super) fn clear(&mut self, n_nodes: usize) {
-        for &c in &self.nodes {
-            self.local[c] = usize::MAX;
-        }
-        self.local.resize(n_nodes, usize::MAX);
-        self.nodes.clear();
+    /// Start an operator with no term.
+    pub(super) fn clear(&mut self) {
         self.terms.clear();
+        self.formed = 0;
     }
 
     /// Add the term `c` with force `p`.
     pub(super) fn push(&mut self, c: GapCurvature, p: f64) {
-        let mut at = [0; 4];
-        for (j, &node) in c.nodes.iter().take(c.len).enumerate() {
-            if self.local[node] == usize::MAX {
-                self.local[node] = self.nodes.len();
-                self.nodes.push(node);
-            }
-            at[j] = self.local[node];
-        }
-        self.terms.push((c, p, at));
+        self.terms.push((c, p));
     }
 
     /// Whether no term was added.
@@ -179,45 +198,45 @@ impl CurvatureOp {
     /// `out += H v` term by term, in the order the terms were pushed (each term's
     /// [`GapCurvature::apply`]): the first-order corrected step's sum.
     pub(super) fn apply_by_term(&self, psi_c: &[f64], r: usize, v: &[f64], out: &mut [f64]) {
-        for (c, p, _) in &self.terms {
+        for (c, p) in &self.terms {
             c.apply(*p, psi_c, r, v, out);
         }
     }
 
+    /// Form the rows `a` and `b` of the terms added since the last product.
+    fn form(&mut self, psi_c: &[f64], r: usize) {
+        self.rows.resize(2 * r * self.terms.len(), 0.0);
+        for (t, (c, _)) in self.terms.iter().enumerate().skip(self.formed) {
+            let (a, b) = self.rows[2 * r * t..2 * r * (t + 1)].split_at_mut(r);
+            combine_rows(&c.side(&c.a), psi_c, r, a);
+            combine_rows(&c.side(&c.b), psi_c, r, b);
+        }
+        self.formed = self.terms.len();
+    }
+
     /// `out = H v`.
     pub(super) fn apply(&mut self, psi_c: &[f64], r: usize, v: &[f64], out: &mut [f64]) {
-        self.d.clear();
-        for &c in &self.nodes {
-            // a node's two rows are adjacent: both products in one pass over `v`
-            let (dx, dy) = dot_pair(&psi_c[2 * c * r..(2 * c + 1) * r], &psi_c[(2 * c + 1) * r..(2 * c + 2) * r], v);
-            self.d.push(dx);
-            self.d.push(dy);
-        }
-        self.f.clear();
-        self.f.resize(self.d.len(), 0.0);
-        for (c, p, at) in &self.terms {
-            let (mut alpha, mut beta) = (0.0, 0.0);
-            for ((&k, a), b) in at.iter().zip(&c.a).zip(&c.b).take(c.len) {
-                let d = [self.d[2 * k], self.d[2 * k + 1]];
-                alpha += a[0] * d[0] + a[1] * d[1];
-                beta += b[0] * d[0] + b[1] * d[1];
-            }
+        self.form(psi_c, r);
+        self.coef.clear();
+        for ((c, p), ab) in self.terms.iter().zip(self.rows.chunks_exact(2 * r)) {
+            let (alpha, beta) = dot_pair(&ab[..r], &ab[r..], v);
             let fa = if c.symmetric { p * (beta + c.gamma * alpha) } else { 0.0 };
-            let fb = p * alpha;
-            for ((&k, a), b) in at.iter().zip(&c.a).zip(&c.b).take(c.len) {
-                for i in 0..2 {
-                    self.f[2 * k + i] += fa * a[i] + fb * b[i];
-                }
-            }
+            self.coef.push([fa, p * alpha]);
         }
         out.iter_mut().for_each(|o| *o = 0.0);
-        for (j, &c) in self.nodes.iter().enumerate() {
-            let (fx, fy) = (self.f[2 * j], self.f[2 * j + 1]);
-            // both rows in one pass over `out`
-            let (rx, ry) = (&psi_c[2 * c * r..(2 * c + 1) * r], &psi_c[(2 * c + 1) * r..(2 * c + 2) * r]);
-            for ((o, x), y) in out.iter_mut().zip(rx).zip(ry) {
-                *o += fx * x + fy * y;
-            }
+        // four terms per pass over `out`, added term by term
+        let row = |t: usize| {
+            let ab = &self.rows[2 * r * t..2 * r * (t + 1)];
+            [&ab[..r], &ab[r..]]
+        };
+        let mut t = 0;
+        while t + 4 <= self.terms.len() {
+            let f = [self.coef[t], self.coef[t + 1], self.coef[t + 2], self.coef[t + 3]];
+            add_row_pairs(f, [row(t), row(t + 1), row(t + 2), row(t + 3)], out);
+            t += 4;
+        }
+        for t in t..self.terms.len() {
+            add_row_pairs([self.coef[t]], [row(t)], out);
         }
     }
 }
@@ -302,38 +321,53 @@ mod tests {
         }
     }
 
-    /// The operator by contact node applies the sum of its terms' `apply`: two segment
-    /// pairings and a tie on one master, sharing nodes, with forces 2, 0.5 and 1.5. Tolerance
-    /// 1e-12 relative: the same products summed in another order.
+    /// The operator through its terms' rows applies the sum of its terms' `apply` (the rows
+    /// of `Psi_c` of each term's nodes): two segment pairings and a tie on one master, sharing
+    /// nodes, with forces 2, 0.5 and 1.5, so that both the groups of four terms and the rest
+    /// are used (five terms: the three, then two added after a first product, which must form
+    /// their rows too). Tolerance 1e-12 relative: the same products summed in another order.
     #[test]
-    fn the_operator_by_node_is_the_sum_of_its_terms() {
+    fn the_operator_is_the_sum_of_its_terms() {
         let xm = MASTER;
         let pairs = [
             (closest_point([1.3, 0.4], &xm), 2.0),
             (closest_point([1.7, 0.02], &xm), 0.5),
             (vertex_pair([2.01, 0.1], &xm, 2, PairKind::Tied(2)), 1.5),
+            (closest_point([0.4, 0.3], &xm), 0.7),
+            (vertex_pair([0.98, 0.2], &xm, 1, PairKind::Tied(1)), 1.1),
         ];
-        let (ns, r) = (3, 5);
+        let (ns, r) = (5, 5);
         let ncd = 2 * (ns + xm.len());
         let psi: Vec<f64> = (0..ncd * r).map(|k| ((k * 37 % 11) as f64 - 5.0) / 7.0).collect();
         let v: Vec<f64> = (0..r).map(|k| ((k * 3 % 5) as f64 - 2.0) / 2.0).collect();
+        let check = |op: &mut CurvatureOp, want: &[f64]| {
+            let mut got = vec![1.0; r];
+            op.apply(&psi, r, &v, &mut got);
+            let scale = want.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            assert!(scale > 0.0);
+            for (a, b) in got.iter().zip(want) {
+                assert!((a - b).abs() <= 1e-12 * scale, "{got:?} vs {want:?}");
+            }
+        };
         let mut op = CurvatureOp::default();
-        op.clear(ns + xm.len());
+        op.clear();
         let mut want = vec![0.0; r];
         for (s, (p, force)) in pairs.iter().enumerate() {
             let c = GapCurvature::new(s, ns, p, &xm).expect("a term");
             c.apply(*force, &psi, r, &v, &mut want);
             op.push(c, *force);
+            if s == 2 || s == 4 {
+                check(&mut op, &want);
+            }
         }
-        let mut got = vec![1.0; r];
-        op.apply(&psi, r, &v, &mut got);
-        let scale = want.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        for (a, b) in got.iter().zip(&want) {
-            assert!((a - b).abs() <= 1e-12 * scale, "{got:?} vs {want:?}");
-        }
-        // cleared, it starts again from no term
-        op.clear(ns + xm.len());
+        // cleared, it starts again from no term: one term's rows are formed anew
+        op.clear();
         assert!(op.is_empty());
+        let c = GapCurvature::new(1, ns, &pairs[1].0, &xm).expect("a term");
+        let mut want = vec![0.0; r];
+        c.apply(pairs[1].1, &psi, r, &v, &mut want);
+        op.push(c, pairs[1].1);
+        check(&mut op, &want);
     }
 
     /// `apply` is the form's matrix with the force: `u · H v = p form(Psi_c v, Psi_c u)` on

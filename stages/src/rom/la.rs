@@ -1,7 +1,43 @@
 //! Small dense kernels of the online solve: the shared vectorised dot product and axpy
-//! ([`crate::kernels`]), triangular solves with a column-major Cholesky factor.
+//! ([`crate::kernels`]), rows of `Phi_c` combined, triangular solves with a column-major
+//! Cholesky factor.
 
+use crate::contact::pairing::GapRow;
 pub use crate::kernels::{axpy, dot};
+
+/// `out = sum_j coef_j Phi_c[dof_j, :]` over the entries of a gap row (or of any row of
+/// at most six contact-dof entries), in one pass over `out`
+/// (each element written once, not read back per entry).
+pub fn combine_rows(row: &GapRow, phi_c: &[f64], r: usize, out: &mut [f64]) {
+    let rows: [&[f64]; 6] = std::array::from_fn(|j| {
+        let cd = row.dof[j.min(row.len - 1)];
+        &phi_c[cd * r..(cd + 1) * r]
+    });
+    let c = row.coef;
+    match row.len {
+        6 => {
+            for (j, o) in out.iter_mut().enumerate() {
+                *o = c[0] * rows[0][j]
+                    + c[1] * rows[1][j]
+                    + c[2] * rows[2][j]
+                    + c[3] * rows[3][j]
+                    + c[4] * rows[4][j]
+                    + c[5] * rows[5][j];
+            }
+        }
+        4 => {
+            for (j, o) in out.iter_mut().enumerate() {
+                *o = c[0] * rows[0][j] + c[1] * rows[1][j] + c[2] * rows[2][j] + c[3] * rows[3][j];
+            }
+        }
+        _ => {
+            out.iter_mut().for_each(|o| *o = 0.0);
+            for k in 0..row.len {
+                axpy(c[k], rows[k], out);
+            }
+        }
+    }
+}
 
 /// The metric of a reduced space: the lower Cholesky factor `L` (column-major `r x r`) of its
 /// Gram matrix `G = L L^T`, or the identity — coordinates in which `G = I` need no triangular

@@ -16,8 +16,8 @@
 //! GMRES from `z = 0` (Arnoldi with modified Gram–Schmidt, the small least-squares problem by
 //! Givens rotations). `P H d` lies in the range of `P`, and `I + P H P` maps that range into
 //! itself, so every Krylov vector stays in it and `P` is applied once per product. `H` is
-//! applied by contact node ([`CurvatureOp`]): two row products and two row updates per node of
-//! the slaves with pressure.
+//! applied through each term's two rows ([`CurvatureOp`]): formed once per step from four or six
+//! rows of `Psi_c` each, then two row products and two row updates per term and product.
 //!
 //! At a fixed point `d = 0`, so `z = 0`: the answers are the QP's own, as with the first-order
 //! step; only the path to them changes.

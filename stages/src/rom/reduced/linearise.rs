@@ -7,7 +7,7 @@ use super::switches::Switches;
 use super::{ReducedModel, RomWork, SurfaceData};
 use crate::contact::pairing::{vertex_pair, Certificate, Feature, GapRow, MasterIndex, Pair, PairKind};
 use crate::contact::vertex::VertexTies;
-use crate::rom::la::{axpy, dot};
+use crate::rom::la::{axpy, combine_rows, dot};
 
 /// `xc = base + Phi_c û` (`Phi_c` row-major `n_cd x r`) at the contact nodes `nodes`; at
 /// `û = 0` (the first linearisation) the positions are the lifted reference itself.
@@ -40,39 +40,6 @@ fn budget_until(travel: f64, r: f64, speed: f64) -> f64 {
         travel + r / speed
     } else {
         f64::INFINITY
-    }
-}
-
-/// `out = sum_j coef_j Phi_c[dof_j, :]` over the entries of a gap row, in one pass over `out`
-/// (each element written once, not read back per entry).
-pub(super) fn combine_rows(row: &GapRow, phi_c: &[f64], r: usize, out: &mut [f64]) {
-    let rows: [&[f64]; 6] = std::array::from_fn(|j| {
-        let cd = row.dof[j.min(row.len - 1)];
-        &phi_c[cd * r..(cd + 1) * r]
-    });
-    let c = row.coef;
-    match row.len {
-        6 => {
-            for (j, o) in out.iter_mut().enumerate() {
-                *o = c[0] * rows[0][j]
-                    + c[1] * rows[1][j]
-                    + c[2] * rows[2][j]
-                    + c[3] * rows[3][j]
-                    + c[4] * rows[4][j]
-                    + c[5] * rows[5][j];
-            }
-        }
-        4 => {
-            for (j, o) in out.iter_mut().enumerate() {
-                *o = c[0] * rows[0][j] + c[1] * rows[1][j] + c[2] * rows[2][j] + c[3] * rows[3][j];
-            }
-        }
-        _ => {
-            out.iter_mut().for_each(|o| *o = 0.0);
-            for k in 0..row.len {
-                axpy(c[k], rows[k], out);
-            }
-        }
     }
 }
 

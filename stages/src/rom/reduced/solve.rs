@@ -229,7 +229,7 @@ impl ReducedModel {
     /// (about 1e-2) to `|H|²` plus the step's second-order term. At a fixed point `x = y_k`
     /// the correction vanishes, so the answers are the QP's own.
     fn curvature_step(&self, w: &mut RomWork, exact_step: usize) {
-        let SurfaceData::Nts { ns, nm, phi_c, .. } = &self.surf else { return };
+        let SurfaceData::Nts { ns, phi_c, .. } = &self.surf else { return };
         let (ns, ru) = (*ns, self.r_u);
         let l = &mut w.lin;
         // the forces of the active multipliers on the slaves, scattered by column: only the
@@ -245,7 +245,7 @@ impl ReducedModel {
         l.step.extend(w.x.iter().zip(&w.u_hat).map(|(a, b)| a - b));
         // the terms of the slaves with pressure
         let op = &mut w.exact.op;
-        op.clear(ns + nm);
+        op.clear();
         for &s in &l.ps {
             let p = self.gap_weight(s) * l.force[s];
             if p > 0.0 {

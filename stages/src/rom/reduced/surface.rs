@@ -2,10 +2,9 @@
 //! Type-2 contact-surface rows) and its reduced quadrature
 //! ([`ReducedModel::with_sampled_surface`]).
 
-use super::linearise::combine_rows;
 use super::{ReducedModel, RomError, RomOutcome, RomParams, RomWork, WarmStarts};
 use crate::contact::pairing::GapRow;
-use crate::rom::la::dot;
+use crate::rom::la::{combine_rows, dot};
 
 /// The offline data of the contact surface, by problem type.
 #[derive(Debug, Clone)]
