@@ -74,8 +74,9 @@ impl StageKey for OnlineApproximationKey {
     /// 8: solves up to 0.1 s timed as the fastest of three, the results the same; 9: every
     /// query timed alone, one at a time, the results the same; 10: the timing runs in rounds
     /// over the points, the results the same; 11: the exact step's curvature applied through
-    /// each term's two rows, the same answers to 1e-10).
-    const ALGORITHM_VERSION: u32 = 11;
+    /// each term's two rows, the same answers to 1e-10; 12: the first linearisation's positions
+    /// from the warm-start samples' displacements, the same answers to 1e-10).
+    const ALGORITHM_VERSION: u32 = 12;
 }
 
 impl OnlineApproximationKey {

@@ -100,8 +100,9 @@ impl StageKey for ModelKey {
     /// rows, the same answers to 1e-10; 4: the `exact_step` attribute, and a registered
     /// approximation's own primal space with translates; 5: warm starts and measured errors
     /// from the exact step that applies the curvature through each term's two rows, the same
-    /// answers to 1e-10).
-    const ALGORITHM_VERSION: u32 = 5;
+    /// answers to 1e-10; 6: the same with the first linearisation's positions from the
+    /// warm-start samples' displacements).
+    const ALGORITHM_VERSION: u32 = 6;
 }
 
 impl ModelKey {

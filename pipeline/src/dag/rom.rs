@@ -92,8 +92,10 @@ impl StageKey for RomKey {
     /// docs/design-notes.md#what-the-online-stage-times-and-reports; 14: every solve timed
     /// alone, one at a time, the results the same; 15: the timing runs in rounds over the points,
     /// the results the same; 16: the exact step's curvature applied through each term's two
-    /// rows, the same answers to 1e-10 — docs/design-notes.md#an-exact-corrected-step).
-    const ALGORITHM_VERSION: u32 = 16;
+    /// rows, the same answers to 1e-10 — docs/design-notes.md#an-exact-corrected-step; 17: the
+    /// first linearisation's positions from the warm-start samples' displacements, the same
+    /// answers to 1e-10).
+    const ALGORITHM_VERSION: u32 = 17;
 }
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];

@@ -80,6 +80,9 @@ pub(super) struct LinState {
     pub(super) g_mu: Vec<f64>,
     /// No linearisation yet in this query: every supported slave is searched.
     pub(super) fresh: bool,
+    /// `xc` holds every contact dof's position at `û` (the warm start's, placed from the
+    /// samples' displacements by [`ReducedModel::seed_warm`]); cleared by the next linearisation.
+    pub(super) placed_at_start: bool,
     /// Path length of `y` over the linearisations of this query, and `y` at the last one.
     pub(super) travel: f64,
     pub(super) last_u: Vec<f64>,
@@ -258,6 +261,7 @@ impl LinState {
         }
         self.count += 1;
         self.fresh = false;
+        self.placed_at_start = false;
     }
 
     /// FNV-1a hash of the discrete pairing of every slave.
@@ -333,7 +337,10 @@ impl ReducedModel {
         let (pairs, first) = (&l.pairs, l.fresh);
         let budget = &l.budget;
         let slaves = supp.iter().copied().filter(|&s| first || travel > budget[s] || pairs[s].kind.is_paired());
-        set_positions(phi_c, self.r_u, &w.u_hat, &l.base, &mut l.xc, slaves);
+        let placed = l.placed_at_start;
+        if !placed {
+            set_positions(phi_c, self.r_u, &w.u_hat, &l.base, &mut l.xc, slaves);
+        }
         // Every slave known by its budget on a segment or unpaired, or forced to a vertex,
         // needs the masters next to its pairing only; any other needs every master (for its
         // certificate or its search).
@@ -344,7 +351,12 @@ impl ReducedModel {
         let measured = l.prev_full && !first;
         l.masters_all = false;
         if everything {
-            l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm);
+            if placed {
+                l.index_masters(ns, nm);
+                l.masters_all = true;
+            } else {
+                l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm);
+            }
             // the masters' largest displacement since the last linearisation, measured when
             // that one placed them all too
             let moved = if measured {

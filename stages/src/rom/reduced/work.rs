@@ -92,6 +92,7 @@ impl RomWork {
             l.prev_full = false;
             l.travel = 0.0;
             l.fresh = true;
+            l.placed_at_start = false;
             l.ties.set_end_ties(true);
             l.ties.reset(*ns);
         }
