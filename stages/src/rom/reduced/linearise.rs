@@ -168,10 +168,18 @@ impl LinState {
         self.count = 0;
     }
 
+    /// The positions at `y` of the contact `nodes` into `xc`, unless `xc` already holds every
+    /// position at `y` (the warm start's, placed by [`ReducedModel::seed_warm`]).
+    fn place(&mut self, phi_c: &[f64], r: usize, y: &[f64], nodes: impl Iterator<Item = usize>) {
+        if !self.placed_at_start {
+            set_positions(phi_c, r, y, &self.base, &mut self.xc, nodes);
+        }
+    }
+
     /// Every master's position at `y` (contact nodes `ns..ns + nm`, into `xc` and `xm`) and
     /// the search index over them.
     pub(super) fn all_masters(&mut self, phi_c: &[f64], r: usize, y: &[f64], ns: usize, nm: usize) {
-        set_positions(phi_c, r, y, &self.base, &mut self.xc, ns..ns + nm);
+        self.place(phi_c, r, y, ns..ns + nm);
         self.index_masters(ns, nm);
         self.masters_all = true;
     }
@@ -182,7 +190,7 @@ impl LinState {
         for k in range {
             if self.placed[k] != self.stamp {
                 self.placed[k] = self.stamp;
-                set_positions(phi_c, r, y, &self.base, &mut self.xc, std::iter::once(ns + k));
+                self.place(phi_c, r, y, std::iter::once(ns + k));
                 self.xm[k] = [self.xc[2 * (ns + k)], self.xc[2 * (ns + k) + 1]];
             }
         }
@@ -337,8 +345,8 @@ impl ReducedModel {
         let (pairs, first) = (&l.pairs, l.fresh);
         let budget = &l.budget;
         let slaves = supp.iter().copied().filter(|&s| first || travel > budget[s] || pairs[s].kind.is_paired());
-        let placed = l.placed_at_start;
-        if !placed {
+        // as [`LinState::place`] (the slaves' filter borrows the state it would take)
+        if !l.placed_at_start {
             set_positions(phi_c, self.r_u, &w.u_hat, &l.base, &mut l.xc, slaves);
         }
         // Every slave known by its budget on a segment or unpaired, or forced to a vertex,
@@ -351,12 +359,7 @@ impl ReducedModel {
         let measured = l.prev_full && !first;
         l.masters_all = false;
         if everything {
-            if placed {
-                l.index_masters(ns, nm);
-                l.masters_all = true;
-            } else {
-                l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm);
-            }
+            l.all_masters(phi_c, self.r_u, &w.u_hat, ns, nm);
             // the masters' largest displacement since the last linearisation, measured when
             // that one placed them all too
             let moved = if measured {

@@ -355,7 +355,7 @@ impl ReducedModel {
             n if n == n_warm * r_u => ys_flat.chunks(r_u.max(1)).map(<[f64]>::to_vec).collect(),
             n => return Err(bad("warm_y", format!("{n} values, expected 0 or {}", n_warm * r_u))),
         };
-        let warm_starts = WarmStarts { dim, points, sets, ys, moves: Vec::new() };
+        let mut warm_starts = WarmStarts { dim, points, sets, ys, moves: Vec::new() };
         let surf = match p.scalar("surface") {
             0 => SurfaceData::Fixed {
                 cphi: floats_of(p, "cphi", nc * r_u)?,
@@ -398,7 +398,6 @@ impl ReducedModel {
             }
             s => return Err(bad("surface", format!("{s}: expected 0 (fixed pairs) or 1 (node-to-segment)"))),
         };
-        let mut warm_starts = warm_starts;
         if let SurfaceData::Nts { phi_c, .. } = &surf {
             warm_starts.place(phi_c, r_u);
         }
