@@ -11,21 +11,28 @@ default:
 setup:
     bash scripts/setup.sh
 
-# Run (or resume) the whole study of SCENE with a release build.
-run SCENE *ARGS:
-    cargo run --release --quiet -p crom-pipeline --bin crom -- run {{SCENE}} {{ARGS}}
+# The one compilation (release profile): the `crom` binary, every crate the tests use and the
+# Python extension (python/native's cdylib), in one cargo invocation so that every crate is built
+# once with one feature resolution; then the extension is put beside the reader crom_data (as
+# python/crom_data/crom_native.abi3.so, replaced only when it changed). A no-op when nothing
+# changed.
+build:
+    cargo build --release --workspace
+    src="${CARGO_TARGET_DIR:-target}/release/libcrom_native.so"; dst=python/crom_data/crom_native.abi3.so; cmp -s "$src" "$dst" || { cp "$src" "$dst.tmp" && mv "$dst.tmp" "$dst"; }
+
+# Run (or resume) the whole study of SCENE with the release build.
+run SCENE *ARGS: build
+    "${CARGO_TARGET_DIR:-target}/release/crom" run {{SCENE}} {{ARGS}}
 
 # Run every scene that exists.
-run-all:
-    for s in $(cargo run --release --quiet -p crom-pipeline --bin crom -- scenes); do just run "$s"; done
+run-all: build
+    for s in $("${CARGO_TARGET_DIR:-target}/release/crom" scenes); do "${CARGO_TARGET_DIR:-target}/release/crom" run "$s"; done
 
-# Rust tests (unit, reference, end-to-end) and the Python artifact validation.
-test:
-    # --workspace: the feature resolution of the tests and of the Python extension's build
-    # (docs/design-notes.md#the-python-binding-is-a-thin-native-module-behind-the-reader)
-    cargo build --quiet --workspace --bin crom
-    if command -v cargo-nextest >/dev/null; then cargo nextest run --workspace --no-fail-fast; else cargo test --workspace --no-fail-fast; fi
-    CROM_BIN="${CARGO_TARGET_DIR:-target}/debug/crom" {{python}} -m pytest -q tests/python
+# Rust tests (unit, reference, end-to-end) and the Python artifact validation, on the release
+# build that `just run` uses (one compilation per machine; only the test harnesses are added).
+test: build
+    if command -v cargo-nextest >/dev/null; then cargo nextest run --release --workspace --no-fail-fast; else cargo test --release --workspace --no-fail-fast; fi
+    CROM_BIN="${CARGO_TARGET_DIR:-target}/release/crom" {{python}} -m pytest -q tests/python
 
 # Formatting check.
 fmt:
@@ -33,7 +40,8 @@ fmt:
 
 # Lints, warnings are errors.
 clippy:
-    cargo clippy --workspace --all-targets -- -D warnings
+    # --release: the proc macros and build scripts are the build's own, not compiled again.
+    cargo clippy --release --workspace --all-targets -- -D warnings
 
 # What CI runs: fmt check, clippy, tests.
 ci: fmt clippy test
@@ -42,8 +50,8 @@ ci: fmt clippy test
 # the scale targets (large and growing snapshot sets, 2-D parameter, store size and reads) and
 # the online reduced model (speed-ups, convergence, online time against the mesh).
 bench:
-    cargo run --release --quiet -p crom-stages --example bench_contact
-    cargo run --release --quiet -p crom-stages --example bench_metrics
+    just example bench_contact
+    just example bench_metrics
     {{python}} scripts/bench_pipeline.py ironing-fine ironing-coarse hertz rope
     {{python}} scripts/bench_scale.py
     {{python}} scripts/bench_rom.py
@@ -84,3 +92,10 @@ slurm-down:
 # with a reason; one row per case. `just stress --fast` is the subset CI runs.
 stress *ARGS:
     {{python}} scripts/stress.py {{ARGS}}
+
+# Run one of stages/examples (the benchmarks' kernels) from the release build, e.g.
+# `just example bench_contact`: built with the workspace's feature resolution, like everything
+# else, so nothing is compiled twice.
+example NAME *ARGS:
+    cargo build --release --quiet --workspace --example {{NAME}}
+    "${CARGO_TARGET_DIR:-target}/release/examples/{{NAME}}" {{ARGS}}

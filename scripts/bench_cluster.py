@@ -46,7 +46,7 @@ def best(n, f):
 
 
 def main():
-    subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
+    subprocess.run(["just", "build"], cwd=REPO,
                    check=True)
     rows = []
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="crom-bench-cluster-"))

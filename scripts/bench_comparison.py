@@ -96,7 +96,7 @@ def registered_online(curves, online, timings, max_m=10, goal=0.001, speedup=100
 
 
 def main():
-    subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
+    subprocess.run(["just", "build"], cwd=REPO,
                    check=True)
     print("| target | goal | measured | met |")
     print("|---|---|---|---|")
@@ -150,8 +150,7 @@ def main():
                 f"{worst.build_seconds:.2f} s ({worst.approximation}, the slowest)", worst.build_seconds <= 2.0)
     # The dictionary online at 4 097 atoms (stages/examples/bench_dictionary.rs: solves the nested
     # level 12 of ironing-fine, ~20 s, and times the online solve with both dictionaries).
-    out = subprocess.run(["cargo", "run", "--release", "--quiet", "-p", "crom-stages", "--example",
-                          "bench_dictionary"], cwd=REPO, check=True, capture_output=True, text=True).stdout
+    out = subprocess.run(["just", "example", "bench_dictionary"], cwd=REPO, check=True, capture_output=True, text=True).stdout
     # Columns: method, dictionary, atoms, median ms, ratio, target, active, converged, error, rounds.
     lines = [l.split("|")[1:-1] for l in out.splitlines() if l.startswith("| working set |")]
     big = [c.strip() for c in lines[-1]]

@@ -24,7 +24,7 @@ def run(store, scene):
 
 def main():
     scenes = sys.argv[1:] or ["ironing-fine"]
-    subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
+    subprocess.run(["just", "build"], cwd=REPO,
                    check=True)
     for scene in scenes:
         with tempfile.TemporaryDirectory() as tmp:

@@ -6,9 +6,8 @@ reads each scene's `tradeoff.parquet` and the online stage's wall time from its 
 runs `stages/examples/bench_rom.rs` for the online time against mesh refinement (ironing-coarse,
 ironing-fine, 4x refined, same ranks) and the rope's online time in a hot loop.
 
-The Python rows (`crom_data`'s `rom.solve` and `rom.solve_many`) use a release wheel of the
-native extension built here into a temporary directory (the installed one, from
-`scripts/setup.sh`, is a dev build): `rom.solve`'s overhead is the wall time of one call from
+The Python rows (`crom_data`'s `rom.solve` and `rom.solve_many`) use the native extension of
+the release build (`just build` puts it beside `python/crom_data`): `rom.solve`'s overhead is the wall time of one call from
 Python (the result's pressure array included) less the time of the Rust answer the call reports
 (`Result.answer_seconds`: the query's per-point call, solve + indicator + pressure), the median
 over a hot loop of 2000 points, best of 3; `solve_many` is the wall time of one call on 10^4 points on a
@@ -175,23 +174,14 @@ print(json.dumps({"overhead": min(overheads), "rust": statistics.median(rust),
 
 def python_rows(store):
     """`rom.solve`'s overhead over the Rust solve in a hot loop and `rom.solve_many` of 10^4
-    ironing-fine points on 2 threads, with a release wheel of the extension (module doc)."""
-    import zipfile
-
-    with tempfile.TemporaryDirectory() as tmp:
-        wheels, site = pathlib.Path(tmp) / "wheels", pathlib.Path(tmp) / "site"
-        subprocess.run([sys.executable, "-m", "maturin", "build", "--quiet", "--release", "--compatibility",
-                        "linux", "--auditwheel", "skip", "-m",
-                        str(REPO / "python" / "native" / "Cargo.toml"), "-i", sys.executable, "-o", str(wheels)],
-                       cwd=REPO, check=True, stdout=subprocess.DEVNULL)
-        wheel, = wheels.glob("crom_native-*.whl")
-        zipfile.ZipFile(wheel).extractall(site)
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), str(REPO / "python")]))
-        done = subprocess.run([sys.executable, "-c", PYTHON_MEASURE, str(store)], cwd=REPO, env=env,
-                              capture_output=True, text=True)
-        if done.returncode != 0:
-            sys.exit(f"the Python measurement failed (exit {done.returncode}):\n{done.stderr}")
-        out = done.stdout
+    ironing-fine points on 2 threads, with the release build of the extension (module doc)."""
+    # The extension `just build` put beside crom_data (the release build, the same as `crom`).
+    env = dict(os.environ, PYTHONPATH=str(REPO / "python"))
+    done = subprocess.run([sys.executable, "-c", PYTHON_MEASURE, str(store)], cwd=REPO, env=env,
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        sys.exit(f"the Python measurement failed (exit {done.returncode}):\n{done.stderr}")
+    out = done.stdout
     m = json.loads(out)
     us = m["overhead"] * 1e6
     label = model_label(store)
@@ -219,8 +209,7 @@ def cold_model_speeds(first):
 
 
 def main():
-    # --workspace: the features the extension's build resolves too (one build of the tree, not two)
-    subprocess.run(["cargo", "build", "--release", "--quiet", "--workspace", "--bin", "crom"], cwd=REPO, check=True)
+    subprocess.run(["just", "build"], cwd=REPO, check=True)
     print("| target | target value | measured | met |")
     print("|---|---|---|---|")
     if "--python" in sys.argv[1:] or "--model" in sys.argv[1:]:
@@ -285,7 +274,7 @@ def main():
           f" points at relative residual {SAMPLING_TOL} (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints; `study.contact_sampling` in a"
           " scene); their 'vs coarse' is against the coarse mesh's sampled model:\n")
     sys.stdout.flush()
-    out = subprocess.run(["cargo", "run", "--release", "--quiet", "-p", "crom-stages", "--example", "bench_rom", "--",
+    out = subprocess.run(["just", "example", "bench_rom",
                           "32", "20", "all", "32", str(SAMPLING_TOL)], cwd=REPO, check=True, capture_output=True,
                          text=True).stdout
     print(out)

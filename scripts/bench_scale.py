@@ -259,7 +259,7 @@ def bench_g_small(tmp):
 def main():
     which = sys.argv[1:] or ["A", "B", "C", "D", "E", "F", "G"]
     if not os.environ.get("CROM_BIN"):
-        subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
+        subprocess.run(["just", "build"], cwd=REPO,
                        check=True)
     benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "E": bench_e, "F": bench_f, "F16": bench_f16, "G": bench_g,
                "G-small": bench_g_small}

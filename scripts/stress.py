@@ -490,7 +490,7 @@ def main():
     args = ap.parse_args()
     binary = pathlib.Path(os.environ.get("CROM_BIN", REPO / "target" / "release" / "crom"))
     if "CROM_BIN" not in os.environ:
-        subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "crom-pipeline", "--bin", "crom"], cwd=REPO,
+        subprocess.run(["just", "build"], cwd=REPO,
                        check=True)
     rows, failed = [], 0
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="crom-stress-"))

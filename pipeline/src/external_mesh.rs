@@ -183,7 +183,7 @@ mod tests {
 
     #[test]
     fn a_square_of_triangles_reads_with_its_map() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         square(dir.path());
         write_npy(&dir.path().join("dual.npy"), &[2], false, &[3.0, 2.0]);
         let m = resolve(dir.path(), &src(Some("dual.npy")), 2, 8).expect("mesh");
@@ -197,7 +197,7 @@ mod tests {
 
     #[test]
     fn bad_maps_and_cells_are_refused_naming_the_file() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         square(dir.path());
         let msg = |e: CromError| {
             assert_eq!(e.exit_code(), 2);

@@ -19,7 +19,7 @@
 //! [`main_with_args`] is the whole command line. A small rope study, run into a fresh store:
 //!
 //! ```
-//! let dir = tempfile::tempdir()?;
+//! let dir = crom_pipeline::scratch::tempdir()?;
 //! let scene = dir.path().join("rope-small.toml");
 //! std::fs::write(
 //!     &scene,
@@ -78,6 +78,7 @@ pub mod query;
 pub mod report;
 pub mod resources;
 pub mod scenes;
+pub mod scratch;
 mod status;
 pub mod store;
 mod summary;

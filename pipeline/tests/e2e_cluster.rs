@@ -44,7 +44,7 @@ fn reference(dir: &Path, scene: &str) -> PathBuf {
 
 #[test]
 fn workers_by_hand_share_a_store_and_write_what_one_process_writes() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("shared");
     let scene = "ironing-coarse";
     let dry = run_ok(crom_cmd(&store, &["run", scene, "--dry-run"]), "dry run");
@@ -99,7 +99,7 @@ fn workers_by_hand_share_a_store_and_write_what_one_process_writes() {
 /// and the files of a single local run.
 #[test]
 fn duplicate_workers_and_concurrent_readers_leave_one_consistent_store() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("dup");
     let scene = "ironing-coarse";
     let mut workers: Vec<std::process::Child> = (0..3)
@@ -143,7 +143,7 @@ fn duplicate_workers_and_concurrent_readers_leave_one_consistent_store() {
 /// nested levels and on hertz.
 #[test]
 fn after_a_run_the_plan_has_nothing_left_to_run() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let nested =
         variant(tmp.path(), "rope", "rope-nested.toml", &[("n_train = 10", "n_train = 10\nnested_levels = 3")]);
     for scene in [nested.to_str().expect("utf8"), "hertz"] {
@@ -163,7 +163,7 @@ fn after_a_run_the_plan_has_nothing_left_to_run() {
 /// Bad requests are refused before anything is written, with the field or flag and the fix.
 #[test]
 fn bad_cluster_requests_are_refused_before_anything_is_written() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let zero =
         variant(tmp.path(), "rope", "rope-zero.toml", &[("[study]", "[executor.slurm]\nshard_size = 0\n\n[study]")]);
@@ -233,7 +233,7 @@ fn a_slurm_array_with_a_cancelled_task_reruns_to_the_local_results() {
         eprintln!("SKIPPED a_slurm_array_with_a_cancelled_task_reruns_to_the_local_results: {why}");
         return;
     }
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let pids = tmp.path().join("slurm.pids");
     let up = Command::new("bash")
         .arg(repo().join("scripts/slurm-up.sh"))

@@ -31,7 +31,7 @@ fn rope_level(dir: &Path, level: u32) -> PathBuf {
 
 #[test]
 fn growing_a_study_by_one_level_solves_only_the_new_points() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let lo = rope_level(tmp.path(), 3);
     let hi = rope_level(tmp.path(), 4);
@@ -87,7 +87,7 @@ fn only(store: &Path, stage: &str, file: &str) -> PathBuf {
 
 #[test]
 fn a_sweep_killed_mid_way_resumes_to_identical_results() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     // 10 training + 9 test points, then nested levels up to 2^8 + 1 = 257 points.
     let scene = rope_nested(tmp.path(), 8);
     let scene = scene.to_str().expect("utf8");
@@ -120,7 +120,7 @@ fn a_sweep_killed_mid_way_resumes_to_identical_results() {
 
 #[test]
 fn a_damaged_block_is_quarantined_and_its_points_solved_again() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let first = crom(&store, &["run", "rope"]);
     assert!(first.status.success(), "{}", text(&first));

@@ -15,7 +15,7 @@ use crom_schemas::artifact::comparison as names;
 
 #[test]
 fn hertz_comparison_tables_and_the_registered_advantage() {
-    let dir = tempfile::tempdir().expect("tempdir");
+    let dir = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = dir.path().join("store");
     let o = crom(&store, &["run", "data/scenes/hertz.toml", "--offline"]);
     assert!(o.status.success(), "{}", text(&o));
@@ -116,7 +116,7 @@ fn counts(out: &str, stage: &str) -> (u64, u64) {
 /// the dictionary: its atoms are the training set) store none.
 #[test]
 fn one_changed_approximation_recomputes_only_itself() {
-    let dir = tempfile::tempdir().expect("tempdir");
+    let dir = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = dir.path().join("store");
     let first = crom(&store, &["run", "data/scenes/hertz.toml", "--offline"]);
     assert!(first.status.success(), "{}", text(&first));
@@ -153,7 +153,7 @@ fn one_changed_approximation_recomputes_only_itself() {
 /// dilation argument above, now through the reduced solve).
 #[test]
 fn hertz_online_comparison() {
-    let dir = tempfile::tempdir().expect("tempdir");
+    let dir = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = dir.path().join("store");
     let o = crom(&store, &["run", "data/scenes/hertz.toml"]);
     assert!(o.status.success(), "{}", text(&o));

@@ -16,7 +16,7 @@ use common::{artifacts, assert_same_results, crom, crom_cmd, kill_when, text, va
 
 #[test]
 fn a_run_killed_during_the_metrics_the_online_stage_or_the_report_resumes_to_identical_results() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     // A Type-2 scene with nested levels, small enough for the suite: ironing-coarse with 33
     // training points and 4 nested levels.
     let file = variant(
@@ -48,7 +48,7 @@ fn a_run_killed_during_the_metrics_the_online_stage_or_the_report_resumes_to_ide
 
 #[test]
 fn a_second_process_on_a_busy_store_is_refused_and_changes_nothing() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     // A slow first run: 257 nested points, one snapshot per committed block.
     let slow = variant(tmp.path(), "rope", "rope-slow.toml", &[("n_train = 10", "n_train = 10\nnested_levels = 8")]);
     let slow = slow.to_str().expect("utf8");
@@ -91,7 +91,7 @@ fn first_dir(store: &Path, stage: &str) -> std::path::PathBuf {
 
 #[test]
 fn a_flipped_byte_or_a_truncated_manifest_is_quarantined_and_recomputed_to_the_same_results() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let reference = tmp.path().join("reference");
     assert!(crom(&reference, &["--quiet", "run", "rope"]).status.success());
     /// Flip the lowest bit of the middle byte, or cut the file in half.

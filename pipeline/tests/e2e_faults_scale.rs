@@ -34,7 +34,7 @@ fn finished(store: &Path) -> bool {
 /// kill left. Chained, the test costs about two uninterrupted runs instead of four.
 #[test]
 fn a_streamed_study_killed_in_its_sweep_basis_and_metrics_resumes_to_identical_results() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let file = variant(
         tmp.path(),
         "rope",
@@ -89,7 +89,7 @@ fn a_streamed_study_killed_in_its_sweep_basis_and_metrics_resumes_to_identical_r
 /// the values the results are those of (m up to 10, all 10 folds).
 #[test]
 fn settings_that_cannot_work_exit_2_naming_the_field_and_the_fix_and_clamped_ones_are_stated() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let huge = variant(tmp.path(), "rope", "rope-level17.toml", &[("n_train = 10", "train_level = 17")]);
     let out = crom(&store, &["--max-memory", "256M", "run", huge.to_str().expect("utf8"), "--offline"]);

@@ -28,7 +28,7 @@ fn tree(dir: &Path) -> Vec<String> {
 
 #[test]
 fn a_scene_name_cannot_lead_outside_the_store() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let deep = tmp.path().join("a/b/c");
     std::fs::create_dir_all(&deep).expect("mkdir");
     let store = deep.join("store");
@@ -48,7 +48,7 @@ fn a_scene_name_cannot_lead_outside_the_store() {
 
 #[test]
 fn html_in_scene_strings_is_escaped_in_the_report() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let scene = variant(
         tmp.path(),

@@ -24,7 +24,7 @@ fn resolved(store: &Path, name: &str) -> PathBuf {
 
 #[test]
 fn names_follow_finished_runs_and_a_failed_or_killed_run_keeps_the_old_ones() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let first = crom(&store, &["--quiet", "run", "rope"]);
     assert!(first.status.success(), "{}", text(&first));
@@ -77,7 +77,7 @@ fn names_follow_finished_runs_and_a_failed_or_killed_run_keeps_the_old_ones() {
 
 #[test]
 fn a_quarantined_artifact_loses_its_name_until_the_next_run() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     assert!(crom(&store, &["--quiet", "run", "rope"]).status.success());
     let basis = store.join(resolved(&store, "basis.h5"));
@@ -106,7 +106,7 @@ fn a_quarantined_artifact_loses_its_name_until_the_next_run() {
 
 #[test]
 fn ls_in_every_format_agrees_with_the_catalog() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     assert!(crom(&store, &["--quiet", "run", "rope"]).status.success());
     let catalog = read_parquet(&store.join("catalog.parquet")).expect("catalog");

@@ -149,7 +149,7 @@ fn check_registered(published: &Path, model: &StoredModel, q: &Table, scene: &st
 
 #[test]
 fn query_answers_as_the_online_stage_measured_and_refuses_bad_input() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     // no model yet: a usage error, the fix, nothing created
     let o = crom(&store, &["query", "rope", "--at", "gamma=0.1"]);
@@ -242,7 +242,7 @@ fn damaged_parts_are_caught_where_they_are_read(store: &Path) {
 
 #[test]
 fn a_model_at_the_full_ranks_answers_every_test_point_as_the_online_stage() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let scene = common::variant(
         tmp.path(),
@@ -298,7 +298,7 @@ fn a_model_at_the_full_ranks_answers_every_test_point_as_the_online_stage() {
 /// field, the names it could be, nothing written).
 #[test]
 fn a_scene_chooses_the_dual_approximation_of_its_model() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let seed = "seed = 20232";
     let bad = common::variant(

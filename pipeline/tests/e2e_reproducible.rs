@@ -19,7 +19,7 @@ fn crom(store: &std::path::Path, threads: Option<&str>, args: &[&str]) -> std::p
 
 #[test]
 fn results_are_byte_identical_across_runs_and_thread_counts() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
     // The rope with nested levels (so that the nested stage is compared too) and hertz (Type 2).
     let nested =

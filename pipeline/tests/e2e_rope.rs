@@ -48,7 +48,7 @@ fn artifact_dirs(store: &Path, stage: &str) -> Vec<PathBuf> {
 
 #[test]
 fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let first = crom(&store, &["run", "rope"]);
     assert!(first.status.success(), "{}", text(&first));
@@ -105,7 +105,7 @@ fn run_rope_writes_artifacts_and_rerun_is_a_full_cache_hit() {
 
 #[test]
 fn deleting_a_block_recomputes_exactly_its_points() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     assert!(crom(&store, &["run", "rope"]).status.success());
     let family = artifact_dirs(&store, "columns")[0].clone();
@@ -125,7 +125,7 @@ fn deleting_a_block_recomputes_exactly_its_points() {
 
 #[test]
 fn corrupt_artifact_is_quarantined_and_recomputed() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     assert!(crom(&store, &["run", "rope"]).status.success());
     let basis = artifact_dirs(&store, "basis")[0].join("basis.h5");
@@ -144,7 +144,7 @@ fn corrupt_artifact_is_quarantined_and_recomputed() {
 
 #[test]
 fn bad_scene_file_exits_2_naming_file_and_field() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let scene = tmp.path().join("broken.toml");
     let rope = std::fs::read_to_string(repo().join("data/scenes/rope.toml")).expect("rope.toml");
@@ -158,7 +158,7 @@ fn bad_scene_file_exits_2_naming_file_and_field() {
 
 #[test]
 fn unknown_scene_lists_the_available_ones() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let out = crom(&tmp.path().join("store"), &["run", "ropes"]);
     assert_eq!(out.status.code(), Some(2));
     let msg = text(&out);
@@ -167,7 +167,7 @@ fn unknown_scene_lists_the_available_ones() {
 
 #[test]
 fn locked_store_exits_3_and_writes_nothing() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let held = Store::open(&store).expect("take the lock");
     let out = crom(&store, &["run", "rope"]);
@@ -180,7 +180,7 @@ fn locked_store_exits_3_and_writes_nothing() {
 
 #[test]
 fn ls_lists_every_artifact() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     assert!(crom(&store, &["run", "rope"]).status.success());
     let out = crom(&store, &["ls"]);
@@ -194,7 +194,7 @@ fn ls_lists_every_artifact() {
 
 #[test]
 fn failed_points_are_named_tabled_and_exit_1() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let scene = tmp.path().join("rope-strict.toml");
     let rope = std::fs::read_to_string(repo().join("data/scenes/rope.toml")).expect("rope.toml");
@@ -228,7 +228,7 @@ fn table(store: &Path, stage: &str, file: &str) -> crom_pipeline::io::table::Tab
 /// online solve returns the lift, and the report is still written.
 #[test]
 fn no_contact_anywhere_runs_to_the_report() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let scene = variant(tmp.path(), "rope-free", |t| t.replace("offset = -0.5 }", "offset = -10.0 }"));
     let out = crom(&store, &["run", scene.to_str().expect("utf8")]);
@@ -248,7 +248,7 @@ fn no_contact_anywhere_runs_to_the_report() {
 /// multiplier f - nu g'' = 250 - 59 sin(pi x) > 0 everywhere).
 #[test]
 fn full_contact_runs_to_the_report() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let scene = variant(tmp.path(), "rope-full", |t| {
         t.replace(
@@ -273,7 +273,7 @@ fn full_contact_runs_to_the_report() {
 /// and the report that shows it, and nothing else.
 #[test]
 fn changing_one_metric_setting_recomputes_only_that_stage() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let a = variant(tmp.path(), "rope-a", |t| t);
     let b = variant(tmp.path(), "rope-b", |t| t.replace("specificity_samples = 1000", "specificity_samples = 300"));
@@ -288,7 +288,7 @@ fn changing_one_metric_setting_recomputes_only_that_stage() {
 /// exactly those (and the online solutions' views) and finds everything else in the store.
 #[test]
 fn offline_run_stops_before_the_online_stage() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let off = crom(&store, &["run", "--offline", "rope"]);
     assert!(off.status.success(), "{}", text(&off));
@@ -309,7 +309,7 @@ fn offline_run_stops_before_the_online_stage() {
 /// absurd size, `nx = 1000000000`, is out of the scene file's bounds (exit 2 too).
 #[test]
 fn scene_too_big_for_memory_exits_2_and_writes_nothing() {
-    let tmp = tempfile::tempdir().expect("tempdir");
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
     let ironing = std::fs::read_to_string(repo().join("data/scenes/ironing-coarse.toml")).expect("scene");
     // "both.toml": slab 100 000 x 20 000, whose snapshot sets (n_dof x 639 columns) are a

@@ -14,7 +14,7 @@ use crom_schemas::artifact::rom as names;
 
 #[test]
 fn sampled_rows_on_hertz() {
-    let dir = tempfile::tempdir().expect("tempdir");
+    let dir = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = dir.path().join("store");
     let shipped = std::fs::read_to_string(repo().join("data/scenes/hertz.toml")).expect("hertz.toml");
     // the comparison of dual approximations is another test's

@@ -8,8 +8,10 @@
     b.pressure                        # (n, n_contact); b.indicator, b.converged, ... (n,)
 
 `Scene.rom()` opens the `model` artifact the published study names (`model.h5`; its manifest
-and schema version checked as for every entry) with the native extension `crom_native` (built
-with maturin from `python/native`, installed by `scripts/setup.sh`). Solving is the Rust code of
+and schema version checked as for every entry) with the native extension `crom_native`: the
+cdylib of `python/native`, which `just build` (and so `just run` and `just test`) compiles with
+the rest of the workspace and puts beside this file as `crom_native.abi3.so`; a `crom_native`
+installed on its own (a wheel built with maturin) is used when that file is absent. Solving is the Rust code of
 `crom query`: the exact online solve with the settings stored with the model, then the
 a-posteriori indicator and the pressure `Theta λ̂` — so an answer here is the query's (and the
 pipeline's online stage's) at the same point, bit for bit. The GIL is released while solving;
@@ -38,9 +40,14 @@ import numpy as np
 from .errors import InvalidPoint, NativeMissing
 
 try:  # the native part; its absence is reported when a model is opened
-    import crom_native as _native
-except ImportError as _err:  # pragma: no cover - depends on the environment
-    _native, _native_error = None, _err
+    from . import crom_native as _native  # the checkout's build, put here by `just build`
+except ImportError:
+    try:
+        import crom_native as _native  # a wheel installed on its own
+    except ImportError as _err:  # pragma: no cover - depends on the environment
+        _native, _native_error = None, _err
+    else:
+        _native_error = None
 else:
     _native_error = None
 
@@ -48,8 +55,8 @@ else:
 def _require_native():
     if _native is None:
         raise NativeMissing(f"the native extension crom_native is not installed ({_native_error}); run "
-                            "`bash scripts/setup.sh` from the crom checkout (it builds it with maturin), or "
-                            "`pip install ./python/native`")
+                            "`just build` in the crom checkout (it compiles the extension and puts it beside "
+                            "crom_data), or `pip install ./python/native` (a wheel, built with maturin)")
     return _native
 
 

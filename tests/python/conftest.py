@@ -9,11 +9,11 @@ REPO = pathlib.Path(__file__).resolve().parents[2]
 
 
 def crom_bin() -> pathlib.Path:
-    path = pathlib.Path(os.environ.get("CROM_BIN", REPO / "target" / "debug" / "crom"))
+    path = pathlib.Path(os.environ.get("CROM_BIN", REPO / "target" / "release" / "crom"))
     if not path.is_absolute():
         path = REPO / path
     if not path.exists():
-        pytest.fail(f"crom binary not found at {path}: build it with `cargo build -p crom-pipeline --bin crom` "
+        pytest.fail(f"crom binary not found at {path}: build it with `just build` "
                     "or set CROM_BIN")
     return path
 

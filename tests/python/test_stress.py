@@ -15,7 +15,7 @@ REPO = pathlib.Path(__file__).resolve().parents[2]
 
 def test_fast_stress_matrix_passes():
     env = dict(os.environ)
-    env["CROM_BIN"] = str(pathlib.Path(os.environ.get("CROM_BIN", REPO / "target" / "debug" / "crom")).resolve())
+    env["CROM_BIN"] = str(pathlib.Path(os.environ.get("CROM_BIN", REPO / "target" / "release" / "crom")).resolve())
     p = subprocess.run([sys.executable, str(REPO / "scripts" / "stress.py"), "--fast"], cwd=REPO, env=env,
                        capture_output=True, text=True, timeout=1200)
     assert p.returncode == 0, p.stdout + p.stderr

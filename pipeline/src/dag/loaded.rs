@@ -119,7 +119,7 @@ mod tests {
     /// fully cached run reads none.
     #[test]
     fn a_run_reads_each_input_once_and_a_cached_run_none() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes/rope.toml");
         let scene = SceneConfig::load(&root).expect("rope.toml");
         let store = Store::open(dir.path()).expect("store");

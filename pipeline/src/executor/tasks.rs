@@ -118,7 +118,7 @@ mod tests {
 
     #[test]
     fn records_round_trip_and_replace() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let mut r = TaskRecord::start(2, 5);
         r.write(tmp.path(), "s").expect("write");
         r.state = TaskState::Done;

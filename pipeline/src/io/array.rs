@@ -127,7 +127,7 @@ mod tests {
 
     #[test]
     fn a_fortran_npy_reads_row_major() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         // [[0, 1, 2], [3, 4, 5]] stored column by column.
         write_npy(&dir.path().join("a.npy"), &[2, 3], true, &[0.0, 3.0, 1.0, 4.0, 2.0, 5.0]);
         let a = read_whole(dir.path(), None, "a.npy", "model.external.mesh.nodes").expect("read");
@@ -137,7 +137,7 @@ mod tests {
 
     #[test]
     fn a_missing_dataset_names_the_file_and_the_dataset() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         let path = dir.path().join("m.h5");
         hdf5::File::create(&path).expect("create");
         let e = read_whole(dir.path(), Some(Path::new("m.h5")), "/cells", "model.external.mesh.cells")

@@ -243,7 +243,7 @@ mod tests {
     /// another schema version is refused.
     #[test]
     fn write_read_round_trip_is_exact() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let path = tmp.path().join("model.h5");
         let floats: Vec<f64> =
             (0..300).map(|k| (k as f64 * 0.37).sin() / 3.0).chain([-0.0, f64::MIN_POSITIVE]).collect();

@@ -207,7 +207,7 @@ pub(crate) mod tests {
 
     #[test]
     fn header_and_ranges_read_back_exactly() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         let p = dir.path().join("a.npy");
         let data: Vec<f64> = (0..12).map(|i| i as f64 * 0.1).collect();
         write_npy(&p, &[3, 4], false, &data);
@@ -222,7 +222,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_truncated_file_and_a_foreign_type_are_refused() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         let p = dir.path().join("a.npy");
         write_npy(&p, &[3, 4], false, &[0.0; 11]);
         let e = Npy::open(&p).expect_err("short");

@@ -296,7 +296,7 @@ mod tests {
 
     #[test]
     fn members_are_found_at_their_offsets() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         let p = dir.path().join("a.npz");
         write_zip(&p, &[("a.npy", b"first", 0), ("dual.npy", b"second!", 0), ("z.npy", b"xx", 9)]);
         let m = member(&p, "dual", "model.external.dual").expect("stored");
@@ -323,7 +323,7 @@ mod tests {
         let packed = enc.finish().expect("deflate");
         let mut crc = flate2::Crc::new();
         crc.update(&plain);
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         let p = dir.path().join("c.npz");
         let zip = |crc: u32, unpacked: u32| write_zip_sized(&p, "dual.npy", &packed, DEFLATED, crc, unpacked);
         let before: Vec<_> =

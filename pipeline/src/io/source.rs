@@ -393,7 +393,7 @@ mod tests {
 
     #[test]
     fn every_layout_and_order_gives_the_same_block() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         let (rows, n) = (3usize, 5usize);
         let x = |d: usize, j: usize| (10 * d + j) as f64;
         // The logical matrix (entry d, snapshot j) in each storage.
@@ -420,7 +420,7 @@ mod tests {
 
     #[test]
     fn csv_columns_are_found_by_name() {
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         let p = dir.path().join("mu.csv");
         std::fs::write(&p, "id,\"d_x\",d_y\n0,0.5,1e-2\n1,1.5,2e-2\n").expect("write");
         let src = ParameterSource {

@@ -335,7 +335,7 @@ mod tests {
     fn undefined_floats_are_nulls() {
         let v = vec![1.5, f64::NAN, f64::INFINITY, -0.25, f64::NEG_INFINITY];
         let t = Table::default().with("x", Column::F64(v.clone())).with("n", Column::U64(vec![1, 2, 3, 4, 5]));
-        let dir = tempfile::tempdir().expect("tempdir");
+        let dir = crate::scratch::tempdir().expect("tempdir");
         let path = dir.path().join("t.parquet");
         t.write_parquet(&path).expect("write");
         let file = std::fs::File::open(&path).expect("open");

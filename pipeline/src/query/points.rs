@@ -232,7 +232,7 @@ mod tests {
     #[test]
     fn points_files_need_exactly_the_parameter_columns() {
         let d = domain();
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let write = |name: &str, text: &str| {
             let p = tmp.path().join(name);
             std::fs::write(&p, text).expect("write");

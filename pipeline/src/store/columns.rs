@@ -750,7 +750,7 @@ mod tests {
 
     #[test]
     fn blocks_commit_index_compacts_and_columns_read_back_exactly() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let fam = ColumnFamily::open(tmp.path(), meta()).expect("open");
         let a: Vec<PendingColumn> = (0..3).map(pending).collect();
         let b: Vec<PendingColumn> = (3..5).map(pending).collect();
@@ -782,7 +782,7 @@ mod tests {
 
     #[test]
     fn a_flipped_byte_is_caught_and_a_missing_block_drops_its_rows() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let fam = ColumnFamily::open(tmp.path(), meta()).expect("open");
         let rows = fam.commit_block(&(0..4).map(pending).collect::<Vec<_>>()).expect("block");
         let path = tmp.path().join(&rows[0].block);
@@ -817,7 +817,7 @@ mod tests {
 
     #[test]
     fn an_uncommitted_block_leaves_nothing() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let fam = ColumnFamily::open(tmp.path(), meta()).expect("open");
         let kept = fam.commit_block(&[pending(0)]).expect("block");
         let rows = fam.commit_block(&[pending(1), pending(2)]).expect("block");
@@ -830,7 +830,7 @@ mod tests {
 
     #[test]
     fn a_block_without_its_fragment_is_an_orphan() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let fam = ColumnFamily::open(tmp.path(), meta()).expect("open");
         let rows = fam.commit_block(&[pending(0)]).expect("block");
         let id = Path::new(&rows[0].block).file_stem().and_then(|s| s.to_str()).expect("id").to_string();
@@ -842,7 +842,7 @@ mod tests {
 
     #[test]
     fn a_family_with_other_shapes_is_refused() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         ColumnFamily::open(tmp.path(), meta()).expect("open");
         let mut other = meta();
         other.n_dof = 6;

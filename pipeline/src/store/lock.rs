@@ -59,7 +59,7 @@ mod tests {
     /// descriptions, as separate processes would have).
     #[test]
     fn shared_locks_coexist_and_exclude_the_writer() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let a = StoreLock::acquire_shared(tmp.path()).expect("first worker");
         let b = StoreLock::acquire_shared(tmp.path()).expect("second worker");
         assert!(matches!(StoreLock::acquire(tmp.path()), Err(CromError::Locked { .. })));

@@ -288,7 +288,7 @@ mod tests {
 
     #[test]
     fn names_resolve_swap_and_keep_one_previous_version() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let root = tmp.path();
         for (k, c) in [("k1", "one"), ("k2", "two"), ("k3", "three")] {
             target(root, k, c);
@@ -322,7 +322,7 @@ mod tests {
 
     #[test]
     fn a_missing_target_publishes_nothing_and_keeps_the_old_names() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let root = tmp.path();
         target(root, "k1", "one");
         publish(root, &study("s", &[("a.h5", "k1")])).expect("publish");
@@ -334,7 +334,7 @@ mod tests {
 
     #[test]
     fn withdrawing_an_artifact_removes_its_names_only() {
-        let tmp = tempfile::tempdir().expect("tempdir");
+        let tmp = crate::scratch::tempdir().expect("tempdir");
         let root = tmp.path();
         target(root, "k1", "one");
         target(root, "k2", "two");
