@@ -54,5 +54,6 @@ pub mod rope;
 pub mod running_stats;
 pub mod shipped;
 pub mod snapshot;
+pub mod solid;
 #[cfg(test)]
 mod testing;
