@@ -39,6 +39,7 @@ pub mod blocks;
 pub mod condition;
 pub mod cone;
 pub mod contact;
+pub mod contact3d;
 pub mod dual;
 pub mod fem;
 pub mod float_cmp;
