@@ -221,6 +221,7 @@ fn load_scene(cli: &Cli, scene_arg: &str) -> Result<SceneConfig, CromError> {
     let path = scenes::resolve(scene_arg, &cli.scenes)?;
     let mut scene = SceneConfig::load(&path)?;
     external::resolve(&mut scene, &path)?;
+    physics::check_geometry(&scene, &path)?;
     let limit = match cli.max_memory {
         Some(b) => Some((b, "the --max-memory setting allows")),
         None => resources::available_bytes().map(|b| (b, "are available on this machine (MemAvailable)")),

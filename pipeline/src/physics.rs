@@ -5,6 +5,7 @@
 use crom_schemas::scene::Model;
 use crom_schemas::SceneConfig;
 use crom_stages::contact::{build_hertz, build_ironing, ContactSolveParams, FactoredModel, HertzParams, IroningParams};
+use crom_stages::contact3d::{build_hertz3d, build_ironing3d, Factored3d, Hertz3dParams, Ironing3dParams};
 use crom_stages::rom::ContactOperator;
 use crom_stages::rope::{self, Rope, RopeParams, RopeSolveParams};
 use crom_stages::snapshot::Snapshot;
@@ -12,11 +13,13 @@ use crom_stages::snapshot::Snapshot;
 /// The discretisation as stored in the mesh artifact.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MeshData {
-    /// Node coordinates `(x, y)` (1-D meshes have `y = 0`).
-    pub nodes: Vec<[f64; 2]>,
+    /// Coordinates per node: 2 (`(x, y)`; 1-D meshes have `y = 0`) or 3.
+    pub dim: usize,
+    /// Node coordinates, the first `dim` of each used (the rest 0).
+    pub nodes: Vec<[f64; 3]>,
     /// Cells, `nodes_per_cell` node ids each.
     pub cells: Vec<Vec<u64>>,
-    /// 2 (line) or 4 (quad).
+    /// 2 (line), 4 (quad) or 8 (hexahedron).
     pub nodes_per_cell: usize,
     /// Potential-contact nodes, in the order of the dual field.
     pub contact_nodes: Vec<u64>,
@@ -34,6 +37,9 @@ pub enum Physics {
     Rope(Rope, RopeSolveParams),
     /// A 2-D two-body contact problem (hertz, ironing), factored once.
     Contact(Box<FactoredModel>, ContactSolveParams),
+    /// A 3-D two-body contact problem (hertz3d, ironing3d), factored once. It has no operator
+    /// for the online reduced solve ([`Physics::operator`]).
+    Contact3d(Box<Factored3d>, ContactSolveParams),
 }
 
 impl std::fmt::Debug for Physics {
@@ -41,6 +47,7 @@ impl std::fmt::Debug for Physics {
         match self {
             Physics::Rope(r, _) => write!(f, "Physics::Rope({} nodes)", r.n_nodes()),
             Physics::Contact(m, _) => write!(f, "Physics::Contact({} dofs)", m.model().n_dof()),
+            Physics::Contact3d(m, _) => write!(f, "Physics::Contact3d({} dofs)", m.model().n_dof()),
         }
     }
 }
@@ -64,6 +71,8 @@ impl Physics {
             )),
             Model::Hertz(h) => contact(build_hertz(&HertzParams::from(h)), scene),
             Model::Ironing(i) => contact(build_ironing(&IroningParams::from(i)), scene),
+            Model::Hertz3d(h) => contact3d(build_hertz3d(&Hertz3dParams::from(h)), scene),
+            Model::Ironing3d(i) => contact3d(build_ironing3d(&Ironing3dParams::from(i)), scene),
             Model::External(_) => {
                 Err("an external scene has no full-order model (its snapshots come from files)".to_string())
             }
@@ -80,6 +89,10 @@ impl Physics {
                 primal: "length (displacement, (ux, uy) interleaved per node, both bodies)",
                 dual: "force per unit length (contact pressure at the slave nodes)",
             },
+            Physics::Contact3d(..) => Units {
+                primal: "length (displacement, (ux, uy, uz) interleaved per node, both bodies)",
+                dual: "force per unit area (contact pressure at the slave nodes)",
+            },
         }
     }
 
@@ -89,7 +102,8 @@ impl Physics {
             Physics::Rope(r, _) => {
                 let n = r.n_nodes();
                 MeshData {
-                    nodes: r.x.iter().map(|&x| [x, 0.0]).collect(),
+                    dim: 2,
+                    nodes: r.x.iter().map(|&x| [x, 0.0, 0.0]).collect(),
                     cells: (0..n as u64 - 1).map(|i| vec![i, i + 1]).collect(),
                     nodes_per_cell: 2,
                     contact_nodes: (0..n as u64).collect(),
@@ -102,7 +116,8 @@ impl Physics {
                 let model = f.model();
                 let m = model.mesh();
                 MeshData {
-                    nodes: m.nodes.clone(),
+                    dim: 2,
+                    nodes: m.nodes.iter().map(|p| [p[0], p[1], 0.0]).collect(),
                     cells: m.quads.iter().map(|q| q.iter().map(|&i| i as u64).collect()).collect(),
                     nodes_per_cell: 4,
                     contact_nodes: model.slave_nodes().iter().map(|&i| i as u64).collect(),
@@ -111,15 +126,45 @@ impl Physics {
                     dofs_per_node: 2,
                 }
             }
+            Physics::Contact3d(f, _) => {
+                let model = f.model();
+                let m = model.mesh();
+                MeshData {
+                    dim: 3,
+                    nodes: m.nodes.clone(),
+                    cells: m.hexes.iter().map(|h| h.iter().map(|&i| i as u64).collect()).collect(),
+                    nodes_per_cell: 8,
+                    contact_nodes: model.slave_nodes().iter().map(|&i| i as u64).collect(),
+                    node_body: m.node_body.iter().map(|&b| b as u64).collect(),
+                    cell_body: m.element_body.iter().map(|&b| b as u64).collect(),
+                    dofs_per_node: 3,
+                }
+            }
         }
     }
 
-    /// The model as the online reduced solve sees it.
-    pub fn operator(&self) -> &dyn ContactOperator {
+    /// The model as the online reduced solve sees it; `None` for a 3-D model (the online
+    /// solve handles node-to-segment contact only, and a 3-D scene's plan has no online stage).
+    pub fn operator(&self) -> Option<&dyn ContactOperator> {
         match self {
-            Physics::Rope(r, _) => r,
-            Physics::Contact(f, _) => f.as_ref(),
+            Physics::Rope(r, _) => Some(r),
+            Physics::Contact(f, _) => Some(f.as_ref()),
+            Physics::Contact3d(..) => None,
         }
+    }
+
+    /// [`Self::operator`] for a stage that exists only in a plan with online stages: a 3-D
+    /// model here is a planning error, reported as the stage's numerical failure.
+    pub fn online_operator(
+        &self,
+        stage: &'static str,
+        scene: &str,
+    ) -> Result<&dyn ContactOperator, crate::error::CromError> {
+        self.operator().ok_or_else(|| crate::error::CromError::Numerical {
+            stage,
+            scene: scene.to_string(),
+            message: "a 3-D model has no operator for the online reduced solve".into(),
+        })
     }
 
     /// Rows of the primal and dual fields (n_dof, n_contact).
@@ -127,6 +172,7 @@ impl Physics {
         match self {
             Physics::Rope(r, _) => (r.n_nodes(), r.n_nodes()),
             Physics::Contact(f, _) => (f.model().n_dof(), f.model().slave_nodes().len()),
+            Physics::Contact3d(f, _) => (f.model().n_dof(), f.model().slave_nodes().len()),
         }
     }
 
@@ -138,8 +184,55 @@ impl Physics {
                 _ => Err(format!("the rope has one parameter, got {}", mu.len())),
             },
             Physics::Contact(f, p) => f.solve(mu, p).map_err(|e| e.to_string()),
+            Physics::Contact3d(f, p) => f.solve(mu, p).map_err(|e| e.to_string()),
         }
     }
+}
+
+/// The checks of a 3-D model that need its mesh but not its stiffness — every element's
+/// Jacobian, the contact region holding a slave, every symmetry plane holding nodes and no body
+/// left free in a rigid motion — made when the scene is loaded, before anything is written: a
+/// failure is the scene file's (exit 2, naming the field). Nothing for other models (their
+/// validation covers them).
+pub fn check_geometry(scene: &SceneConfig, path: &std::path::Path) -> Result<(), crate::error::CromError> {
+    use crom_stages::contact::ModelError;
+    let (kind, checked) = match &scene.model {
+        Model::Hertz3d(h) => ("hertz3d", crom_stages::contact3d::check_hertz3d(&Hertz3dParams::from(h))),
+        Model::Ironing3d(i) => ("ironing3d", crom_stages::contact3d::check_ironing3d(&Ironing3dParams::from(i))),
+        _ => return Ok(()),
+    };
+    let Err(e) = checked else { return Ok(()) };
+    let (field, fix) = match &e {
+        ModelError::BadParameter { field: "symmetry", .. } => (
+            format!("model.{kind}.symmetry"),
+            "declare the symmetry planes of the model (hertz3d: x = 0 and y = 0; ironing3d: y = 0), each through nodes of the mesh",
+        ),
+        ModelError::BadParameter { field: "slaves", .. } => (
+            format!("model.{kind}.{}", if kind == "hertz3d" { "contact_radius" } else { "slaves" }),
+            "enlarge the contact region so that it holds slave nodes",
+        ),
+        ModelError::BadParameter { field, .. } => (format!("model.{kind}.{field}"), "change this value"),
+        _ => (format!("model.{kind}"), "check the model's sizes"),
+    };
+    let problem = match e {
+        ModelError::BadParameter { msg, .. } => msg,
+        other => other.to_string(),
+    };
+    Err(crate::error::CromError::Scene(crom_schemas::SceneError::Invalid {
+        path: path.to_path_buf(),
+        field,
+        problem,
+        fix: fix.to_string(),
+    }))
+}
+
+fn contact3d(
+    built: Result<crom_stages::contact3d::Model3d, crom_stages::contact::ModelError>,
+    scene: &SceneConfig,
+) -> Result<Physics, String> {
+    let factored = built.and_then(|m| m.factor()).map_err(|e| e.to_string())?;
+    let params = ContactSolveParams { rel_tol: scene.solver.rel_tol, max_iter: scene.solver.max_iter };
+    Ok(Physics::Contact3d(Box::new(factored), params))
 }
 
 fn contact(

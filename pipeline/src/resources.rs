@@ -15,6 +15,9 @@
 //!   12 bytes per entry, 2.5 times too little at 1.5 million dofs: a mesh that could not fit
 //!   would have been let through (found by the stress matrix's finest-mesh row,
 //!   docs/design-notes.md#resource-limits-are-checked-from-the-scene-file);
+//!   A 3-D (hexahedral) stiffness has 81 entries per row and a fill-reducing factor of a 3-D
+//!   mesh grows as `n^(4/3)`: `f = 15 n^(1/3)`, measured on ironing3d at 109 431 dofs (a peak of
+//!   1.53 GB with the Delassus operator, `stages/examples/bench_contact3d.rs`);
 //! - the Delassus operator on the contact dofs, `8 c^2`, and one solver's condensed work
 //!   `8 (c s + s^2)` per thread (two threads);
 //! - the largest stage's snapshot matrices: the online stage's training and test sets plus
@@ -72,17 +75,20 @@ pub fn estimate(scene: &SceneConfig) -> Vec<Term> {
     let n_train: f64 = p.train_points().len() as f64;
     let n_test: f64 = p.test_points().len() as f64;
     let level = p.nested_levels as f64;
-    let fill = 10.0 * n.max(2.0).log2();
+    // a 3-D hexahedral stiffness: 81 entries per row, and a factor that grows as n^(4/3)
+    let (row, fill) =
+        if scene.model.is_3d() { (81.0, 15.0 * n.max(2.0).cbrt()) } else { (18.0, 10.0 * n.max(2.0).log2()) };
     let mut terms = vec![
         Term {
             field: mesh_field,
             what: "stiffness matrix and its sparse factor",
-            bytes: (12.0 * 18.0 + 16.0 * fill) * n,
+            bytes: (12.0 * row + 16.0 * fill) * n,
         },
         Term { field: contact_field, what: "Delassus operator on the contact dofs", bytes: 8.0 * c * c },
         Term { field: contact_field, what: "contact solver work (2 threads)", bytes: 2.0 * 8.0 * (c * s + s * s) },
     ];
-    let online = 8.0 * n * (n_train + n_test + 3.0 * n_train);
+    // a 3-D scene has no online stage
+    let online = if scene.model.is_3d() { 0.0 } else { 8.0 * n * (n_train + n_test + 3.0 * n_train) };
     let nested = 8.0 * n * (2f64.powf(level) + 2f64.powf(level - 1.0) + 2.0);
     let (metrics_what, metrics) = metrics_term(n, c, n_train);
     let train = train_field(scene);
@@ -182,6 +188,23 @@ fn sizes(scene: &SceneConfig) -> (f64, f64, f64, &'static str, &'static str) {
             };
             let contact_field = if snx >= inx { "model.ironing.slab.nx" } else { "model.ironing.iron.nx" };
             (2.0 * (slab + iron), 2.0 * (snx + inx + 2.0), snx + 1.0, mesh_field, contact_field)
+        }
+        Model::Hertz3d(h) => {
+            // two octant blocks of (n + 1)^3 nodes; slaves and masters at most a cap each
+            let side = h.n as f64 + 1.0;
+            let cap = side * side * (h.contact_radius / h.radius).min(1.0).powi(2).max(1.0 / (side * side));
+            (2.0 * 3.0 * side.powi(3), 3.0 * 2.0 * cap, cap, "model.hertz3d.n", "model.hertz3d.contact_radius")
+        }
+        Model::Ironing3d(i) => {
+            let (b, d, s) = (&i.block, &i.die, &i.slaves);
+            let block = (b.nx as f64 + 1.0) * (b.ny as f64 + 1.0) * (b.nz as f64 + 1.0);
+            let die = (d.nx as f64 + 1.0) * (d.ny as f64 + 1.0) * (d.nz as f64 + 1.0);
+            let fx = ((s.x_max.min(b.length) - s.x_min.max(0.0)) / b.length).clamp(0.0, 1.0);
+            let fy = (s.y_max / b.depth).clamp(0.0, 1.0);
+            let slaves = ((b.nx as f64 + 1.0) * fx).ceil() * ((b.ny as f64 + 1.0) * fy).ceil();
+            let masters = (d.nx as f64 + 1.0) * (d.ny as f64 + 1.0);
+            let mesh_field = if block >= die { "model.ironing3d.block.nx" } else { "model.ironing3d.die.nx" };
+            (3.0 * (block + die), 3.0 * (slaves + masters), slaves, mesh_field, "model.ironing3d.slaves")
         }
         Model::External(e) => {
             // From the files' headers (read when the scene was loaded).

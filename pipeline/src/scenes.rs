@@ -67,6 +67,11 @@ fn locking(scene: &crom_schemas::SceneConfig) -> Vec<String> {
         Model::Ironing(i) => {
             vec![("model.ironing.slab.material", &i.slab.material), ("model.ironing.iron.material", &i.iron.material)]
         }
+        Model::Hertz3d(h) => vec![("model.hertz3d.material", &h.material)],
+        Model::Ironing3d(i) => vec![
+            ("model.ironing3d.block.material", &i.block.material),
+            ("model.ironing3d.die.material", &i.die.material),
+        ],
     };
     bodies
         .into_iter()

@@ -5,7 +5,7 @@
 //! [scene]
 //! name = "rope"
 //! description = "..."
-//! [model.rope]          # exactly one of model.rope / model.hertz / model.ironing / model.external
+//! [model.rope]          # exactly one of model.rope / hertz / ironing / hertz3d / ironing3d / external
 //! ...
 //! [parameter]           # the scalar parameter and its training grid
 //! [solver]              # high-fidelity solver settings
@@ -93,19 +93,31 @@ pub enum Model {
     Hertz(HertzSpec),
     /// An iron sliding on a slab (Type-2, paper Sec. 5.2).
     Ironing(IroningSpec),
+    /// Two hemispheres pressed together, in 3-D (quarter model).
+    Hertz3d(Hertz3dSpec),
+    /// A die with a cylindrical sole slid along a block, in 3-D (half model).
+    Ironing3d(Ironing3dSpec),
     /// Snapshots computed elsewhere, read from files ([`crate::external`]).
     External(Box<crate::external::ExternalSpec>),
 }
 
 impl Model {
-    /// `rope`, `hertz` or `ironing`.
+    /// `rope`, `hertz`, `ironing`, `hertz3d`, `ironing3d` or `external`.
     pub fn kind(&self) -> &'static str {
         match self {
             Model::Rope(_) => "rope",
             Model::Hertz(_) => "hertz",
             Model::Ironing(_) => "ironing",
+            Model::Hertz3d(_) => "hertz3d",
+            Model::Ironing3d(_) => "ironing3d",
             Model::External(_) => "external",
         }
+    }
+
+    /// Whether the model is three-dimensional (hexahedra, node-to-surface contact). Its study
+    /// has no online stages yet: the online reduced solve handles node-to-segment contact only.
+    pub fn is_3d(&self) -> bool {
+        matches!(self, Model::Hertz3d(_) | Model::Ironing3d(_))
     }
 
     /// The external scene's description, if this is one.
@@ -239,6 +251,133 @@ pub struct IronSpec {
     pub ny: usize,
     /// Material.
     pub material: MaterialSpec,
+}
+
+/// `hertz3d`: two equal hemispheres (radius `radius`) touching at the origin, quarter model with
+/// the symmetry planes `x = 0` and `y = 0`; the parameter `d` is the approach of the flat faces.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Hertz3dSpec {
+    /// Radius of both hemispheres.
+    pub radius: f64,
+    /// Material of both bodies.
+    pub material: MaterialSpec,
+    /// Elements along each direction of each quarter hemisphere's block.
+    pub n: usize,
+    /// Grading of the elements toward the pole (1: uniform; 3 puts six slaves inside a contact
+    /// radius of 0.05 R at n = 16).
+    pub grading: f64,
+    /// Slave nodes and master facets lie within this distance of the axis.
+    pub contact_radius: f64,
+    /// Symmetry planes, roller conditions (the quarter model's: `x = 0` and `y = 0`).
+    pub symmetry: Vec<PlaneSpec>,
+}
+
+/// A symmetry plane `axis = at`: the displacement normal to it is zero on every node of it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneSpec {
+    /// The plane's normal axis.
+    pub axis: Axis,
+    /// Where it lies on that axis.
+    pub at: f64,
+}
+
+/// A coordinate axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Axis {
+    /// x.
+    X,
+    /// y.
+    Y,
+    /// z.
+    Z,
+}
+
+impl Axis {
+    /// 0, 1 or 2.
+    pub fn index(self) -> usize {
+        match self {
+            Axis::X => 0,
+            Axis::Y => 1,
+            Axis::Z => 2,
+        }
+    }
+}
+
+/// `ironing3d`: a die with a cylindrical sole (axis along y) pressed into a block and slid
+/// along x by `d_x`, half model with the symmetry plane `y = 0`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ironing3dSpec {
+    /// The block `[0, length] x [0, depth] x [-height, 0]`.
+    pub block: Block3dSpec,
+    /// The die.
+    pub die: DieSpec,
+    /// Imposed downward displacement of the die's top; absent when `d_z` is a parameter axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub d_z: Option<f64>,
+    /// The slave nodes: the block-top nodes with `x_min <= x <= x_max` and `y <= y_max`.
+    pub slaves: SlaveBoxSpec,
+    /// Symmetry planes, roller conditions (the half model's: `y = 0`).
+    pub symmetry: Vec<PlaneSpec>,
+}
+
+/// The block of `ironing3d`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Block3dSpec {
+    /// Length along x.
+    pub length: f64,
+    /// Depth along y (the half model's; the symmetry plane is y = 0).
+    pub depth: f64,
+    /// Height (the block spans z in [-height, 0]).
+    pub height: f64,
+    /// Elements along x.
+    pub nx: usize,
+    /// Elements along y.
+    pub ny: usize,
+    /// Elements along z.
+    pub nz: usize,
+    /// Material.
+    pub material: MaterialSpec,
+}
+
+/// The die of `ironing3d`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DieSpec {
+    /// Width along x.
+    pub width: f64,
+    /// Depth along y (from the symmetry plane).
+    pub depth: f64,
+    /// Height from the sole's lowest line to the flat top.
+    pub height: f64,
+    /// Radius of the sole's cylinder (axis along y).
+    pub sole_radius: f64,
+    /// x of the sole's lowest line in the reference position (it touches the block there).
+    pub contact_x: f64,
+    /// Elements along x.
+    pub nx: usize,
+    /// Elements along y.
+    pub ny: usize,
+    /// Elements along z.
+    pub nz: usize,
+    /// Material.
+    pub material: MaterialSpec,
+}
+
+/// The box of block-top nodes that are slaves.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlaveBoxSpec {
+    /// Least x.
+    pub x_min: f64,
+    /// Greatest x.
+    pub x_max: f64,
+    /// Greatest y.
+    pub y_max: f64,
 }
 
 /// High-fidelity solver settings.

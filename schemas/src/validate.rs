@@ -7,8 +7,8 @@ use std::path::Path;
 use crate::comparison::{ApproximationSpec, BasisSpec, ComparisonSpec, InterpolationSpec, MapSpec};
 use crate::external::{ArraySource, ExternalSpec, ParameterSource};
 use crate::scene::{
-    ContactSamplingSpec, HertzSpec, IroningSpec, MaterialSpec, Model, RopeSpec, SceneConfig, SolverSpec, StudySpec,
-    MODEL_DUAL_CPG,
+    ContactSamplingSpec, Hertz3dSpec, HertzSpec, Ironing3dSpec, IroningSpec, MaterialSpec, Model, RopeSpec,
+    SceneConfig, SolverSpec, StudySpec, MODEL_DUAL_CPG,
 };
 use crate::SceneError;
 
@@ -162,6 +162,9 @@ impl SceneConfig {
         self.check_parameter(&c)?;
         check_solver(&c, &self.solver)?;
         check_study(&c, &self.study)?;
+        if self.model.is_3d() {
+            check_3d_study(&c, self)?;
+        }
         if let Some(e) = &self.executor {
             check_slurm(&c, &e.slurm)?;
         }
@@ -183,6 +186,8 @@ impl SceneConfig {
             Model::Rope(r) => check_rope(&c, r),
             Model::Hertz(h) => check_hertz(&c, h),
             Model::Ironing(i) => check_ironing(&c, i),
+            Model::Hertz3d(h) => check_hertz3d(&c, h),
+            Model::Ironing3d(i) => check_ironing3d(&c, i),
             Model::External(_) => unreachable!("returned above"),
         }
     }
@@ -205,6 +210,8 @@ impl SceneConfig {
             Model::Rope(_) => &[&["gamma"]],
             Model::Hertz(_) => &[&["d"]],
             Model::Ironing(_) => &[&["d_x"], &["d_x", "d_y"]],
+            Model::Hertz3d(_) => &[&["d"]],
+            Model::Ironing3d(_) => &[&["d_x"], &["d_x", "d_z"]],
             Model::External(_) => return Ok(()),
         };
         if !allowed.contains(&names.as_slice()) {
@@ -237,6 +244,25 @@ impl SceneConfig {
                 ),
                 &format!("keep every point set at most {limit} points (fewer training points, levels or axes)"),
             ));
+        }
+        if let Model::Ironing3d(i) = &self.model {
+            match (i.d_z, names.contains(&"d_z")) {
+                (Some(_), true) => {
+                    return Err(c.fail(
+                        "model.ironing3d.d_z",
+                        "is given, but d_z is also a parameter axis".into(),
+                        "remove model.ironing3d.d_z (the axis sets it) or the d_z axis",
+                    ))
+                }
+                (None, false) => {
+                    return Err(c.fail(
+                        "model.ironing3d.d_z",
+                        "is missing".into(),
+                        "give the die's downward displacement, e.g. d_z = 0.04, or make d_z a parameter axis",
+                    ))
+                }
+                _ => {}
+            }
         }
         if let Model::Ironing(i) = &self.model {
             match (i.d_y, names.contains(&"d_y")) {
@@ -488,6 +514,8 @@ const MAX_LEVEL: u32 = 17;
 
 /// Largest element count along one edge of a mesh (rope, Hertz arc, ironing slab and iron).
 pub const MAX_ELEMENTS_PER_EDGE: usize = 100_000;
+/// Elements along one edge of a 3-D block (the memory estimate of the pipeline judges what fits).
+pub const MAX_ELEMENTS_PER_EDGE_3D: usize = 2_000;
 /// Largest number of rope elements.
 pub const MAX_ROPE_ELEMENTS: usize = 10_000_000;
 /// Largest iteration budget, specificity sample count, basis size or fold count.
@@ -640,6 +668,143 @@ fn check_ironing(c: &Checker<'_>, i: &IroningSpec) -> Result<(), SceneError> {
         Some(d) => c.finite("model.ironing.d_y", d),
         None => Ok(()),
     }
+}
+
+fn check_hertz3d(c: &Checker<'_>, h: &Hertz3dSpec) -> Result<(), SceneError> {
+    let at = "model.hertz3d";
+    c.positive(&format!("{at}.radius"), h.radius)?;
+    c.material(&format!("{at}.material"), &h.material)?;
+    c.between(&format!("{at}.n"), h.n, 2, MAX_ELEMENTS_PER_EDGE_3D)?;
+    c.finite(&format!("{at}.grading"), h.grading)?;
+    if !(1.0..=6.0).contains(&h.grading) {
+        return Err(c.fail(
+            &format!("{at}.grading"),
+            format!("is {}; it is the exponent that clusters elements toward the pole", h.grading),
+            "give a value from 1 (uniform) to 6, e.g. 3",
+        ));
+    }
+    check_planes(c, &format!("{at}.symmetry"), &h.symmetry)?;
+    c.positive(&format!("{at}.contact_radius"), h.contact_radius)?;
+    if h.contact_radius > h.radius {
+        return Err(c.fail(
+            &format!("{at}.contact_radius"),
+            format!("is {}, beyond the radius {}", h.contact_radius, h.radius),
+            "give a contact radius at most the radius (a few times the largest contact radius a(d) = sqrt(R d / 2))",
+        ));
+    }
+    Ok(())
+}
+
+fn check_ironing3d(c: &Checker<'_>, i: &Ironing3dSpec) -> Result<(), SceneError> {
+    let (b, d, s) = (&i.block, &i.die, &i.slaves);
+    check_planes(c, "model.ironing3d.symmetry", &i.symmetry)?;
+    for (f, v) in [("block.length", b.length), ("block.depth", b.depth), ("block.height", b.height)] {
+        c.positive(&format!("model.ironing3d.{f}"), v)?;
+    }
+    for (f, n) in [
+        ("block.nx", b.nx),
+        ("block.ny", b.ny),
+        ("block.nz", b.nz),
+        ("die.nx", d.nx),
+        ("die.ny", d.ny),
+        ("die.nz", d.nz),
+    ] {
+        c.between(&format!("model.ironing3d.{f}"), n, 1, MAX_ELEMENTS_PER_EDGE_3D)?;
+    }
+    c.material("model.ironing3d.block.material", &b.material)?;
+    for (f, v) in
+        [("die.width", d.width), ("die.depth", d.depth), ("die.height", d.height), ("die.sole_radius", d.sole_radius)]
+    {
+        c.positive(&format!("model.ironing3d.{f}"), v)?;
+    }
+    c.material("model.ironing3d.die.material", &d.material)?;
+    if d.sole_radius <= 0.5 * d.width {
+        return Err(c.fail(
+            "model.ironing3d.die.sole_radius",
+            format!("is {}, but the sole spans the width {}", d.sole_radius, d.width),
+            "give a sole radius larger than half the die's width",
+        ));
+    }
+    if d.depth > b.depth {
+        return Err(c.fail(
+            "model.ironing3d.die.depth",
+            format!("is {}, deeper than the block ({})", d.depth, b.depth),
+            "give the die a depth at most the block's",
+        ));
+    }
+    let edge_rise = d.sole_radius - (d.sole_radius * d.sole_radius - 0.25 * d.width * d.width).max(0.0).sqrt();
+    if d.height <= edge_rise {
+        return Err(c.fail(
+            "model.ironing3d.die.height",
+            format!("is {}, not above the sole's rise {edge_rise:.4} at the die's edges: its elements there would be inverted", d.height),
+            "give the die a height above the sole's rise (a larger height or sole_radius)",
+        ));
+    }
+    c.finite("model.ironing3d.die.contact_x", d.contact_x)?;
+    if !(d.contact_x > 0.0 && d.contact_x < b.length) {
+        return Err(c.fail(
+            "model.ironing3d.die.contact_x",
+            format!("is {}, off the block [0, {}]", d.contact_x, b.length),
+            "put the sole's lowest line over the block",
+        ));
+    }
+    for (f, v) in [("slaves.x_min", s.x_min), ("slaves.x_max", s.x_max), ("slaves.y_max", s.y_max)] {
+        c.finite(&format!("model.ironing3d.{f}"), v)?;
+    }
+    if s.x_max <= s.x_min || s.y_max <= 0.0 {
+        return Err(c.fail(
+            "model.ironing3d.slaves",
+            format!("is the box x in [{}, {}], y <= {}: empty", s.x_min, s.x_max, s.y_max),
+            "give x_min < x_max and y_max > 0, covering the block top the die travels over",
+        ));
+    }
+    if let Some(dz) = i.d_z {
+        c.finite("model.ironing3d.d_z", dz)?;
+        let rise = d.sole_radius - (d.sole_radius * d.sole_radius - 0.25 * d.width * d.width).max(0.0).sqrt();
+        if dz >= rise {
+            return Err(c.fail(
+                "model.ironing3d.d_z",
+                format!("is {dz}, not below the rise {rise:.4} of the die's sole: its edges, not its sole, would meet the block, and the contact model has only the sole"),
+                &format!("press less than {rise:.4}, or give the sole more rise (a smaller sole_radius or a wider die)"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Symmetry planes: finite positions, no plane twice.
+fn check_planes(c: &Checker<'_>, at: &str, planes: &[crate::scene::PlaneSpec]) -> Result<(), SceneError> {
+    for (i, p) in planes.iter().enumerate() {
+        c.finite(&format!("{at}[{i}].at"), p.at)?;
+        if planes[..i].iter().any(|q| q.axis == p.axis && q.at.to_bits() == p.at.to_bits()) {
+            return Err(c.fail(&format!("{at}[{i}]"), "repeats an earlier plane".into(), "list each plane once"));
+        }
+    }
+    Ok(())
+}
+
+/// A 3-D scene: no online stage yet (the online reduced solve handles node-to-segment contact),
+/// so nothing that asks for one; and no registered approximation (its maps act along a contact
+/// curve, a 3-D scene's contact is an area).
+fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError> {
+    let why = "the online reduced solve handles node-to-segment contact (2-D) only; a 3-D scene's study stops before the online stages";
+    if scene.study.contact_sampling.is_some() {
+        return Err(c.fail("study.contact_sampling", format!("is set, but {why}"), "remove study.contact_sampling"));
+    }
+    if scene.study.model_dual.is_some() || scene.study.model_ranks.is_some() {
+        let field = if scene.study.model_dual.is_some() { "study.model_dual" } else { "study.model_ranks" };
+        return Err(c.fail(field, format!("is set, but {why} (a stored model needs it)"), &format!("remove {field}")));
+    }
+    if let Some(cmp) = &scene.comparison {
+        if let Some(i) = cmp.approximations.iter().position(|a| matches!(a, ApproximationSpec::Registered { .. })) {
+            return Err(c.fail(
+                &format!("comparison.approximations[{i}]"),
+                "is a registered approximation; its maps act along a contact curve parametrised by x, and a 3-D scene's contact is an area".into(),
+                "remove the registered entries from a 3-D scene's comparison",
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// `study.model_dual`: `cpg` or the name of a registered CPG approximation of `[comparison]`.

@@ -46,11 +46,28 @@ fn every_shipped_scene_loads_and_matches_scenes_md() {
                 assert_eq!((i.d_y, cfg.parameter.names()), (None, vec!["d_x", "d_y"]));
                 assert_eq!(cfg.parameter.train_points().len(), 65 * 17);
             }
+            (Model::Hertz3d(h), "hertz-3d") => {
+                // docs/scenes.md#hertz-3d: 16 elements a side graded with exponent 3, d up to 0.01
+                assert_eq!(
+                    (h.n, h.grading.to_bits(), h.contact_radius.to_bits()),
+                    (16, 3f64.to_bits(), 0.25f64.to_bits())
+                );
+                assert_eq!(cfg.parameter.train_points().len(), 12);
+            }
+            (Model::Ironing3d(i), "ironing-3d") => {
+                // docs/scenes.md#ironing-3d: 100 x 15 x 20 and 20 x 10 x 10 elements, 129 points
+                assert_eq!((i.block.nx, i.block.ny, i.block.nz), (100, 15, 20));
+                assert_eq!((i.die.nx, i.die.ny, i.die.nz), (20, 10, 10));
+                assert_eq!(cfg.parameter.train_points().len(), 129);
+            }
             (m, n) => panic!("scene {n} has unexpected model {}", m.kind()),
         }
     }
     names.sort();
-    assert_eq!(names, ["hertz", "hertz-fine", "ironing-coarse", "ironing-fine", "ironing-fine-2d", "rope"]);
+    assert_eq!(
+        names,
+        ["hertz", "hertz-3d", "hertz-fine", "ironing-3d", "ironing-coarse", "ironing-fine", "ironing-fine-2d", "rope"]
+    );
 }
 
 fn assert_names(err: &SceneError, needles: &[&str]) {

@@ -25,6 +25,7 @@ fn main() {
         contact_x: 1.0,
         d_z: Some(0.04),
         slave_box: [0.5, 4.5, 0.55],
+        planes: vec![crom_stages::solid::symmetry::Plane { axis: 1, at: 0.0 }],
     };
     let t = Instant::now();
     let model = build_ironing3d(&p).expect("model");

@@ -16,6 +16,6 @@ pub fn shipped_contact_model(name: &str) -> crate::contact::ContactModel {
     match &scene.model {
         Model::Hertz(h) => build_hertz(&HertzParams::from(h)).expect("hertz scene"),
         Model::Ironing(i) => build_ironing(&IroningParams::from(i)).expect("ironing scene"),
-        Model::Rope(_) | Model::External(_) => panic!("{name} is not a 2-D contact scene"),
+        _ => panic!("{name} is not a 2-D contact scene"),
     }
 }

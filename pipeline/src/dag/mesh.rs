@@ -71,7 +71,7 @@ pub(crate) fn run(
     ctx.single(ArtifactKind::Mesh, "mesh", spec, |staging| {
         let phys = physics.get()?;
         let m = phys.mesh();
-        let condition = phys.operator().stiffness_condition();
+        let condition = phys.operator().and_then(|op| op.stiffness_condition());
         let path = staging.path(names::FILE);
         let f = H5Out::create(&path)?;
         f.attr_str("scene", scene)?;
@@ -84,8 +84,8 @@ pub(crate) fn run(
             f.attr_f64(names::STIFFNESS_LAMBDA_MIN, c.lambda_min)?;
             f.attr_f64(names::STIFFNESS_CONDITION, c.ratio())?;
         }
-        let flat: Vec<f64> = m.nodes.iter().flat_map(|p| p.iter().copied()).collect();
-        f.table_f64(names::NODES, m.nodes.len(), 2, &flat, "length")?;
+        let flat: Vec<f64> = m.nodes.iter().flat_map(|p| p[..m.dim].iter().copied()).collect();
+        f.table_f64(names::NODES, m.nodes.len(), m.dim, &flat, "length")?;
         let cells: Vec<u64> = m.cells.iter().flatten().copied().collect();
         f.table_u64(names::CELLS, m.cells.len(), m.nodes_per_cell, &cells)?;
         f.vec_u64(names::CONTACT_NODES, &m.contact_nodes)?;
@@ -95,7 +95,7 @@ pub(crate) fn run(
         write_mesh_xdmf(
             &staging.path(names::XDMF),
             names::FILE,
-            (m.nodes.len(), 2),
+            (m.nodes.len(), m.dim),
             m.cells.len(),
             m.nodes_per_cell,
             &[names::CELL_BODY],

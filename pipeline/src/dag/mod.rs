@@ -374,9 +374,9 @@ fn execute_in<'scope, 'env, 'a: 'env>(
 ) -> Result<RunOutput, CromError> {
     if plan.is_external() {
         ctx.progress.note(plan::external_skips(plan.node("mesh").is_some()));
-        for line in &plan.skipped {
-            ctx.progress.note(line);
-        }
+    }
+    for line in &plan.skipped {
+        ctx.progress.note(line);
     }
     let mut shared = Shared::new(scene);
     let mut keys: BTreeMap<&str, Key> = BTreeMap::new();
@@ -537,7 +537,11 @@ impl<'s> LazyPhysics<'s> {
                 return Ok(std::sync::Arc::clone(phi));
             }
         }
-        let phi = std::sync::Arc::new(rom::response_basis(self.get()?.operator(), train).map_err(fail)?);
+        let op = self
+            .get()?
+            .operator()
+            .ok_or_else(|| fail("a 3-D model has no operator for the online reduced solve".into()))?;
+        let phi = std::sync::Arc::new(rom::response_basis(op, train).map_err(fail)?);
         self.responses = Some((set.clone(), std::sync::Arc::clone(&phi)));
         Ok(phi)
     }
@@ -623,11 +627,15 @@ mod tests {
         let (a, b) = (Key("a".into()), Key("b".into()));
         let fail = |m: String| CromError::Numerical { stage: "rom", scene: "rope".into(), message: m };
         let first = physics.responses(&a, &one, fail).expect("basis");
-        let direct = rom::response_basis(physics.get().expect("rope").operator(), &one).expect("basis");
+        let direct =
+            rom::response_basis(physics.get().expect("rope").operator().expect("operator"), &one).expect("basis");
         assert_eq!(*first, direct);
         assert!(std::sync::Arc::ptr_eq(&first, &physics.responses(&a, &one, fail).expect("basis")), "not again");
         let other = physics.responses(&b, &two, fail).expect("basis");
         assert!(!std::sync::Arc::ptr_eq(&first, &other), "another set has its own");
-        assert_eq!(*other, rom::response_basis(physics.get().expect("rope").operator(), &two).expect("basis"));
+        assert_eq!(
+            *other,
+            rom::response_basis(physics.get().expect("rope").operator().expect("operator"), &two).expect("basis")
+        );
     }
 }

@@ -267,7 +267,7 @@ impl StageDef for ModelStage {
                 None => (phi, settings.params()),
             };
             let phys = physics.get()?;
-            let op = phys.operator();
+            let op = phys.online_operator("model", &labels.scene)?;
             let (model, algorithm, dual_basis) = match &pick.source {
                 Source::Exact { algorithm, dual_basis } => {
                     let bfile = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;

@@ -119,6 +119,9 @@ pub fn external_skips(has_mesh: bool) -> &'static str {
     }
 }
 
+/// The one line a 3-D scene's run prints about the stages it does not have.
+pub const SKIPS_3D: &str = "3-D scene: the online reduced solve, the trade-off, the online comparison and the stored model handle node-to-segment (2-D) contact only; skipped";
+
 /// The abscissae of an external scene's contact entries, for the registered approximations: the
 /// x of their mesh nodes (with a mesh), else the first coordinate of `coordinates`; or why there
 /// are none to use. The registration maps act along a contact curve parametrised by x, so the
@@ -236,6 +239,27 @@ impl Plan {
             let stage = GatherStage::plan(ArtifactKind::Comparison, ArtifactKind::Approximation, parts.clone());
             nodes.add("comparison", false, stage)
         });
+        if scene.model.is_3d() {
+            // no online stage for node-to-surface contact yet ([`SKIPS_3D`])
+            let shows = report::ReportInputs {
+                mesh: Some(mesh.key.clone()),
+                train: train.key.clone(),
+                basis: basis.key.clone(),
+                compactness: compactness.key.clone(),
+                rom: None,
+                generalization: generalization.key.clone(),
+                specificity: specificity.key.clone(),
+                nested: nested.as_ref().map(|n| n.key.clone()),
+                comparison: comparison.as_ref().map(|n| n.key.clone()),
+                online_comparison: None,
+                model: None,
+            };
+            let mut inputs = vec![mesh, train, basis, compactness, generalization, specificity];
+            inputs.extend([nested, comparison].into_iter().flatten());
+            let skipped = vec![SKIPS_3D.to_string()];
+            nodes.add("report", true, ReportStage::plan_with(scene, shows, inputs, skipped.clone()));
+            return Self { sweeps, family, nodes: nodes.0, imported: Vec::new(), skipped };
+        }
         let rom = nodes.add("rom", true, RomStage::plan(scene, train.clone(), test.clone(), basis.clone(), &labels));
         let mut online_parts: Vec<(String, Input)> = Vec::new();
         let mut online_specs: Vec<(ApproximationSpec, Input)> = Vec::new();

@@ -161,7 +161,7 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
         None => None,
     };
     let mut contact_x: Vec<f64> = (0..train.dual.rows).map(|i| i as f64).collect();
-    let (mut line_x, mut geometry, mut surface) = (Vec::new(), None, None);
+    let (mut line_x, mut geometry, mut surface, mut profile) = (Vec::new(), None, None, None);
     if let Some(mesh) = &mesh {
         let nodes = mesh.matrix(mnames::NODES)?; // n x dim, column-major
         let contact = mesh.vec_u64(mnames::CONTACT_NODES)?;
@@ -194,6 +194,25 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
                 contact: contact.iter().map(|&i| i as usize).collect(),
             });
         }
+        if nodes.cols == 3 && per == 8 {
+            // a native 3-D scene: the slave facets (hexahedron faces whose four nodes are all
+            // slaves) seen from above, as the contact surface to draw the pressure on, and the
+            // profile along the symmetry plane through the lowest y of the slaves
+            let is_slave: std::collections::BTreeSet<usize> = contact.iter().map(|&i| i as usize).collect();
+            let faces = [[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]];
+            let cells: Vec<Vec<usize>> = cells_of()?
+                .iter()
+                .flat_map(|h| faces.iter().map(move |f| f.iter().map(|&k| h[k]).collect::<Vec<usize>>()))
+                .filter(|q| q.iter().all(|n| is_slave.contains(n)))
+                .collect();
+            surface = Some(Surface { nodes: xy(), cells, contact: contact.iter().map(|&i| i as usize).collect() });
+            let y = |i: u64| nodes.data[i as usize + nodes.rows];
+            let low = contact.iter().map(|&i| y(i)).fold(f64::INFINITY, f64::min);
+            let extent = contact.iter().map(|&i| y(i)).fold(f64::NEG_INFINITY, f64::max) - low;
+            profile = Some(
+                (0..contact.len()).filter(|&k| (y(contact[k]) - low).abs() <= 1e-9 * extent.abs().max(1.0)).collect(),
+            );
+        }
     }
     let conditioning = conditioning(mesh.as_ref(), store, &inputs.basis)?;
     let b = basis::load_full(store, &inputs.basis)?;
@@ -221,6 +240,7 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
     Ok(ReportData {
         model,
         contact_x,
+        profile,
         line_x,
         geometry,
         surface,

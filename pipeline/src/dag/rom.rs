@@ -214,7 +214,7 @@ fn measure(
     let theta_full = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
     let theta_trunc = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG_TRUNCATED, bnames::MODES))?;
     drop(bfile);
-    let op = phys.operator();
+    let op = phys.online_operator("rom", scene)?;
     let sweep = sweep_pairs(phi.cols, theta_full.cols, theta_trunc.cols);
     let queries = train_set.parameters.len() + test_set.parameters.len();
     let paper_pairs = sweep.iter().filter(|s| paper_pair(s, &sweep)).count();
@@ -469,7 +469,8 @@ pub(crate) fn translated_response_basis(
     let crate::physics::Physics::Contact(fm, _) = phys else {
         return Err("primal_translates needs a two-body contact scene".into());
     };
-    let (n, data) = (train.primal.rows, responses(phys.operator(), train));
+    let op = phys.operator().ok_or("primal_translates needs a two-body contact scene")?;
+    let (n, data) = (train.primal.rows, responses(op, train));
     let model = fm.model();
     let all = crom_stages::rom::translates::with_translates(model.mesh(), model.slave_nodes(), &data, shift)
         .map_err(|e| format!("primal_translates: {e}; remove primal_translates from this [comparison] entry"))?;

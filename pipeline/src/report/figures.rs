@@ -341,7 +341,7 @@ fn pressure_on_mesh(scene: &SceneConfig, s: &super::Surface, d: &ReportData, dir
 
 fn dual_snapshots(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
     let step = every(d.train.parameters.len());
-    let mut order: Vec<usize> = (0..d.contact_x.len()).collect();
+    let mut order: Vec<usize> = d.profile.clone().unwrap_or_else(|| (0..d.contact_x.len()).collect());
     order.sort_by(|&a, &b| d.contact_x[a].total_cmp(&d.contact_x[b]));
     let xs: Vec<f64> = order.iter().map(|&i| d.contact_x[i]).collect();
     // An external scene's contact set need not be a curve (a membrane's is an area): points
@@ -352,7 +352,11 @@ fn dual_snapshots(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Fig
     let same = crom_stages::float_cmp::Tol { abs: 1e-9 * extent.abs(), rel: 0.0 };
     let shared = xs.windows(2).any(|w| crom_stages::float_cmp::close(w[0], w[1], same));
     let mark = if external && shared { Mark::Points } else { Mark::Line };
-    let x_axis = if d.mesh { "x of the potential-contact node" } else { "dual entry (no mesh: model.external.mesh)" };
+    let x_axis = match (d.mesh, d.profile.is_some()) {
+        (true, true) => "x of the potential-contact node on the symmetry plane (lowest y)",
+        (true, false) => "x of the potential-contact node",
+        (false, _) => "dual entry (no mesh: model.external.mesh)",
+    };
     let series = d
         .train
         .parameters

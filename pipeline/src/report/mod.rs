@@ -43,6 +43,9 @@ pub(crate) struct ReportData {
     /// x coordinate of each potential-contact node (dual field abscissa); the entry index
     /// without a mesh.
     pub contact_x: Vec<f64>,
+    /// A 3-D scene's contact entries along its symmetry plane (the lowest y of the slaves), in
+    /// whose x the pressure snapshots are drawn as profiles; `None`: every entry.
+    pub profile: Option<Vec<usize>>,
     /// Node x coordinates of a 1-D mesh (primal abscissa), empty for 2-D.
     pub line_x: Vec<f64>,
     /// The 2-D mesh (scenes with two displacement components per node), for the bodies figure.

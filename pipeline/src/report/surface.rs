@@ -81,7 +81,9 @@ fn draw<DB: DrawingBackend>(
     let root = root.titled(title, ("sans-serif", 22)).map_err(e)?;
     let (main, bar) = root.split_horizontally(root.dim_in_pixel().0 - 110);
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    for p in &s.nodes {
+    // the extent of the drawn cells (a 3-D scene's nodes hold both bodies; its cells are the
+    // contact surface)
+    for p in s.cells.iter().flatten().map(|&i| s.nodes[i]) {
         x0 = x0.min(p[0]);
         x1 = x1.max(p[0]);
         y0 = y0.min(p[1]);

@@ -40,6 +40,8 @@ pub struct Hertz3dParams {
     pub grading: f64,
     /// Slave nodes and master facets lie within this distance of the axis (reference).
     pub contact_radius: f64,
+    /// Symmetry planes (roller conditions); the quarter model's are `x = 0` and `y = 0`.
+    pub planes: Vec<Plane>,
 }
 
 /// `ironing-3d`: a die with a cylindrical sole pressed into a block and slid along x, half model
@@ -77,6 +79,8 @@ pub struct Ironing3dParams {
     pub d_z: Option<f64>,
     /// The slaves: block-top nodes with `x in [x0, x1]` and `y <= y1`, as `[x0, x1, y1]`.
     pub slave_box: [f64; 3],
+    /// Symmetry planes (roller conditions); the half model's is `y = 0`.
+    pub planes: Vec<Plane>,
 }
 
 /// Which 3-D scene a model was built from.
@@ -153,8 +157,41 @@ fn tributary_areas(x: &[[f64; 3]], quads: &[[usize; 4]], nodes: &[usize]) -> Vec
     area
 }
 
+/// Everything of a model but its stiffness: what [`check_hertz3d`] and [`check_ironing3d`]
+/// build and check, and the builders assemble.
+struct Layout {
+    kind: Scene3d,
+    mesh: Mesh3d,
+    materials: Vec<Material>,
+    support: Vec<usize>,
+    driven: Vec<usize>,
+    /// Dirichlet dofs, rollers included.
+    fixed: Vec<usize>,
+    u_d: Vec<Vec<f64>>,
+    slaves: Vec<usize>,
+    slave_quads: Vec<[usize; 4]>,
+    master_quads: Vec<[usize; 4]>,
+    planes: Vec<Plane>,
+}
+
 /// Build the `hertz-3d` model; the parameter is the approach `d` of the top face.
 pub fn build_hertz3d(p: &Hertz3dParams) -> Result<Model3d, ModelError> {
+    finish(hertz3d_layout(p)?)
+}
+
+/// [`build_hertz3d`]'s checks without the assembly: the parameters, every element's Jacobian,
+/// a slave in the contact region, and no body free in a rigid motion (cheap: what a scene file
+/// is checked with before a run writes anything).
+pub fn check_hertz3d(p: &Hertz3dParams) -> Result<(), ModelError> {
+    hertz3d_layout(p).map(|_| ())
+}
+
+/// [`build_ironing3d`]'s checks without the assembly (see [`check_hertz3d`]).
+pub fn check_ironing3d(p: &Ironing3dParams) -> Result<(), ModelError> {
+    ironing3d_layout(p).map(|_| ())
+}
+
+fn hertz3d_layout(p: &Hertz3dParams) -> Result<Layout, ModelError> {
     positive("radius", p.radius)?;
     positive("contact_radius", p.contact_radius)?;
     material("material", &p.material)?;
@@ -165,7 +202,7 @@ pub fn build_hertz3d(p: &Hertz3dParams) -> Result<Model3d, ModelError> {
     let r = p.radius;
     let bottom = ball_octant([0.0, 0.0, -r], r, p.n, p.grading, Facing::Up);
     let top = ball_octant([0.0, 0.0, r], r, p.n, p.grading, Facing::Down);
-    let planes = vec![Plane { axis: 0, at: 0.0 }, Plane { axis: 1, at: 0.0 }];
+    let planes = p.planes.clone();
     let within = |x: [f64; 3]| x[0].hypot(x[1]) <= p.contact_radius;
     let (mesh, off) = Mesh3d::from_blocks(&[&bottom, &top]);
     let support: Vec<usize> = bottom.face_nodes(Face::KMin).iter().map(|&n| n + off[0]).collect();
@@ -187,20 +224,30 @@ pub fn build_hertz3d(p: &Hertz3dParams) -> Result<Model3d, ModelError> {
     // conditions); the symmetry planes hold the lateral rigid motions
     let dirichlet: Vec<usize> = support.iter().chain(&driven).map(|&n| 3 * n + 2).collect();
     let u_d = vec![vec![0.0; u_d1.len()], u_d1];
-    finish(
-        Scene3d::Hertz,
+    let materials = vec![p.material, p.material];
+    let fixed = dirichlet;
+    checked(Layout {
+        kind: Scene3d::Hertz,
         mesh,
-        &[p.material, p.material],
-        (support, driven, dirichlet),
+        materials,
+        support,
+        driven,
+        fixed,
         u_d,
-        (slaves, &slave_quads, &master_quads),
+        slaves,
+        slave_quads,
+        master_quads,
         planes,
-    )
+    })
 }
 
 /// Build the `ironing-3d` model; the parameter is the die's travel `d_x` (and `d_z` when
 /// `d_z` is `None`).
 pub fn build_ironing3d(p: &Ironing3dParams) -> Result<Model3d, ModelError> {
+    finish(ironing3d_layout(p)?)
+}
+
+fn ironing3d_layout(p: &Ironing3dParams) -> Result<Layout, ModelError> {
     for (f, v) in [("block.length", p.block[0]), ("block.depth", p.block[1]), ("block.height", p.block[2])] {
         positive(f, v)?;
     }
@@ -256,47 +303,71 @@ pub fn build_ironing3d(p: &Ironing3dParams) -> Result<Model3d, ModelError> {
         })
         .collect();
     let master_quads: Vec<[usize; 4]> = die.face_quads(Face::KMin).iter().map(|q| q.map(|n| n + off[1])).collect();
-    let planes = vec![Plane { axis: 1, at: 0.0 }];
-    let dirichlet: Vec<usize> = support.iter().chain(&driven).flat_map(|&n| [3 * n, 3 * n + 1, 3 * n + 2]).collect();
-    finish(
-        Scene3d::Ironing,
+    let planes = p.planes.clone();
+    let fixed: Vec<usize> = support.iter().chain(&driven).flat_map(|&n| [3 * n, 3 * n + 1, 3 * n + 2]).collect();
+    let materials = vec![p.block_material, p.die_material];
+    checked(Layout {
+        kind: Scene3d::Ironing,
         mesh,
-        &[p.block_material, p.die_material],
-        (support, driven, dirichlet),
+        materials,
+        support,
+        driven,
+        fixed,
         u_d,
-        (slaves, &slave_quads, &master_quads),
+        slaves,
+        slave_quads,
+        master_quads,
         planes,
-    )
+    })
 }
 
-fn finish(
-    kind: Scene3d,
-    mesh: Mesh3d,
-    materials: &[Material],
-    (support, driven, dirichlet): (Vec<usize>, Vec<usize>, Vec<usize>),
-    u_d: Vec<Vec<f64>>,
-    (slaves, slave_quads, master_quads): (Vec<usize>, &[[usize; 4]], &[[usize; 4]]),
-    planes: Vec<Plane>,
-) -> Result<Model3d, ModelError> {
-    mesh.check_jacobians().map_err(|e| ModelError::BadParameter { field: "mesh", msg: e.to_string() })?;
-    if slaves.is_empty() {
+/// The layout's checks: every element's Jacobian, a slave, each plane a valid axis, and no body
+/// free in a rigid motion once the rollers are added to the Dirichlet dofs.
+fn checked(mut l: Layout) -> Result<Layout, ModelError> {
+    l.mesh.check_jacobians().map_err(|e| ModelError::BadParameter { field: "mesh", msg: e.to_string() })?;
+    if l.slaves.is_empty() {
         return Err(ModelError::BadParameter {
             field: "slaves",
             msg: "no slave node lies in the contact region".into(),
         });
     }
-    let k = assemble_stiffness(&mesh, materials)
-        .map_err(|e| ModelError::BadParameter { field: "mesh", msg: e.to_string() })?;
-    let h = mesh_size(&mesh);
-    let mut fixed = dirichlet;
-    fixed.extend(roller_dofs(&mesh.nodes, &planes, 1e-9 * h));
-    let free = free_rigid_modes(&mesh.nodes, &mesh.node_body, &fixed);
+    if let Some(p) = l.planes.iter().find(|p| p.axis > 2 || !p.at.is_finite()) {
+        return Err(ModelError::BadParameter {
+            field: "symmetry",
+            msg: format!("{p:?} is not a plane x, y or z = a finite value"),
+        });
+    }
+    let h = mesh_size(&l.mesh);
+    let rollers = roller_dofs(&l.mesh.nodes, &l.planes, 1e-9 * h);
+    if let Some(p) = l
+        .planes
+        .iter()
+        .find(|p| !rollers.iter().any(|&d| d % 3 == p.axis && (l.mesh.nodes[d / 3][p.axis] - p.at).abs() <= 1e-9 * h))
+    {
+        let axis = ["x", "y", "z"][p.axis];
+        return Err(ModelError::BadParameter {
+            field: "symmetry",
+            msg: format!("the plane {axis} = {} holds no node of the mesh", p.at),
+        });
+    }
+    l.fixed.extend(rollers);
+    let free = free_rigid_modes(&l.mesh.nodes, &l.mesh.node_body, &l.fixed);
     if let Some(&(body, modes)) = free.first() {
         return Err(ModelError::BadParameter {
             field: "symmetry",
             msg: format!("body {body} keeps {modes} rigid-body mode(s) that no Dirichlet face or symmetry plane holds"),
         });
     }
+    Ok(l)
+}
+
+/// The model of a checked layout: its stiffness, Dirichlet partition, master surface and the
+/// slaves' tributary areas.
+fn finish(l: Layout) -> Result<Model3d, ModelError> {
+    let Layout { kind, mesh, materials, support, driven, fixed, u_d, slaves, slave_quads, master_quads, planes } = l;
+    let k = assemble_stiffness(&mesh, &materials)
+        .map_err(|e| ModelError::BadParameter { field: "mesh", msg: e.to_string() })?;
+    let h = mesh_size(&mesh);
     let split = DofSplit::new(mesh.n_dof(), &fixed);
     // master-local ids: the master nodes in order of first appearance in the facets
     let mut masters: Vec<usize> = Vec::new();
@@ -314,7 +385,7 @@ fn finish(
         .collect();
     let x_ref: Vec<[f64; 3]> = masters.iter().map(|&n| mesh.nodes[n]).collect();
     let surface = MasterSurface::new(facets, &x_ref, &planes, 1e-9 * h);
-    let area = tributary_areas(&mesh.nodes, slave_quads, &slaves);
+    let area = tributary_areas(&mesh.nodes, &slave_quads, &slaves);
     Ok(Model3d { kind, mesh, k, split, u_d, slaves, masters, surface, area, driven, support, planes })
 }
 

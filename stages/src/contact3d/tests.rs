@@ -5,9 +5,11 @@ use crate::assert_close;
 use crate::contact::{ContactSolveParams, ModelError};
 use crate::fem::Material;
 use crate::float_cmp::Tol;
+use crate::solid::symmetry::Plane;
 
 fn hertz_params(n: usize, grading: f64) -> Hertz3dParams {
-    Hertz3dParams { radius: 1.0, material: Material::new(1.0, 0.3), n, grading, contact_radius: 0.25 }
+    let planes = vec![Plane { axis: 0, at: 0.0 }, Plane { axis: 1, at: 0.0 }];
+    Hertz3dParams { radius: 1.0, material: Material::new(1.0, 0.3), n, grading, contact_radius: 0.25, planes }
 }
 
 /// Hertz theory for two equal spheres (Johnson, *Contact Mechanics*, sec. 4.2), validation of the
@@ -95,11 +97,14 @@ fn ironing_params() -> Ironing3dParams {
         contact_x: 0.8,
         d_z: Some(0.02),
         slave_box: [0.3, 1.7, 0.5],
+        planes: vec![Plane { axis: 1, at: 0.0 }],
     }
 }
 
 /// Bad input is refused naming the field: a radius <= 0, a grading below 1, a contact radius
-/// <= 0, a sole narrower than the die, a slave box that holds no node.
+/// <= 0, a sole narrower than the die, a slave box that holds no node, a symmetry plane missing
+/// (a body left free in a rigid motion) or holding no node; `check_hertz3d` says the same
+/// without assembling.
 #[test]
 fn bad_parameters_name_their_field() {
     let field = |r: Result<Model3d, ModelError>| match r {
@@ -123,4 +128,13 @@ fn bad_parameters_name_their_field() {
     let mut q = ironing_params();
     q.slave_box = [1.91, 1.94, 0.5];
     assert_eq!(field(build_ironing3d(&q)), "slaves");
+    // the hemispheres, on rollers at their flat faces, need both planes: without y = 0 nothing
+    // holds their translation along y
+    let mut p = hertz_params(4, 1.0);
+    p.planes.pop();
+    assert_eq!(field(build_hertz3d(&p)), "symmetry");
+    assert!(check_hertz3d(&p).is_err() && check_hertz3d(&hertz_params(4, 1.0)).is_ok());
+    let mut p = hertz_params(4, 1.0);
+    p.planes[0].at = 0.3711;
+    assert_eq!(field(build_hertz3d(&p)), "symmetry", "a plane that holds no node");
 }
