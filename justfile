@@ -57,12 +57,20 @@ bench:
     {{python}} scripts/bench_rom.py
     {{python}} scripts/bench_cluster.py
     {{python}} scripts/bench_comparison.py
+    just bench-3d
 
 # Render one step of a scene's XDMF view with ParaView under Xvfb (installs Debian's paraview,
 # ~440 MB, on first use; not part of CI), e.g. `just paraview ironing-fine test 1`.
 paraview SCENE SET="train" WARP="1" OUT="paraview.png":
     command -v pvbatch >/dev/null || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends paraview python3-paraview xvfb xauth)
     xvfb-run -a pvbatch scripts/render_paraview.py "${CROM_STORE:-data/store}/scenes/{{SCENE}}/{{SET}}.xdmf" {{OUT}} {{WARP}}
+
+# The 3-D targets: hertz-3d against Hertz theory, the 10^5-dof ironing-3d model (factorisation,
+# contact operators, a sweep's snapshots; peak memory), and the whole cold ironing-3d study.
+bench-3d: build
+    just example hertz3d_theory
+    /usr/bin/time -f "bench_contact3d: peak memory %M KB" just example bench_contact3d
+    tmp=$(mktemp -d) && /usr/bin/time -f "whole cold crom run ironing-3d: %e s, peak %M KB" "${CARGO_TARGET_DIR:-target}/release/crom" -q --store "$tmp/store" run ironing-3d > /dev/null && rm -rf "$tmp"
 
 # Only the online reduced-model targets: speed-ups, convergence, mesh independence.
 bench-rom:

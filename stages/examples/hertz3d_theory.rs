@@ -1,0 +1,56 @@
+//! hertz-3d against Hertz theory on the shipped scene's mesh and on finer ones: the force, the
+//! peak pressure and the contact radius at several approaches, each with its relative deviation
+//! (`just example hertz3d_theory`). The shipped scene's values come from
+//! `data/scenes/hertz-3d.toml`; the finer meshes change only `n`.
+//!
+//! Theory (Johnson, *Contact Mechanics*, sec. 4.2), two equal spheres: `R* = R / 2`,
+//! `E* = E / (2 (1 - nu^2))`, `a = sqrt(R* d)`, `p0 = (2 E* / pi) sqrt(d / R*)`,
+//! `F = (4/3) E* sqrt(R*) d^(3/2)`. Measured: `F` = 4 x the top face's reaction (quarter model),
+//! `p0` the apex slave's pressure, `a` from `F = (2/3) pi a^2 p0`.
+
+use crom_stages::contact::ContactSolveParams;
+use crom_stages::contact3d::{build_hertz3d, Hertz3dParams};
+use crom_stages::shipped::shipped_scene;
+
+fn main() {
+    let scene = shipped_scene("hertz-3d").unwrap_or_else(|e| panic!("{e}"));
+    let crom_schemas::Model::Hertz3d(spec) = &scene.model else { panic!("hertz-3d is not a hertz3d scene") };
+    let base = Hertz3dParams::from(spec);
+    let (e, nu, r) = (base.material.young, base.material.poisson, base.radius);
+    let (es, rs) = (e / (2.0 * (1.0 - nu * nu)), r / 2.0);
+    println!("| n | grading | d / R | a / R | F dev | p0 dev | a dev | solve |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for n in [base.n, 24] {
+        let p = Hertz3dParams { n, ..base.clone() };
+        let f = build_hertz3d(&p).expect("model").factor().expect("factor");
+        let m = f.model();
+        let apex = m
+            .slave_nodes()
+            .iter()
+            .position(|&k| m.mesh().nodes[k][0].hypot(m.mesh().nodes[k][1]) < 1e-12)
+            .expect("apex");
+        for d in [0.0025, 0.005, 0.01, 0.02, 0.04] {
+            let t = std::time::Instant::now();
+            let s = f.solve(&[d], &ContactSolveParams { rel_tol: 1e-10, max_iter: 500 }).expect("solve");
+            let secs = t.elapsed().as_secs_f64();
+            let force = -4.0 * m.resultant(&s.u, m.driven_nodes())[2];
+            let p0 = s.pressure[apex];
+            let a = (3.0 * force / (2.0 * std::f64::consts::PI * p0)).sqrt();
+            let (a_th, p0_th, f_th) = (
+                (rs * d).sqrt(),
+                2.0 * es / std::f64::consts::PI * (d / rs).sqrt(),
+                4.0 / 3.0 * es * rs.sqrt() * d.powf(1.5),
+            );
+            let dev = |x: f64, y: f64| format!("{:+.2} %", 100.0 * (x / y - 1.0));
+            println!(
+                "| {n} | {} | {d} | {:.3} | {} | {} | {} | {:.3} s |",
+                p.grading,
+                a_th / r,
+                dev(force, f_th),
+                dev(p0, p0_th),
+                dev(a, a_th),
+                secs
+            );
+        }
+    }
+}
