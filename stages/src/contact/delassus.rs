@@ -23,9 +23,20 @@ pub const BLOCK: usize = 64;
 /// contact dof `cd`, or `None` if it is Dirichlet. The blocks of right-hand sides are spread
 /// over up to `threads` scoped threads (the factor is shared read-only).
 pub fn compliance(llt: &Llt<usize, f64>, n_free: usize, cfree: &[Option<usize>], threads: usize) -> Vec<f64> {
+    compliance_in_blocks(llt, n_free, cfree, threads, BLOCK)
+}
+
+/// [`compliance`] with `block` right-hand sides per solve.
+pub fn compliance_in_blocks(
+    llt: &Llt<usize, f64>,
+    n_free: usize,
+    cfree: &[Option<usize>],
+    threads: usize,
+    block: usize,
+) -> Vec<f64> {
     let ncd = cfree.len();
     let cols: Vec<(usize, usize)> = cfree.iter().enumerate().filter_map(|(cd, f)| f.map(|fi| (cd, fi))).collect();
-    let chunks: Vec<&[(usize, usize)]> = cols.chunks(BLOCK).collect();
+    let chunks: Vec<&[(usize, usize)]> = cols.chunks(block.max(1)).collect();
     let threads = threads.clamp(1, chunks.len().max(1));
     // each worker returns, for its chunks, the contact-dof rows of K^{-1} e_j: (cd_j, column)
     let work = |first: usize| -> Vec<(usize, Vec<f64>)> {

@@ -7,6 +7,7 @@
 //! contact problem condensed on the potential-contact dofs (Delassus operator) and solved by
 //! the same active-set LCP ([`crate::contact::active_set`]) with re-pairing.
 
+mod condense;
 pub mod facet;
 pub mod model;
 mod scene;

@@ -20,15 +20,13 @@
 //! of the recovered field with the full `K` (the equilibrium residual a backward error, as in
 //! 2-D). The pressure is `lambda_s / A_s`, `A_s` the slave's tributary area.
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::Llt;
 use faer::sparse::SparseColMat;
-use faer::{MatMut, Side};
+use faer::MatMut;
 
+use super::condense::ContactLastFactor;
 use super::model::Model3d;
 use super::surface::{FacetGrid, Feature, Pair3};
 use crate::contact::active_set::{solve_lcp, Lcp, LcpError, LcpWork};
-use crate::contact::delassus::compliance;
 use crate::contact::{ContactError, ContactSolveParams, ModelError};
 use crate::mu::{affine, Mu};
 use crate::snapshot::{Snapshot, SolveStats};
@@ -41,7 +39,7 @@ const MAX_PAIRINGS: usize = 200;
 #[derive(Debug, Clone)]
 pub struct Factored3d {
     pub(crate) model: Model3d,
-    llt: Llt<usize, f64>,
+    llt: ContactLastFactor,
     resp: Vec<Vec<f64>>,
     lift: Vec<Vec<f64>>,
     cnodes: Vec<usize>,
@@ -59,7 +57,10 @@ impl Model3d {
         let nf = split.n_free();
         let kff = SparseColMat::<usize, f64>::try_new_from_triplets(nf, nf, &split.free_block_lower_triplets(&self.k))
             .map_err(|e| ModelError::Sparse(format!("{e:?}")))?;
-        let llt = kff.sp_cholesky(Side::Lower).map_err(|e| ModelError::Singular(format!("{e:?}")))?;
+        let cnodes: Vec<usize> = self.slaves.iter().chain(&self.masters).copied().collect();
+        let dofs: Vec<usize> = cnodes.iter().flat_map(|&n| [3 * n, 3 * n + 1, 3 * n + 2]).collect();
+        let contact_free: Vec<usize> = dofs.iter().filter_map(|&d| split.free_index(d)).collect();
+        let (llt, w_free) = ContactLastFactor::factor(&kff, &contact_free)?;
         let lift: Vec<Vec<f64>> = self.u_d.iter().map(|ud| split.lift(&self.k, ud)).collect();
         let terms = lift.len();
         let mut r2: Vec<f64> = lift.iter().flatten().copied().collect();
@@ -68,15 +69,35 @@ impl Model3d {
         if resp.iter().flatten().any(|v| !v.is_finite()) {
             return Err(ModelError::Singular("non-finite unconstrained response".into()));
         }
-        let cnodes: Vec<usize> = self.slaves.iter().chain(&self.masters).copied().collect();
         let x_ref: Vec<[f64; 3]> = cnodes.iter().map(|&n| self.mesh.nodes[n]).collect();
-        let dofs: Vec<usize> = cnodes.iter().flat_map(|&n| [3 * n, 3 * n + 1, 3 * n + 2]).collect();
         let cfree: Vec<Option<usize>> = dofs.iter().map(|&d| split.free_index(d)).collect();
         let a: Vec<Vec<f64>> = (0..terms)
             .map(|k| dofs.iter().map(|&d| split.free_index(d).map_or(self.u_d[k][d], |fi| resp[k][fi])).collect())
             .collect();
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(4);
-        let w = compliance(&llt, nf, &cfree, threads);
+        // W on every contact dof: the free ones' block, zero rows and columns on Dirichlet ones
+        let ncd = cfree.len();
+        let free_at: Vec<Option<usize>> = {
+            let mut k = 0;
+            cfree
+                .iter()
+                .map(|f| {
+                    f.map(|_| {
+                        k += 1;
+                        k - 1
+                    })
+                })
+                .collect()
+        };
+        let nf_c = contact_free.len();
+        let mut w = vec![0.0; ncd * ncd];
+        for (i, fi) in free_at.iter().enumerate() {
+            let Some(fi) = fi else { continue };
+            for (j, fj) in free_at.iter().enumerate() {
+                if let Some(fj) = fj {
+                    w[i * ncd + j] = w_free[fi * nf_c + fj];
+                }
+            }
+        }
         let slave_fixed = (0..self.slaves.len()).map(|s| (0..3).all(|c| cfree[3 * s + c].is_none())).collect();
         Ok(Factored3d { model: self.clone(), llt, resp, lift, cnodes, x_ref, a, w, slave_fixed })
     }

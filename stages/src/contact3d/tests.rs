@@ -85,7 +85,7 @@ fn ironing_3d_balances_and_is_thread_independent() {
     assert!(one.stats.kkt_residual < 1e-12 && one.stats.max_penetration < 1e-12, "{:?}", one.stats);
 }
 
-fn ironing_params() -> Ironing3dParams {
+pub(crate) fn ironing_params() -> Ironing3dParams {
     Ironing3dParams {
         block: [2.0, 0.6, 0.5],
         block_n: [20, 6, 5],
