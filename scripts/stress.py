@@ -2,8 +2,11 @@
 """The stress matrix: scenes derived from the shipped ones, pushed to the extremes a
 user pushes them to, each with an expectation that comes from outside the code under test (a
 formula, the geometry, the KKT conditions checked on the stored fields). Every case either
-passes its check or is refused with a reason (exit 2 naming the field, exit 1 naming the stage);
-anything else is a FAIL. Every artifact of every case is scanned for NaN and infinity.
+states what it expects: an answer that passes its check (the default), a refusal with a reason
+(exit 2 naming the field, the store not created: `refusal`), or either (`either`: a case whose
+machine decides, said in its docstring). A refusal where an answer is expected is a FAIL, as is
+an answer where a refusal is, and anything else. Every artifact of every case is scanned for
+NaN and infinity.
 
   python3 scripts/stress.py           the whole matrix (`just stress`), release build
   python3 scripts/stress.py --fast    the fast subset (run by tests/python/test_stress.py in CI)
@@ -27,6 +30,32 @@ import time
 import h5py
 import numpy as np
 import pandas as pd
+
+
+def either(check):
+    """Mark `check` as a case that may be answered or refused with a reason (its docstring says
+    why the machine decides)."""
+    check.outcome = "either"
+    return check
+
+
+def verdict(expect, returncode, out, problems, field=None, store_exists=False):
+    """The verdict of one case: `expect` is "pass", "refused" or "either"; `problems` are the
+    check's findings on an answer (exit 0) or the scan's on a refusal. A refusal needs exit 1 or
+    2 with a fix, and, for an expected one naming `field`, that field and no store."""
+    if returncode == 0:
+        if expect == "refused":
+            return "FAIL: answered, though the case should be refused: " + "; ".join(problems or ["ran"])
+        return "pass" if not problems else "FAIL: " + "; ".join(problems)
+    if returncode in (1, 2) and "fix" in out:
+        first = out.strip().splitlines()[0] if out.strip() else ""
+        if expect == "pass":
+            return f"FAIL: refused, though the case should be answered: {first}"
+        problems = list(problems)
+        if field and (f"field `{field}`" not in out or store_exists):
+            problems.append(f"refused without naming `{field}`, or after writing to the store")
+        return "refused (exit %d)" % returncode if not problems else "FAIL: " + "; ".join(problems)
+    return f"FAIL: no answer and no reason (exit {returncode})"
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from scene_variant import variant  # noqa: E402
@@ -78,9 +107,10 @@ def refined(k):
             ("nested_levels = 7", "nested_levels = 0")]
 
 
+@either
 def finest_mesh(store, out):
-    """The finest mesh the matrix runs, with the memory estimate that decides which meshes a
-    machine holds: KKT checks at every point; the run's peak RSS within a factor 1.5 of crom's
+    """The finest mesh the matrix runs (answered, or refused by the memory estimate on a machine
+    too small for it), with the memory estimate that decides which meshes a machine holds: KKT checks at every point; the run's peak RSS within a factor 1.5 of crom's
     estimate either way (the estimate must neither let through a mesh that cannot fit nor
     refuse one that can); and the largest refinement per direction whose estimate fits in this
     machine's MemAvailable, reported."""
@@ -297,7 +327,9 @@ def refusal(field, why=""):
         return "ran", [f"ran instead of refusing `{field}`"]
     check.__doc__ = f"Refused with exit 2 naming `{field}` and the fix, nothing written to the store{why}."
     check.field = field
+    check.outcome = "refused"
     return check
+
 
 
 MEMO = {}
@@ -353,9 +385,11 @@ def selective(store, out):
     return f"force / locked force <= {ratio:.3f}", problems
 
 
+@either
 def coarse_mesh_run(store, out):
     """A 5 x 1 slab (one element through the thickness): the study runs to the end or stops
-    with a reason; its snapshots satisfy the KKT checks; no artifact holds NaN (tested below)."""
+    with a reason (its bases may be too poor for a stage); its snapshots satisfy the KKT checks;
+    no artifact holds NaN (tested below)."""
     idx = index_of(store)
     return f"{len(idx)} points, report {'yes' if list(store.glob('report/*/index.html')) else 'no'}", kkt(idx, 200)
 
@@ -509,22 +543,20 @@ def main():
             out = p.stdout + p.stderr
             MEMO.update(rss=p.rss, scene=scene, binary=binary)
             expectation = " ".join((check.__doc__ or "").split())
+            expect = getattr(check, "outcome", "pass")
             if p.returncode == 0:
                 measured, problems = check(store, out)
                 problems += [f"non-finite {b}" for b in nonfinite(store)]
-                verdict = "pass" if not problems else "FAIL: " + "; ".join(problems)
             elif p.returncode in (1, 2) and "fix" in out:
                 measured = out.strip().splitlines()[0] if out.strip() else ""
                 problems = [f"non-finite {b}" for b in nonfinite(store)] if store.exists() else []
-                field = getattr(check, "field", None)
-                if field and (f"field `{field}`" not in out or store.exists()):
-                    problems.append(f"refused without naming `{field}`, or after writing to the store")
-                verdict = "refused (exit %d)" % p.returncode if not problems else "FAIL: " + "; ".join(problems)
             else:
-                measured, verdict = f"exit {p.returncode}: {out.strip()[-300:]}", "FAIL: no answer and no reason"
-            failed += verdict.startswith("FAIL")
-            rows.append((name, expectation, f"{measured} ({wall:.1f} s, {p.rss / GIB:.2f} GiB)", verdict))
-            print(f"{name}: {verdict}", file=sys.stderr)
+                measured, problems = f"exit {p.returncode}: {out.strip()[-300:]}", []
+            verdict_ = verdict(expect, p.returncode, out, problems, getattr(check, "field", None), store.exists())
+            expectation = f"[{expect}] {expectation}"
+            failed += verdict_.startswith("FAIL")
+            rows.append((name, expectation, f"{measured} ({wall:.1f} s, {p.rss / GIB:.2f} GiB)", verdict_))
+            print(f"{name}: {verdict_}", file=sys.stderr)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     print("\n### Stress matrix (`scripts/stress.py%s`)\n" % (" --fast" if args.fast else ""))

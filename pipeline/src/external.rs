@@ -232,7 +232,7 @@ fn resolve_spec(ext: &ExternalSpec, base: &Path) -> Result<ResolvedExternal, Cro
             "give at least two training snapshots",
         ));
     }
-    if test.columns.is_empty() {
+    if test.columns.is_empty() && ext.test_files.is_some() {
         return Err(CromError::input(
             &test.dual.path,
             format!("{at}.test_files"),

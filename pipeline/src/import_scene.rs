@@ -6,7 +6,8 @@
 //!
 //! The test points are every `K`-th column (`--test-every K`, default 2: alternate columns, so
 //! with snapshots in parameter order each test point lies between two training points), the
-//! training points the others. Paths in the scene are absolute. The `[study]` table takes the
+//! training points the others; `--test-every 0` trains on every column (`test = []`: the
+//! metrics on all of them, and nothing that needs test points). Paths in the scene are absolute. The `[study]` table takes the
 //! defaults below; edit the file to change them.
 
 use std::path::{Path, PathBuf};
@@ -38,8 +39,10 @@ pub struct ImportArgs {
     /// Names of the parameter's components, comma-separated (CSV / Parquet: the columns).
     #[arg(long, value_delimiter = ',')]
     pub names: Vec<String>,
-    /// Every K-th column is a test point (K >= 2), the others training points.
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(2..))]
+    /// Every K-th column is a test point (K >= 2), the others training points; 0: every column
+    /// trains (no test points: the comparison's test error T(m) and the test views are then
+    /// skipped, and the metrics on all N columns are the paper's C, G, S and H).
+    #[arg(long, default_value_t = 2, value_parser = test_every)]
     pub test_every: u64,
     /// Set negative pressures to zero on import (else they are refused).
     #[arg(long)]
@@ -47,6 +50,15 @@ pub struct ImportArgs {
     /// Where to write the scene file (default NAME.toml in the current directory).
     #[arg(long, short)]
     pub output: Option<PathBuf>,
+}
+
+/// `--test-every`: 0, or at least 2 (1 would leave no training column).
+fn test_every(s: &str) -> Result<u64, String> {
+    match s.parse::<u64>() {
+        Ok(1) => Err("1 would make every column a test point; give 0 (every column trains) or K >= 2".into()),
+        Ok(k) => Ok(k),
+        Err(_) => Err(format!("'{s}' is not a number; give 0 or K >= 2")),
+    }
 }
 
 /// `FILE` or `FILE:DATASET` (split at the last `:` whose left part is an existing file).
@@ -74,7 +86,7 @@ pub fn run(args: &ImportArgs, progress: &crate::progress::Progress) -> Result<Pa
     // The column count, to list the sets (the scene is checked as a whole below).
     let n = crate::io::source::SnapshotArray::open(Path::new(""), &dual, "model.external.dual")?.cols;
     let k = args.test_every as usize;
-    let (test, train): (Vec<usize>, Vec<usize>) = (0..n).partition(|j| j % k == k - 1);
+    let (test, train): (Vec<usize>, Vec<usize>) = (0..n).partition(|j| k > 0 && j % k == k - 1);
     let ext = ExternalSpec {
         dual,
         primal,

@@ -359,6 +359,38 @@ def test_crom_import_writes_a_scene_that_runs_and_refuses_bad_arrays(files):
     assert not out.exists()
 
 
+def test_crom_import_can_train_on_every_column(files):
+    """`--test-every 0`: every column trains (`test = []`), the metrics are computed on all N
+    columns (the training set holds them all, and G(m) has N folds), the comparison has no test
+    rows, the run says what it skipped, and `--test-every 1` is refused (no training column)."""
+    tmp_path, primal, dual, mu, n_train = files
+    np.save(tmp_path / "dual.npy", dual)
+    pd.DataFrame({"gamma": mu}).to_csv(tmp_path / "mu.csv", index=False, float_format=lambda v: repr(float(v)))
+    out = tmp_path / "all.toml"
+    args = ["import", "--name", "all", "--dual", str(tmp_path / "dual.npy"), "--parameters", str(tmp_path / "mu.csv"),
+            "--names", "gamma", "-o", str(out)]
+    done = crom(tmp_path / "unused-store", *args, "--test-every", "0")
+    assert done.returncode == 0, done.stderr
+    n = dual.shape[1]
+    text = out.read_text()
+    assert "test = []" in text and f"train = [{', '.join(str(j) for j in range(n))}]" in text, text
+    # a small comparison, to see that it has no test rows
+    out.write_text(text + '\n[comparison]\nmax_m = 3\nloo_folds = 4\napproximations = [{ kind = "pod" }]\n')
+    store = tmp_path / "store"
+    run = crom(store, "run", str(out))
+    assert run.returncode == 0, run.stderr
+    assert "every column trains" in run.stdout + run.stderr
+    with h5py.File(store / "scenes" / "all" / "train.h5") as f:
+        assert np.array_equal(f["dual"][()], dual)
+    assert not (store / "scenes" / "all" / "test.h5").exists()
+    g = pd.read_parquet(store / "scenes" / "all" / "generalization.parquet")
+    assert (g[g.field == "dual"]["count"] + g[g.field == "dual"]["n_zero"]).max() == n
+    cmp = pd.read_parquet(next((store / "approximation").glob("*/comparison.parquet")))
+    assert set(cmp.metric) == {"compactness", "generalization", "specificity"}, set(cmp.metric)
+    one = crom(tmp_path / "unused-store", *args, "--test-every", "1")
+    assert one.returncode == 2 and "--test-every" in one.stderr, one.stderr
+
+
 def test_without_primal_snapshots_the_dual_study_is_the_native_one(native, tmp_path):
     native_store, sets = native
     primal, dual, mu, n_train = all_columns(sets)

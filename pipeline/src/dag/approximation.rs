@@ -101,8 +101,11 @@ impl SurfaceSource {
 
 /// The key spec of the approximation `key`; `nested` are the nested levels' sets (level n at
 /// index n - 1), for H(n).
-fn spec(key: &ApproximationKey, train: &Key, test: &Key, surface: &SurfaceSource, nested: &[Key]) -> KeySpec {
-    let mut spec = KeySpec::of(key).input("train", train).input("test", test);
+fn spec(key: &ApproximationKey, train: &Key, test: Option<&Key>, surface: &SurfaceSource, nested: &[Key]) -> KeySpec {
+    let mut spec = KeySpec::of(key).input("train", train);
+    if let Some(test) = test {
+        spec = spec.input("test", test);
+    }
     spec = match surface {
         SurfaceSource::Mesh(mesh) => spec.input("mesh", &mesh.key),
         SurfaceSource::Given { key, .. } => spec.input("surface", key),
@@ -123,7 +126,9 @@ pub(crate) struct ApproximationStage {
     /// The scene's name, in the tables.
     pub scene: String,
     pub train: Input,
-    pub test: Input,
+    /// The test set; `None` when every point trains (an external scene with `test = []`: no
+    /// test error T(m)).
+    pub test: Option<Input>,
     /// The contact entries' abscissae.
     pub surface: SurfaceSource,
     /// The nested levels' sets (level n at index n - 1), for H(n).
@@ -136,13 +141,13 @@ impl ApproximationStage {
         scene: &SceneConfig,
         index: usize,
         train: Input,
-        test: Input,
+        test: Option<Input>,
         surface: SurfaceSource,
         nested: Vec<Input>,
     ) -> Option<Self> {
         let keys: Vec<Key> = nested.iter().map(|l| l.key.clone()).collect();
         let settings = ApproximationKey::of(scene, index)?;
-        let spec = spec(&settings, &train.key, &test.key, &surface, &keys);
+        let spec = spec(&settings, &train.key, test.as_ref().map(|t| &t.key), &surface, &keys);
         Some(Self { spec, settings, scene: scene.scene.name.clone(), train, test, surface, nested })
     }
 }
@@ -155,7 +160,8 @@ impl StageDef for ApproximationStage {
         self.spec.key()
     }
     fn inputs(&self) -> Vec<&Input> {
-        let mut inputs = vec![&self.train, &self.test];
+        let mut inputs = vec![&self.train];
+        inputs.extend(&self.test);
         if let SurfaceSource::Mesh(mesh) = &self.surface {
             inputs.push(mesh);
         }
@@ -164,7 +170,8 @@ impl StageDef for ApproximationStage {
     }
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         let keys: Vec<Key> = self.nested.iter().map(|l| l.key.clone()).collect();
-        run(ctx, &self.spec, (&self.settings, &self.scene), &self.train.key, &self.test.key, &self.surface, &keys)
+        let test = self.test.as_ref().map(|t| &t.key);
+        run(ctx, &self.spec, (&self.settings, &self.scene), &self.train.key, test, &self.surface, &keys)
     }
 }
 
@@ -174,7 +181,7 @@ fn run(
     spec: &KeySpec,
     (settings, scene): (&ApproximationKey, &str),
     train: &Key,
-    test: &Key,
+    test: Option<&Key>,
     surface: &SurfaceSource,
     nested: &[Key],
 ) -> Result<Key, CromError> {
@@ -184,7 +191,7 @@ fn run(
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
     ctx.single(ArtifactKind::Approximation, "approximation", spec, |staging| {
         let set = loaded.set(store, train)?;
-        let tset = loaded.set(store, test)?;
+        let tset = test.map(|t| loaded.set(store, t)).transpose()?;
         let surface = match surface {
             SurfaceSource::Mesh(mesh) => contact_x(store, &mesh.key)?,
             SurfaceSource::Given { x, .. } => x.clone(),
@@ -214,13 +221,19 @@ fn run(
             let c = study::compactness(model.as_ref(), &training).map_err(fail)?;
             let loo = study::leave_one_out(a, &training, &folds, &|| bar.tick(&name)).map_err(fail)?;
             let (g, g_zero) = study::stats(&loo, &ms);
-            let errs = study::relative_errors(model.as_ref(), view(&tset.dual), &tset.parameters, &ms).map_err(fail)?;
+            let errs = match &tset {
+                Some(tset) => {
+                    study::relative_errors(model.as_ref(), view(&tset.dual), &tset.parameters, &ms).map_err(fail)?
+                }
+                None => Vec::new(),
+            };
             let (t, t_zero) = study::stats(&errs, &ms);
             // Local bases: the test error and G(m) per cell as well.
             if model.cell_of(&set.parameters[0]).is_some() {
                 let mut by_cell: BTreeMap<(usize, &'static str), Vec<Option<Vec<f64>>>> = BTreeMap::new();
+                let test_points = tset.as_ref().map_or(&[][..], |t| &t.parameters[..]);
                 for (j, e) in errs.iter().enumerate() {
-                    let c = model.cell_of(&tset.parameters[j]).unwrap_or(0);
+                    let c = model.cell_of(&test_points[j]).unwrap_or(0);
                     by_cell.entry((c, "test")).or_default().push(e.clone());
                 }
                 for (k, e) in folds.iter().zip(&loo) {
@@ -256,8 +269,13 @@ fn run(
             let metrics_seconds = t1.elapsed().as_secs_f64();
             out.curve(&name, "compactness", &ms, &c, n_train);
             out.stats(&name, "generalization", &ms, &g, g_zero);
-            out.stats(&name, "test", &ms, &t, t_zero);
-            for (metric, st) in [("generalization", &g), ("test", &t)] {
+            // no test points (every point trains): no test rows
+            let mut metrics = vec![("generalization", &g)];
+            if tset.is_some() {
+                out.stats(&name, "test", &ms, &t, t_zero);
+                metrics.push(("test", &t));
+            }
+            for (metric, st) in metrics {
                 for th in THRESHOLDS {
                     let m = ms.iter().zip(st.iter()).find(|(_, s)| s.count() > 0 && s.mean() <= th).map(|(&m, _)| m);
                     out.reached.push((name.clone(), metric, th, m));

@@ -140,8 +140,8 @@ pub struct RunOutput {
     pub train_snapshots: Vec<Key>,
     /// Training-set artifact.
     pub train: Key,
-    /// Test-set artifact.
-    pub test: Key,
+    /// Test-set artifact (`None`: an external scene whose every column trains).
+    pub test: Option<Key>,
     /// Basis artifact.
     pub basis: Key,
     /// Compactness artifact.
@@ -422,7 +422,7 @@ fn execute_in<'scope, 'env, 'a: 'env>(
         mesh: keys.get("mesh").cloned(),
         train_snapshots: shared.columns[&0].rows[..n_train].iter().map(|r| r.key.clone()).collect(),
         train: k("trainset train"),
-        test: k("trainset test"),
+        test: keys.get("trainset test").cloned(),
         basis: k("basis"),
         compactness: k("compactness"),
         generalization: k("generalization"),

@@ -119,6 +119,9 @@ pub fn external_skips(has_mesh: bool) -> &'static str {
     }
 }
 
+/// The one line an external scene with `test = []` prints about what it does not have.
+pub const NO_TEST: &str = "external scene with test = []: every column trains; the test error T(m) of the comparison and the test views need test points; skipped";
+
 /// The one line a 3-D scene's run prints about the stages it does not have.
 pub const SKIPS_3D: &str = "3-D scene: the online reduced solve, the trade-off, the online comparison and the stored model handle node-to-segment (2-D) contact only; skipped";
 
@@ -226,7 +229,8 @@ impl Plan {
         let mut parts: Vec<(String, Input)> = Vec::new();
         for (i, item) in items.iter().enumerate() {
             let surface = SurfaceSource::Mesh(mesh.clone());
-            let Some(stage) = ApproximationStage::plan(scene, i, train.clone(), test.clone(), surface, levels.clone())
+            let Some(stage) =
+                ApproximationStage::plan(scene, i, train.clone(), Some(test.clone()), surface, levels.clone())
             else {
                 continue;
             };
@@ -321,9 +325,16 @@ impl Plan {
             SetStage::plan(name, (points, keys), sweep.clone(), (0, start), &labels)
         };
         let train = nodes.add("trainset train", false, set("train", &train_points, &tk, 0));
-        let test = nodes.add("trainset test", false, set("test", &test_points, &sk, train_points.len()));
+        // `test = []`: every column trains, and nothing that needs test points is planned
+        let test = (!test_points.is_empty())
+            .then(|| nodes.add("trainset test", false, set("test", &test_points, &sk, train_points.len())));
+        let mut skipped = Vec::new();
+        if test.is_none() {
+            skipped.push(NO_TEST.to_string());
+        }
         if let Some(mesh) = &mesh {
-            for (name, of) in [("train", &train), ("test", &test)] {
+            let sets = std::iter::once(("train", &train)).chain(test.as_ref().map(|t| ("test", t)));
+            for (name, of) in sets {
                 let subject = Subject::Set { set: name.to_string(), of: of.clone() };
                 nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
             }
@@ -360,7 +371,6 @@ impl Plan {
         let nested =
             (!levels.is_empty()).then(|| nodes.add("nested", false, NestedStage::plan(levels.clone(), &labels)));
         let surface = external_surface(scene, mesh.as_ref());
-        let mut skipped = Vec::new();
         let mut parts: Vec<(String, Input)> = Vec::new();
         let items = scene.comparison.as_ref().map(comparison::items).unwrap_or_default();
         for (i, item) in items.iter().enumerate() {

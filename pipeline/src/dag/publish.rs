@@ -23,7 +23,8 @@ pub fn study(scene: &SceneConfig, out: &RunOutput, online: bool) -> Study {
         put("mesh.h5".into(), K::Mesh, mesh, Some(a::mesh::FILE));
         put("mesh.xdmf".into(), K::Mesh, mesh, Some(a::mesh::XDMF));
     }
-    for (set, key) in [("train", &out.train), ("test", &out.test)] {
+    let sets = std::iter::once(("train", &out.train)).chain(out.test.as_ref().map(|t| ("test", t)));
+    for (set, key) in sets {
         put(format!("{set}.h5"), K::TrainingSet, key, Some(a::trainset::FILE));
         put(format!("{set}_solver_stats.parquet"), K::TrainingSet, key, Some(a::trainset::STATS));
         put(format!("{set}_solver_timings.parquet"), K::TrainingSet, key, Some(a::trainset::TIMINGS));
