@@ -946,13 +946,6 @@ fn check_comparison(
                         "use interpolation = \"linear\" with map = \"moments\"",
                     ));
                 }
-                if *map == MapSpec::Moments && dims > 1 {
-                    return Err(c.fail(
-                        &format!("{field}.map"),
-                        format!("is \"moments\", which interpolates in one parameter; this scene has {dims}"),
-                        "use map = \"translate\"",
-                    ));
-                }
                 if *basis == BasisSpec::Neighbours
                     && (*map != MapSpec::Translate || *interpolation != InterpolationSpec::Nodes)
                 {

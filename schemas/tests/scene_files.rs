@@ -148,9 +148,11 @@ fn vector_parameters_are_checked_against_the_model() {
     let other = base.replace("name = \"d_y\"", "name = \"angle\"");
     let err = SceneConfig::from_toml_str(&other, Path::new("bad.toml")).expect_err("unknown axis");
     assert_names(&err, &["parameter.axes", "(d_x, d_y)"]);
-    // The registered neighbours measure distance by the travel alone: refused with two components.
+    // The registered neighbours measure distance by the travel alone: refused with two components
+    // (in place of the shipped comparison).
+    let without = base.split("\n[comparison]").next().expect("the scene before its comparison");
     let nb = format!(
-        "{base}\n[comparison]\napproximations = [{{ kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"neighbours\" }}]\n"
+        "{without}\n[comparison]\napproximations = [{{ kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"neighbours\" }}]\n"
     );
     let err = SceneConfig::from_toml_str(&nb, Path::new("bad.toml")).expect_err("neighbours on two components");
     assert_names(&err, &["comparison.approximations[0].basis", "2 parameter components", "basis = \"cpg\""]);

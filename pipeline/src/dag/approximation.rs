@@ -190,8 +190,8 @@ fn run(
     let (max_m, loo_folds) = (settings.max_m, settings.loo_folds);
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
     ctx.single(ArtifactKind::Approximation, "approximation", spec, |staging| {
-        let set = loaded.set(store, train)?;
-        let tset = test.map(|t| loaded.set(store, t)).transpose()?;
+        let set = loaded.level(store, train)?;
+        let tset = test.map(|t| loaded.level(store, t)).transpose()?;
         let surface = match surface {
             SurfaceSource::Mesh(mesh) => contact_x(store, &mesh.key)?,
             SurfaceSource::Given { x, .. } => x.clone(),

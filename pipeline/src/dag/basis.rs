@@ -172,7 +172,7 @@ impl BasisKey {
             nnls: NnlsKey::used(),
             curve_dense_to: grid.then_some(max_rank),
             selection: selection_of(n_train),
-            primal: super::streamed::primal_of(n_train),
+            primal: super::streamed::primal_of(scene),
             max_rank,
         }
     }

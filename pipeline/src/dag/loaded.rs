@@ -74,8 +74,8 @@ impl Loaded {
     /// its displacements dropped).
     pub(crate) fn level(&self, store: &Store, key: &Key) -> Result<Arc<NestedLevel>, CromError> {
         get_or_load(&self.levels, key, || {
-            let set = trainset::load_from(store, key)?;
-            Ok(NestedLevel { dual: set.dual, parameters: set.parameters })
+            let (dual, parameters) = super::streamed::load_dual(store, key)?;
+            Ok(NestedLevel { dual, parameters })
         })
     }
 

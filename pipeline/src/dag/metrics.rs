@@ -120,7 +120,7 @@ impl GeneralizationKey {
         let sampled = (folds.len() != n_train).then_some(folds.len());
         let selection = basis::selection_of(n_train);
         let interval = sampled.map(|_| names::INTERVAL);
-        let primal = streamed::primal_of(n_train);
+        let primal = streamed::primal_of(scene);
         Self { max_rank, folds: sampled, nnls: NnlsKey::used(), selection, interval, primal }
     }
 
@@ -136,7 +136,7 @@ impl SpecificityKey {
     fn of(scene: &SceneConfig) -> Self {
         let st = &scene.study;
         let (max_rank, dense_to) = (basis::max_rank_of(scene), specificity_dense_to(scene));
-        let primal = streamed::primal_of(scene.parameter.train_points().len());
+        let primal = streamed::primal_of(scene);
         Self { samples: st.specificity_samples, seed: st.seed, max_rank, nnls: NnlsKey::used(), dense_to, primal }
     }
 }

@@ -34,9 +34,18 @@ pub(crate) const STREAM_PRIMAL_ABOVE: usize = crom_stages::basis::POD_FRAME_ABOV
 /// Columns read per block while loading a streamed set.
 const LOAD_BLOCK: usize = 256;
 
-/// The key marker of the stages that stream the primal snapshots of `n_train` training points.
-pub(crate) fn primal_of(n_train: usize) -> Option<&'static str> {
-    (n_train > STREAM_PRIMAL_ABOVE).then_some("streamed")
+/// Training sets whose primal snapshots take more than this many bytes are streamed whatever
+/// their count: a 3-D scene's 1 025 columns of 109 431 dofs are 0.9 GB, and holding them, their
+/// POD's working copy and its test set had a level-10 ironing-3d study peak at 4.7 GB.
+pub(crate) const STREAM_PRIMAL_BYTES: f64 = 512.0 * 1024.0 * 1024.0;
+
+/// The key marker of the stages that stream the primal snapshots of the scene's training set:
+/// more than [`STREAM_PRIMAL_ABOVE`] points, or more than [`STREAM_PRIMAL_BYTES`] of primal
+/// snapshots (rows as the memory estimate counts them from the scene, `resources`).
+pub(crate) fn primal_of(scene: &crom_schemas::SceneConfig) -> Option<&'static str> {
+    let n_train = scene.parameter.train_points().len();
+    let (rows, _) = crate::resources::snapshot_rows(scene);
+    (n_train > STREAM_PRIMAL_ABOVE || 8.0 * rows * n_train as f64 > STREAM_PRIMAL_BYTES).then_some("streamed")
 }
 
 /// A training set as the offline metrics read it: whole, or with its primal snapshots left in
@@ -146,6 +155,25 @@ impl ColumnBlocks for PrimalColumns {
             }
         }
     }
+}
+
+/// The dual snapshots and the parameters of the stored set `key`, read block by block (the
+/// primal columns verified and dropped): what the comparison's stages and the nested error
+/// read, without holding the primal even for a moment (a 3-D set's primal is 0.9 GB at 1 025
+/// columns of 109 431 dofs).
+pub(crate) fn load_dual(store: &Store, key: &Key) -> Result<(ColMatrix, Vec<Vec<f64>>), CromError> {
+    let dir = store.dir(ArtifactKind::TrainingSet, key);
+    let rows = trainset::rows_of(&dir.join(names::STATS))?;
+    let (n_dof, n_contact) = trainset::set_shape(store, key, &rows)?;
+    let parameters: Vec<Vec<f64>> = rows.iter().map(|r| r.parameters.clone()).collect();
+    let count = rows.len();
+    let primal = PrimalColumns { root: store.root().to_path_buf(), rows, n_dof, n_contact, failure: Mutex::new(None) };
+    let mut dual = ColMatrix { rows: n_contact, cols: count, data: Vec::with_capacity(n_contact * count) };
+    for start in (0..count).step_by(LOAD_BLOCK) {
+        let (_, d) = primal.read(start, LOAD_BLOCK.min(count - start))?;
+        dual.data.extend_from_slice(&d.data);
+    }
+    Ok((dual, parameters))
 }
 
 /// Load the training set `key` without its primal matrix: the dual snapshots and the primal

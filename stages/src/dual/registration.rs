@@ -95,6 +95,38 @@ impl MapKind {
     }
 }
 
+/// [`Map::frame`]'s interpolation of `(c, a)` over `points` in the first `dims` components of
+/// `mu` (every point agrees with `mu`'s components beyond them).
+fn levels(points: &[&(Vec<f64>, f64, f64)], mu: &[f64], dims: usize) -> (f64, f64) {
+    let last = dims - 1;
+    let t = mu[last];
+    // the distinct values of the last component, ascending
+    let mut values: Vec<f64> = points.iter().map(|p| p.0[last]).collect();
+    values.sort_by(f64::total_cmp);
+    values.dedup_by(|a, b| a.to_bits() == b.to_bits());
+    let at = |v: f64| -> (f64, f64) {
+        let on: Vec<&(Vec<f64>, f64, f64)> = points.iter().copied().filter(|p| p.0[last].to_bits() == v.to_bits()).collect();
+        if last == 0 {
+            // one point per value on the first axis (duplicates: the first)
+            let p = on[0];
+            (p.1, p.2)
+        } else {
+            levels(&on, mu, last)
+        }
+    };
+    let k = values.partition_point(|&v| v <= t);
+    if k == 0 {
+        at(values[0])
+    } else if k >= values.len() {
+        at(values[values.len() - 1])
+    } else {
+        let (p, q) = (values[k - 1], values[k]);
+        let (a, b) = (at(p), at(q));
+        let th = if q > p { (t - p) / (q - p) } else { 0.0 };
+        ((1.0 - th) * a.0 + th * b.0, (1.0 - th) * a.1 + th * b.1)
+    }
+}
+
 /// Tolerance of the uniform-spacing check of [`Interpolation::Nodes`] (relative to `h`; node
 /// coordinates from a structured mesh agree to round-off).
 const UNIFORM_REL: f64 = 1e-9;
@@ -173,8 +205,11 @@ impl Surface {
 pub struct Map {
     kind: MapKind,
     surface: Surface,
-    /// Training abscissae of the moments map (sorted) and their `(c, a)`.
+    /// Training abscissae of the moments map (sorted) and their `(c, a)` (one parameter).
     table: Vec<(f64, f64, f64)>,
+    /// With several parameter components: each training point and its `(c, a)`
+    /// ([`Map::frame`]'s levels).
+    pub(super) points: Vec<(Vec<f64>, f64, f64)>,
     /// Nodes: spacing h and the shift offset; Linear: reference grid start and spacing.
     grid_start: f64,
     grid_step: f64,
@@ -195,18 +230,21 @@ impl Map {
         }
         let surface = Surface::new(training.surface);
         let col = |j: usize| -> Vec<f64> { (0..n).map(|i| s[(i, j)]).collect() };
-        let mut map = Self { kind, surface, table: Vec::new(), grid_start: 0.0, grid_step: 1.0, len: 0 };
+        let mut map =
+            Self { kind, surface, table: Vec::new(), points: Vec::new(), grid_start: 0.0, grid_step: 1.0, len: 0 };
         if let MapKind::Moments { .. } = kind {
-            if training.params.iter().any(|p| p.len() != 1) {
-                return Err(DualError::NotApplicable(
-                    "the moments map interpolates its centre and width in one parameter; this scene has several \
-                     (use map = \"translate\" or no registration)"
-                        .into(),
-                ));
+            let dims = training.params.first().map_or(1, Vec::len);
+            if training.params.iter().any(|p| p.len() != dims) {
+                return Err(DualError::NotApplicable("the training points have different numbers of components".into()));
             }
             for j in 0..s.ncols() {
                 if let Some((c, a)) = map.surface.moments(&col(j)) {
-                    map.table.push((training.params[j][0], c, a));
+                    if dims == 1 {
+                        map.table.push((training.params[j][0], c, a));
+                    } else {
+                        map.points.push((training.params[j].clone(), c, a));
+                        map.table.push((0.0, c, a));
+                    }
                 }
             }
             map.table.sort_by(|p, q| p.0.total_cmp(&q.0));
@@ -271,10 +309,20 @@ impl Map {
         Ok(map)
     }
 
-    /// `(c, a)` at the parameter point `mu`.
+    /// `(c, a)` at the parameter point `mu`. The moments map interpolates the training
+    /// points' `(c, a)`: piecewise linearly in one parameter (clamped beyond the ends); with
+    /// several, level by level along the last component (the training points sharing a value
+    /// of it, interpolated in the others the same way), then linearly between the two levels
+    /// that bracket `mu`'s last component. On a full tensor grid this is the multilinear
+    /// interpolant; a grid with points missing (a leave-one-out fold) interpolates over those
+    /// present on each level.
     pub fn frame(&self, mu: &[f64]) -> (f64, f64) {
         match self.kind {
             MapKind::Translate { .. } => (mu.first().copied().unwrap_or(0.0), 1.0),
+            MapKind::Moments { .. } if !self.points.is_empty() => {
+                let refs: Vec<&(Vec<f64>, f64, f64)> = self.points.iter().collect();
+                levels(&refs, mu, mu.len())
+            }
             MapKind::Moments { .. } => {
                 let t = mu.first().copied().unwrap_or(0.0);
                 let tab = &self.table;
@@ -687,6 +735,46 @@ mod tests {
         // Three registered modes reproduce an unseen width to 2 % (the edge cells of the
         // square-root profile are not a dilation of each other on the discrete grid).
         assert!(out[2] / norm2(&q) < 0.02, "{:?}", out.map(|e| e / norm2(&q)));
+    }
+
+    /// With two parameter components the moments map interpolates `(c, a)` level by level:
+    /// on a 4 x 3 tensor grid whose training profiles are semi-ellipses centred at
+    /// `c = 0.3 mu_1 - 0.1 mu_2` of half-width `a = 0.2 + 0.1 mu_2` (both affine in `mu`), the frame
+    /// at points between the grid's is `(c, a)` to the moments' own error (0.01, one node
+    /// spacing, as in the one-parameter test); with a grid point left out (a leave-one-out fold)
+    /// the frame there is still interpolated (from its level's other points) to that accuracy.
+    #[test]
+    fn the_moments_map_interpolates_over_a_tensor_grid_with_points_missing() {
+        let x: Vec<f64> = (0..301).map(|i| -1.5 + i as f64 * 0.01).collect();
+        let (c_of, a_of) = (|m: &[f64]| 0.3 * m[0] - 0.1 * m[1], |m: &[f64]| 0.2 + 0.1 * m[1]);
+        let mut params: Vec<Vec<f64>> = Vec::new();
+        for j in 0..3 {
+            for i in 0..4 {
+                params.push(vec![i as f64, j as f64]);
+            }
+        }
+        let profile = |m: &[f64]| -> Vec<f64> {
+            let (c, a) = (c_of(m), a_of(m));
+            x.iter().map(|&xi| (1.0 - ((xi - c) / a).powi(2)).max(0.0).sqrt()).collect()
+        };
+        let cols: Vec<Vec<f64>> = params.iter().map(|m| profile(m)).collect();
+        let fit = |keep: &[usize]| {
+            let s = Mat::from_fn(x.len(), keep.len(), |i, j| cols[keep[j]][i]);
+            let ps: Vec<Vec<f64>> = keep.iter().map(|&j| params[j].clone()).collect();
+            let ms = [1usize];
+            let t = Training { snapshots: s.as_ref(), params: &ps, surface: &x, ms: &ms };
+            Map::fit(&t, MapKind::Moments { refine: 4 }).expect("fit")
+        };
+        let all: Vec<usize> = (0..params.len()).collect();
+        let map = fit(&all);
+        for mu in [[0.5, 0.5], [2.25, 1.75], [1.0, 0.3]] {
+            let (c, a) = map.frame(&mu);
+            assert!((c - c_of(&mu)).abs() < 0.01 && (a - a_of(&mu)).abs() < 0.01, "{mu:?}: ({c}, {a})");
+        }
+        // point (1, 1) left out: interpolated along its level mu_2 = 1 from (0, 1) and (2, 1)
+        let fold: Vec<usize> = all.iter().copied().filter(|&j| params[j] != vec![1.0, 1.0]).collect();
+        let (c, a) = fit(&fold).frame(&[1.0, 1.0]);
+        assert!((c - c_of(&[1.0, 1.0])).abs() < 0.01 && (a - a_of(&[1.0, 1.0])).abs() < 0.01, "({c}, {a})");
     }
 
     #[test]

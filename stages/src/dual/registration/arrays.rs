@@ -48,7 +48,9 @@ impl Registered {
     /// The basis as arrays; `None` for a registered POD (only non-negative generators make a
     /// dual basis of the online solve).
     pub fn arrays(&self) -> Option<RegisteredArrays> {
-        if self.inner == Inner::Pod {
+        // a registered POD has no online solve; a moments map over several parameter components
+        // is not stored (its interpolation levels are not in the arrays)
+        if self.inner == Inner::Pod || !self.map.points.is_empty() {
             return None;
         }
         let m = &self.map;
@@ -121,6 +123,7 @@ impl Registered {
             kind: a.kind,
             surface: Surface::new(&a.surface),
             table,
+            points: Vec::new(),
             grid_start: start,
             grid_step: step,
             len: a.len,

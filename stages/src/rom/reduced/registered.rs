@@ -48,7 +48,11 @@ impl ReducedModel {
     /// the model's contact surface.
     pub fn with_registered_dual(mut self, basis: Registered, m: usize) -> Result<Self, RomError> {
         let arrays = basis.arrays().ok_or_else(|| {
-            RomError::Parts("a registered dual basis must have non-negative generators (CPG), not POD modes".into())
+            RomError::Parts(
+                "a registered dual basis must have non-negative generators (CPG), not POD modes, and a map that \
+                 can be stored (a moments map over several parameter components cannot yet)"
+                    .into(),
+            )
         })?;
         if arrays.surface.len() != self.n_contact {
             return Err(RomError::Parts(format!(
