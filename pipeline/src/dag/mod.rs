@@ -385,7 +385,11 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     let uses_physics = |k: ArtifactKind| {
         matches!(
             k,
-            ArtifactKind::Mesh | ArtifactKind::Snapshot | ArtifactKind::Rom | ArtifactKind::OnlineApproximation | ArtifactKind::Model
+            ArtifactKind::Mesh
+                | ArtifactKind::Snapshot
+                | ArtifactKind::Rom
+                | ArtifactKind::OnlineApproximation
+                | ArtifactKind::Model
         )
     };
     let last_physics = plan.nodes.iter().rposition(|n| (uses_physics(n.kind) || n.is_sweep()) && (online || !n.online));

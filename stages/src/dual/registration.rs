@@ -105,7 +105,8 @@ fn levels(points: &[&(Vec<f64>, f64, f64)], mu: &[f64], dims: usize) -> (f64, f6
     values.sort_by(f64::total_cmp);
     values.dedup_by(|a, b| a.to_bits() == b.to_bits());
     let at = |v: f64| -> (f64, f64) {
-        let on: Vec<&(Vec<f64>, f64, f64)> = points.iter().copied().filter(|p| p.0[last].to_bits() == v.to_bits()).collect();
+        let on: Vec<&(Vec<f64>, f64, f64)> =
+            points.iter().copied().filter(|p| p.0[last].to_bits() == v.to_bits()).collect();
         if last == 0 {
             // one point per value on the first axis (duplicates: the first)
             let p = on[0];
@@ -235,7 +236,9 @@ impl Map {
         if let MapKind::Moments { .. } = kind {
             let dims = training.params.first().map_or(1, Vec::len);
             if training.params.iter().any(|p| p.len() != dims) {
-                return Err(DualError::NotApplicable("the training points have different numbers of components".into()));
+                return Err(DualError::NotApplicable(
+                    "the training points have different numbers of components".into(),
+                ));
             }
             for j in 0..s.ncols() {
                 if let Some((c, a)) = map.surface.moments(&col(j)) {
