@@ -8,7 +8,7 @@
 //! A basis that does not depend on the parameter is read from the approximation's artifact
 //! (`bases.h5`), not built again; a local or registered one is built from the training set
 //! (cheap: the dearest, NNMF, is parameter-independent). The dictionary is solved by a working
-//! set of atoms (`crom_stages::dual::dictionary::WorkingSet`: the nearest atoms first, then
+//! set of atoms (`crom_stages::rom::working_set::WorkingSet`: the nearest atoms first, then
 //! the violated ones), the whole loop timed.
 //!
 //! The reduced model is built once per run (`K̂`, the contact-dof rows of the primal basis;
@@ -29,9 +29,9 @@ use std::time::Instant;
 use crom_schemas::artifact::{comparison as names, ArtifactKind};
 use crom_schemas::comparison::ApproximationSpec;
 use crom_schemas::SceneConfig;
-use crom_stages::dual::dictionary::{WorkingSet, WorkingSetScratch, WS_START};
 use crom_stages::dual::{self, Approach, DualApprox, Training};
 use crom_stages::metrics::order::quantile;
+use crom_stages::rom::working_set::{WorkingSet, WorkingSetScratch, WS_START};
 use crom_stages::rom::{
     cone_basis_columns, Algorithm, PrimalErrors, ReducedModel, RomOutcome, RomParams, RomWork, SolveInfo,
     EXACT_STEP_ITERATIONS,

@@ -75,6 +75,7 @@ pub(crate) use reduced::test_support;
 mod saddle;
 pub mod sampling;
 pub mod translates;
+pub mod working_set;
 
 pub use crate::full_order::{Compliance, ContactOperator, Linearized, Surface};
 pub use error::PrimalErrors;

@@ -48,7 +48,7 @@ impl ReducedModel {
     /// surface — not only the support of the dual basis: Type-2 positions and pairs every
     /// non-fixed slave with the solver's rule (as [`Self::indicator`] does). Unpaired nodes carry
     /// no constraint and are left out. What a dual basis that grows (the dictionary's working
-    /// set, `crom_stages::dual::dictionary`) checks its candidates against.
+    /// set, `crom_stages::rom::working_set`) checks its candidates against.
     pub fn node_gaps(&self, mu: &[f64], w: &mut RomWork, out: &mut Vec<(usize, f64)>) {
         out.clear();
         let ru = self.r_u;
@@ -93,7 +93,7 @@ mod tests {
     /// check adds atoms at some point (it is exercised, not vacuous).
     #[test]
     fn dictionary_working_set_equals_all_atoms() {
-        use crate::dual::dictionary::{WorkingSet, WorkingSetScratch};
+        use crate::rom::working_set::{WorkingSet, WorkingSetScratch};
         let fm = ironing_coarse();
         let mus = coarse_mus();
         let (all, phi, snaps) = full_rom(fm, &mus);
