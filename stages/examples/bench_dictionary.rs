@@ -19,8 +19,9 @@
 
 use crom_stages::basis::pod_full;
 use crom_stages::contact::{ContactSolveParams, FactoredModel};
-use crom_stages::dual::dictionary::{Dictionary, WorkingSet, WorkingSetScratch, WS_START};
+use crom_stages::dual::dictionary::Dictionary;
 use crom_stages::dual::DualApprox;
+use crom_stages::rom::working_set::{WorkingSet, WorkingSetScratch, WS_START};
 use crom_stages::rom::{ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};
 use crom_stages::shipped::shipped_contact_model;
 use faer::MatRef;
