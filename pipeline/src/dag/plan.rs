@@ -109,6 +109,41 @@ impl Nodes {
     }
 }
 
+/// The offline study's nodes a report without online stages shows.
+struct Offline {
+    mesh: Option<Input>,
+    train: Input,
+    basis: Input,
+    compactness: Input,
+    generalization: Input,
+    specificity: Input,
+}
+
+impl Nodes {
+    /// The report of a study without online stages (an external or a 3-D scene), with the lines
+    /// of what it skipped.
+    fn offline_report(&mut self, scene: &SceneConfig, o: Offline, optional: [Option<Input>; 2], skipped: &[String]) {
+        let [nested, comparison] = optional;
+        let shows = report::ReportInputs {
+            mesh: o.mesh.as_ref().map(|m| m.key.clone()),
+            train: o.train.key.clone(),
+            basis: o.basis.key.clone(),
+            compactness: o.compactness.key.clone(),
+            rom: None,
+            generalization: o.generalization.key.clone(),
+            specificity: o.specificity.key.clone(),
+            nested: nested.as_ref().map(|n| n.key.clone()),
+            comparison: comparison.as_ref().map(|n| n.key.clone()),
+            online_comparison: None,
+            model: None,
+        };
+        let mut inputs: Vec<Input> = o.mesh.into_iter().collect();
+        inputs.extend([o.train, o.basis, o.compactness, o.generalization, o.specificity]);
+        inputs.extend([nested, comparison].into_iter().flatten());
+        self.add("report", true, ReportStage::plan_with(scene, shows, inputs, skipped.to_vec()));
+    }
+}
+
 /// The one line an external scene's run prints about the stages it does not have
 /// (`has_mesh`: the scene gives a mesh).
 pub fn external_skips(has_mesh: bool) -> &'static str {
@@ -245,23 +280,9 @@ impl Plan {
         });
         if scene.model.is_3d() {
             // no online stage for node-to-surface contact yet ([`SKIPS_3D`])
-            let shows = report::ReportInputs {
-                mesh: Some(mesh.key.clone()),
-                train: train.key.clone(),
-                basis: basis.key.clone(),
-                compactness: compactness.key.clone(),
-                rom: None,
-                generalization: generalization.key.clone(),
-                specificity: specificity.key.clone(),
-                nested: nested.as_ref().map(|n| n.key.clone()),
-                comparison: comparison.as_ref().map(|n| n.key.clone()),
-                online_comparison: None,
-                model: None,
-            };
-            let mut inputs = vec![mesh, train, basis, compactness, generalization, specificity];
-            inputs.extend([nested, comparison].into_iter().flatten());
             let skipped = vec![SKIPS_3D.to_string()];
-            nodes.add("report", true, ReportStage::plan_with(scene, shows, inputs, skipped.clone()));
+            let offline = Offline { mesh: Some(mesh), train, basis, compactness, generalization, specificity };
+            nodes.offline_report(scene, offline, [nested, comparison], &skipped);
             return Self { sweeps, family, nodes: nodes.0, imported: Vec::new(), skipped };
         }
         let rom = nodes.add("rom", true, RomStage::plan(scene, train.clone(), test.clone(), basis.clone(), &labels));
@@ -396,23 +417,8 @@ impl Plan {
             let stage = GatherStage::plan(ArtifactKind::Comparison, ArtifactKind::Approximation, parts);
             nodes.add("comparison", false, stage)
         });
-        let shows = report::ReportInputs {
-            mesh: mesh.as_ref().map(|m| m.key.clone()),
-            train: train.key.clone(),
-            basis: basis.key.clone(),
-            compactness: compactness.key.clone(),
-            rom: None,
-            generalization: generalization.key.clone(),
-            specificity: specificity.key.clone(),
-            nested: nested.as_ref().map(|n| n.key.clone()),
-            comparison: comparison.as_ref().map(|n| n.key.clone()),
-            online_comparison: None,
-            model: None,
-        };
-        let mut inputs: Vec<Input> = mesh.into_iter().collect();
-        inputs.extend([train, basis, compactness, generalization, specificity]);
-        inputs.extend([nested, comparison].into_iter().flatten());
-        nodes.add("report", true, ReportStage::plan_with(scene, shows, inputs, skipped.clone()));
+        let offline = Offline { mesh, train, basis, compactness, generalization, specificity };
+        nodes.offline_report(scene, offline, [nested, comparison], &skipped);
         let imported = train_keys.into_iter().chain(test_keys).collect();
         Self { sweeps: Vec::new(), family, nodes: nodes.0, imported, skipped }
     }

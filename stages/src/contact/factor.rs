@@ -11,7 +11,6 @@ use super::error::ModelError;
 use super::model::ContactModel;
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::Llt;
-use faer::sparse::SparseColMat;
 use faer::{MatMut, Side};
 
 /// A factored contact model: solve it at any parameter with [`FactoredModel::solve`]. It is
@@ -47,17 +46,11 @@ impl ContactModel {
     pub fn factor(&self) -> Result<FactoredModel, ModelError> {
         let split = &self.split;
         let nf = split.n_free();
-        let kff = SparseColMat::<usize, f64>::try_new_from_triplets(nf, nf, &split.free_block_lower_triplets(&self.k))
-            .map_err(|e| ModelError::Sparse(format!("{e:?}")))?;
+        let kff = split.free_block(&self.k).map_err(ModelError::Sparse)?;
         let llt = kff.sp_cholesky(Side::Lower).map_err(|e| ModelError::Singular(format!("{e:?}")))?;
-        let lift: Vec<Vec<f64>> = self.u_d.iter().map(|ud| split.lift(&self.k, ud)).collect();
+        let (lift, resp) = split.responses(&self.k, &self.u_d, |rhs| llt.solve_in_place(rhs));
+        let resp = resp.ok_or_else(|| ModelError::Singular("non-finite unconstrained response".into()))?;
         let terms = lift.len();
-        let mut r2: Vec<f64> = lift.iter().flatten().copied().collect();
-        llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut r2, nf, terms));
-        let resp: Vec<Vec<f64>> = r2.chunks(nf.max(1)).take(terms).map(<[f64]>::to_vec).collect();
-        if resp.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(ModelError::Singular("non-finite unconstrained response".into()));
-        }
         let cnodes: Vec<usize> = self.slaves.iter().chain(&self.masters).copied().collect();
         let x_ref: Vec<[f64; 2]> = cnodes.iter().map(|&n| self.mesh.nodes[n]).collect();
         let cfree: Vec<Option<usize>> =

@@ -20,7 +20,6 @@
 //! of the recovered field with the full `K` (the equilibrium residual a backward error, as in
 //! 2-D). The pressure is `lambda_s / A_s`, `A_s` the slave's tributary area.
 
-use faer::sparse::SparseColMat;
 use faer::MatMut;
 
 use super::condense::ContactLastFactor;
@@ -54,21 +53,14 @@ impl Model3d {
     /// operator on the contact dofs.
     pub fn factor(&self) -> Result<Factored3d, ModelError> {
         let split = &self.split;
-        let nf = split.n_free();
-        let kff = SparseColMat::<usize, f64>::try_new_from_triplets(nf, nf, &split.free_block_lower_triplets(&self.k))
-            .map_err(|e| ModelError::Sparse(format!("{e:?}")))?;
+        let kff = split.free_block(&self.k).map_err(ModelError::Sparse)?;
         let cnodes: Vec<usize> = self.slaves.iter().chain(&self.masters).copied().collect();
         let dofs: Vec<usize> = cnodes.iter().flat_map(|&n| [3 * n, 3 * n + 1, 3 * n + 2]).collect();
         let contact_free: Vec<usize> = dofs.iter().filter_map(|&d| split.free_index(d)).collect();
         let (llt, w_free) = ContactLastFactor::factor(&kff, &contact_free)?;
-        let lift: Vec<Vec<f64>> = self.u_d.iter().map(|ud| split.lift(&self.k, ud)).collect();
+        let (lift, resp) = split.responses(&self.k, &self.u_d, |rhs| llt.solve_in_place(rhs));
+        let resp = resp.ok_or_else(|| ModelError::Singular("non-finite unconstrained response".into()))?;
         let terms = lift.len();
-        let mut r2: Vec<f64> = lift.iter().flatten().copied().collect();
-        llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut r2, nf, terms));
-        let resp: Vec<Vec<f64>> = r2.chunks(nf.max(1)).take(terms).map(<[f64]>::to_vec).collect();
-        if resp.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(ModelError::Singular("non-finite unconstrained response".into()));
-        }
         let x_ref: Vec<[f64; 3]> = cnodes.iter().map(|&n| self.mesh.nodes[n]).collect();
         let cfree: Vec<Option<usize>> = dofs.iter().map(|&d| split.free_index(d)).collect();
         let a: Vec<Vec<f64>> = (0..terms)

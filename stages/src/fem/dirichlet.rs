@@ -93,6 +93,32 @@ impl DofSplit {
             .collect()
     }
 
+    /// `K_FF`'s lower triangle as faer's sparse matrix (the message of faer's error otherwise).
+    pub fn free_block(&self, k: &CsrMatrix) -> Result<faer::sparse::SparseColMat<usize, f64>, String> {
+        let nf = self.n_free();
+        faer::sparse::SparseColMat::try_new_from_triplets(nf, nf, &self.free_block_lower_triplets(k))
+            .map_err(|e| format!("{e:?}"))
+    }
+
+    /// The lifted loads `-K_FD u_Dk` of the affine terms `u_d` and their free-dof responses
+    /// `K_FF^{-1} (-K_FD u_Dk)`, all terms solved together by `solve` (in place, `n_free x
+    /// terms`); the responses are `None` if one is not finite (a singular `K_FF`).
+    pub fn responses(
+        &self,
+        k: &CsrMatrix,
+        u_d: &[Vec<f64>],
+        solve: impl FnOnce(faer::MatMut<'_, f64>),
+    ) -> (Vec<Vec<f64>>, Option<Vec<Vec<f64>>>) {
+        let nf = self.n_free();
+        let lift: Vec<Vec<f64>> = u_d.iter().map(|ud| self.lift(k, ud)).collect();
+        let terms = lift.len();
+        let mut r2: Vec<f64> = lift.iter().flatten().copied().collect();
+        solve(faer::MatMut::from_column_major_slice_mut(&mut r2, nf, terms));
+        let resp: Vec<Vec<f64>> = r2.chunks(nf.max(1)).take(terms).map(<[f64]>::to_vec).collect();
+        let finite = resp.iter().flatten().all(|v| v.is_finite());
+        (lift, finite.then_some(resp))
+    }
+
     /// Write free values `u_free` into their places in `u_full`.
     pub fn scatter_free(&self, u_free: &[f64], u_full: &mut [f64]) {
         assert!(u_free.len() == self.n_free() && u_full.len() == self.n_dof(), "size mismatch");
