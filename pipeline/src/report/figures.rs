@@ -105,6 +105,9 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
         figs.push(deformed_bodies(scene, g, d, dir)?);
     }
     figs.push(dual_snapshots(scene, d, dir)?);
+    if let (Model::Hertz3d(h), Some(profile)) = (&scene.model, &d.profile) {
+        figs.push(hertz3d_theory(scene, h, profile, d, dir)?);
+    }
     figs.push(singular_values(scene, d, dir)?);
     figs.push(sparsity(scene, d, dir)?);
     figs.push(compactness(scene, d, dir)?);
@@ -315,6 +318,48 @@ fn deformed_bodies(
             "Deformed configuration at the first, middle and last training points (paper Figs. 1, 6a, 11): true scale, and with each body's deformation about its rigid motion magnified {factor:.3} times (the displacement of its node farthest from the contact surface, on its Dirichlet boundary, is kept at true scale); the contact surface is coloured by the contact pressure λ (colour bar at the right), and the pressure profile along the surface is beside each row."
         ),
     })
+}
+
+/// hertz-3d's pressure along the symmetry plane against Hertz theory for two equal spheres
+/// (Johnson, sec. 4.2: `p(r) = p0 sqrt(1 - r^2 / a^2)`, `a = sqrt(R* d)`,
+/// `p0 = (2 E* / pi) sqrt(d / R*)`, `R* = R / 2`, `E* = E / (2 (1 - nu^2))`) at the first,
+/// middle and last training approaches.
+fn hertz3d_theory(
+    scene: &SceneConfig,
+    h: &crom_schemas::scene::Hertz3dSpec,
+    profile: &[usize],
+    d: &ReportData,
+    dir: &Path,
+) -> Result<Figure, CromError> {
+    let (e, nu) = (h.material.young, h.material.poisson);
+    let (es, rs) = (e / (2.0 * (1.0 - nu * nu)), h.radius / 2.0);
+    let mut order = profile.to_vec();
+    order.sort_by(|&a, &b| d.contact_x[a].total_cmp(&d.contact_x[b]));
+    let xs: Vec<f64> = order.iter().map(|&i| d.contact_x[i]).collect();
+    let mut series = Vec::new();
+    for (k, j) in three(d.train.parameters.len()).into_iter().enumerate() {
+        let approach = d.train.parameters[j].first().copied().unwrap_or(0.0);
+        let col = d.train.dual.col(j);
+        let name = label(scene, &d.train.parameters[j]);
+        series.push(
+            Series::line(&format!("{name}, crom"), xs.clone(), order.iter().map(|&i| col[i]).collect())
+                .mark(Mark::Points)
+                .color(k),
+        );
+        let (a, p0) = ((rs * approach).sqrt(), 2.0 * es / std::f64::consts::PI * (approach / rs).sqrt());
+        let top = xs.last().copied().unwrap_or(a).max(a);
+        let rx: Vec<f64> = (0..=200).map(|t| top * t as f64 / 200.0).collect();
+        let ry = rx.iter().map(|&r| p0 * (1.0 - (r / a).powi(2)).max(0.0).sqrt()).collect();
+        series.push(Series::line(&format!("{name}, Hertz"), rx, ry).color(k));
+    }
+    draw(
+        dir,
+        "fig_hertz3d_theory",
+        format!("{}: contact pressure along the symmetry plane against Hertz theory", scene.scene.name),
+        Axes { x: "distance r from the axis (on the plane y = 0)", y: "contact pressure", log_x: false, log_y: false, legend: Legend::UpperRight },
+        series,
+        "hertz-3d: the pressure at the slave nodes on the symmetry plane y = 0 (points) against Hertz theory for two equal spheres, p(r) = p0 sqrt(1 - r²/a²) with a = sqrt(R* d), p0 = (2E*/π) sqrt(d/R*), R* = R/2, E* = E/(2(1 − ν²)) (lines), at the first, middle and last training approaches. Each node's pressure is its force over its tributary area, so the nodes at the edge of contact read the mean over their cell; the hemispheres' finite size raises the force above Hertz's by a few per cent (docs/results.md#contact-in-3-d).",
+    )
 }
 
 /// The first, middle and last training points (distinct).
