@@ -42,6 +42,9 @@ pub enum Physics {
     Contact3d(Box<Factored3d>, ContactSolveParams),
 }
 
+/// Why a 3-D model has no [`Physics::operator`].
+pub(crate) const NO_ONLINE_OPERATOR: &str = "a 3-D model has no operator for the online reduced solve";
+
 impl std::fmt::Debug for Physics {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
@@ -163,7 +166,7 @@ impl Physics {
         self.operator().ok_or_else(|| crate::error::CromError::Numerical {
             stage,
             scene: scene.to_string(),
-            message: "a 3-D model has no operator for the online reduced solve".into(),
+            message: NO_ONLINE_OPERATOR.into(),
         })
     }
 

@@ -245,43 +245,29 @@ impl SceneConfig {
                 &format!("keep every point set at most {limit} points (fewer training points, levels or axes)"),
             ));
         }
-        if let Model::Ironing3d(i) = &self.model {
-            match (i.d_z, names.contains(&"d_z")) {
+        // the press of an ironing scene: a fixed value or a parameter axis, exactly one
+        let press = match &self.model {
+            Model::Ironing(i) => Some(("ironing", "d_y", "iron", i.d_y)),
+            Model::Ironing3d(i) => Some(("ironing3d", "d_z", "die", i.d_z)),
+            _ => None,
+        };
+        if let Some((model, axis, body, fixed)) = press {
+            let field = format!("model.{model}.{axis}");
+            match (fixed, names.contains(&axis)) {
                 (Some(_), true) => {
-                    return Err(c.fail(
-                        "model.ironing3d.d_z",
-                        "is given, but d_z is also a parameter axis".into(),
-                        "remove model.ironing3d.d_z (the axis sets it) or the d_z axis",
-                    ))
+                    let fix = format!("remove {field} (the axis sets it) or the {axis} axis");
+                    return Err(c.fail(&field, format!("is given, but {axis} is also a parameter axis"), &fix));
                 }
                 (None, false) => {
-                    return Err(c.fail(
-                        "model.ironing3d.d_z",
-                        "is missing".into(),
-                        "give the die's downward displacement, e.g. d_z = 0.04, or make d_z a parameter axis",
-                    ))
+                    let fix = format!(
+                        "give the {body}'s downward displacement, e.g. {axis} = 0.04, or make {axis} a parameter axis"
+                    );
+                    return Err(c.fail(&field, "is missing".into(), &fix));
                 }
                 _ => {}
             }
         }
         if let Model::Ironing(i) = &self.model {
-            match (i.d_y, names.contains(&"d_y")) {
-                (Some(_), true) => {
-                    return Err(c.fail(
-                        "model.ironing.d_y",
-                        "is given, but d_y is also a parameter axis".into(),
-                        "remove model.ironing.d_y (the axis sets it) or the d_y axis",
-                    ))
-                }
-                (None, false) => {
-                    return Err(c.fail(
-                        "model.ironing.d_y",
-                        "is missing".into(),
-                        "give the iron's downward displacement, e.g. d_y = 0.04, or make d_y a parameter axis",
-                    ))
-                }
-                _ => {}
-            }
             // the deepest press of the study, fixed or the d_y axis's upper end
             let (field, deepest) = match (i.d_y, p.axes.iter().position(|a| a.name == "d_y")) {
                 (Some(d), _) => ("model.ironing.d_y".to_string(), d),
@@ -735,11 +721,15 @@ fn check_ironing3d(c: &Checker<'_>, i: &Ironing3dSpec) -> Result<(), SceneError>
             "give the die a depth at most the block's",
         ));
     }
-    let edge_rise = d.sole_radius - (d.sole_radius * d.sole_radius - 0.25 * d.width * d.width).max(0.0).sqrt();
-    if d.height <= edge_rise {
+    // the sole's rise at the die's edges above its lowest line
+    let rise = d.sole_radius - (d.sole_radius * d.sole_radius - 0.25 * d.width * d.width).max(0.0).sqrt();
+    if d.height <= rise {
         return Err(c.fail(
             "model.ironing3d.die.height",
-            format!("is {}, not above the sole's rise {edge_rise:.4} at the die's edges: its elements there would be inverted", d.height),
+            format!(
+                "is {}, not above the sole's rise {rise:.4} at the die's edges: its elements there would be inverted",
+                d.height
+            ),
             "give the die a height above the sole's rise (a larger height or sole_radius)",
         ));
     }
@@ -763,7 +753,6 @@ fn check_ironing3d(c: &Checker<'_>, i: &Ironing3dSpec) -> Result<(), SceneError>
     }
     if let Some(dz) = i.d_z {
         c.finite("model.ironing3d.d_z", dz)?;
-        let rise = d.sole_radius - (d.sole_radius * d.sole_radius - 0.25 * d.width * d.width).max(0.0).sqrt();
         if dz >= rise {
             return Err(c.fail(
                 "model.ironing3d.d_z",

@@ -3,13 +3,12 @@
 //! (`just example hertz3d_theory`). The shipped scene's values come from
 //! `data/scenes/hertz-3d.toml`; the finer meshes change only `n`.
 //!
-//! Theory (Johnson, *Contact Mechanics*, sec. 4.2), two equal spheres: `R* = R / 2`,
-//! `E* = E / (2 (1 - nu^2))`, `a = sqrt(R* d)`, `p0 = (2 E* / pi) sqrt(d / R*)`,
-//! `F = (4/3) E* sqrt(R*) d^(3/2)`. Measured: `F` = 4 x the top face's reaction (quarter model),
+//! Theory: `crom_stages::contact3d::HertzSpheres` (Johnson, *Contact Mechanics*, sec. 4.2, two
+//! equal spheres). Measured: `F` = 4 x the top face's reaction (quarter model),
 //! `p0` the apex slave's pressure, `a` from `F = (2/3) pi a^2 p0`.
 
 use crom_stages::contact::ContactSolveParams;
-use crom_stages::contact3d::{build_hertz3d, Hertz3dParams};
+use crom_stages::contact3d::{build_hertz3d, Hertz3dParams, HertzSpheres};
 use crom_stages::shipped::shipped_scene;
 
 fn main() {
@@ -17,7 +16,6 @@ fn main() {
     let crom_schemas::Model::Hertz3d(spec) = &scene.model else { panic!("hertz-3d is not a hertz3d scene") };
     let base = Hertz3dParams::from(spec);
     let (e, nu, r) = (base.material.young, base.material.poisson, base.radius);
-    let (es, rs) = (e / (2.0 * (1.0 - nu * nu)), r / 2.0);
     println!("| n | grading | d / R | a / R | F dev | p0 dev | a dev | solve |");
     println!("|---|---|---|---|---|---|---|---|");
     for n in [base.n, 24] {
@@ -36,11 +34,7 @@ fn main() {
             let force = -4.0 * m.resultant(&s.u, m.driven_nodes())[2];
             let p0 = s.pressure[apex];
             let a = (3.0 * force / (2.0 * std::f64::consts::PI * p0)).sqrt();
-            let (a_th, p0_th, f_th) = (
-                (rs * d).sqrt(),
-                2.0 * es / std::f64::consts::PI * (d / rs).sqrt(),
-                4.0 / 3.0 * es * rs.sqrt() * d.powf(1.5),
-            );
+            let HertzSpheres { a: a_th, p0: p0_th, force: f_th } = HertzSpheres::at(r, e, nu, d);
             let dev = |x: f64, y: f64| format!("{:+.2} %", 100.0 * (x / y - 1.0));
             println!(
                 "| {n} | {} | {d} | {:.3} | {} | {} | {} | {:.3} s |",

@@ -554,10 +554,7 @@ impl<'s> LazyPhysics<'s> {
                 return Ok(std::sync::Arc::clone(phi));
             }
         }
-        let op = self
-            .get()?
-            .operator()
-            .ok_or_else(|| fail("a 3-D model has no operator for the online reduced solve".into()))?;
+        let op = self.get()?.operator().ok_or_else(|| fail(crate::physics::NO_ONLINE_OPERATOR.into()))?;
         let phi = std::sync::Arc::new(rom::response_basis(op, train).map_err(fail)?);
         self.responses = Some((set.clone(), std::sync::Arc::clone(&phi)));
         Ok(phi)

@@ -8,6 +8,7 @@ use std::path::Path;
 use crom_schemas::artifact::metrics as metric_names;
 use crom_schemas::scene::Model;
 use crom_schemas::SceneConfig;
+use crom_stages::contact3d::HertzSpheres;
 use crom_stages::rope::{Rope, RopeParams};
 
 use super::chart::{render, render_spy, Chart, Legend, Mark, Series, Spy};
@@ -321,9 +322,7 @@ fn deformed_bodies(
 }
 
 /// hertz-3d's pressure along the symmetry plane against Hertz theory for two equal spheres
-/// (Johnson, sec. 4.2: `p(r) = p0 sqrt(1 - r^2 / a^2)`, `a = sqrt(R* d)`,
-/// `p0 = (2 E* / pi) sqrt(d / R*)`, `R* = R / 2`, `E* = E / (2 (1 - nu^2))`) at the first,
-/// middle and last training approaches.
+/// ([`HertzSpheres`]) at the first, middle and last training approaches.
 fn hertz3d_theory(
     scene: &SceneConfig,
     h: &crom_schemas::scene::Hertz3dSpec,
@@ -331,11 +330,7 @@ fn hertz3d_theory(
     d: &ReportData,
     dir: &Path,
 ) -> Result<Figure, CromError> {
-    let (e, nu) = (h.material.young, h.material.poisson);
-    let (es, rs) = (e / (2.0 * (1.0 - nu * nu)), h.radius / 2.0);
-    let mut order = profile.to_vec();
-    order.sort_by(|&a, &b| d.contact_x[a].total_cmp(&d.contact_x[b]));
-    let xs: Vec<f64> = order.iter().map(|&i| d.contact_x[i]).collect();
+    let (order, xs) = by_x(d, profile.to_vec());
     let mut series = Vec::new();
     for (k, j) in three(d.train.parameters.len()).into_iter().enumerate() {
         let approach = d.train.parameters[j].first().copied().unwrap_or(0.0);
@@ -346,10 +341,10 @@ fn hertz3d_theory(
                 .mark(Mark::Points)
                 .color(k),
         );
-        let (a, p0) = ((rs * approach).sqrt(), 2.0 * es / std::f64::consts::PI * (approach / rs).sqrt());
-        let top = xs.last().copied().unwrap_or(a).max(a);
+        let theory = HertzSpheres::at(h.radius, h.material.young, h.material.poisson, approach);
+        let top = xs.last().copied().unwrap_or(theory.a).max(theory.a);
         let rx: Vec<f64> = (0..=200).map(|t| top * t as f64 / 200.0).collect();
-        let ry = rx.iter().map(|&r| p0 * (1.0 - (r / a).powi(2)).max(0.0).sqrt()).collect();
+        let ry = rx.iter().map(|&r| theory.pressure(r)).collect();
         series.push(Series::line(&format!("{name}, Hertz"), rx, ry).color(k));
     }
     draw(
@@ -360,6 +355,13 @@ fn hertz3d_theory(
         series,
         "hertz-3d: the pressure at the slave nodes on the symmetry plane y = 0 (points) against Hertz theory for two equal spheres, p(r) = p0 sqrt(1 - r²/a²) with a = sqrt(R* d), p0 = (2E*/π) sqrt(d/R*), R* = R/2, E* = E/(2(1 − ν²)) (lines), at the first, middle and last training approaches. Each node's pressure is its force over its tributary area, so the nodes at the edge of contact read the mean over their cell; the hemispheres' finite size raises the force above Hertz's by a few per cent (docs/results.md#contact-in-3-d).",
     )
+}
+
+/// The contact entries `entries` in ascending x, and their x.
+fn by_x(d: &ReportData, mut entries: Vec<usize>) -> (Vec<usize>, Vec<f64>) {
+    entries.sort_by(|&a, &b| d.contact_x[a].total_cmp(&d.contact_x[b]));
+    let xs = entries.iter().map(|&i| d.contact_x[i]).collect();
+    (entries, xs)
 }
 
 /// The first, middle and last training points (distinct).
@@ -386,9 +388,7 @@ fn pressure_on_mesh(scene: &SceneConfig, s: &super::Surface, d: &ReportData, dir
 
 fn dual_snapshots(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
     let step = every(d.train.parameters.len());
-    let mut order: Vec<usize> = d.profile.clone().unwrap_or_else(|| (0..d.contact_x.len()).collect());
-    order.sort_by(|&a, &b| d.contact_x[a].total_cmp(&d.contact_x[b]));
-    let xs: Vec<f64> = order.iter().map(|&i| d.contact_x[i]).collect();
+    let (order, xs) = by_x(d, d.profile.clone().unwrap_or_else(|| (0..d.contact_x.len()).collect()));
     // An external scene's contact set need not be a curve (a membrane's is an area): points
     // where two entries share an x (to 1e-9 of the extent: nodes on one grid line), and the
     // entry number without a mesh.
@@ -440,8 +440,7 @@ fn singular_values(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Fi
 }
 
 fn sparsity(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure, CromError> {
-    let mut order: Vec<usize> = (0..d.contact_x.len()).collect();
-    order.sort_by(|&a, &b| d.contact_x[a].total_cmp(&d.contact_x[b]));
+    let (order, _) = by_x(d, (0..d.contact_x.len()).collect());
     let max = d.train.dual.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     // "Non-zero" relative to the largest pressure: solver tolerance is 1e-10, so 1e-12 of the
     // maximum separates contact from rounding.

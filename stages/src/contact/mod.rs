@@ -35,7 +35,7 @@ pub mod check;
 pub mod delassus;
 mod error;
 mod factor;
-mod model;
+pub(crate) mod model;
 pub mod pairing;
 mod rom_view;
 pub mod scene;

@@ -102,7 +102,8 @@ pub struct ContactModel {
     pub(crate) support: Vec<usize>,
 }
 
-fn positive(field: &'static str, v: f64) -> Result<(), ModelError> {
+/// A finite, positive parameter.
+pub(crate) fn positive(field: &'static str, v: f64) -> Result<(), ModelError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
@@ -110,11 +111,13 @@ fn positive(field: &'static str, v: f64) -> Result<(), ModelError> {
     }
 }
 
-fn material(field: &'static str, m: &Material) -> Result<(), ModelError> {
+/// A valid material.
+pub(crate) fn material(field: &'static str, m: &Material) -> Result<(), ModelError> {
     m.validate().map_err(|msg| ModelError::BadParameter { field, msg })
 }
 
-fn count(field: &'static str, n: usize, min: usize) -> Result<(), ModelError> {
+/// A count of at least `min`.
+pub(crate) fn count(field: &'static str, n: usize, min: usize) -> Result<(), ModelError> {
     if n >= min {
         Ok(())
     } else {

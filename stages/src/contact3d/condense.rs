@@ -170,8 +170,7 @@ mod tests {
         let m = crate::contact3d::build_ironing3d(&p).expect("model");
         let split = &m.split;
         let nf = split.n_free();
-        let kff = SparseColMat::<usize, f64>::try_new_from_triplets(nf, nf, &split.free_block_lower_triplets(&m.k))
-            .expect("triplets");
+        let kff = split.free_block(&m.k).expect("K_FF");
         let cnodes: Vec<usize> = m.slaves.iter().chain(&m.masters).copied().collect();
         let cfree: Vec<Option<usize>> =
             cnodes.iter().flat_map(|&n| [3 * n, 3 * n + 1, 3 * n + 2]).map(|d| split.free_index(d)).collect();

@@ -13,10 +13,12 @@ pub mod model;
 mod scene;
 pub mod solve;
 pub mod surface;
+pub mod theory;
 
 pub use model::{
     build_hertz3d, build_ironing3d, check_hertz3d, check_ironing3d, Hertz3dParams, Ironing3dParams, Model3d, Scene3d,
 };
 pub use solve::Factored3d;
+pub use theory::HertzSpheres;
 #[cfg(test)]
 mod tests;

@@ -4,10 +4,11 @@
 //! nodes with their tributary areas, and the master surface.
 
 use super::surface::MasterSurface;
+use crate::contact::model::{count, material, positive};
 use crate::contact::ModelError;
 use crate::fem::{CsrMatrix, DofSplit, Material};
 use crate::solid::assembly::assemble_stiffness;
-use crate::solid::block::Face;
+use crate::solid::block::{Block, Face};
 use crate::solid::mesh::Mesh3d;
 use crate::solid::shapes::{ball_octant, cuboid, cylinder_die, Facing};
 use crate::solid::symmetry::{free_rigid_modes, roller_dofs, Plane};
@@ -110,26 +111,6 @@ pub struct Model3d {
     pub(crate) planes: Vec<Plane>,
 }
 
-fn positive(field: &'static str, v: f64) -> Result<(), ModelError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(ModelError::BadParameter { field, msg: format!("must be a positive number, got {v}") })
-    }
-}
-
-fn count(field: &'static str, n: usize, min: usize) -> Result<(), ModelError> {
-    if n >= min {
-        Ok(())
-    } else {
-        Err(ModelError::BadParameter { field, msg: format!("must be >= {min}, got {n}") })
-    }
-}
-
-fn material(field: &'static str, m: &Material) -> Result<(), ModelError> {
-    m.validate().map_err(|msg| ModelError::BadParameter { field, msg })
-}
-
 /// Tributary area of each node of `nodes` on the quads `quads` (reference configuration): a
 /// quarter of each adjacent quad's area (2x2 Gauss of `|x_xi x x_eta|`).
 fn tributary_areas(x: &[[f64; 3]], quads: &[[usize; 4]], nodes: &[usize]) -> Vec<f64> {
@@ -155,6 +136,23 @@ fn tributary_areas(x: &[[f64; 3]], quads: &[[usize; 4]], nodes: &[usize]) -> Vec
         }
     }
     area
+}
+
+/// A block of a mesh of several ([`Mesh3d::from_blocks`]): its faces in the mesh's numbering.
+struct Placed<'a> {
+    block: &'a Block,
+    /// The mesh's id of the block's node 0.
+    first: usize,
+}
+
+impl Placed<'_> {
+    fn nodes(&self, face: Face) -> Vec<usize> {
+        self.block.face_nodes(face).iter().map(|&n| n + self.first).collect()
+    }
+
+    fn quads(&self, face: Face) -> Vec<[usize; 4]> {
+        self.block.face_quads(face).iter().map(|q| q.map(|n| n + self.first)).collect()
+    }
 }
 
 /// Everything of a model but its stiffness: what [`check_hertz3d`] and [`check_ironing3d`]
@@ -205,27 +203,22 @@ fn hertz3d_layout(p: &Hertz3dParams) -> Result<Layout, ModelError> {
     let planes = p.planes.clone();
     let within = |x: [f64; 3]| x[0].hypot(x[1]) <= p.contact_radius;
     let (mesh, off) = Mesh3d::from_blocks(&[&bottom, &top]);
-    let support: Vec<usize> = bottom.face_nodes(Face::KMin).iter().map(|&n| n + off[0]).collect();
-    let driven: Vec<usize> = top.face_nodes(Face::KMin).iter().map(|&n| n + off[1]).collect();
+    let (bottom, top) = (Placed { block: &bottom, first: off[0] }, Placed { block: &top, first: off[1] });
+    let support = bottom.nodes(Face::KMin);
+    let driven = top.nodes(Face::KMin);
     let mut u_d1 = vec![0.0; mesh.n_dof()];
     for &n in &driven {
         u_d1[3 * n + 2] = -1.0;
     }
-    let slave_quads: Vec<[usize; 4]> = top.face_quads(Face::KMax).iter().map(|q| q.map(|n| n + off[1])).collect();
-    let slaves: Vec<usize> =
-        top.face_nodes(Face::KMax).iter().map(|&n| n + off[1]).filter(|&n| within(mesh.nodes[n])).collect();
-    let master_quads: Vec<[usize; 4]> = bottom
-        .face_quads(Face::KMax)
-        .iter()
-        .map(|q| q.map(|n| n + off[0]))
-        .filter(|q| q.iter().any(|&n| within(mesh.nodes[n])))
-        .collect();
+    let slave_quads = top.quads(Face::KMax);
+    let slaves: Vec<usize> = top.nodes(Face::KMax).into_iter().filter(|&n| within(mesh.nodes[n])).collect();
+    let master_quads: Vec<[usize; 4]> =
+        bottom.quads(Face::KMax).into_iter().filter(|q| q.iter().any(|&n| within(mesh.nodes[n]))).collect();
     // the flat faces on vertical rollers (u_z imposed, free to expand laterally: SSNV104's
     // conditions); the symmetry planes hold the lateral rigid motions
-    let dirichlet: Vec<usize> = support.iter().chain(&driven).map(|&n| 3 * n + 2).collect();
+    let fixed: Vec<usize> = support.iter().chain(&driven).map(|&n| 3 * n + 2).collect();
     let u_d = vec![vec![0.0; u_d1.len()], u_d1];
     let materials = vec![p.material, p.material];
-    let fixed = dirichlet;
     checked(Layout {
         kind: Scene3d::Hertz,
         mesh,
@@ -281,8 +274,9 @@ fn ironing3d_layout(p: &Ironing3dParams) -> Result<Layout, ModelError> {
     let block = cuboid([0.0, 0.0, -p.block[2]], p.block, p.block_n);
     let die = cylinder_die(p.contact_x, 0.0, 0.0, p.die, p.sole_radius, p.die_n);
     let (mesh, off) = Mesh3d::from_blocks(&[&block, &die]);
-    let support: Vec<usize> = block.face_nodes(Face::KMin).iter().map(|&n| n + off[0]).collect();
-    let driven: Vec<usize> = die.face_nodes(Face::KMax).iter().map(|&n| n + off[1]).collect();
+    let (block, die) = (Placed { block: &block, first: off[0] }, Placed { block: &die, first: off[1] });
+    let support = block.nodes(Face::KMin);
+    let driven = die.nodes(Face::KMax);
     let n_dof = mesh.n_dof();
     let (mut u0, mut ux, mut uz) = (vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]);
     for &n in &driven {
@@ -292,17 +286,16 @@ fn ironing3d_layout(p: &Ironing3dParams) -> Result<Layout, ModelError> {
     }
     let u_d = if p.d_z.is_some() { vec![u0, ux] } else { vec![u0, ux, uz] };
     let [x0, x1, y1] = p.slave_box;
-    let slave_quads: Vec<[usize; 4]> = block.face_quads(Face::KMax).iter().map(|q| q.map(|n| n + off[0])).collect();
+    let slave_quads = block.quads(Face::KMax);
     let slaves: Vec<usize> = block
-        .face_nodes(Face::KMax)
-        .iter()
-        .map(|&n| n + off[0])
+        .nodes(Face::KMax)
+        .into_iter()
         .filter(|&n| {
             let x = mesh.nodes[n];
             x[0] >= x0 && x[0] <= x1 && x[1] <= y1
         })
         .collect();
-    let master_quads: Vec<[usize; 4]> = die.face_quads(Face::KMin).iter().map(|q| q.map(|n| n + off[1])).collect();
+    let master_quads = die.quads(Face::KMin);
     let planes = p.planes.clone();
     let fixed: Vec<usize> = support.iter().chain(&driven).flat_map(|&n| [3 * n, 3 * n + 1, 3 * n + 2]).collect();
     let materials = vec![p.block_material, p.die_material];

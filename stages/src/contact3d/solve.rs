@@ -40,7 +40,6 @@ pub struct Factored3d {
     pub(crate) model: Model3d,
     llt: ContactLastFactor,
     resp: Vec<Vec<f64>>,
-    lift: Vec<Vec<f64>>,
     cnodes: Vec<usize>,
     x_ref: Vec<[f64; 3]>,
     a: Vec<Vec<f64>>,
@@ -56,42 +55,27 @@ impl Model3d {
         let kff = split.free_block(&self.k).map_err(ModelError::Sparse)?;
         let cnodes: Vec<usize> = self.slaves.iter().chain(&self.masters).copied().collect();
         let dofs: Vec<usize> = cnodes.iter().flat_map(|&n| [3 * n, 3 * n + 1, 3 * n + 2]).collect();
-        let contact_free: Vec<usize> = dofs.iter().filter_map(|&d| split.free_index(d)).collect();
-        let (llt, w_free) = ContactLastFactor::factor(&kff, &contact_free)?;
-        let (lift, resp) = split.responses(&self.k, &self.u_d, |rhs| llt.solve_in_place(rhs));
-        let resp = resp.ok_or_else(|| ModelError::Singular("non-finite unconstrained response".into()))?;
-        let terms = lift.len();
-        let x_ref: Vec<[f64; 3]> = cnodes.iter().map(|&n| self.mesh.nodes[n]).collect();
         let cfree: Vec<Option<usize>> = dofs.iter().map(|&d| split.free_index(d)).collect();
-        let a: Vec<Vec<f64>> = (0..terms)
-            .map(|k| dofs.iter().map(|&d| split.free_index(d).map_or(self.u_d[k][d], |fi| resp[k][fi])).collect())
+        let contact_free: Vec<usize> = cfree.iter().flatten().copied().collect();
+        let (llt, w_free) = ContactLastFactor::factor(&kff, &contact_free)?;
+        let (_, resp) = split.responses(&self.k, &self.u_d, |rhs| llt.solve_in_place(rhs));
+        let resp = resp.ok_or_else(|| ModelError::Singular("non-finite unconstrained response".into()))?;
+        let x_ref: Vec<[f64; 3]> = cnodes.iter().map(|&n| self.mesh.nodes[n]).collect();
+        let a: Vec<Vec<f64>> = (0..self.u_d.len())
+            .map(|k| dofs.iter().zip(&cfree).map(|(&d, f)| f.map_or(self.u_d[k][d], |fi| resp[k][fi])).collect())
             .collect();
-        // W on every contact dof: the free ones' block, zero rows and columns on Dirichlet ones
+        // W on every contact dof: `w_free` on the free ones (the contact dofs of its rows, in
+        // order), zero rows and columns on Dirichlet ones
         let ncd = cfree.len();
-        let free_at: Vec<Option<usize>> = {
-            let mut k = 0;
-            cfree
-                .iter()
-                .map(|f| {
-                    f.map(|_| {
-                        k += 1;
-                        k - 1
-                    })
-                })
-                .collect()
-        };
-        let nf_c = contact_free.len();
+        let at: Vec<usize> = (0..ncd).filter(|&i| cfree[i].is_some()).collect();
         let mut w = vec![0.0; ncd * ncd];
-        for (i, fi) in free_at.iter().enumerate() {
-            let Some(fi) = fi else { continue };
-            for (j, fj) in free_at.iter().enumerate() {
-                if let Some(fj) = fj {
-                    w[i * ncd + j] = w_free[fi * nf_c + fj];
-                }
+        for (fi, &i) in at.iter().enumerate() {
+            for (fj, &j) in at.iter().enumerate() {
+                w[i * ncd + j] = w_free[fi * at.len() + fj];
             }
         }
         let slave_fixed = (0..self.slaves.len()).map(|s| (0..3).all(|c| cfree[3 * s + c].is_none())).collect();
-        Ok(Factored3d { model: self.clone(), llt, resp, lift, cnodes, x_ref, a, w, slave_fixed })
+        Ok(Factored3d { model: self.clone(), llt, resp, cnodes, x_ref, a, w, slave_fixed })
     }
 }
 
@@ -182,11 +166,7 @@ impl Factored3d {
             if xs.iter().any(|v| !v.is_finite()) {
                 return Err(ContactError::Pairing { param: Mu::of(mu), slave: s });
             }
-            *p = if self.slave_fixed[s] {
-                Pair3 { feature: Feature::Free, support: [(0, 0.0); 4], len: 0, normal: [0.0; 3], gap: 0.0 }
-            } else {
-                grid.pair(&m.surface, &xm, xs)
-            };
+            *p = if self.slave_fixed[s] { Pair3::UNPAIRED } else { grid.pair(&m.surface, &xm, xs) };
         }
         *grid_out = Some(grid);
         Ok(())
@@ -202,8 +182,7 @@ impl Factored3d {
         let a: Vec<f64> = (0..ncd).map(|i| affine(&self.a[0], &self.a[1..], mu, i)).collect();
         let xa: Vec<f64> = (0..ncd).map(|i| self.x_ref[i / 3][i % 3] + a[i]).collect();
         let mut uc = a.clone();
-        let mut pairs =
-            vec![Pair3 { feature: Feature::Free, support: [(0, 0.0); 4], len: 0, normal: [0.0; 3], gap: 0.0 }; ns];
+        let mut pairs = vec![Pair3::UNPAIRED; ns];
         let mut grid = None;
         self.pair_all(&uc, &mut grid, &mut pairs, mu)?;
         let mut lam_s = vec![0.0; ns];
@@ -339,7 +318,6 @@ impl Factored3d {
             let (cols, vals) = m.k.row(r);
             *o = cols.iter().zip(vals).map(|(&c, &v)| (v * u[c]).abs()).sum();
         }
-        let _ = &self.lift;
         let scale = split
             .free()
             .iter()

@@ -96,7 +96,20 @@ impl Pair3 {
         self.feature != Feature::Free
     }
 
-    const UNPAIRED: Pair3 =
+    /// On facet `f` (nodes `q`) at reference coordinates `r`: its four nodes with their
+    /// shape-function weights (normal and gap still to set).
+    fn on_facet(f: usize, q: [usize; 4], r: [f64; 2]) -> Pair3 {
+        let w = crate::q1::shape(r[0], r[1]);
+        Pair3 {
+            feature: Feature::Facet(f),
+            support: [(q[0], w[0]), (q[1], w[1]), (q[2], w[2]), (q[3], w[3])],
+            len: 4,
+            ..Pair3::UNPAIRED
+        }
+    }
+
+    /// No pair: the slave is free of contact.
+    pub const UNPAIRED: Pair3 =
         Pair3 { feature: Feature::Free, support: [(0, 0.0); 4], len: 0, normal: [0.0; 3], gap: 0.0 };
 }
 
@@ -210,14 +223,7 @@ impl MasterSurface {
         let q = self.facets[f];
         let mut pair = Pair3::UNPAIRED;
         match c.spot {
-            Spot::Interior(r) => {
-                let w = crate::q1::shape(r[0], r[1]);
-                pair.feature = Feature::Facet(f);
-                pair.len = 4;
-                for k in 0..4 {
-                    pair.support[k] = (q[k], w[k]);
-                }
-            }
+            Spot::Interior(r) => pair = Pair3::on_facet(f, q, r),
             Spot::Edge(e, t) => {
                 let (a, b) = (q[e], q[(e + 1) % 4]);
                 let key = (a.min(b), a.max(b));
@@ -267,6 +273,10 @@ pub struct FacetGrid {
     round: u32,
     /// The master nodes' normals at this configuration.
     nodal: Vec<[f64; 3]>,
+    /// [`Self::pair`]'s scratch: the facets found `(distance, facet, closest point)`, and
+    /// the facets around the closest one.
+    found: Vec<(f64, usize, Closest)>,
+    near: Vec<usize>,
 }
 
 impl FacetGrid {
@@ -320,7 +330,8 @@ impl FacetGrid {
             });
         }
         let nodal = surface.nodal_normals(xm);
-        Self { origin: lo, cell, dims, start: count, items, size, stamp: vec![0; nf], round: 0, nodal }
+        let (found, near) = (Vec::new(), Vec::new());
+        Self { origin: lo, cell, dims, start: count, items, size, stamp: vec![0; nf], round: 0, nodal, found, near }
     }
 
     /// The pair of the slave at `p` (see the module docs).
@@ -333,11 +344,11 @@ impl FacetGrid {
             self.stamp.fill(0);
             self.round = 1;
         }
-        let mut found: Vec<(f64, usize, Closest)> = Vec::new();
+        self.found.clear();
         let mut r = self.cell;
         let cell_of =
             |x: f64, o: f64, d: usize, cell: f64| ((x - o) / cell).floor().clamp(0.0, (d - 1) as f64) as usize;
-        loop {
+        let best = loop {
             let (i0, i1) = (
                 cell_of(p[0] - r, self.origin[0], self.dims[0], self.cell),
                 cell_of(p[0] + r, self.origin[0], self.dims[0], self.cell),
@@ -353,26 +364,26 @@ impl FacetGrid {
                         if self.stamp[f] != self.round {
                             self.stamp[f] = self.round;
                             let cl = facet::closest(&surface.corners(f, xm), p);
-                            found.push((cl.d2.sqrt(), f, cl));
+                            self.found.push((cl.d2.sqrt(), f, cl));
                         }
                     }
                 }
             }
-            let best = found.iter().map(|x| x.0).fold(f64::INFINITY, f64::min);
+            let best = self.found.iter().map(|x| x.0).fold(f64::INFINITY, f64::min);
             let everything = i0 == 0 && j0 == 0 && i1 == self.dims[0] - 1 && j1 == self.dims[1] - 1;
             if best <= r || everything {
-                break;
+                break best;
             }
             r *= 2.0;
-        }
-        let best = found.iter().map(|x| x.0).fold(f64::INFINITY, f64::min);
+        };
         let tie = best * (1.0 + 1e-12) + 1e-14 * self.size;
-        let (_, f, cl) = found.iter().filter(|x| x.0 <= tie).min_by_key(|x| x.1).copied().expect("a facet");
+        let (_, f, cl) = self.found.iter().filter(|x| x.0 <= tie).min_by_key(|x| x.1).copied().expect("a facet");
         // the normal projection onto the facets around the closest one, lowest index first
-        let mut near: Vec<usize> = surface.facets[f].iter().flat_map(|&v| surface.at_node[v].iter().copied()).collect();
-        near.sort_unstable();
-        near.dedup();
-        for g in near {
+        self.near.clear();
+        self.near.extend(surface.facets[f].iter().flat_map(|&v| surface.at_node[v].iter().copied()));
+        self.near.sort_unstable();
+        self.near.dedup();
+        for &g in &self.near {
             if let Some(pair) = surface.project(g, p, xm, &self.nodal) {
                 return pair;
             }
@@ -454,13 +465,7 @@ impl MasterSurface {
         }
         let r = [r[0].clamp(-1.0, 1.0), r[1].clamp(-1.0, 1.0)];
         let (m, _, _, x) = interp(r);
-        let w = crate::q1::shape(r[0], r[1]);
-        let mut pair = Pair3::UNPAIRED;
-        pair.feature = Feature::Facet(f);
-        pair.len = 4;
-        for k in 0..4 {
-            pair.support[k] = (q[k], w[k]);
-        }
+        let mut pair = Pair3::on_facet(f, q, r);
         pair.normal = facet::unit(m);
         pair.gap = facet::dot(pair.normal, facet::sub(p, x));
         Some(pair)

@@ -246,12 +246,11 @@ impl Map {
                         map.table.push((training.params[j][0], c, a));
                     } else {
                         map.points.push((training.params[j].clone(), c, a));
-                        map.table.push((0.0, c, a));
                     }
                 }
             }
             map.table.sort_by(|p, q| p.0.total_cmp(&q.0));
-            if map.table.is_empty() {
+            if map.table.is_empty() && map.points.is_empty() {
                 return Err(DualError::NotApplicable(
                     "no training snapshot has contact: the moments map has nothing to fit".into(),
                 ));

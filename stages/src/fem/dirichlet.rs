@@ -127,3 +127,16 @@ impl DofSplit {
         }
     }
 }
+
+#[cfg(test)]
+impl DofSplit {
+    /// The tests' reference solve: `u_full`'s free entries from `K_FF u_F = -K_FD u_D` (no load;
+    /// `u_D` read from its fixed entries), by faer's sparse Cholesky.
+    pub(crate) fn solve_unloaded(&self, k: &CsrMatrix, u_full: &mut [f64]) {
+        use faer::linalg::solvers::Solve;
+        let mut rhs = self.lift(k, u_full);
+        let llt = self.free_block(k).expect("K_FF").sp_cholesky(faer::Side::Lower).expect("SPD");
+        llt.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut rhs, self.n_free(), 1));
+        self.scatter_free(&rhs, u_full);
+    }
+}

@@ -21,9 +21,6 @@ mod tests {
     use crate::float_cmp::Tol;
     use crate::mesh::{rectangle, Mesh2d};
     use crate::rng::Rng;
-    use faer::linalg::solvers::Solve;
-    use faer::sparse::SparseColMat;
-    use faer::Side;
 
     /// Patch test (Zienkiewicz & Taylor, *The Finite Element Method*, vol. 1, ch. 10; Taylor,
     /// Simo & Zienkiewicz 1986): on a mesh with distorted interior nodes, imposing a linear
@@ -72,16 +69,7 @@ mod tests {
             u_full[2 * n + 1] = u[1];
         }
         let exact = u_full.clone();
-        let mut rhs = split.lift(&k, &u_full);
-        let kff = SparseColMat::<usize, f64>::try_new_from_triplets(
-            split.n_free(),
-            split.n_free(),
-            &split.free_block_lower_triplets(&k),
-        )
-        .expect("triplets");
-        let llt = kff.sp_cholesky(Side::Lower).expect("SPD");
-        llt.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut rhs, split.n_free(), 1));
-        split.scatter_free(&rhs, &mut u_full);
+        split.solve_unloaded(&k, &mut u_full);
         for (a, b) in u_full.iter().zip(&exact) {
             // Exact reproduction up to the solve's rounding (condition number of a 20-node K
             // ~1e2): the brief's 1e-10.
