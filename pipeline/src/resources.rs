@@ -24,7 +24,7 @@
 //!   three `n x N` bases (`8 n (N + T + 3 N)`), or the nested-error stage's two levels
 //!   (`8 n (2^L + 2^(L-1) + 2)`), or the offline metrics, whichever is largest. The metrics form
 //!   `N x N` Gram matrices (`32 N^2`) up to 1 025 training snapshots. Above, no `N x N` matrix
-//!   is formed and the primal snapshots are streamed from the store (`pipeline::dag::streamed`):
+//!   is formed and the primal snapshots are streamed from the store (`pipeline::dag::inputs::streamed`):
 //!   the offline stages hold the dual set and its POD's working copy, `16 c N`, and of the
 //!   primal either
 //!   - the blockwise frame and what is built on it, `8 n (q + B) + 24 q N`: the frame `Q`

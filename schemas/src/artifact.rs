@@ -196,6 +196,8 @@ pub mod comparison {
     /// Smallest m reaching each threshold: `scene, approximation, metric, threshold, m`
     /// (`m` null: never within the curve).
     pub const REACHED: &str = "comparison_reached.parquet";
+    /// The error thresholds of [`REACHED`] (mean relative error), largest first.
+    pub const THRESHOLDS: [f64; 3] = [0.05, 0.01, 0.001];
     /// Numbers describing each build: `scene, approximation, name, m, value` (`m` null where
     /// the number is not per rank), e.g. NNMF's `iterations` and `relative_residual` per rank,
     /// a registration's `round_trip_error_mean` / `_max`, a local basis' cell sizes.

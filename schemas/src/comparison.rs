@@ -131,6 +131,15 @@ pub enum BasisSpec {
 }
 
 impl ApproximationSpec {
+    /// The translates of the training responses an online solve with this entry adds to its
+    /// primal space (`primal_translates`), if any.
+    pub fn primal_translates(&self) -> Option<usize> {
+        match self {
+            ApproximationSpec::Registered { primal_translates, .. } => *primal_translates,
+            _ => None,
+        }
+    }
+
     /// The approximations this entry stands for, each its own stage: a `local` entry gives one
     /// per cell count (with that count alone), every other entry itself.
     pub fn expand(&self) -> Vec<ApproximationSpec> {

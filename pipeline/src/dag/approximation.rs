@@ -20,10 +20,11 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::basis::Ticker;
-use super::comparison::{self, contact_x, item, THRESHOLDS};
+use super::comparison::{self, contact_x, item};
 use super::convert::view;
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::{Ctx, Shared};
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5Out};
@@ -276,7 +277,7 @@ fn run(
                 metrics.push(("test", &t));
             }
             for (metric, st) in metrics {
-                for th in THRESHOLDS {
+                for th in names::THRESHOLDS {
                     let m = ms.iter().zip(st.iter()).find(|(_, s)| s.count() > 0 && s.mean() <= th).map(|(&m, _)| m);
                     out.reached.push((name.clone(), metric, th, m));
                 }

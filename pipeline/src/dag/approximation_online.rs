@@ -15,7 +15,7 @@
 //! [`OnlineBase`], shared by every approximation's stage in the process) and only its dual part
 //! is replaced per approximation ([`ReducedModel::set_dual`], `O(n_contact m)`). A registered
 //! approximation with `primal_translates` has a primal space of its own (the training responses
-//! and their translates, [`super::rom::translated_response_basis`]) and the exact corrected
+//! and their translates, [`super::online::translated_response_basis`]) and the exact corrected
 //! re-pairing step; its stage builds that model and its primal references. A fixed basis
 //! is set before the timer starts; a basis that depends on the parameter (a registered one is
 //! pushed forward to the query's frame, a local one is its cell's) is evaluated and set inside
@@ -42,10 +42,12 @@ use serde_json::json;
 use super::approximation::ONLINE_MS;
 use super::comparison::{self, contact_x, item};
 use super::convert::view;
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::rom::dual_error;
+use super::online::{dual_error, OnlineBase};
+use super::shared::LazyPhysics;
+use super::shared::Shared;
 use super::timing::time_each;
-use super::{Ctx, LazyPhysics, Shared};
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In};
@@ -106,11 +108,7 @@ impl OnlineApproximationKey {
             max_iter: self.max_iter,
             gap_tol: self.gap_tol,
             u_tol: self.u_tol,
-            exact_step: if comparison::primal_translates(&self.approximation).is_some() {
-                EXACT_STEP_ITERATIONS
-            } else {
-                0
-            },
+            exact_step: if self.approximation.primal_translates().is_some() { EXACT_STEP_ITERATIONS } else { 0 },
         }
     }
 }
@@ -118,24 +116,6 @@ impl OnlineApproximationKey {
 /// The key spec of the online stage `key`; `approximation` is the key of its offline artifact.
 fn spec(key: &OnlineApproximationKey, train: &Key, test: &Key, mesh: &Key, approximation: &Key) -> KeySpec {
     KeySpec::of(key).input("train", train).input("test", test).input("mesh", mesh).input("approximation", approximation)
-}
-
-/// What every approximation's online stage shares in one process: the primal basis and the
-/// reduced model on it, the test points' primal references and the full-order solve's median
-/// time at the test points.
-pub(crate) struct OnlineBase {
-    /// (train, test) keys it was built for.
-    of: (Key, Key),
-    r_primal: usize,
-    model: ReducedModel,
-    errors: PrimalErrors,
-    fom_median: f64,
-}
-
-impl std::fmt::Debug for OnlineBase {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("OnlineBase").field("of", &self.of).field("r_primal", &self.r_primal).finish_non_exhaustive()
-    }
 }
 
 /// One query's outcome.
@@ -231,7 +211,7 @@ fn run(
     let fom = if rebuild { physics.fom_seconds(test, &test_set.parameters)? } else { Vec::new() };
     let phi = if rebuild { Some(physics.responses(train, &train_set, fail)?) } else { None };
     // an approximation with its own primal space (`primal_translates`)
-    let translated = match comparison::primal_translates(&settings.approximation) {
+    let translated = match settings.approximation.primal_translates() {
         Some(shift) => Some(physics.translated_responses(train, &train_set, shift, fail)?),
         None => None,
     };

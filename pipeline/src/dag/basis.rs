@@ -12,19 +12,12 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::convert::{to_col, view};
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::{Ctx, Shared};
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
-use crate::io::h5::{ColMatrix, H5In, H5Out};
-
-/// The bases of one training set, as stored.
-#[derive(Debug, Clone)]
-pub(crate) struct Bases {
-    pub primal_pod: ColMatrix,
-    pub dual_pod: ColMatrix,
-    pub dual_cpg: ColMatrix,
-}
+use crate::io::h5::{ColMatrix, H5Out};
 
 /// The dual training snapshots' tolerance-0 CPG path of this run, shared by the basis,
 /// compactness, generalization and specificity stages (one greedy run instead of four): the
@@ -125,7 +118,7 @@ pub(crate) struct BasisKey {
     #[serde(skip_serializing_if = "Option::is_none")]
     selection: Option<&'static str>,
     /// `"streamed"` when the primal POD reads the training set block by block
-    /// ([`super::streamed`]); absent (and not in the key) at or below the switch-over size.
+    /// ([`super::inputs::streamed`]); absent (and not in the key) at or below the switch-over size.
     #[serde(skip_serializing_if = "Option::is_none")]
     primal: Option<&'static str>,
     /// The metrics' range recorded on the shared greedy path (`dual_path`): it decides the
@@ -153,7 +146,7 @@ impl BasisKey {
         self.max_rank
     }
 
-    /// True when the primal snapshots are read block by block ([`super::streamed`]).
+    /// True when the primal snapshots are read block by block ([`super::inputs::streamed`]).
     pub(crate) fn streams_primal(&self) -> bool {
         self.primal.is_some()
     }
@@ -172,7 +165,7 @@ impl BasisKey {
             nnls: NnlsKey::used(),
             curve_dense_to: grid.then_some(max_rank),
             selection: selection_of(n_train),
-            primal: super::streamed::primal_of(scene),
+            primal: super::inputs::streamed::primal_of(scene),
             max_rank,
         }
     }
@@ -275,39 +268,6 @@ impl BasisStage {
             ]))
         })
     }
-}
-
-/// Load the untruncated-tolerance bases used by the metrics.
-pub(crate) fn load_from(store: &crate::store::Store, key: &Key) -> Result<Bases, CromError> {
-    let f = H5In::open(&store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
-    let m = |g: &str| f.matrix(&format!("{g}/{}", names::MODES));
-    Ok(Bases { primal_pod: m(names::PRIMAL_POD)?, dual_pod: m(names::DUAL_POD)?, dual_cpg: m(names::DUAL_CPG)? })
-}
-
-/// Singular values and ranks, for the report.
-#[derive(Debug, Clone)]
-pub(crate) struct BasisFacts {
-    pub primal_sv: Vec<f64>,
-    pub dual_sv: Vec<f64>,
-    /// primal POD, dual POD, dual CPG, truncated dual CPG.
-    pub ranks: [usize; 4],
-}
-
-/// Singular values and ranks of a stored basis artifact.
-pub(crate) fn load_full(store: &crate::store::Store, key: &Key) -> Result<BasisFacts, CromError> {
-    let f = H5In::open(&store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
-    let sv = |g: &str| f.vec_f64(&format!("{g}/{}", names::SINGULAR_VALUES));
-    let rank = |g: &str| f.attr_u64_at(g, "rank").map(|r| r as usize);
-    Ok(BasisFacts {
-        primal_sv: sv(names::PRIMAL_POD)?,
-        dual_sv: sv(names::DUAL_POD)?,
-        ranks: [
-            rank(names::PRIMAL_POD)?,
-            rank(names::DUAL_POD)?,
-            rank(names::DUAL_CPG)?,
-            rank(names::DUAL_CPG_TRUNCATED)?,
-        ],
-    })
 }
 
 /// A POD group; its modes uncompressed if `raw` ([`H5Out::matrix_raw`]).

@@ -13,7 +13,8 @@ use std::sync::mpsc::{channel, Receiver, Sender};
 use std::thread::{Scope, ScopedJoinHandle};
 use std::time::Instant;
 
-use super::{plan::Node, Ctx};
+use super::ctx::Ctx;
+use super::plan::Node;
 use crate::cache::Key;
 use crate::error::CromError;
 

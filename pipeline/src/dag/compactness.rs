@@ -13,9 +13,11 @@ use serde_json::json;
 
 use super::basis::{self, BasisKey};
 use super::convert::view;
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::streamed::MetricSet;
-use super::{Ctx, Labels, Shared};
+use super::inputs::streamed::MetricSet;
+use super::labels::Labels;
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::table::{Column, Table};

@@ -15,16 +15,14 @@ use crom_stages::dual::{Approach, Inner, Interpolation, MapKind};
 use serde::Serialize;
 use serde_json::json;
 
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::{Ctx, Shared};
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
 use crate::io::table::{read_parquet, Table};
 use crate::store::Store;
-
-/// Error thresholds of the "smallest m reaching" table (mean relative error).
-pub(crate) const THRESHOLDS: [f64; 3] = [0.05, 0.01, 0.001];
 
 /// One approximation of a comparison.
 #[derive(Debug, Clone)]
@@ -89,15 +87,6 @@ fn approach_of(spec: &ApproximationSpec) -> Approach {
             };
             Approach::Registered { map, inner }
         }
-    }
-}
-
-/// The translates of the training responses an online solve with `spec` adds to its primal
-/// space (`primal_translates`), if any.
-pub(crate) fn primal_translates(spec: &ApproximationSpec) -> Option<usize> {
-    match spec {
-        ApproximationSpec::Registered { primal_translates, .. } => *primal_translates,
-        _ => None,
     }
 }
 

@@ -15,8 +15,9 @@ use crom_schemas::external::ResolvedMesh;
 use serde::Serialize;
 use serde_json::json;
 
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::{Ctx, Shared};
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5Out;

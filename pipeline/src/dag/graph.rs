@@ -26,7 +26,8 @@ use std::fmt::Debug;
 
 use crom_schemas::artifact::ArtifactKind;
 
-use super::{Ctx, Shared};
+use super::ctx::Ctx;
+use super::shared::Shared;
 use crate::cache::Key;
 use crate::error::CromError;
 

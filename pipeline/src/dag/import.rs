@@ -26,9 +26,12 @@ use crom_schemas::external::{ExternalSpec, Layout, ResolvedArray, ResolvedExtern
 use crom_schemas::SceneConfig;
 use serde::Serialize;
 
+use super::ctx::Ctx;
+use super::ctx::PointCounts;
 use super::graph::{Input, StageDef};
-use super::snapshots::{load_index, Columns};
-use super::{Ctx, PointCounts, Shared};
+use super::shared::Columns;
+use super::shared::Shared;
+use super::snapshots::load_index;
 use crate::cache::{params, Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::source::SnapshotArray;

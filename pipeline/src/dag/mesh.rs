@@ -6,8 +6,11 @@ use crom_schemas::artifact::{mesh as names, ArtifactKind};
 use serde::Serialize;
 use serde_json::json;
 
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::{Ctx, Labels, LazyPhysics, Shared};
+use super::labels::Labels;
+use super::shared::LazyPhysics;
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5Out;

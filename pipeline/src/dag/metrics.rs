@@ -17,11 +17,15 @@ use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
 
+use super::basis;
 use super::basis::Ticker;
 use super::convert::view;
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::streamed::{self, MetricSet};
-use super::{basis, trainset, Ctx, Labels, Shared};
+use super::inputs::sets;
+use super::inputs::streamed::{self, MetricSet};
+use super::labels::Labels;
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
 use crate::io::h5::ColMatrix;
@@ -46,7 +50,7 @@ pub(crate) struct GeneralizationKey {
     #[serde(skip_serializing_if = "Option::is_none")]
     interval: Option<&'static str>,
     /// `"streamed"` when the primal folds read the training set block by block
-    /// ([`super::streamed`]); absent (and not in the key) at or below the switch-over size.
+    /// ([`super::inputs::streamed`]); absent (and not in the key) at or below the switch-over size.
     #[serde(skip_serializing_if = "Option::is_none")]
     primal: Option<&'static str>,
 }
@@ -69,7 +73,7 @@ pub(crate) struct SpecificityKey {
     #[serde(skip_serializing_if = "Option::is_none")]
     dense_to: Option<usize>,
     /// `"streamed"` when the primal S(m) reads the training set block by block
-    /// ([`super::streamed`]); absent (and not in the key) at or below the switch-over size.
+    /// ([`super::inputs::streamed`]); absent (and not in the key) at or below the switch-over size.
     #[serde(skip_serializing_if = "Option::is_none")]
     primal: Option<&'static str>,
 }
@@ -413,11 +417,11 @@ fn nested(ctx: &mut Ctx<'_>, spec: &KeySpec, scene: &str, levels: &[Key]) -> Res
         let n_levels = levels.len();
         let mut bar = progress.stage("nested pairs", n_levels.saturating_sub(1));
         let mut lo = match levels.first() {
-            Some(k) => Some(trainset::load_from(store, k)?),
+            Some(k) => Some(sets::load_from(store, k)?),
             None => None,
         };
         for (i, key) in levels.iter().enumerate().skip(1) {
-            let hi = trainset::load_from(store, key)?;
+            let hi = sets::load_from(store, key)?;
             let lo_set = lo.as_ref().expect("loaded above");
             let ((po, dor), dc) = rayon::join(
                 || {

@@ -46,11 +46,13 @@ use crom_stages::rom::{Algorithm, ReducedModel, RomParams, EXACT_STEP_ITERATIONS
 use serde::Serialize;
 use serde_json::json;
 
-use super::comparison::{self, contact_x, item_of};
+use super::comparison::{contact_x, item_of};
 use super::convert::view;
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::rom::{subsample, SAMPLING_FIT_POINTS};
-use super::{Ctx, Labels, Shared};
+use super::labels::Labels;
+use super::online::{subsample, SAMPLING_FIT_POINTS};
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{ColMatrix, H5In};
@@ -255,7 +257,7 @@ impl StageDef for ModelStage {
             // online comparison's basis, and its exact corrected step
             let translates = match &pick.source {
                 Source::Registered(k) => {
-                    settings.registered.get(*k).and_then(|key| comparison::primal_translates(&key.approximation))
+                    settings.registered.get(*k).and_then(|key| key.approximation.primal_translates())
                 }
                 Source::Exact { .. } => None,
             };

@@ -6,7 +6,7 @@
 //! disagree (the e2e test `e2e_cluster` checks that a finished run leaves nothing to run).
 //!
 //! Each node holds its stage as a typed value (`graph::StageDef`): its key spec,
-//! computed here once, and its inputs as named fields. The local executor (`dag::execute`)
+//! computed here once, and its inputs as named fields. The local executor (`dag::run::execute`)
 //! walks the nodes in order and runs each node's stage; `crom run --dry-run` prints the plan against the store
 //! (what is stored, what would run); `crom status` prints it for a run in progress or
 //! finished, with the sharded workers' records ([`crate::executor`]); the Slurm executor
@@ -27,6 +27,7 @@ use super::comparison::{self, GatherStage};
 use super::external_mesh::ExternalMeshStage;
 use super::graph::{Input, StageDef};
 use super::import::ImportStage;
+use super::labels::Labels;
 use super::mesh;
 use super::metrics::{GeneralizationStage, NestedStage, SpecificityStage};
 use super::model::ModelStage;
@@ -35,7 +36,6 @@ use super::rom::RomStage;
 use super::snapshots::{self, Sweep, SweepStage};
 use super::trainset::SetStage;
 use super::views::{Subject, ViewsStage};
-use super::Labels;
 use crate::cache::Key;
 use crate::error::CromError;
 

@@ -8,7 +8,7 @@ use crom_schemas::artifact::{
 };
 use crom_schemas::SceneConfig;
 
-use super::RunOutput;
+use super::run::RunOutput;
 use crate::store::published::{Entry, Study};
 
 /// The names of `out`, the result of a finished run of `scene` (`online`: with the online

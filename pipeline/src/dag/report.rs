@@ -12,9 +12,11 @@ use crom_schemas::SceneConfig;
 use crom_stages::rom::ReducedModel;
 use serde_json::json;
 
+use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::loaded::Loaded;
-use super::{basis, Ctx, Shared};
+use super::inputs::bases;
+use super::inputs::loaded::Loaded;
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
@@ -215,7 +217,7 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
         }
     }
     let conditioning = conditioning(mesh.as_ref(), store, &inputs.basis)?;
-    let b = basis::load_full(store, &inputs.basis)?;
+    let b = bases::load_full(store, &inputs.basis)?;
     let table = read_parquet(&store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
     let mut compactness: BTreeMap<(String, String), Vec<f64>> = BTreeMap::new();
     if let (Some(f), Some(bs), Some(v)) = (table.strs("field"), table.strs("basis"), table.f64s("value")) {

@@ -23,15 +23,18 @@ use crom_stages::snapshot::{Snapshot, SolveStats};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::ctx::Ctx;
+use super::ctx::PointCounts;
 use super::graph::{Input, StageDef};
-use super::{Ctx, Labels, LazyPhysics, PointCounts, Shared};
+use super::labels::Labels;
+use super::shared::Columns;
+use super::shared::LazyPhysics;
+use super::shared::Shared;
 use crate::cache::{params, Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::H5In;
 use crate::io::table::{Column, Table};
-use crate::store::columns::{
-    ColumnFamily, Evidence, FamilyMeta, Index, IndexRow, PendingColumn, COLUMNS_SCHEMA_VERSION,
-};
+use crate::store::columns::{ColumnFamily, Evidence, FamilyMeta, Index, PendingColumn, COLUMNS_SCHEMA_VERSION};
 use crate::store::Lookup;
 
 /// Bump when the solvers change the numbers they produce.
@@ -158,15 +161,6 @@ pub(crate) fn sweeps(scene: &SceneConfig, mesh: &Key) -> Vec<Sweep> {
 /// Shard `k` of `n` of a list of `total` chunks: the contiguous range `[k t / n, (k+1) t / n)`.
 pub(crate) fn shard_range(total: usize, k: usize, n: usize) -> std::ops::Range<usize> {
     (k * total / n)..((k + 1) * total / n)
-}
-
-/// What the snapshot stage hands on: the index rows of the requested points, in order.
-#[derive(Debug, Clone)]
-pub(crate) struct Columns {
-    /// One row per requested point (the same row twice for a repeated point).
-    pub rows: Vec<IndexRow>,
-    /// Rows of the family's block files (n_dof, n_contact).
-    pub shape: (usize, usize),
 }
 
 /// The key of this scene's column family on the mesh `mesh`.
@@ -532,7 +526,7 @@ fn write_failures(
     let n = failures.len();
     let table = Table::default().with("scene", Column::Str(vec![labels.scene.clone(); n]));
     let failed: Vec<&[f64]> = failures.iter().map(|f| points[f.0].as_slice()).collect();
-    let table = super::with_parameters(table, &labels.names, &failed)
+    let table = super::ctx::with_parameters(table, &labels.names, &failed)
         .with("snapshot_key", Column::Str(failures.iter().map(|f| keys[f.0].0.clone()).collect()))
         .with("error", Column::Str(failures.iter().map(|f| f.1.clone()).collect()));
     // Workers on several hosts may write this at once: a name unique to host and process.

@@ -26,8 +26,10 @@ use crom_schemas::artifact::{views as names, ArtifactKind};
 use serde::Serialize;
 use serde_json::json;
 
+use super::ctx::Ctx;
 use super::graph::{Input, Placement, StageDef};
-use super::{Ctx, Labels, Shared};
+use super::labels::Labels;
+use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
 use crate::io::h5::{H5In, H5Out, VirtualPiece};
@@ -223,8 +225,8 @@ fn set_steps(
     names_of: &[String],
     (n_dof, n_contact): (usize, usize),
 ) -> Result<Vec<Step>, CromError> {
-    let rows = super::trainset::rows_of(stats)?;
-    let widths = super::trainset::block_columns(root, &rows)?;
+    let rows = super::inputs::sets::rows_of(stats)?;
+    let widths = super::inputs::sets::block_columns(root, &rows)?;
     let scalar = names_of.len() == 1;
     let increasing = rows.windows(2).all(|w| w[0].parameters[0] < w[1].parameters[0]);
     Ok(rows
@@ -360,7 +362,7 @@ fn set(
     let root = ctx.store.root().to_path_buf();
     let stats = ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::STATS);
     let mesh_facts = mesh_facts(ctx, mesh)?;
-    let shape = super::trainset::set_shape(ctx.store, set_key, &super::trainset::rows_of(&stats)?)?;
+    let shape = super::inputs::sets::set_shape(ctx.store, set_key, &super::inputs::sets::rows_of(&stats)?)?;
     ctx.single(ArtifactKind::Views, "views", spec, |staging| {
         let steps = set_steps(&root, &stats, names_of, shape)?;
         write_series(staging, ("set", set), &mesh_facts, &steps, names::SET_XDMF, set)

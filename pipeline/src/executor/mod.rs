@@ -1,6 +1,6 @@
 //! Where a study's work runs (`crom run --executor`).
 //!
-//! - `local` (the default): this process walks the plan's nodes (`crate::dag::execute`); the
+//! - `local` (the default): this process walks the plan's nodes (`crate::dag::run::execute`); the
 //!   snapshot sweeps and the metrics spread over the cores with rayon.
 //! - `slurm`: the snapshot sweeps as a job array of `crom work --shard K/N` workers writing
 //!   into one shared store, then the remaining stages locally ([`slurm`]).

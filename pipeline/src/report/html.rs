@@ -6,7 +6,6 @@ use crom_schemas::SceneConfig;
 
 use super::tables::ReportTable;
 use super::{Figure, ReportData};
-use crate::dag::comparison::primal_translates;
 use crate::error::CromError;
 
 fn esc(s: &str) -> String {
@@ -117,7 +116,7 @@ fn model_fact(scene: &SceneConfig, m: &super::ModelFacts) -> String {
         .iter()
         .flat_map(|c| &c.approximations)
         .find(|a| a.name() == m.dual_basis)
-        .and_then(primal_translates);
+        .and_then(|a| a.primal_translates());
     let primal = match translates {
         Some(k) => format!(
             "primal rank {} (the POD of the training responses and their translates by ±{k} slave-surface node \
@@ -246,7 +245,7 @@ mod tests {
             .comparison
             .iter()
             .flat_map(|c| &c.approximations)
-            .find_map(|a| primal_translates(a).map(|k| (a.name(), k)))
+            .find_map(|a| a.primal_translates().map(|k| (a.name(), k)))
             .expect("ironing-fine has an entry with primal_translates");
         let line = model_fact(&scene, &facts(&shift.0));
         assert!(line.contains(&format!("translates by ±{} slave-surface", shift.1)), "{line}");

@@ -276,7 +276,7 @@ fn comparison_view(c: &super::ComparisonData) -> Table {
     let names = super::figures::names_of(r);
     let mut t = Table::default().with("approximation", Column::Str(names.clone()));
     for (which, label) in [("test", "T"), ("generalization", "G")] {
-        for level in crate::dag::comparison::THRESHOLDS {
+        for level in crom_schemas::artifact::comparison::THRESHOLDS {
             let col = names
                 .iter()
                 .map(|n| {

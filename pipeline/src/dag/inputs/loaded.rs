@@ -9,12 +9,13 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
 
-use super::basis::{self, Bases};
+use super::bases::{self, Bases};
+use super::sets;
 use super::streamed::{self, MetricSet, StreamedSet};
-use super::trainset::{self, TrainingSet};
 use crate::cache::Key;
 use crate::error::CromError;
 use crate::io::h5::ColMatrix;
+use crate::io::snapshot_set::TrainingSet;
 use crate::store::Store;
 
 /// The run's loaded inputs, by artifact key.
@@ -52,11 +53,11 @@ fn get_or_load<T>(
 impl Loaded {
     /// The training or test set `key`.
     pub(crate) fn set(&self, store: &Store, key: &Key) -> Result<Arc<TrainingSet>, CromError> {
-        get_or_load(&self.sets, key, || trainset::load_from(store, key))
+        get_or_load(&self.sets, key, || sets::load_from(store, key))
     }
 
     /// The training set `key` with its primal snapshots left in the store
-    /// ([`super::streamed`]).
+    /// ([`streamed`]).
     pub(crate) fn streamed(&self, store: &Store, key: &Key) -> Result<Arc<StreamedSet>, CromError> {
         get_or_load(&self.streamed, key, || streamed::load(store, key))
     }
@@ -74,14 +75,14 @@ impl Loaded {
     /// its displacements dropped).
     pub(crate) fn level(&self, store: &Store, key: &Key) -> Result<Arc<NestedLevel>, CromError> {
         get_or_load(&self.levels, key, || {
-            let (dual, parameters) = super::streamed::load_dual(store, key)?;
+            let (dual, parameters) = streamed::load_dual(store, key)?;
             Ok(NestedLevel { dual, parameters })
         })
     }
 
     /// The bases `key`.
     pub(crate) fn bases(&self, store: &Store, key: &Key) -> Result<Arc<Bases>, CromError> {
-        get_or_load(&self.bases, key, || basis::load_from(store, key))
+        get_or_load(&self.bases, key, || bases::load_from(store, key))
     }
 
     /// How many sets and bases were read (for the tests).
@@ -91,43 +92,5 @@ impl Loaded {
             m.lock().unwrap_or_else(PoisonError::into_inner).len()
         }
         (n(&self.sets), n(&self.bases))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::super::{run_scene, Ctx, PointCounts};
-    use crate::progress::Progress;
-    use crate::store::Store;
-    use crom_schemas::SceneConfig;
-
-    fn ctx<'a>(store: &'a Store, scene: &'a SceneConfig) -> Ctx<'a> {
-        Ctx {
-            store,
-            scene_name: scene.scene.name.clone(),
-            command: "test".into(),
-            progress: Progress::new(true),
-            records: Vec::new(),
-            warnings: Vec::new(),
-            points: PointCounts::default(),
-            loaded: Default::default(),
-        }
-    }
-
-    /// A cold run of the rope reads the training set, the test set and the bases once each
-    /// (basis, compactness, generalization, specificity, rom and report share them); a second,
-    /// fully cached run reads none.
-    #[test]
-    fn a_run_reads_each_input_once_and_a_cached_run_none() {
-        let dir = crate::scratch::tempdir().expect("tempdir");
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes/rope.toml");
-        let scene = SceneConfig::load(&root).expect("rope.toml");
-        let store = Store::open(dir.path()).expect("store");
-        let mut c = ctx(&store, &scene);
-        run_scene(&mut c, &scene, true).expect("cold run");
-        assert_eq!(c.loaded.counts(), (2, 1));
-        let mut c = ctx(&store, &scene);
-        run_scene(&mut c, &scene, true).expect("cached run");
-        assert_eq!(c.loaded.counts(), (0, 0));
     }
 }

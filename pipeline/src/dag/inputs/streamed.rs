@@ -20,10 +20,11 @@ use crom_stages::basis::{large_frame, Frame};
 use crom_stages::blocks::{BlockError, ColumnBlocks, ColumnNorms};
 use faer::{Mat, MatRef};
 
-use super::trainset::{self, TrainingSet};
+use super::sets;
 use crate::cache::Key;
 use crate::error::CromError;
 use crate::io::h5::ColMatrix;
+use crate::io::snapshot_set::TrainingSet;
 use crate::store::columns::{read_columns, IndexRow};
 use crate::store::Store;
 
@@ -163,8 +164,8 @@ impl ColumnBlocks for PrimalColumns {
 /// columns of 109 431 dofs).
 pub(crate) fn load_dual(store: &Store, key: &Key) -> Result<(ColMatrix, Vec<Vec<f64>>), CromError> {
     let dir = store.dir(ArtifactKind::TrainingSet, key);
-    let rows = trainset::rows_of(&dir.join(names::STATS))?;
-    let (n_dof, n_contact) = trainset::set_shape(store, key, &rows)?;
+    let rows = sets::rows_of(&dir.join(names::STATS))?;
+    let (n_dof, n_contact) = sets::set_shape(store, key, &rows)?;
     let parameters: Vec<Vec<f64>> = rows.iter().map(|r| r.parameters.clone()).collect();
     let count = rows.len();
     let primal = PrimalColumns { root: store.root().to_path_buf(), rows, n_dof, n_contact, failure: Mutex::new(None) };
@@ -180,8 +181,8 @@ pub(crate) fn load_dual(store: &Store, key: &Key) -> Result<(ColMatrix, Vec<Vec<
 /// columns' norms, read block by block (one pass; every column verified).
 pub(crate) fn load(store: &Store, key: &Key) -> Result<StreamedSet, CromError> {
     let dir = store.dir(ArtifactKind::TrainingSet, key);
-    let rows = trainset::rows_of(&dir.join(names::STATS))?;
-    let (n_dof, n_contact) = trainset::set_shape(store, key, &rows)?;
+    let rows = sets::rows_of(&dir.join(names::STATS))?;
+    let (n_dof, n_contact) = sets::set_shape(store, key, &rows)?;
     let count = rows.len();
     let primal = PrimalColumns { root: store.root().to_path_buf(), rows, n_dof, n_contact, failure: Mutex::new(None) };
     let mut dual = ColMatrix { rows: n_contact, cols: count, data: Vec::with_capacity(n_contact * count) };
