@@ -32,6 +32,9 @@ impl Key {
 /// Everything that determines one artifact.
 #[derive(Debug, Clone, Serialize)]
 pub struct KeySpec {
+    /// The artifact kind (its name and schema version are the fields below).
+    #[serde(skip)]
+    pub kind: ArtifactKind,
     /// Stage / artifact kind name.
     pub stage: &'static str,
     /// Version of the stage's algorithm: bump when the numbers it produces change.
@@ -48,6 +51,7 @@ impl KeySpec {
     /// A key spec for `kind` with the given parameters and inputs.
     pub fn new(kind: ArtifactKind, algorithm_version: u32, params: serde_json::Value) -> Self {
         Self {
+            kind,
             stage: kind.name(),
             algorithm_version,
             schema_version: kind.schema_version(),
@@ -121,13 +125,13 @@ mod tests {
 
     #[test]
     fn key_changes_with_every_ingredient() {
-        let base = KeySpec::new(ArtifactKind::Snapshot, 1, json!({"p": 0.5}));
+        let base = KeySpec::new(ArtifactKind::SNAPSHOT, 1, json!({"p": 0.5}));
         let k = base.key();
         assert_eq!(k, base.clone().key(), "deterministic");
         assert_eq!(k.0.len(), 64);
-        assert_ne!(k, KeySpec::new(ArtifactKind::Snapshot, 2, json!({"p": 0.5})).key());
-        assert_ne!(k, KeySpec::new(ArtifactKind::Basis, 1, json!({"p": 0.5})).key());
-        assert_ne!(k, KeySpec::new(ArtifactKind::Snapshot, 1, json!({"p": 0.5000000000000001})).key());
+        assert_ne!(k, KeySpec::new(ArtifactKind::SNAPSHOT, 2, json!({"p": 0.5})).key());
+        assert_ne!(k, KeySpec::new(ArtifactKind::BASIS, 1, json!({"p": 0.5})).key());
+        assert_ne!(k, KeySpec::new(ArtifactKind::SNAPSHOT, 1, json!({"p": 0.5000000000000001})).key());
         assert_ne!(k, base.clone().input("mesh", &Key("ab".into())).key());
         let mut other_schema = base.clone();
         other_schema.schema_version += 1;
@@ -141,7 +145,7 @@ mod tests {
     }
 
     impl StageKey for Example {
-        const KIND: ArtifactKind = ArtifactKind::Basis;
+        const KIND: ArtifactKind = ArtifactKind::BASIS;
         const ALGORITHM_VERSION: u32 = 7;
     }
 
@@ -149,7 +153,7 @@ mod tests {
     fn a_typed_key_carries_its_kind_version_and_every_field() {
         let spec = KeySpec::of(&Example { tol: 0.5, nnls: NnlsKey::used() });
         assert_eq!((spec.stage, spec.algorithm_version), ("basis", 7));
-        assert_eq!(spec.schema_version, ArtifactKind::Basis.schema_version());
+        assert_eq!(spec.schema_version, ArtifactKind::BASIS.schema_version());
         assert_eq!(spec.params["tol"], json!(0.5));
         // The NNLS settings the stages use are in the key: a change of them changes it.
         let p = crom_stages::cone::NnlsParams::default();

@@ -11,7 +11,7 @@
 //!
 //! let mesh = Key("ab".repeat(32));
 //! let params = serde_json::json!({ "parameter": 0.5, "solver": { "rel_tol": 1e-10, "max_iter": 100 } });
-//! let spec = KeySpec::new(ArtifactKind::Snapshot, 3, params).input("mesh", &mesh);
+//! let spec = KeySpec::new(ArtifactKind::SNAPSHOT, 3, params).input("mesh", &mesh);
 //! // blake3 of {"stage":"snapshot","algorithm_version":3,"schema_version":1,"params":{...},"inputs":{"mesh":"abab…"}}
 //! assert_eq!(spec.key().0, "1a568b277142cd8d2282f6798fdf69e5eb18fe2e9865946860109ea8bd9bc6a5");
 //! ```
@@ -175,9 +175,9 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
         }
         Command::Report { scene } => {
             let out = run_scene(cli, scene, true)?;
-            if let Some(report) = &out.report {
+            if let Some(report) = out.key("report") {
                 let index = store::Store::open_read_only(&cli.store)
-                    .dir(crom_schemas::artifact::ArtifactKind::Report, report)
+                    .dir(crom_schemas::artifact::ArtifactKind::REPORT, report)
                     .join("index.html");
                 println!("{}", index.display());
             }
@@ -365,8 +365,8 @@ fn run_scene(cli: &Cli, scene_arg: &str, online: bool) -> Result<dag::RunOutput,
     let report = result
         .as_ref()
         .ok()
-        .and_then(|o| o.report.as_ref())
-        .map(|r| store.dir(crom_schemas::artifact::ArtifactKind::Report, r));
+        .and_then(|o| o.key("report"))
+        .map(|r| store.dir(crom_schemas::artifact::ArtifactKind::REPORT, r));
     summary::print_run(&ctx, &scene, start.elapsed().as_secs_f64(), result.is_ok(), report.as_deref());
     result
 }

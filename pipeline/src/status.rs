@@ -20,7 +20,16 @@ pub(crate) enum View {
 
 /// The text of the plan of `scene` against the store at `root`.
 pub(crate) fn render(root: &Path, scene: &crom_schemas::SceneConfig, view: View) -> Result<String, CromError> {
-    let plan = Plan::of(scene);
+    render_plan(root, scene, &Plan::of(scene), view)
+}
+
+/// [`render`] of the plan `plan` of `scene`.
+pub(crate) fn render_plan(
+    root: &Path,
+    scene: &crom_schemas::SceneConfig,
+    plan: &Plan,
+    view: View,
+) -> Result<String, CromError> {
     let state = plan.snapshot_state(root)?;
     let name = &scene.scene.name;
     let mut out = String::new();

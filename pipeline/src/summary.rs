@@ -58,7 +58,8 @@ pub(crate) fn ls(
     output: Option<&std::path::Path>,
 ) -> Result<(), CromError> {
     if let Some(s) = stage {
-        if s != "columns" && s != "snapshot" && ArtifactKind::from_name(s).is_none() {
+        let stored = || store.manifests().iter().any(|m| m.stage == s);
+        if s != "columns" && s != "snapshot" && ArtifactKind::from_name(s).is_none() && !stored() {
             let known: Vec<&str> =
                 std::iter::once("columns").chain(ArtifactKind::ALL.iter().map(|k| k.name())).collect();
             return Err(CromError::Usage {
@@ -115,7 +116,7 @@ fn text_listing(store: &Store, stage: Option<&str>) -> String {
     use std::fmt::Write as _;
     let mut out = String::new();
     let mut all = store.manifests();
-    let order = |s: &str| ArtifactKind::from_name(s).map_or(usize::MAX, |k| k as usize);
+    let order = |s: &str| ArtifactKind::order_of(s);
     all.sort_by(|a, b| order(&a.stage).cmp(&order(&b.stage)).then(a.created_unix.cmp(&b.created_unix)));
     let _ = writeln!(out, "{:<12} {:<14} {:<16} {:>9}  summary", "stage", "key", "scene", "wall [s]");
     let mut n = 0;
@@ -174,8 +175,21 @@ pub(crate) fn verify(store: &Store) -> Result<(), CromError> {
     let mut out = std::io::stdout().lock();
     let mut problems = Vec::new();
     let mut checked = 0;
+    // A kind the build does not ship (a stage added with its own `ArtifactKind::new`) is
+    // verified against its manifest's schema version; its name lives as long as the command.
+    let mut other: Vec<ArtifactKind> = Vec::new();
     for m in store.manifests() {
-        let Some(kind) = ArtifactKind::from_name(&m.stage) else { continue };
+        let kind = match ArtifactKind::from_name(&m.stage) {
+            Some(k) => k,
+            None => match other.iter().find(|k| k.name() == m.stage && k.schema_version() == m.schema_version) {
+                Some(k) => *k,
+                None => {
+                    let name: &'static str = Box::leak(m.stage.clone().into_boxed_str());
+                    other.push(ArtifactKind::new(name, m.schema_version));
+                    other[other.len() - 1]
+                }
+            },
+        };
         checked += 1;
         if let crate::store::Lookup::Quarantined(to, why) = store.lookup(kind, &m.key)? {
             problems.push(format!("{}/{}: {why}; moved to {}", m.stage, m.key.short(), to.display()));

@@ -1,7 +1,7 @@
 //! End-to-end: result files are byte-reproducible. A scene run into two stores — one with the
 //! default thread pool, one with a single thread (as another machine might schedule it) — gives
 //! byte-identical files everywhere except the ones that carry wall-clock times
-//! (`crom_schemas::artifact::TIMING_FILES`) and the store's metadata (manifests, the column
+//! (`crom_schemas::artifact::timing_files`) and the store's metadata (manifests, the column
 //! index, the catalog, the published names), which record when and how long.
 
 mod common;
@@ -37,7 +37,7 @@ fn results_are_byte_identical_across_runs_and_thread_counts() {
     // Every kind of result is compared: the blocks and one file of each stage at least.
     let has = |prefix: &str, suffix: &str| fa.keys().any(|k| k.starts_with(prefix) && k.ends_with(suffix));
     assert!(has("columns/", ".h5"), "snapshot blocks");
-    for kind in ArtifactKind::ALL.iter().filter(|k| **k != ArtifactKind::Snapshot) {
+    for kind in ArtifactKind::ALL.iter().filter(|k| **k != ArtifactKind::SNAPSHOT) {
         assert!(has(&format!("{}/", kind.name()), ""), "no {} file compared", kind.name());
     }
     for f in ["basis.h5", "online.h5", "rom_errors.parquet", "tradeoff.parquet", "solver_stats.parquet", "views.h5"] {

@@ -42,10 +42,10 @@ without symbolic links still reads, and verifies every artifact it opens against
 """
 from .errors import (ArtifactMissing, CorruptArtifact, CromDataError, InvalidPoint, NativeMissing, OutsideDomain,
                      SceneNotFound, SchemaTooNew, StaleArtifact, StoreNotFound)
-from .scene import LAYOUT_VERSION, SCHEMA_VERSIONS, Basis, Mesh, Scene, SnapshotSet
+from .scene import LAYOUT_VERSION, Basis, Mesh, Scene, SnapshotSet
 from .store import Store, open_store
 
 __version__ = "0.1.0"
-__all__ = ["open_store", "Store", "Scene", "SnapshotSet", "Basis", "Mesh", "SCHEMA_VERSIONS", "LAYOUT_VERSION",
+__all__ = ["open_store", "Store", "Scene", "SnapshotSet", "Basis", "Mesh", "LAYOUT_VERSION",
            "CromDataError", "StoreNotFound", "SceneNotFound", "ArtifactMissing", "SchemaTooNew", "StaleArtifact",
            "CorruptArtifact", "InvalidPoint", "OutsideDomain", "NativeMissing"]

@@ -41,23 +41,24 @@ try:  # optional: content hashes are checked only when the module is installed
 except ImportError:  # pragma: no cover - depends on the environment
     _blake3 = None
 
-#: Layout version of each stage's files this reader reads (crom-schemas `schema_version`).
-SCHEMA_VERSIONS = {"mesh": 2, "trainset": 4, "basis": 2, "compactness": 1, "generalization": 1,
-                   "specificity": 1, "nested": 1, "views": 1, "rom": 4, "report": 1, "comparison": 1,
-                   "online-comparison": 1, "model": 4}
-#: Layout version of `study.json` this reader reads.
+#: Layout version of `study.json` and its names this reader reads. The layout version of each
+#: artifact's files is not copied here: `study.json` names it per entry (the writer's own
+#: `schema_version`), and each artifact's manifest must agree with it.
 LAYOUT_VERSION = 1
 BASIS_GROUPS = ("primal_pod", "dual_pod", "dual_cpg", "dual_cpg_truncated")
 
 
-def _check_version(what: str, found, known: int, fix: str) -> None:
-    if not isinstance(found, int):
-        raise CorruptArtifact(f"{what}: schema version {found!r} is not an integer; {fix}")
+def _check_version(what: str, found, known, fix: str) -> None:
+    """The artifact's schema version `found` (its manifest's) against `known`, the one the study
+    names for its entry (the version the crom that published the study writes)."""
+    if not isinstance(found, int) or not isinstance(known, int):
+        raise CorruptArtifact(f"{what}: schema version {found!r} (study: {known!r}) is not an integer; {fix}")
     if found > known:
-        raise SchemaTooNew(f"{what}: schema version {found} is newer than this reader's ({known}); "
-                           "upgrade crom_data (`pip install -U ./python` from the crom checkout that wrote the store)")
+        raise SchemaTooNew(f"{what}: schema version {found} is newer than the study names ({known}): a newer crom "
+                           "wrote it; run that crom's study again and upgrade crom_data (`pip install -U ./python` "
+                           "from the crom checkout that wrote the store)")
     if found < known:
-        raise StaleArtifact(f"{what}: schema version {found} is older than this reader supports ({known}); {fix}")
+        raise StaleArtifact(f"{what}: schema version {found} is older than the study names ({known}); {fix}")
 
 
 @dataclasses.dataclass
@@ -209,9 +210,7 @@ class Scene:
             raise CorruptArtifact(f"{where}: {directory / 'manifest.json'} is not JSON ({err}); {fix}") from None
         if manifest.get("stage") != stage or manifest.get("key") != key:
             raise CorruptArtifact(f"{where}: its manifest names {manifest.get('stage')}/{manifest.get('key')}; {fix}")
-        if stage not in SCHEMA_VERSIONS:
-            raise SchemaTooNew(f"{where}: stage {stage!r} is unknown to this reader; upgrade crom_data")
-        _check_version(where, manifest.get("schema_version"), SCHEMA_VERSIONS[stage], self._rerun())
+        _check_version(where, manifest.get("schema_version"), e.get("schema_version"), self._rerun())
         self._opened[entry] = manifest
         return manifest
 

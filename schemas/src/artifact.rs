@@ -26,147 +26,152 @@
 //! and `tests/python/test_no_nonfinite.py` scans every Parquet and HDF5 file of the rope, hertz
 //! and ironing-fine stores with pyarrow and h5py.
 
-/// One kind of artifact (one stage's output).
+/// One kind of artifact (one stage's output): the directory its artifacts live in under the
+/// store root, which is also the stage name in manifests and keys; the layout version of its
+/// files; and which of its files carry wall-clock times. Each kind is declared once, as a
+/// constant beside its files' names (`mesh::KIND`, `rom::KIND`, …), by the stage that writes
+/// it. The shipped kinds are listed in [`ArtifactKind::ALL`]; a kind outside that list (a stage
+/// added to the pipeline with its own `ArtifactKind::new`) is stored, verified, catalogued and
+/// published like any other, and listed after them.
+///
+/// Bump a kind's `schema_version` whenever the layout of its files changes: the version is part
+/// of every cache key, so old artifacts are never read with a new layout, and it is written into
+/// every manifest and `study.json` entry, where the Python reader takes it from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum ArtifactKind {
-    /// The scene's discretisation: `mesh.h5` (+ `mesh.xdmf`).
-    Mesh,
-    /// One high-fidelity solve at one parameter value. The kind names snapshot and column-family
-    /// keys; snapshots are stored as columns of a column family (`columns/`), and a
-    /// `snapshot/<key>/snapshot.h5` directory is the former layout, read only to migrate it.
-    Snapshot,
-    /// A set of snapshots as matrices: `snapshots.h5` + `solver_stats.parquet`.
-    TrainingSet,
-    /// Reduced bases of one training set: `basis.h5`.
-    Basis,
-    /// Compactness C(m) of every basis: `compactness.parquet`.
-    Compactness,
-    /// Leave-one-out generalization G(m) (eq. 17): `generalization.parquet`.
-    Generalization,
-    /// Specificity S(m) (eq. 18): `specificity.parquet`.
-    Specificity,
-    /// Nested-training-set error H(n) (eq. 19): `nested.parquet`.
-    Nested,
-    /// One dual approximation built and measured: the [`comparison`] tables of that
-    /// approximation alone, and `bases.h5` where its basis does not depend on the parameter.
-    Approximation,
-    /// Dual approximations side by side: the `approximation` artifacts' tables
-    /// concatenated, `comparison.parquet` and the rest of [`comparison`].
-    Comparison,
-    /// The online solve with one dual approximation: [`comparison::ONLINE`] and
-    /// [`comparison::ONLINE_TIMINGS`] of that approximation alone.
-    OnlineApproximation,
-    /// The online solve with each dual approximation: the `online-approximation`
-    /// artifacts' tables concatenated, `online_comparison.parquet`.
-    OnlineComparison,
-    /// ParaView time series (XDMF) of a snapshot set or a basis: `*.xdmf` + `views.h5`.
-    Views,
-    /// Online reduced solves: errors and timings (`rom_errors.parquet`, `tradeoff.parquet`).
-    Rom,
-    /// The reduced model a user runs (`crom query`): [`model::FILE`], everything the online
-    /// solve reads, and [`model::RECONSTRUCTION`], the bases that turn its answers into fields.
-    Model,
-    /// Figures, tables and `index.html` of a scene's study.
-    Report,
+pub struct ArtifactKind {
+    name: &'static str,
+    schema_version: u32,
+    timing: &'static [&'static str],
 }
 
 impl ArtifactKind {
-    /// Every kind, in DAG order.
+    /// The kind `name` (the directory under the store root; lower case, `-` between words) at
+    /// layout version `schema_version`, no file of which carries times.
+    pub const fn new(name: &'static str, schema_version: u32) -> Self {
+        Self { name, schema_version, timing: &[] }
+    }
+
+    /// The same kind whose files `timing` carry wall-clock times ([`timing_files`]).
+    pub const fn with_timing(self, timing: &'static [&'static str]) -> Self {
+        Self { timing, ..self }
+    }
+
+    /// The scene's discretisation: `mesh.h5` (+ `mesh.xdmf`).
+    pub const MESH: ArtifactKind = mesh::KIND;
+    /// One high-fidelity solve at one parameter value. The kind names snapshot and column-family
+    /// keys; snapshots are stored as columns of a column family (`columns/`), and a
+    /// `snapshot/<key>/snapshot.h5` directory is the former layout, read only to migrate it.
+    pub const SNAPSHOT: ArtifactKind = snapshot::KIND;
+    /// A set of snapshots as matrices: `snapshots.h5` + `solver_stats.parquet`.
+    pub const TRAINING_SET: ArtifactKind = trainset::KIND;
+    /// Reduced bases of one training set: `basis.h5`.
+    pub const BASIS: ArtifactKind = basis::KIND;
+    /// Compactness C(m) of every basis: `compactness.parquet`.
+    pub const COMPACTNESS: ArtifactKind = compactness::KIND;
+    /// Leave-one-out generalization G(m) (eq. 17): `generalization.parquet`.
+    pub const GENERALIZATION: ArtifactKind = metrics::GENERALIZATION_KIND;
+    /// Specificity S(m) (eq. 18): `specificity.parquet`.
+    pub const SPECIFICITY: ArtifactKind = metrics::SPECIFICITY_KIND;
+    /// Nested-training-set error H(n) (eq. 19): `nested.parquet`.
+    pub const NESTED: ArtifactKind = metrics::NESTED_KIND;
+    /// One dual approximation built and measured: the [`comparison`] tables of that
+    /// approximation alone, and `bases.h5` where its basis does not depend on the parameter.
+    pub const APPROXIMATION: ArtifactKind = comparison::APPROXIMATION_KIND;
+    /// Dual approximations side by side: the `approximation` artifacts' tables
+    /// concatenated, `comparison.parquet` and the rest of [`comparison`].
+    pub const COMPARISON: ArtifactKind = comparison::KIND;
+    /// The online solve with one dual approximation: [`comparison::ONLINE`] and
+    /// [`comparison::ONLINE_TIMINGS`] of that approximation alone.
+    pub const ONLINE_APPROXIMATION: ArtifactKind = comparison::ONLINE_APPROXIMATION_KIND;
+    /// The online solve with each dual approximation: the `online-approximation`
+    /// artifacts' tables concatenated, `online_comparison.parquet`.
+    pub const ONLINE_COMPARISON: ArtifactKind = comparison::ONLINE_KIND;
+    /// ParaView time series (XDMF) of a snapshot set or a basis: `*.xdmf` + `views.h5`.
+    pub const VIEWS: ArtifactKind = views::KIND;
+    /// Online reduced solves: errors and timings (`rom_errors.parquet`, `tradeoff.parquet`).
+    pub const ROM: ArtifactKind = rom::KIND;
+    /// The reduced model a user runs (`crom query`): [`model::FILE`], everything the online
+    /// solve reads, and [`model::RECONSTRUCTION`], the bases that turn its answers into fields.
+    pub const MODEL: ArtifactKind = model::KIND;
+    /// Figures, tables and `index.html` of a scene's study.
+    pub const REPORT: ArtifactKind = report::KIND;
+
+    /// The shipped kinds, in DAG order (the order of listings).
     pub const ALL: [ArtifactKind; 16] = [
-        ArtifactKind::Mesh,
-        ArtifactKind::Snapshot,
-        ArtifactKind::TrainingSet,
-        ArtifactKind::Basis,
-        ArtifactKind::Compactness,
-        ArtifactKind::Generalization,
-        ArtifactKind::Specificity,
-        ArtifactKind::Nested,
-        ArtifactKind::Approximation,
-        ArtifactKind::Comparison,
-        ArtifactKind::OnlineApproximation,
-        ArtifactKind::OnlineComparison,
-        ArtifactKind::Views,
-        ArtifactKind::Rom,
-        ArtifactKind::Model,
-        ArtifactKind::Report,
+        Self::MESH,
+        Self::SNAPSHOT,
+        Self::TRAINING_SET,
+        Self::BASIS,
+        Self::COMPACTNESS,
+        Self::GENERALIZATION,
+        Self::SPECIFICITY,
+        Self::NESTED,
+        Self::APPROXIMATION,
+        Self::COMPARISON,
+        Self::ONLINE_APPROXIMATION,
+        Self::ONLINE_COMPARISON,
+        Self::VIEWS,
+        Self::ROM,
+        Self::MODEL,
+        Self::REPORT,
     ];
 
     /// Directory name under the store root and stage name in manifests.
     pub fn name(self) -> &'static str {
-        match self {
-            ArtifactKind::Mesh => "mesh",
-            ArtifactKind::Snapshot => "snapshot",
-            ArtifactKind::TrainingSet => "trainset",
-            ArtifactKind::Basis => "basis",
-            ArtifactKind::Compactness => "compactness",
-            ArtifactKind::Generalization => "generalization",
-            ArtifactKind::Specificity => "specificity",
-            ArtifactKind::Nested => "nested",
-            ArtifactKind::Approximation => "approximation",
-            ArtifactKind::Comparison => "comparison",
-            ArtifactKind::OnlineApproximation => "online-approximation",
-            ArtifactKind::OnlineComparison => "online-comparison",
-            ArtifactKind::Views => "views",
-            ArtifactKind::Rom => "rom",
-            ArtifactKind::Model => "model",
-            ArtifactKind::Report => "report",
-        }
+        self.name
     }
 
-    /// Parse a directory / stage name.
+    /// The shipped kind named `name`.
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|k| k.name() == name)
     }
 
     /// Layout version of this kind's files.
     pub fn schema_version(self) -> u32 {
-        match self {
-            ArtifactKind::Mesh => 2,
-            ArtifactKind::Snapshot => 1,
-            ArtifactKind::TrainingSet => 4,
-            ArtifactKind::Basis => 2,
-            ArtifactKind::Compactness => 1,
-            ArtifactKind::Generalization => 1,
-            ArtifactKind::Specificity => 1,
-            ArtifactKind::Nested => 1,
-            ArtifactKind::Approximation => 1,
-            ArtifactKind::Comparison => 1,
-            ArtifactKind::OnlineApproximation => 1,
-            ArtifactKind::OnlineComparison => 1,
-            ArtifactKind::Views => 1,
-            ArtifactKind::Rom => 4,
-            ArtifactKind::Model => model::SCHEMA_VERSION,
-            ArtifactKind::Report => 1,
-        }
+        self.schema_version
+    }
+
+    /// The files of this kind that carry wall-clock times.
+    pub fn timing(self) -> &'static [&'static str] {
+        self.timing
+    }
+
+    /// Where the stage named `name` comes in listings: the shipped kinds in DAG order, any
+    /// other after them.
+    pub fn order_of(name: &str) -> usize {
+        Self::ALL.iter().position(|k| k.name() == name).unwrap_or(usize::MAX)
     }
 }
 
-/// The files that carry wall-clock times, (stage, file): they differ from run to run. Every
-/// other file of every artifact is a result, byte-identical across runs and thread counts with
-/// the same build (tested), and so are the snapshot blocks. Store metadata — manifests, the
-/// columns' `index.parquet` (which records solve times), `catalog.parquet`, `study.json` —
-/// records when and how long, and is not a result.
-pub const TIMING_FILES: [(&str, &str); 19] = [
-    ("trainset", trainset::TIMINGS),
-    ("approximation", comparison::TIMINGS),
-    ("comparison", comparison::TIMINGS),
-    ("online-approximation", comparison::ONLINE_TIMINGS),
-    ("online-comparison", comparison::ONLINE_TIMINGS),
-    ("rom", rom::TIMINGS),
-    ("rom", rom::TRADEOFF_TIMINGS),
-    ("model", model::SPEED),
-    ("report", "index.html"),
-    ("report", "fig_tradeoff.png"),
-    ("report", "fig_tradeoff.svg"),
-    ("report", "table_tradeoff.csv"),
-    ("report", "table_tradeoff.md"),
-    ("report", "table_comparison_builds.csv"),
-    ("report", "table_comparison_builds.md"),
-    ("report", "table_comparison_online.csv"),
-    ("report", "table_comparison_online.md"),
-    ("report", "fig_comparison_online.png"),
-    ("report", "fig_comparison_online.svg"),
-];
+/// The files that carry wall-clock times, (stage, file), of the shipped kinds: they differ from
+/// run to run. Every other file of every artifact is a result, byte-identical across runs and
+/// thread counts with the same build (tested), and so are the snapshot blocks. Store metadata —
+/// manifests, the columns' `index.parquet` (which records solve times), `catalog.parquet`,
+/// `study.json` — records when and how long, and is not a result.
+pub fn timing_files() -> impl Iterator<Item = (&'static str, &'static str)> {
+    ArtifactKind::ALL.into_iter().flat_map(|k| k.timing().iter().map(move |f| (k.name(), *f)))
+}
+
+/// The report directory: `index.html`, the figures (`fig_*.png`, `fig_*.svg`) and the tables
+/// (`table_*.csv`, `table_*.md`).
+pub mod report {
+    use super::ArtifactKind;
+
+    /// The kind.
+    pub const KIND: ArtifactKind = ArtifactKind::new("report", 1).with_timing(&[
+        "index.html",
+        "fig_tradeoff.png",
+        "fig_tradeoff.svg",
+        "table_tradeoff.csv",
+        "table_tradeoff.md",
+        "table_comparison_builds.csv",
+        "table_comparison_builds.md",
+        "table_comparison_online.csv",
+        "table_comparison_online.md",
+        "fig_comparison_online.png",
+        "fig_comparison_online.svg",
+    ]);
+}
 
 /// The comparison of dual approximations (`crom_stages::dual`). Every table has a
 /// `scene` and an `approximation` column (`pod`, `cpg`, `angle-greedy`, `nnmf`, `local-K`,
@@ -177,6 +182,18 @@ pub const TIMING_FILES: [(&str, &str); 19] = [
 /// artifacts hold the same tables of every approximation of the scene, concatenated in the
 /// scene file's order.
 pub mod comparison {
+    use super::ArtifactKind;
+
+    /// One approximation's tables.
+    pub const APPROXIMATION_KIND: ArtifactKind = ArtifactKind::new("approximation", 1).with_timing(&[TIMINGS]);
+    /// Every approximation's tables side by side.
+    pub const KIND: ArtifactKind = ArtifactKind::new("comparison", 1).with_timing(&[TIMINGS]);
+    /// One approximation's online solve.
+    pub const ONLINE_APPROXIMATION_KIND: ArtifactKind =
+        ArtifactKind::new("online-approximation", 1).with_timing(&[ONLINE_TIMINGS]);
+    /// Every approximation's online solve side by side.
+    pub const ONLINE_KIND: ArtifactKind = ArtifactKind::new("online-comparison", 1).with_timing(&[ONLINE_TIMINGS]);
+
     /// Curves: `scene, approximation, metric, m, mean, std, count, n_zero`, one row per
     /// (approximation, metric, m). `metric` is `compactness` (C(m) over the training set;
     /// `std` null), `generalization` (leave-one-out G(m) over `comparison.loo_folds` evenly
@@ -231,6 +248,11 @@ pub const MANIFEST: &str = "manifest.json";
 /// `/node_body`, `/cell_body` (u64 body ids). Attributes: `scene`, `kind`, `schema_version`,
 /// `cache_key`, `dofs_per_node` and the stiffness estimates below.
 pub mod mesh {
+    use super::ArtifactKind;
+
+    /// The kind.
+    pub const KIND: ArtifactKind = ArtifactKind::new("mesh", 2);
+
     /// HDF5 file.
     pub const FILE: &str = "mesh.h5";
     /// XDMF sidecar for ParaView.
@@ -260,6 +282,11 @@ pub mod mesh {
 /// column family: `/u` (n_dof), `/pressure` (n_contact), attribute `parameter` and the solver
 /// statistics as attributes.
 pub mod snapshot {
+    use super::ArtifactKind;
+
+    /// The kind.
+    pub const KIND: ArtifactKind = ArtifactKind::new("snapshot", 1);
+
     /// HDF5 file.
     pub const FILE: &str = "snapshot.h5";
     /// Primal field (all dofs).
@@ -271,6 +298,11 @@ pub mod snapshot {
 /// `snapshots.h5`: `/primal` (n_dof x n_snap), `/dual` (n_contact x n_snap), `/parameters`
 /// (n_snap); column j of both matrices is the solve at `parameters[j]`.
 pub mod trainset {
+    use super::ArtifactKind;
+
+    /// The kind.
+    pub const KIND: ArtifactKind = ArtifactKind::new("trainset", 4).with_timing(&[TIMINGS]);
+
     /// HDF5 file.
     pub const FILE: &str = "snapshots.h5";
     /// Primal snapshot matrix.
@@ -317,6 +349,11 @@ pub mod trainset {
 /// `/dual_cpg_truncated` likewise at the truncation tolerance. Group attributes: `tolerance`,
 /// `rank` and, for the POD groups, `numerical_rank`.
 pub mod basis {
+    use super::ArtifactKind;
+
+    /// The kind.
+    pub const KIND: ArtifactKind = ArtifactKind::new("basis", 2);
+
     /// HDF5 file.
     pub const FILE: &str = "basis.h5";
     /// Group of the primal POD.
@@ -348,6 +385,11 @@ pub mod basis {
 
 /// `compactness.parquet`: columns scene, field, basis, m, value (eq. 16).
 pub mod compactness {
+    use super::ArtifactKind;
+
+    /// The kind.
+    pub const KIND: ArtifactKind = ArtifactKind::new("compactness", 1);
+
     /// Parquet file.
     pub const FILE: &str = "compactness.parquet";
     /// Columns, in order.
@@ -357,6 +399,15 @@ pub mod compactness {
 /// Metric tables (`generalization.parquet`, `specificity.parquet`): one row per field, basis and
 /// rank m; `nested.parquet`: one row per field, projection and level n.
 pub mod metrics {
+    use super::ArtifactKind;
+
+    /// The kind of [`GENERALIZATION`].
+    pub const GENERALIZATION_KIND: ArtifactKind = ArtifactKind::new("generalization", 1);
+    /// The kind of [`SPECIFICITY`].
+    pub const SPECIFICITY_KIND: ArtifactKind = ArtifactKind::new("specificity", 1);
+    /// The kind of [`NESTED`].
+    pub const NESTED_KIND: ArtifactKind = ArtifactKind::new("nested", 1);
+
     /// G(m) table.
     pub const GENERALIZATION: &str = "generalization.parquet";
     /// S(m) table.
@@ -381,6 +432,11 @@ pub mod metrics {
 /// `parameters`, and `converged` (1 where the query converged).
 /// The reduced model a user runs (`crom query`; layout in `docs/store-format.md`).
 pub mod model {
+    use super::ArtifactKind;
+
+    /// The kind.
+    pub const KIND: ArtifactKind = ArtifactKind::new("model", SCHEMA_VERSION).with_timing(&[SPEED]);
+
     /// Everything the online solve reads: the reduced operators, the contact-surface rows and
     /// pairing geometry, the dual basis, the warm starts (datasets named as in
     /// `crom_stages::rom::ModelParts`), the solver settings, the parameter's names and domain,
@@ -404,6 +460,11 @@ pub mod model {
 }
 
 pub mod rom {
+    use super::ArtifactKind;
+
+    /// The kind.
+    pub const KIND: ArtifactKind = ArtifactKind::new("rom", 4).with_timing(&[TIMINGS, TRADEOFF_TIMINGS]);
+
     /// Online solution fields at the test points.
     pub const ONLINE: &str = "online.h5";
     /// Errors of the online solve at training and test points.
@@ -502,6 +563,11 @@ pub mod rom {
 /// nothing is copied — and whose parameter fields (one per component, constant over the nodes)
 /// are small compressed datasets. The mesh, `node_body` and `cell_body` come from `mesh.h5`.
 pub mod views {
+    use super::ArtifactKind;
+
+    /// The kind.
+    pub const KIND: ArtifactKind = ArtifactKind::new("views", 1);
+
     /// HDF5 file of the step datasets.
     pub const FILE: &str = "views.h5";
     /// XDMF of a snapshot set.

@@ -45,7 +45,7 @@ pub(crate) struct ApproximationKey {
 }
 
 impl StageKey for ApproximationKey {
-    const KIND: ArtifactKind = ArtifactKind::Approximation;
+    const KIND: ArtifactKind = ArtifactKind::APPROXIMATION;
     /// Bump when a number of an approximation changes (2: the CPG floor; 3: `bases.h5` also
     /// holds m = 10, the online size of the registered target; 4: NNMF's objective from the
     /// sweep's Gram products, the same sweeps and bases, `relative_residual` to the last bits;
@@ -155,7 +155,7 @@ impl ApproximationStage {
 
 impl StageDef for ApproximationStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Approximation
+        ArtifactKind::APPROXIMATION
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -190,7 +190,7 @@ fn run(
     let (samples, seed) = (settings.specificity_samples, settings.seed);
     let (max_m, loo_folds) = (settings.max_m, settings.loo_folds);
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
-    ctx.single(ArtifactKind::Approximation, "approximation", spec, |staging| {
+    ctx.single(ArtifactKind::APPROXIMATION, "approximation", spec, |staging| {
         let set = loaded.level(store, train)?;
         let tset = test.map(|t| loaded.level(store, t)).transpose()?;
         let surface = match surface {
@@ -306,7 +306,7 @@ fn write_bases(staging: &Staging, scene: &str, model: &dyn DualApprox, mu: &[f64
     let f = H5Out::create(&staging.path(names::BASES))?;
     f.attr_str("scene", scene)?;
     f.attr_str("kind", "approximation")?;
-    f.attr_u64("schema_version", u64::from(ArtifactKind::Approximation.schema_version()))?;
+    f.attr_u64("schema_version", u64::from(ArtifactKind::APPROXIMATION.schema_version()))?;
     f.attr_str("cache_key", &staging.key().0)?;
     for m in ONLINE_MS.into_iter().filter(|&m| m <= model.size()) {
         let Some(b) = model.cone_basis(mu, m) else { continue };

@@ -67,7 +67,7 @@ pub(crate) struct OnlineApproximationKey {
 }
 
 impl StageKey for OnlineApproximationKey {
-    const KIND: ArtifactKind = ArtifactKind::OnlineApproximation;
+    const KIND: ArtifactKind = ArtifactKind::ONLINE_APPROXIMATION;
     /// Bump when a number of the online solve changes (3: Newton-corrected re-pairing steps,
     /// docs/design-notes.md#newton-corrected-re-pairing-steps; 4: a row at m = 10; 5: NNMF's
     /// basis at m = 1 to the last bits, its products with S over S's non-zeros; 6: NNMF's W
@@ -163,7 +163,7 @@ impl StageDef for OnlineApproximationStage {
         true
     }
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::OnlineApproximation
+        ArtifactKind::ONLINE_APPROXIMATION
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -192,9 +192,9 @@ fn run(
     let item = comparison::item_of(&settings.approximation);
     let key = spec.key();
     let label = format!("online {}", item.name);
-    if ctx.lookup(ArtifactKind::OnlineApproximation, &key)?.is_some() {
+    if ctx.lookup(ArtifactKind::ONLINE_APPROXIMATION, &key)?.is_some() {
         ctx.progress.stage(&label, 1).finish("cached");
-        ctx.record("online-approximation", 0, 1, ctx.store.dir(ArtifactKind::OnlineApproximation, &key));
+        ctx.record("online-approximation", 0, 1, ctx.store.dir(ArtifactKind::ONLINE_APPROXIMATION, &key));
         return Ok(key);
     }
     let name = item.name.clone();
@@ -248,7 +248,7 @@ fn run(
         (primal_errors.relative(j, &sol.u_hat), dual_error(op, rm, sol, &test_set, j))
     };
     let mut rows = Rows::default();
-    let bases_path = ctx.store.dir(ArtifactKind::Approximation, approximation).join(names::BASES);
+    let bases_path = ctx.store.dir(ArtifactKind::APPROXIMATION, approximation).join(names::BASES);
     if matches!(item.approach, Approach::Dictionary) {
         // Every training snapshot an atom, solved by a working set (column generation).
         let ws = WorkingSet::new(view(&train_set.dual), &train_set.parameters, op.weights(), settings.ws_start);
@@ -299,7 +299,7 @@ fn run(
     ctx.commit(staging, start.elapsed().as_secs_f64(), summary)?;
     progress.inc(&name);
     progress.finish("computed");
-    ctx.record("online-approximation", 1, 0, ctx.store.dir(ArtifactKind::OnlineApproximation, &key));
+    ctx.record("online-approximation", 1, 0, ctx.store.dir(ArtifactKind::ONLINE_APPROXIMATION, &key));
     Ok(key)
 }
 

@@ -13,7 +13,7 @@ use serde_json::json;
 
 use super::convert::{to_col, view};
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::shared::Shared;
 use crate::cache::{Key, KeySpec, NnlsKey, StageKey};
 use crate::error::CromError;
@@ -128,7 +128,7 @@ pub(crate) struct BasisKey {
 }
 
 impl StageKey for BasisKey {
-    const KIND: ArtifactKind = ArtifactKind::Basis;
+    const KIND: ArtifactKind = ArtifactKind::BASIS;
     /// Bump when POD or CPG change the bases they produce (2: the NNLS settings in the key;
     /// 3: the CPG floor, `crom_stages::basis::CPG_FLOOR`; 4: the stored C(m) on a rank grid
     /// above `crom_stages::basis::DENSE_CURVE_MAX` training snapshots).
@@ -193,7 +193,7 @@ impl BasisStage {
 
 impl StageDef for BasisStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Basis
+        ArtifactKind::BASIS
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -201,6 +201,10 @@ impl StageDef for BasisStage {
     fn inputs(&self) -> Vec<&Input> {
         vec![&self.train]
     }
+    fn published(&self) -> Vec<Published> {
+        vec![Published::file("basis.h5", names::FILE)]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         self.compute(ctx)
     }
@@ -213,7 +217,7 @@ impl BasisStage {
         let progress = ctx.progress;
         let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
         let numerical = |m: String| CromError::Numerical { stage: "basis", scene: scene.clone(), message: m };
-        ctx.single(ArtifactKind::Basis, "basis", &self.spec, |staging| {
+        ctx.single(ArtifactKind::BASIS, "basis", &self.spec, |staging| {
             // The primal POD (the large SVD) beside the dual POD and the greedy path: independent
             // computations, each deterministic, on the two cores.
             let dual_side = |dual_set: &ColMatrix| {
@@ -245,7 +249,7 @@ impl BasisStage {
             let f = H5Out::create(&staging.path(names::FILE))?;
             f.attr_str("scene", scene)?;
             f.attr_str("kind", "basis")?;
-            f.attr_u64("schema_version", u64::from(ArtifactKind::Basis.schema_version()))?;
+            f.attr_u64("schema_version", u64::from(ArtifactKind::BASIS.schema_version()))?;
             f.attr_str("cache_key", &staging.key().0)?;
             // the primal modes (over every dof) uncompressed, the dual ones (over the contact
             // nodes) deflated (`H5Out::matrix_raw`)

@@ -14,7 +14,7 @@ use serde_json::json;
 use super::basis::{self, BasisKey};
 use super::convert::view;
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::inputs::streamed::MetricSet;
 use super::labels::Labels;
 use super::shared::Shared;
@@ -30,7 +30,7 @@ struct CompactnessKey {
 }
 
 impl StageKey for CompactnessKey {
-    const KIND: ArtifactKind = ArtifactKind::Compactness;
+    const KIND: ArtifactKind = ArtifactKind::COMPACTNESS;
     /// Bump when the compactness computation changes (2: the NNLS settings in the key; 3: the
     /// cone curve on a rank grid above `DENSE_CURVE_MAX` training snapshots).
     const ALGORITHM_VERSION: u32 = 3;
@@ -61,7 +61,7 @@ impl CompactnessStage {
 
 impl StageDef for CompactnessStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Compactness
+        ArtifactKind::COMPACTNESS
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -69,6 +69,10 @@ impl StageDef for CompactnessStage {
     fn inputs(&self) -> Vec<&Input> {
         vec![&self.train, &self.basis]
     }
+    fn published(&self) -> Vec<Published> {
+        vec![Published::file("compactness.parquet", crom_schemas::artifact::compactness::FILE)]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         self.compute(ctx)
     }
@@ -82,7 +86,7 @@ impl CompactnessStage {
         let (progress, max_rank) = (ctx.progress, self.basis_settings.max_rank());
         let tols = self.basis_settings.cone_tols();
         let streams = self.basis_settings.streams_primal();
-        ctx.single(ArtifactKind::Compactness, "compactness", spec, |staging| {
+        ctx.single(ArtifactKind::COMPACTNESS, "compactness", spec, |staging| {
             let numerical =
                 |message: String| CromError::Numerical { stage: "compactness", scene: scene.clone(), message };
             let set = loaded.metric_set(store, train, streams)?;

@@ -16,7 +16,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -92,7 +92,7 @@ fn approach_of(spec: &ApproximationSpec) -> Approach {
 
 /// The abscissa of each potential-contact node, in dual-field order, from the mesh artifact.
 pub(crate) fn contact_x(store: &Store, mesh: &Key) -> Result<Vec<f64>, CromError> {
-    let h5 = H5In::open(&store.dir(ArtifactKind::Mesh, mesh).join(mnames::FILE))?;
+    let h5 = H5In::open(&store.dir(ArtifactKind::MESH, mesh).join(mnames::FILE))?;
     let nodes = h5.matrix(mnames::NODES)?;
     let contact = h5.vec_u64(mnames::CONTACT_NODES)?;
     Ok(contact.iter().map(|&i| nodes.data[i as usize]).collect())
@@ -110,7 +110,7 @@ struct GatherKey {
 struct ComparisonKey(GatherKey);
 
 impl StageKey for ComparisonKey {
-    const KIND: ArtifactKind = ArtifactKind::Comparison;
+    const KIND: ArtifactKind = ArtifactKind::COMPARISON;
     /// Bump when the concatenation changes.
     const ALGORITHM_VERSION: u32 = 3;
 }
@@ -120,7 +120,7 @@ impl StageKey for ComparisonKey {
 struct OnlineComparisonKey(GatherKey);
 
 impl StageKey for OnlineComparisonKey {
-    const KIND: ArtifactKind = ArtifactKind::OnlineComparison;
+    const KIND: ArtifactKind = ArtifactKind::ONLINE_COMPARISON;
     /// Bump when the concatenation changes.
     const ALGORITHM_VERSION: u32 = 4;
 }
@@ -128,7 +128,7 @@ impl StageKey for OnlineComparisonKey {
 /// The tables a side-by-side artifact concatenates.
 fn files(kind: ArtifactKind) -> &'static [&'static str] {
     match kind {
-        ArtifactKind::Comparison => {
+        ArtifactKind::COMPARISON => {
             &[names::CURVES, names::NESTED, names::CELLS, names::REACHED, names::FACTS, names::TIMINGS]
         }
         _ => &[names::ONLINE, names::ONLINE_TIMINGS],
@@ -138,7 +138,7 @@ fn files(kind: ArtifactKind) -> &'static [&'static str] {
 /// The key spec of a side-by-side artifact of `kind` over `parts`: (approximation name, key of
 /// its `approximation` or `online-approximation` artifact), in table order.
 fn gather_spec(kind: ArtifactKind, parts: &[(String, Key)]) -> KeySpec {
-    let mut spec = if kind == ArtifactKind::Comparison {
+    let mut spec = if kind == ArtifactKind::COMPARISON {
         KeySpec::of(&ComparisonKey(GatherKey { kind: "comparison" }))
     } else {
         KeySpec::of(&OnlineComparisonKey(GatherKey { kind: "online-comparison" }))
@@ -176,6 +176,12 @@ impl StageDef for GatherStage {
     fn inputs(&self) -> Vec<&Input> {
         self.parts.iter().map(|(_, i)| i).collect()
     }
+    /// The side-by-side tables under `comparison/`.
+    fn published(&self) -> Vec<Published> {
+        let dir = crom_schemas::artifact::published::COMPARISON_DIR;
+        files(self.kind).iter().map(|f| Published::file(format!("{dir}/{f}"), f)).collect()
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         let parts: Vec<(String, Key)> = self.parts.iter().map(|(n, i)| (n.clone(), i.key.clone())).collect();
         gather(ctx, &self.spec, self.kind, self.part_kind, &parts)
@@ -192,7 +198,7 @@ fn gather(
     parts: &[(String, Key)],
 ) -> Result<Key, CromError> {
     let store = ctx.store;
-    let label = if kind == ArtifactKind::Comparison { "comparison" } else { "online-comparison" };
+    let label = if kind == ArtifactKind::COMPARISON { "comparison" } else { "online-comparison" };
     ctx.single(kind, label, spec, |staging| {
         for file in files(kind) {
             let mut all = Table::default();

@@ -16,7 +16,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -31,7 +31,7 @@ struct ExternalMeshKey<'a> {
 }
 
 impl StageKey for ExternalMeshKey<'_> {
-    const KIND: ArtifactKind = ArtifactKind::Mesh;
+    const KIND: ArtifactKind = ArtifactKind::MESH;
     /// Bump when the artifact's layout changes.
     const ALGORITHM_VERSION: u32 = 1;
 }
@@ -55,7 +55,7 @@ impl ExternalMeshStage {
 
 impl StageDef for ExternalMeshStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Mesh
+        ArtifactKind::MESH
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -63,17 +63,21 @@ impl StageDef for ExternalMeshStage {
     fn inputs(&self) -> Vec<&Input> {
         Vec::new()
     }
+    fn published(&self) -> Vec<Published> {
+        vec![Published::file("mesh.h5", names::FILE), Published::file("mesh.xdmf", names::XDMF)]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         let key = self.spec.key();
         let m = &self.mesh;
-        ctx.single(ArtifactKind::Mesh, "mesh", &self.spec, |staging| {
+        ctx.single(ArtifactKind::MESH, "mesh", &self.spec, |staging| {
             let (n_nodes, n_cells) = (m.n_nodes(), m.n_cells());
             let dim = m.dim.max(2);
             let f = H5Out::create(&staging.path(names::FILE))?;
             f.attr_str("scene", &self.scene)?;
             f.attr_str("kind", "mesh")?;
             f.attr_str("source", "external")?;
-            f.attr_u64("schema_version", u64::from(ArtifactKind::Mesh.schema_version()))?;
+            f.attr_u64("schema_version", u64::from(ArtifactKind::MESH.schema_version()))?;
             f.attr_str("cache_key", &key.0)?;
             f.attr_u64("dofs_per_node", m.dofs_per_node as u64)?;
             let nodes: Vec<f64> = (0..n_nodes)

@@ -17,8 +17,9 @@
 //! The one door left is the high-fidelity model ([`super::LazyPhysics`]), built from the
 //! scene's model, which is the mesh's key and so every snapshot's.
 //!
-//! It implements [`StageDef`]: its artifact kind, its key, the nodes it reads, where it runs,
-//! and its compute. The executor ([`super::execute`]) is one loop over the plan's nodes that
+//! It implements [`StageDef`]: its artifact kind (declared once, with its schema version and its
+//! timing files, as an `ArtifactKind` constant), its key, the nodes it reads, where it runs, the
+//! names a finished study publishes its files under, and its compute. The executor ([`super::execute`]) is one loop over the plan's nodes that
 //! calls [`StageDef::run`]; dry-run, status, Slurm and the run summary read the same nodes.
 //! Adding a stage is one type in one file plus one `add` line in `Plan::of`.
 
@@ -44,6 +45,30 @@ impl Input {
     /// The input made by the node `node` with key `key`.
     pub(crate) fn new(node: impl Into<String>, key: &Key) -> Self {
         Self { node: node.into(), key: key.clone() }
+    }
+}
+
+/// A name under which a finished study publishes one of a stage's files
+/// (`STORE/scenes/<scene>/<name>`, see `crate::store::published`).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Published {
+    /// The published name, e.g. `basis.h5`, `nested/level-2.h5`.
+    pub name: String,
+    /// The artifact's file it stands for (`None`: the artifact's directory).
+    pub file: Option<String>,
+    /// An XDMF file, copied with its references relocated (ParaView does not resolve links).
+    pub relocate: bool,
+}
+
+impl Published {
+    /// `name` for the artifact's file `file`.
+    pub(crate) fn file(name: impl Into<String>, file: &str) -> Self {
+        Self { name: name.into(), file: Some(file.to_string()), relocate: false }
+    }
+
+    /// `name` for the artifact's XDMF file `file` (copied, its references relocated).
+    pub(crate) fn xdmf(name: impl Into<String>, file: &str) -> Self {
+        Self { relocate: true, ..Self::file(name, file) }
     }
 }
 
@@ -73,6 +98,11 @@ pub(crate) trait StageDef: Debug + Send + Sync {
     /// other.
     fn times_solves(&self) -> bool {
         false
+    }
+    /// The names a finished study gives its files; none by default (its artifact is then
+    /// reached through the catalog and the artifacts that read it).
+    fn published(&self) -> Vec<Published> {
+        Vec::new()
     }
     /// Make its artifact, or find it in the store; returns its key.
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError>;

@@ -69,7 +69,7 @@ struct ColumnKey<'a> {
 }
 
 impl StageKey for ColumnKey<'_> {
-    const KIND: ArtifactKind = ArtifactKind::Snapshot;
+    const KIND: ArtifactKind = ArtifactKind::SNAPSHOT;
     const ALGORITHM_VERSION: u32 = ALGORITHM_VERSION;
 }
 
@@ -84,7 +84,7 @@ struct FamilyParams<'a> {
 /// The family of an external scene's columns.
 fn family_key(r: &ResolvedExternal, names: &[String]) -> Key {
     let p = FamilyParams { family: "external", n_dof: r.n_dof, n_contact: r.n_contact, parameters: names };
-    let mut spec = KeySpec::new(ArtifactKind::Snapshot, ALGORITHM_VERSION, params(&p));
+    let mut spec = KeySpec::new(ArtifactKind::SNAPSHOT, ALGORITHM_VERSION, params(&p));
     spec.schema_version = COLUMNS_SCHEMA_VERSION;
     spec.key()
 }
@@ -165,7 +165,7 @@ impl ImportStage {
 
 impl StageDef for ImportStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Snapshot
+        ArtifactKind::SNAPSHOT
     }
     fn key(&self) -> Key {
         self.family.clone()

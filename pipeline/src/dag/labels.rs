@@ -56,7 +56,7 @@ mod tests {
         assert_eq!(a.nodes.len(), b.nodes.len());
         for (x, y) in a.nodes.iter().zip(&b.nodes) {
             assert_eq!(x.name, y.name);
-            if x.kind == ArtifactKind::Report {
+            if x.kind == ArtifactKind::REPORT {
                 assert_ne!(x.key, y.key, "the report shows the name and description");
             } else {
                 assert_eq!(x.key, y.key, "{}: a label in its key", x.name);

@@ -7,7 +7,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::labels::Labels;
 use super::shared::LazyPhysics;
 use super::shared::Shared;
@@ -23,7 +23,7 @@ use crate::io::xdmf::write_mesh_xdmf;
 struct MeshKey<'a>(&'a crom_schemas::scene::Model);
 
 impl StageKey for MeshKey<'_> {
-    const KIND: ArtifactKind = ArtifactKind::Mesh;
+    const KIND: ArtifactKind = ArtifactKind::MESH;
     /// Bump when the mesh generators change their output.
     const ALGORITHM_VERSION: u32 = 1;
 }
@@ -48,7 +48,7 @@ impl MeshStage {
 
 impl StageDef for MeshStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Mesh
+        ArtifactKind::MESH
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -56,6 +56,10 @@ impl StageDef for MeshStage {
     fn inputs(&self) -> Vec<&Input> {
         Vec::new()
     }
+    fn published(&self) -> Vec<Published> {
+        vec![Published::file("mesh.h5", names::FILE), Published::file("mesh.xdmf", names::XDMF)]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
         run(ctx, &mut shared.physics, &self.spec, &self.labels)
     }
@@ -71,7 +75,7 @@ pub(crate) fn run(
 ) -> Result<Key, CromError> {
     let key = spec.key();
     let scene = &labels.scene;
-    ctx.single(ArtifactKind::Mesh, "mesh", spec, |staging| {
+    ctx.single(ArtifactKind::MESH, "mesh", spec, |staging| {
         let phys = physics.get()?;
         let m = phys.mesh();
         let condition = phys.operator().and_then(|op| op.stiffness_condition());
@@ -79,7 +83,7 @@ pub(crate) fn run(
         let f = H5Out::create(&path)?;
         f.attr_str("scene", scene)?;
         f.attr_str("kind", "mesh")?;
-        f.attr_u64("schema_version", u64::from(ArtifactKind::Mesh.schema_version()))?;
+        f.attr_u64("schema_version", u64::from(ArtifactKind::MESH.schema_version()))?;
         f.attr_str("cache_key", &key.0)?;
         f.attr_u64("dofs_per_node", m.dofs_per_node as u64)?;
         if let Some(c) = condition {
@@ -120,7 +124,7 @@ mod tests {
         let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/scenes/hertz.toml"))
             .expect("hertz.toml");
         let scene = crom_schemas::SceneConfig::from_toml_str(&text, std::path::Path::new("hertz.toml")).expect("scene");
-        let before = KeySpec::new(ArtifactKind::Mesh, 1, crate::cache::params(&scene.model)).key();
+        let before = KeySpec::new(ArtifactKind::MESH, 1, crate::cache::params(&scene.model)).key();
         assert_eq!(KeySpec::of(&MeshKey(&scene.model)).key(), before);
     }
 

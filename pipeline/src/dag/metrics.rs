@@ -21,7 +21,7 @@ use super::basis;
 use super::basis::Ticker;
 use super::convert::view;
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::inputs::sets;
 use super::inputs::streamed::{self, MetricSet};
 use super::labels::Labels;
@@ -56,7 +56,7 @@ pub(crate) struct GeneralizationKey {
 }
 
 impl StageKey for GeneralizationKey {
-    const KIND: ArtifactKind = ArtifactKind::Generalization;
+    const KIND: ArtifactKind = ArtifactKind::GENERALIZATION;
     /// Bump when G(m) changes (2: the NNLS settings in the key; 3: the CPG floor; 4: the
     /// orthogonal folds by column downdate, equal to the SVD folds to round-off).
     const ALGORITHM_VERSION: u32 = 4;
@@ -92,7 +92,7 @@ fn specificity_dense_to(scene: &SceneConfig) -> Option<usize> {
 }
 
 impl StageKey for SpecificityKey {
-    const KIND: ArtifactKind = ArtifactKind::Specificity;
+    const KIND: ArtifactKind = ArtifactKind::SPECIFICITY;
     /// Bump when S(m) changes (2: the NNLS settings in the key; 3: the CPG floor).
     const ALGORITHM_VERSION: u32 = 3;
 }
@@ -105,7 +105,7 @@ pub(crate) struct NestedKey {
 }
 
 impl StageKey for NestedKey {
-    const KIND: ArtifactKind = ArtifactKind::Nested;
+    const KIND: ArtifactKind = ArtifactKind::NESTED;
     /// Bump when H(n) changes (2: the NNLS settings in the key; 3: the CPG floor).
     const ALGORITHM_VERSION: u32 = 3;
 }
@@ -173,7 +173,7 @@ impl GeneralizationStage {
 
 impl StageDef for GeneralizationStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Generalization
+        ArtifactKind::GENERALIZATION
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -181,6 +181,10 @@ impl StageDef for GeneralizationStage {
     fn inputs(&self) -> Vec<&Input> {
         vec![&self.train]
     }
+    fn published(&self) -> Vec<Published> {
+        vec![Published::file("generalization.parquet", crom_schemas::artifact::metrics::GENERALIZATION)]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         generalization(ctx, &self.spec, (&self.settings, &self.labels.scene), &self.train.key)
     }
@@ -206,7 +210,7 @@ impl SpecificityStage {
 
 impl StageDef for SpecificityStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Specificity
+        ArtifactKind::SPECIFICITY
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -214,6 +218,10 @@ impl StageDef for SpecificityStage {
     fn inputs(&self) -> Vec<&Input> {
         vec![&self.train, &self.basis]
     }
+    fn published(&self) -> Vec<Published> {
+        vec![Published::file("specificity.parquet", crom_schemas::artifact::metrics::SPECIFICITY)]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         specificity(ctx, &self.spec, (&self.settings, &self.labels.scene), &self.train.key, &self.basis.key)
     }
@@ -236,7 +244,7 @@ impl NestedStage {
 
 impl StageDef for NestedStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Nested
+        ArtifactKind::NESTED
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -244,6 +252,10 @@ impl StageDef for NestedStage {
     fn inputs(&self) -> Vec<&Input> {
         self.levels.iter().collect()
     }
+    fn published(&self) -> Vec<Published> {
+        vec![Published::file("nested.parquet", crom_schemas::artifact::metrics::NESTED)]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         let keys: Vec<Key> = self.levels.iter().map(|l| l.key.clone()).collect();
         nested(ctx, &self.spec, &self.labels.scene, &keys)
@@ -260,7 +272,7 @@ fn generalization(
     let max_rank = settings.max_rank;
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
-    ctx.single(ArtifactKind::Generalization, "generalization", spec, |staging| {
+    ctx.single(ArtifactKind::GENERALIZATION, "generalization", spec, |staging| {
         let set = loaded.metric_set(store, train, settings.primal.is_some())?;
         let n_train = set.len();
         let folds = settings.folds(n_train);
@@ -348,7 +360,7 @@ fn specificity(
     let max_rank = settings.max_rank;
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let progress = ctx.progress;
-    ctx.single(ArtifactKind::Specificity, "specificity", spec, |staging| {
+    ctx.single(ArtifactKind::SPECIFICITY, "specificity", spec, |staging| {
         let set = loaded.metric_set(store, train, settings.primal.is_some())?;
         let b = loaded.bases(store, basis_key)?;
         // S(m) reads the path's generators and coefficient ranges, not its C(m): no tolerance.
@@ -410,7 +422,7 @@ impl<A, B, C> IntoFlat<A, B, C> for (A, (B, C)) {
 fn nested(ctx: &mut Ctx<'_>, spec: &KeySpec, scene: &str, levels: &[Key]) -> Result<Key, CromError> {
     let store = ctx.store;
     let progress = ctx.progress;
-    ctx.single(ArtifactKind::Nested, "nested", spec, |staging| {
+    ctx.single(ArtifactKind::NESTED, "nested", spec, |staging| {
         // Two levels in memory at a time (level n and n + 1), the finer one kept for the next
         // pair: memory is bounded by the two finest levels, not by all of them.
         let mut t = NestedRows::default();

@@ -52,6 +52,8 @@ pub(crate) mod rom;
 mod run;
 pub(crate) mod shared;
 pub(crate) mod snapshots;
+#[cfg(test)]
+mod throwaway_stage;
 pub(crate) mod timing;
 pub(crate) mod trainset;
 pub(crate) mod views;

@@ -49,7 +49,7 @@ use serde_json::json;
 use super::comparison::{contact_x, item_of};
 use super::convert::view;
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::labels::Labels;
 use super::online::{subsample, SAMPLING_FIT_POINTS};
 use super::shared::Shared;
@@ -96,7 +96,7 @@ pub(crate) struct RegisteredKey {
 }
 
 impl StageKey for ModelKey {
-    const KIND: ArtifactKind = ArtifactKind::Model;
+    const KIND: ArtifactKind = ArtifactKind::MODEL;
     /// Bump when the stored model or the choice of it changes (2: registered dual bases; 3: its
     /// warm starts and measured errors from the online solve that sums a small dual basis's
     /// rows, the same answers to 1e-10; 4: the `exact_step` attribute, and a registered
@@ -202,7 +202,7 @@ impl ModelStage {
 
 impl StageDef for ModelStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Model
+        ArtifactKind::MODEL
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -213,24 +213,33 @@ impl StageDef for ModelStage {
         v.extend(&self.online);
         v
     }
+    fn published(&self) -> Vec<Published> {
+        use crom_schemas::artifact::model as m;
+        vec![
+            Published::file("model.h5", m::FILE),
+            Published::file("reconstruction.h5", m::RECONSTRUCTION),
+            Published::file("model_speed.parquet", m::SPEED),
+        ]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
         let (train, basis, rom) = (&self.train.key, &self.basis.key, &self.rom.key);
         let (settings, labels) = (&self.settings, &self.labels);
         let store = ctx.store;
         let loaded = std::sync::Arc::clone(&ctx.loaded);
         let physics = &mut shared.physics;
-        ctx.single(ArtifactKind::Model, "model", &self.spec, |staging| {
+        ctx.single(ArtifactKind::MODEL, "model", &self.spec, |staging| {
             let fail = |m: String| CromError::Numerical { stage: "model", scene: labels.scene.clone(), message: m };
             // the candidates: the trade-off's rows, then each registered approximation's
             let mut candidates = Vec::new();
             if settings.model_dual.as_deref().is_none_or(|d| d == MODEL_DUAL_CPG) {
-                let rom_dir = store.dir(ArtifactKind::Rom, rom);
+                let rom_dir = store.dir(ArtifactKind::ROM, rom);
                 let trade = read_parquet(&rom_dir.join(rom_names::TRADEOFF))?;
                 let times = read_parquet(&rom_dir.join(rom_names::TRADEOFF_TIMINGS))?;
                 candidates.extend(choice::exact_rows(&trade, &times));
             }
             for (k, input) in self.online.iter().enumerate() {
-                let dir = store.dir(ArtifactKind::OnlineApproximation, &input.key);
+                let dir = store.dir(ArtifactKind::ONLINE_APPROXIMATION, &input.key);
                 let online = read_parquet(&dir.join(cnames::ONLINE))?;
                 let times = read_parquet(&dir.join(cnames::ONLINE_TIMINGS))?;
                 candidates.extend(choice::registered_rows(&online, &times, k));
@@ -272,7 +281,7 @@ impl StageDef for ModelStage {
             let op = phys.online_operator("model", &labels.scene)?;
             let (model, algorithm, dual_basis) = match &pick.source {
                 Source::Exact { algorithm, dual_basis } => {
-                    let bfile = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
+                    let bfile = H5In::open(&store.dir(ArtifactKind::BASIS, basis).join(bnames::FILE))?;
                     let theta = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
                     drop(bfile);
                     // the online stage's steps for this row (`rom.rs`)

@@ -67,7 +67,7 @@ impl Node {
     /// A snapshot sweep (its points are counted by [`Plan::snapshot_state`], not stored as one
     /// artifact).
     pub fn is_sweep(&self) -> bool {
-        self.kind == ArtifactKind::Snapshot
+        self.kind == ArtifactKind::SNAPSHOT
     }
 }
 
@@ -184,6 +184,110 @@ fn external_surface(scene: &SceneConfig, mesh: Option<&Input>) -> Result<Surface
     })
 }
 
+/// Where a scene's snapshots come from, as [`Plan::of`] plans the rest on it: the mesh node (an
+/// external scene may have none), the nodes that make the snapshot columns (a native scene's
+/// sweeps: training and test points, then the nested levels; an external scene's import), the
+/// snapshot keys of the training and test sets and of each nested level with where its rows
+/// start, and the contact surface the registered approximations map.
+struct Source {
+    mesh: Option<Input>,
+    /// The nodes a set's rows come from, by sweep number.
+    sweep_nodes: Vec<Input>,
+    train_keys: Vec<Key>,
+    test_keys: Vec<Key>,
+    levels: Vec<Level>,
+    surface: Result<SurfaceSource, String>,
+    sweeps: Vec<Sweep>,
+    family: Key,
+    /// An external scene's imported columns (training, then test).
+    imported: Vec<Key>,
+    skipped: Vec<String>,
+}
+
+/// A nested level's training set as its source gives it.
+struct Level {
+    points: Vec<Vec<f64>>,
+    /// The points' snapshot keys.
+    keys: Vec<Key>,
+    /// The sweep number its rows come from and its first row there.
+    at: (usize, usize),
+}
+
+impl Source {
+    /// A native scene: its mesh, then one sweep per point set (training and test points, then
+    /// the nested levels' new points).
+    fn native(scene: &SceneConfig, nodes: &mut Nodes, labels: &Labels) -> Self {
+        let mesh_stage = mesh::MeshStage::plan(scene);
+        let mesh_key = mesh_stage.key();
+        let mesh = nodes.add("mesh", false, mesh_stage);
+        let sweeps = snapshots::sweeps(scene, &mesh_key);
+        let family = snapshots::scene_family(scene, &mesh_key);
+        let mut sweep_nodes = Vec::new();
+        for (number, sweep) in sweeps.iter().enumerate() {
+            let name = format!("snapshots {}", sweep.name);
+            let (sweep, mesh, family, labels) = (sweep.clone(), mesh.clone(), family.clone(), labels.clone());
+            sweep_nodes.push(nodes.add(&name, false, SweepStage { number, sweep, mesh, family, labels }));
+        }
+        let p = &scene.parameter;
+        let n_train = p.train_points().len();
+        let (train_keys, test_keys) = sweeps[0].keys.split_at(n_train);
+        let mut levels = Vec::new();
+        let mut at = 0;
+        for n in 1..=p.nested_levels {
+            let pts = p.nested_points(n);
+            let keys = sweeps[1].keys[at..at + pts.len()].to_vec();
+            let len = pts.len();
+            levels.push(Level { points: pts, keys, at: (1, at) });
+            at += len;
+        }
+        Self {
+            surface: Ok(SurfaceSource::Mesh(mesh.clone())),
+            mesh: Some(mesh),
+            sweep_nodes,
+            train_keys: train_keys.to_vec(),
+            test_keys: test_keys.to_vec(),
+            levels,
+            sweeps,
+            family,
+            imported: Vec::new(),
+            skipped: Vec::new(),
+        }
+    }
+
+    /// An external scene: its import in place of the sweeps, its mesh (if it gives one) in place
+    /// of the native mesh; its nested levels, when the training points form them, are training
+    /// columns again, each level's rows after the test set's in the import's columns.
+    fn external(scene: &SceneConfig, import: ImportStage, nodes: &mut Nodes) -> Self {
+        let (train_keys, test_keys) = (import.keys().0.to_vec(), import.keys().1.to_vec());
+        let family = import.key();
+        let level_positions = import.levels().to_vec();
+        let sweep = nodes.add("import", false, import);
+        let mesh = ExternalMeshStage::plan(scene).map(|stage| nodes.add("mesh", false, stage));
+        let train_points = scene.parameter.train_points();
+        let mut at = train_keys.len() + test_keys.len();
+        let mut levels = Vec::new();
+        for positions in &level_positions {
+            let pts: Vec<Vec<f64>> = positions.iter().map(|&i| train_points[i].clone()).collect();
+            let keys: Vec<Key> = positions.iter().map(|&i| train_keys[i].clone()).collect();
+            levels.push(Level { points: pts, keys, at: (0, at) });
+            at += positions.len();
+        }
+        let skipped = if test_keys.is_empty() { vec![NO_TEST.to_string()] } else { Vec::new() };
+        Self {
+            surface: external_surface(scene, mesh.as_ref()),
+            mesh,
+            sweep_nodes: vec![sweep],
+            imported: train_keys.iter().chain(&test_keys).cloned().collect(),
+            train_keys,
+            test_keys,
+            levels,
+            sweeps: Vec::new(),
+            family,
+            skipped,
+        }
+    }
+}
+
 /// Where the snapshot sweeps stand in a store.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SnapshotState {
@@ -200,42 +304,46 @@ pub struct SnapshotState {
 }
 
 impl Plan {
-    /// The plan of `scene`'s study, in an order that respects every node's inputs.
+    /// The plan of `scene`'s study, in an order that respects every node's inputs: where its
+    /// snapshots come from ([`Source`]: a native scene's mesh and sweeps, an external scene's
+    /// import and its mesh if it gives one), then the sets, the basis, the metrics, the nested
+    /// levels and the comparison alike for every scene, then the online stages where the
+    /// full-order operators allow them (native 2-D scenes) and the report.
     pub fn of(scene: &SceneConfig) -> Self {
-        if let Some(import) = ImportStage::plan(scene) {
-            return Self::of_external(scene, import);
-        }
         let mut nodes = Nodes::default();
         let labels = Labels::of(scene);
-        let mesh_stage = mesh::MeshStage::plan(scene);
-        let mesh_key = mesh_stage.key();
-        let mesh = nodes.add("mesh", false, mesh_stage);
-        let sweeps = snapshots::sweeps(scene, &mesh_key);
-        let family = snapshots::scene_family(scene, &mesh_key);
-        let mut sweep_nodes = Vec::new();
-        for (number, sweep) in sweeps.iter().enumerate() {
-            let name = format!("snapshots {}", sweep.name);
-            let (sweep, mesh, family, labels) = (sweep.clone(), mesh.clone(), family.clone(), labels.clone());
-            sweep_nodes.push(nodes.add(&name, false, SweepStage { number, sweep, mesh, family, labels }));
-        }
+        let mut source = match ImportStage::plan(scene) {
+            Some(import) => Source::external(scene, import, &mut nodes),
+            None => Source::native(scene, &mut nodes, &labels),
+        };
+        let mesh = source.mesh.clone();
         let p = &scene.parameter;
         let (train_points, test_points) = (p.train_points(), p.test_points());
-        let keys: Vec<&Key> = sweeps[0].keys.iter().collect();
-        let (train_keys, test_keys) = keys.split_at(train_points.len());
-        let set = |set: &str, points: &[Vec<f64>], keys: &[&Key], sweep: usize, start: usize| {
-            SetStage::plan(set, (points, keys), sweep_nodes[sweep].clone(), (sweep, start), &labels)
+        let set = |name: &str, points: &[Vec<f64>], keys: &[Key], (sweep, at): (usize, usize)| {
+            let keys: Vec<&Key> = keys.iter().collect();
+            SetStage::plan(name, (points, &keys), source.sweep_nodes[sweep].clone(), (sweep, at), &labels)
         };
-        let train = nodes.add("trainset train", false, set("train", &train_points, train_keys, 0, 0));
-        let test = nodes.add("trainset test", false, set("test", &test_points, test_keys, 0, train_points.len()));
-        for (name, of) in [("train", &train), ("test", &test)] {
-            let subject = Subject::Set { set: name.to_string(), of: of.clone() };
-            nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
+        let train = nodes.add("trainset train", false, set("train", &train_points, &source.train_keys, (0, 0)));
+        // an external scene with `test = []`: every column trains, and nothing that needs test
+        // points is planned
+        let test = (!test_points.is_empty()).then(|| {
+            let at = (0, train_points.len());
+            nodes.add("trainset test", false, set("test", &test_points, &source.test_keys, at))
+        });
+        if let Some(mesh) = &mesh {
+            let sets = std::iter::once(("train", &train)).chain(test.as_ref().map(|t| ("test", t)));
+            for (name, of) in sets {
+                let subject = Subject::Set { set: name.to_string(), of: of.clone() };
+                nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
+            }
         }
         let basis_stage = BasisStage::plan(scene, train.clone());
         let basis_settings = basis_stage.settings.clone();
         let basis = nodes.add("basis", false, basis_stage);
-        let views = ViewsStage::plan(Subject::Basis { of: basis.clone() }, mesh.clone(), &labels);
-        nodes.add("views basis", false, views);
+        if let Some(mesh) = &mesh {
+            let views = ViewsStage::plan(Subject::Basis { of: basis.clone() }, mesh.clone(), &labels);
+            nodes.add("views basis", false, views);
+        }
         let stage = CompactnessStage::plan(train.clone(), basis.clone(), &basis_settings, &labels);
         let compactness = nodes.add("compactness", false, stage);
         let stage = GeneralizationStage::plan(scene, train.clone(), &labels);
@@ -243,18 +351,14 @@ impl Plan {
         let stage = SpecificityStage::plan(scene, train.clone(), basis.clone(), &labels);
         let specificity = nodes.add("specificity", false, stage);
         let mut levels: Vec<Input> = Vec::new();
-        if p.nested_levels > 0 {
-            let mut at = 0;
-            for n in 1..=p.nested_levels {
-                let pts = p.nested_points(n);
-                let keys: Vec<&Key> = sweeps[1].keys[at..at + pts.len()].iter().collect();
-                let name = format!("nested-{n}");
-                let level = nodes.add(&format!("trainset {name}"), false, set(&name, &pts, &keys, 1, at));
-                at += pts.len();
+        for (n, level) in source.levels.iter().enumerate() {
+            let name = format!("nested-{}", n + 1);
+            let level = nodes.add(&format!("trainset {name}"), false, set(&name, &level.points, &level.keys, level.at));
+            if let Some(mesh) = &mesh {
                 let subject = Subject::Set { set: name.clone(), of: level.clone() };
                 nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
-                levels.push(level);
             }
+            levels.push(level);
         }
         let nested =
             (!levels.is_empty()).then(|| nodes.add("nested", false, NestedStage::plan(levels.clone(), &labels)));
@@ -263,28 +367,38 @@ impl Plan {
         let items = scene.comparison.as_ref().map(comparison::items).unwrap_or_default();
         let mut parts: Vec<(String, Input)> = Vec::new();
         for (i, item) in items.iter().enumerate() {
-            let surface = SurfaceSource::Mesh(mesh.clone());
-            let Some(stage) =
-                ApproximationStage::plan(scene, i, train.clone(), Some(test.clone()), surface, levels.clone())
+            let registered = matches!(item.approach, crom_stages::dual::Approach::Registered { .. });
+            let surface = match (&source.surface, registered) {
+                (Err(reason), true) => {
+                    source.skipped.push(format!("approximation {}: {reason}", item.name));
+                    continue;
+                }
+                (Ok(s), _) => s.clone(),
+                (Err(_), false) => SurfaceSource::Absent,
+            };
+            let Some(stage) = ApproximationStage::plan(scene, i, train.clone(), test.clone(), surface, levels.clone())
             else {
                 continue;
             };
-            parts.push((
-                item.name.clone(),
-                nodes.add(&format!("{}{}", comparison::OFFLINE_NODE, item.name), false, stage),
-            ));
+            let node = nodes.add(&format!("{}{}", comparison::OFFLINE_NODE, item.name), false, stage);
+            parts.push((item.name.clone(), node));
         }
         let comparison = (!parts.is_empty()).then(|| {
-            let stage = GatherStage::plan(ArtifactKind::Comparison, ArtifactKind::Approximation, parts.clone());
+            let stage = GatherStage::plan(ArtifactKind::COMPARISON, ArtifactKind::APPROXIMATION, parts.clone());
             nodes.add("comparison", false, stage)
         });
-        if scene.model.is_3d() {
-            // no online stage for node-to-surface contact yet ([`SKIPS_3D`])
-            let skipped = vec![SKIPS_3D.to_string()];
-            let offline = Offline { mesh: Some(mesh), train, basis, compactness, generalization, specificity };
+        let Source { sweeps, family, imported, mut skipped, .. } = source;
+        let (Some(mesh), Some(test), true) = (mesh.clone(), test.clone(), imported.is_empty() && !scene.model.is_3d())
+        else {
+            // no online stage: an external scene has no full-order operators ([`external_skips`]),
+            // and a 3-D scene's node-to-surface contact has no online solve yet ([`SKIPS_3D`])
+            if scene.model.is_3d() {
+                skipped.push(SKIPS_3D.to_string());
+            }
+            let offline = Offline { mesh, train, basis, compactness, generalization, specificity };
             nodes.offline_report(scene, offline, [nested, comparison], &skipped);
-            return Self { sweeps, family, nodes: nodes.0, imported: Vec::new(), skipped };
-        }
+            return Self { sweeps, family, nodes: nodes.0, imported, skipped };
+        };
         let rom = nodes.add("rom", true, RomStage::plan(scene, train.clone(), test.clone(), basis.clone(), &labels));
         let mut online_parts: Vec<(String, Input)> = Vec::new();
         let mut online_specs: Vec<(ApproximationSpec, Input)> = Vec::new();
@@ -302,7 +416,7 @@ impl Plan {
         let model = nodes.add("model", true, ModelStage::plan(scene, inputs, &online_specs, &labels));
         let online_comparison = (!online_parts.is_empty()).then(|| {
             let stage =
-                GatherStage::plan(ArtifactKind::OnlineComparison, ArtifactKind::OnlineApproximation, online_parts);
+                GatherStage::plan(ArtifactKind::ONLINE_COMPARISON, ArtifactKind::ONLINE_APPROXIMATION, online_parts);
             nodes.add("online-comparison", true, stage)
         });
         let subject = Subject::Online { of: rom.clone(), test: test.clone() };
@@ -323,104 +437,19 @@ impl Plan {
         let mut inputs = vec![mesh, train, basis, compactness, rom, generalization, specificity, model];
         inputs.extend([nested, comparison, online_comparison].into_iter().flatten());
         nodes.add("report", true, ReportStage::plan(scene, shows, inputs));
-        Self { sweeps, family, nodes: nodes.0, imported: Vec::new(), skipped: Vec::new() }
+        Self { sweeps, family, nodes: nodes.0, imported, skipped }
     }
 
-    /// The plan of an external scene: its import in place of the sweeps, its mesh (if it gives
-    /// one) in place of the native mesh, then the sets, the basis, the metrics and the report as
-    /// for a native scene, and the views when there is a mesh. What needs the full-order
-    /// operators (the online stage, the trade-off) is not planned ([`external_skips`]).
-    fn of_external(scene: &SceneConfig, import: ImportStage) -> Self {
-        let mut nodes = Nodes::default();
-        let labels = Labels::of(scene);
-        let (train_keys, test_keys) = (import.keys().0.to_vec(), import.keys().1.to_vec());
-        let family = import.key();
-        let level_positions = import.levels().to_vec();
-        let sweep = nodes.add("import", false, import);
-        let mesh = ExternalMeshStage::plan(scene).map(|stage| nodes.add("mesh", false, stage));
-        let p = &scene.parameter;
-        let (train_points, test_points) = (p.train_points(), p.test_points());
-        let tk: Vec<&Key> = train_keys.iter().collect();
-        let sk: Vec<&Key> = test_keys.iter().collect();
-        let set = |name: &str, points: &[Vec<f64>], keys: &[&Key], start: usize| {
-            SetStage::plan(name, (points, keys), sweep.clone(), (0, start), &labels)
-        };
-        let train = nodes.add("trainset train", false, set("train", &train_points, &tk, 0));
-        // `test = []`: every column trains, and nothing that needs test points is planned
-        let test = (!test_points.is_empty())
-            .then(|| nodes.add("trainset test", false, set("test", &test_points, &sk, train_points.len())));
-        let mut skipped = Vec::new();
-        if test.is_none() {
-            skipped.push(NO_TEST.to_string());
-        }
-        if let Some(mesh) = &mesh {
-            let sets = std::iter::once(("train", &train)).chain(test.as_ref().map(|t| ("test", t)));
-            for (name, of) in sets {
-                let subject = Subject::Set { set: name.to_string(), of: of.clone() };
-                nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
-            }
-        }
-        let basis_stage = BasisStage::plan(scene, train.clone());
-        let basis_settings = basis_stage.settings.clone();
-        let basis = nodes.add("basis", false, basis_stage);
-        if let Some(mesh) = &mesh {
-            let views = ViewsStage::plan(Subject::Basis { of: basis.clone() }, mesh.clone(), &labels);
-            nodes.add("views basis", false, views);
-        }
-        let stage = CompactnessStage::plan(train.clone(), basis.clone(), &basis_settings, &labels);
-        let compactness = nodes.add("compactness", false, stage);
-        let generalization =
-            nodes.add("generalization", false, GeneralizationStage::plan(scene, train.clone(), &labels));
-        let stage = SpecificityStage::plan(scene, train.clone(), basis.clone(), &labels);
-        let specificity = nodes.add("specificity", false, stage);
-        // Nested levels, when the training points form them: training columns again, each
-        // level's rows after the test set's in the import's columns.
-        let mut levels: Vec<Input> = Vec::new();
-        let mut at = train_points.len() + test_points.len();
-        for (n, positions) in level_positions.iter().enumerate() {
-            let pts: Vec<Vec<f64>> = positions.iter().map(|&i| train_points[i].clone()).collect();
-            let keys: Vec<&Key> = positions.iter().map(|&i| &train_keys[i]).collect();
-            let name = format!("nested-{}", n + 1);
-            let level = nodes.add(&format!("trainset {name}"), false, set(&name, &pts, &keys, at));
-            at += positions.len();
-            if let Some(mesh) = &mesh {
-                let subject = Subject::Set { set: name.clone(), of: level.clone() };
-                nodes.add(&format!("views {name}"), false, ViewsStage::plan(subject, mesh.clone(), &labels));
-            }
-            levels.push(level);
-        }
-        let nested =
-            (!levels.is_empty()).then(|| nodes.add("nested", false, NestedStage::plan(levels.clone(), &labels)));
-        let surface = external_surface(scene, mesh.as_ref());
-        let mut parts: Vec<(String, Input)> = Vec::new();
-        let items = scene.comparison.as_ref().map(comparison::items).unwrap_or_default();
-        for (i, item) in items.iter().enumerate() {
-            let registered = matches!(item.approach, crom_stages::dual::Approach::Registered { .. });
-            let surface = match (&surface, registered) {
-                (Err(reason), true) => {
-                    skipped.push(format!("approximation {}: {reason}", item.name));
-                    continue;
-                }
-                (Ok(s), _) => s.clone(),
-                (Err(_), false) => SurfaceSource::Absent,
-            };
-            let Some(stage) = ApproximationStage::plan(scene, i, train.clone(), test.clone(), surface, levels.clone())
-            else {
-                continue;
-            };
-            parts.push((
-                item.name.clone(),
-                nodes.add(&format!("{}{}", comparison::OFFLINE_NODE, item.name), false, stage),
-            ));
-        }
-        let comparison = (!parts.is_empty()).then(|| {
-            let stage = GatherStage::plan(ArtifactKind::Comparison, ArtifactKind::Approximation, parts);
-            nodes.add("comparison", false, stage)
-        });
-        let offline = Offline { mesh, train, basis, compactness, generalization, specificity };
-        nodes.offline_report(scene, offline, [nested, comparison], &skipped);
-        let imported = train_keys.into_iter().chain(test_keys).collect();
-        Self { sweeps: Vec::new(), family, nodes: nodes.0, imported, skipped }
+    /// Add the stage `stage` as the node `name` after every other (its inputs must be nodes of
+    /// the plan already); returns it as an input for a later node. `Plan::of` adds each stage
+    /// of the study with one such line; this one adds a stage outside it (the throw-away stage's
+    /// test).
+    #[cfg(test)]
+    pub(crate) fn add(&mut self, name: &str, online: bool, stage: impl StageDef + 'static) -> Input {
+        let mut nodes = Nodes(std::mem::take(&mut self.nodes));
+        let input = nodes.add(name, online, stage);
+        self.nodes = nodes.0;
+        input
     }
 
     /// Whether this is an external scene's plan (no mesh: its snapshots were imported).

@@ -13,7 +13,7 @@ use crom_stages::rom::ReducedModel;
 use serde_json::json;
 
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::inputs::bases;
 use super::inputs::loaded::Loaded;
 use super::shared::Shared;
@@ -38,7 +38,7 @@ pub(crate) struct ReportKey {
 }
 
 impl StageKey for ReportKey {
-    const KIND: ArtifactKind = ArtifactKind::Report;
+    const KIND: ArtifactKind = ArtifactKind::REPORT;
     /// Bump when the report's content changes (10: the sampled-surface series of the trade-off
     /// figure; 11: the stored reduced model among the facts). The scene joined the key without
     /// a bump: the key changed with it.
@@ -131,7 +131,7 @@ impl ReportStage {
 
 impl StageDef for ReportStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Report
+        ArtifactKind::REPORT
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -139,6 +139,10 @@ impl StageDef for ReportStage {
     fn inputs(&self) -> Vec<&Input> {
         self.inputs.iter().collect()
     }
+    fn published(&self) -> Vec<Published> {
+        vec![Published { name: crom_schemas::artifact::published::REPORT.into(), file: None, relocate: false }]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         run(ctx, &self.spec, &self.settings, &self.shows)
     }
@@ -148,7 +152,7 @@ impl StageDef for ReportStage {
 fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, settings: &ReportKey, inputs: &ReportInputs) -> Result<Key, CromError> {
     let (store, loaded) = (ctx.store, std::sync::Arc::clone(&ctx.loaded));
     let scene = &settings.scene;
-    ctx.single(ArtifactKind::Report, "report", spec, |staging| {
+    ctx.single(ArtifactKind::REPORT, "report", spec, |staging| {
         let mut data = gather(store, &loaded, inputs)?;
         data.skipped.clone_from(&settings.skipped);
         let figures = render(scene, &data, &staging.path(""))?;
@@ -159,7 +163,7 @@ fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, settings: &ReportKey, inputs: &ReportI
 fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<ReportData, CromError> {
     let train = loaded.set(store, &inputs.train)?;
     let mesh = match &inputs.mesh {
-        Some(k) => Some(H5In::open(&store.dir(ArtifactKind::Mesh, k).join(mnames::FILE))?),
+        Some(k) => Some(H5In::open(&store.dir(ArtifactKind::MESH, k).join(mnames::FILE))?),
         None => None,
     };
     let mut contact_x: Vec<f64> = (0..train.dual.rows).map(|i| i as f64).collect();
@@ -218,7 +222,7 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
     }
     let conditioning = conditioning(mesh.as_ref(), store, &inputs.basis)?;
     let b = bases::load_full(store, &inputs.basis)?;
-    let table = read_parquet(&store.dir(ArtifactKind::Compactness, &inputs.compactness).join(cnames::FILE))?;
+    let table = read_parquet(&store.dir(ArtifactKind::COMPACTNESS, &inputs.compactness).join(cnames::FILE))?;
     let mut compactness: BTreeMap<(String, String), Vec<f64>> = BTreeMap::new();
     if let (Some(f), Some(bs), Some(v)) = (table.strs("field"), table.strs("basis"), table.f64s("value")) {
         for ((f, b), v) in f.iter().zip(bs).zip(v) {
@@ -227,7 +231,7 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
     }
     let (rom_errors, tradeoff) = match &inputs.rom {
         Some(k) => {
-            let rom_dir = store.dir(ArtifactKind::Rom, k);
+            let rom_dir = store.dir(ArtifactKind::ROM, k);
             (
                 joined(&rom_dir, rnames::ERRORS, rnames::TIMINGS, &QUERY_KEYS)?,
                 joined(&rom_dir, rnames::TRADEOFF, rnames::TRADEOFF_TIMINGS, &TRADE_KEYS)?,
@@ -257,18 +261,18 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
         rom_errors,
         tradeoff,
         generalization: read_parquet(
-            &store.dir(ArtifactKind::Generalization, &inputs.generalization).join(metric_names::GENERALIZATION),
+            &store.dir(ArtifactKind::GENERALIZATION, &inputs.generalization).join(metric_names::GENERALIZATION),
         )?,
         specificity: read_parquet(
-            &store.dir(ArtifactKind::Specificity, &inputs.specificity).join(metric_names::SPECIFICITY),
+            &store.dir(ArtifactKind::SPECIFICITY, &inputs.specificity).join(metric_names::SPECIFICITY),
         )?,
         nested: match &inputs.nested {
-            Some(k) => Some(read_parquet(&store.dir(ArtifactKind::Nested, k).join(metric_names::NESTED))?),
+            Some(k) => Some(read_parquet(&store.dir(ArtifactKind::NESTED, k).join(metric_names::NESTED))?),
             None => None,
         },
         comparison: match &inputs.comparison {
             Some(k) => {
-                let dir = store.dir(ArtifactKind::Comparison, k);
+                let dir = store.dir(ArtifactKind::COMPARISON, k);
                 Some(ComparisonData {
                     curves: read_parquet(&dir.join(cmp_names::CURVES))?,
                     reached: read_parquet(&dir.join(cmp_names::REACHED))?,
@@ -278,7 +282,7 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
                     cells: read_parquet(&dir.join(cmp_names::CELLS))?,
                     online: match &inputs.online_comparison {
                         Some(k) => {
-                            let dir = store.dir(ArtifactKind::OnlineComparison, k);
+                            let dir = store.dir(ArtifactKind::ONLINE_COMPARISON, k);
                             Some(joined(
                                 &dir,
                                 cmp_names::ONLINE,
@@ -309,7 +313,7 @@ fn conditioning(mesh: Option<&H5In>, store: &Store, basis: &Key) -> Result<Table
             rows.push(("stiffness K_FF".into(), what.into(), mesh.attr_f64(name)?));
         }
     }
-    let h5 = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
+    let h5 = H5In::open(&store.dir(ArtifactKind::BASIS, basis).join(bnames::FILE))?;
     for group in [bnames::DUAL_CPG, bnames::DUAL_CPG_TRUNCATED] {
         let path = format!("{group}/{}", bnames::GRAM_RCOND);
         let rcond = h5.vec_f64(&path)?;
@@ -348,7 +352,7 @@ fn joined(dir: &std::path::Path, results: &str, timings: &str, keys: &[&str]) ->
 
 /// The stored model's facts: `model.h5`'s attributes and the measured speed-up.
 fn model_facts(store: &Store, key: &Key) -> Result<ModelFacts, CromError> {
-    let dir = store.dir(ArtifactKind::Model, key);
+    let dir = store.dir(ArtifactKind::MODEL, key);
     let file = dir.join(model_names::FILE);
     let m = StoredModel::read(&file)?;
     let speed = read_parquet(&dir.join(model_names::SPEED))?;

@@ -41,7 +41,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::labels::Labels;
 use super::online::{dual_error, subsample, SAMPLING_FIT_POINTS};
 use super::shared::LazyPhysics;
@@ -82,7 +82,7 @@ impl RomKey {
 }
 
 impl StageKey for RomKey {
-    const KIND: ArtifactKind = ArtifactKind::Rom;
+    const KIND: ArtifactKind = ArtifactKind::ROM;
     /// Bump when the online stage changes its numbers (9: Type-1 warm starts from the nearest
     /// training point's active set — the same answers to round-off, fewer QP steps; 10:
     /// Type-2 warm starts, the vertex-zone rule asked before the round's fixed point, a dot
@@ -133,7 +133,7 @@ impl StageDef for RomStage {
         true
     }
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Rom
+        ArtifactKind::ROM
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -141,6 +141,16 @@ impl StageDef for RomStage {
     fn inputs(&self) -> Vec<&Input> {
         vec![&self.train, &self.test, &self.basis]
     }
+    fn published(&self) -> Vec<Published> {
+        vec![
+            Published::file("rom_errors.parquet", names::ERRORS),
+            Published::file("tradeoff.parquet", names::TRADEOFF),
+            Published::file("rom_timings.parquet", names::TIMINGS),
+            Published::file("tradeoff_timings.parquet", names::TRADEOFF_TIMINGS),
+            Published::file("online.h5", names::ONLINE),
+        ]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
         let keys = [&self.train.key, &self.test.key, &self.basis.key];
         run(ctx, &mut shared.physics, &self.spec, (&self.settings, &self.labels), keys)
@@ -155,7 +165,7 @@ fn run(
     keys: [&Key; 3],
 ) -> Result<Key, CromError> {
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
-    let (manifest, computed) = ctx.cached(ArtifactKind::Rom, spec, |staging| {
+    let (manifest, computed) = ctx.cached(ArtifactKind::ROM, spec, |staging| {
         let fom = physics.fom_seconds(keys[1], &loaded.set(store, keys[1])?.parameters)?;
         let phi = physics.responses(keys[0], &*loaded.set(store, keys[0])?, failure(&settings.1.scene))?;
         measure(physics.get()?, (store, &loaded, progress), settings, keys, (fom, phi), staging)
@@ -163,7 +173,7 @@ fn run(
     if !computed {
         progress.stage("online ROM", 1).finish("cached");
     }
-    ctx.record("rom", usize::from(computed), usize::from(!computed), store.dir(ArtifactKind::Rom, &manifest.key));
+    ctx.record("rom", usize::from(computed), usize::from(!computed), store.dir(ArtifactKind::ROM, &manifest.key));
     Ok(manifest.key)
 }
 
@@ -200,7 +210,7 @@ fn measure(
     let scene = labels.scene.as_str();
     let fail = failure(scene);
     let (train_set, test_set) = (loaded.set(store, train)?, loaded.set(store, test)?);
-    let bfile = H5In::open(&store.dir(ArtifactKind::Basis, basis).join(bnames::FILE))?;
+    let bfile = H5In::open(&store.dir(ArtifactKind::BASIS, basis).join(bnames::FILE))?;
     let theta_full = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
     let theta_trunc = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG_TRUNCATED, bnames::MODES))?;
     drop(bfile);

@@ -17,41 +17,33 @@ use crate::cache::Key;
 use crate::error::CromError;
 use crate::progress::Progress;
 
-/// The keys of a finished run, for callers and tests.
+/// One node of a finished run: its name in the plan, its artifact's kind and key, and the names
+/// its stage publishes.
 #[derive(Debug, Clone, PartialEq)]
+pub struct Finished {
+    /// The node's name, e.g. `trainset train`, `views basis`.
+    pub node: String,
+    /// Its artifact's kind.
+    pub kind: ArtifactKind,
+    /// Its artifact's key.
+    pub key: Key,
+    /// The names a finished study gives its files.
+    pub(crate) published: Vec<graph::Published>,
+}
+
+/// What a finished run made: every node that ran, in plan order (the online ones only in an
+/// online run). The plan fills it; no field names a stage.
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct RunOutput {
-    /// Mesh artifact (none for an external scene).
-    pub mesh: Option<Key>,
-    /// Snapshot artifacts of the training points, in order.
-    pub train_snapshots: Vec<Key>,
-    /// Training-set artifact.
-    pub train: Key,
-    /// Test-set artifact (`None`: an external scene whose every column trains).
-    pub test: Option<Key>,
-    /// Basis artifact.
-    pub basis: Key,
-    /// Compactness artifact.
-    pub compactness: Key,
-    /// Generalization artifact.
-    pub generalization: Key,
-    /// Specificity artifact.
-    pub specificity: Key,
-    /// Training-set artifacts of the nested levels 1..=K (scenes with nested levels).
-    pub nested_sets: Vec<Key>,
-    /// Nested-error artifact (scenes with nested levels).
-    pub nested: Option<Key>,
-    /// Views (XDMF time series) artifacts by subject: `train`, `test`, `nested-k`, `basis`.
-    pub views: BTreeMap<String, Key>,
-    /// Online ROM artifact.
-    pub rom: Option<Key>,
-    /// The dual approximations side by side (scenes with `[comparison]`).
-    pub comparison: Option<Key>,
-    /// Their online solves side by side (online runs of such scenes).
-    pub online_comparison: Option<Key>,
-    /// The stored reduced model (`crom query`'s), online runs of native scenes.
-    pub model: Option<Key>,
-    /// Report artifact.
-    pub report: Option<Key>,
+    /// The nodes, in plan order.
+    pub nodes: Vec<Finished>,
+}
+
+impl RunOutput {
+    /// The key of the node `name`, if it ran.
+    pub fn key(&self, name: &str) -> Option<&Key> {
+        self.nodes.iter().find(|n| n.node == name).map(|n| &n.key)
+    }
 }
 
 /// Solve (or find in the store) every snapshot of the scene's study — training, test and
@@ -166,11 +158,11 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     let uses_physics = |k: ArtifactKind| {
         matches!(
             k,
-            ArtifactKind::Mesh
-                | ArtifactKind::Snapshot
-                | ArtifactKind::Rom
-                | ArtifactKind::OnlineApproximation
-                | ArtifactKind::Model
+            ArtifactKind::MESH
+                | ArtifactKind::SNAPSHOT
+                | ArtifactKind::ROM
+                | ArtifactKind::ONLINE_APPROXIMATION
+                | ArtifactKind::MODEL
         )
     };
     let last_physics = plan.nodes.iter().rposition(|n| (uses_physics(n.kind) || n.is_sweep()) && (online || !n.online));
@@ -206,34 +198,15 @@ fn execute_in<'scope, 'env, 'a: 'env>(
     for done in beside.finish() {
         join_beside(ctx, done, &mut keys)?;
     }
-    let k = |name: &str| keys[name].clone();
-    let n_train = scene.parameter.train_points().len();
-    let mut views = BTreeMap::new();
-    for node in plan.nodes.iter().filter(|n| n.kind == ArtifactKind::Views) {
-        if let Some(key) = keys.get(node.name.as_str()) {
-            views.insert(node.name.trim_start_matches("views ").to_string(), key.clone());
-        }
-    }
-    let nested_sets: Vec<Key> =
-        plan.node("nested").map(|n| n.inputs.iter().map(|i| keys[i.as_str()].clone()).collect()).unwrap_or_default();
-    Ok(RunOutput {
-        mesh: keys.get("mesh").cloned(),
-        train_snapshots: shared.columns[&0].rows[..n_train].iter().map(|r| r.key.clone()).collect(),
-        train: k("trainset train"),
-        test: keys.get("trainset test").cloned(),
-        basis: k("basis"),
-        compactness: k("compactness"),
-        generalization: k("generalization"),
-        specificity: k("specificity"),
-        nested_sets,
-        nested: keys.get("nested").cloned(),
-        views,
-        rom: keys.get("rom").cloned(),
-        comparison: keys.get("comparison").cloned(),
-        online_comparison: keys.get("online-comparison").cloned(),
-        model: keys.get("model").cloned(),
-        report: keys.get("report").cloned(),
-    })
+    let nodes = plan
+        .nodes
+        .iter()
+        .filter_map(|n| {
+            let key = keys.get(n.name.as_str())?.clone();
+            Some(Finished { node: n.name.clone(), kind: n.kind, key, published: n.stage.published() })
+        })
+        .collect();
+    Ok(RunOutput { nodes })
 }
 
 /// A stage's key against its plan's.

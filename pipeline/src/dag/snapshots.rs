@@ -68,12 +68,12 @@ struct FamilyParams<'a> {
 }
 
 impl StageKey for SnapshotParams<'_> {
-    const KIND: ArtifactKind = ArtifactKind::Snapshot;
+    const KIND: ArtifactKind = ArtifactKind::SNAPSHOT;
     const ALGORITHM_VERSION: u32 = ALGORITHM_VERSION;
 }
 
 impl StageKey for VectorSnapshotParams<'_> {
-    const KIND: ArtifactKind = ArtifactKind::Snapshot;
+    const KIND: ArtifactKind = ArtifactKind::SNAPSHOT;
     const ALGORITHM_VERSION: u32 = ALGORITHM_VERSION;
 }
 
@@ -89,7 +89,7 @@ pub(crate) fn spec(mesh: &Key, solver: &SolverSpec, mu: &[f64]) -> KeySpec {
 /// The key of the column family holding every snapshot of this mesh and solver.
 pub(crate) fn family_key(mesh: &Key, solver: &SolverSpec, parameter_names: &[&str]) -> Key {
     let p = FamilyParams { family: "columns", solver, parameters: parameter_names.to_vec() };
-    let mut spec = KeySpec::new(ArtifactKind::Snapshot, ALGORITHM_VERSION, params(&p)).input("mesh", mesh);
+    let mut spec = KeySpec::new(ArtifactKind::SNAPSHOT, ALGORITHM_VERSION, params(&p)).input("mesh", mesh);
     spec.schema_version = COLUMNS_SCHEMA_VERSION;
     spec.key()
 }
@@ -192,7 +192,7 @@ pub(crate) struct SweepStage {
 
 impl StageDef for SweepStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Snapshot
+        ArtifactKind::SNAPSHOT
     }
     fn key(&self) -> Key {
         self.family.clone()
@@ -476,11 +476,11 @@ fn evidence(s: &SolveStats, seconds: f64) -> Evidence {
 /// A snapshot stored by the per-directory layout (`snapshot/<key>/snapshot.h5`), verified
 /// against its manifest, as a column to commit; `None` when absent or damaged.
 fn import_old_layout(ctx: &mut Ctx<'_>, key: &Key, p: &[f64]) -> Option<PendingColumn> {
-    let dir = ctx.store.dir(ArtifactKind::Snapshot, key);
+    let dir = ctx.store.dir(ArtifactKind::SNAPSHOT, key);
     if !dir.exists() {
         return None;
     }
-    let manifest = match ctx.store.lookup(ArtifactKind::Snapshot, key) {
+    let manifest = match ctx.store.lookup(ArtifactKind::SNAPSHOT, key) {
         Ok(Lookup::Hit(m)) => m,
         _ => return None,
     };

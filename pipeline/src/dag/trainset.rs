@@ -18,7 +18,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::ctx::Ctx;
-use super::graph::{Input, StageDef};
+use super::graph::{Input, Published, StageDef};
 use super::inputs::sets::{block_columns, locations_match, BLOCK_PREFIX};
 use super::labels::Labels;
 use super::shared::Shared;
@@ -45,7 +45,7 @@ struct SetKey<'a> {
 }
 
 impl StageKey for SetKey<'_> {
-    const KIND: ArtifactKind = ArtifactKind::TrainingSet;
+    const KIND: ArtifactKind = ArtifactKind::TRAINING_SET;
     /// Bump when the assembly of the set changes.
     const ALGORITHM_VERSION: u32 = 3;
 }
@@ -104,7 +104,7 @@ impl SetStage {
 
 impl StageDef for SetStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::TrainingSet
+        ArtifactKind::TRAINING_SET
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -112,6 +112,19 @@ impl StageDef for SetStage {
     fn inputs(&self) -> Vec<&Input> {
         vec![&self.snapshots]
     }
+    /// `train.h5` and its tables; a nested level's under `nested/level-K`.
+    fn published(&self) -> Vec<Published> {
+        let base = match self.set.strip_prefix("nested-") {
+            Some(level) => format!("{}/level-{level}", crom_schemas::artifact::published::NESTED_DIR),
+            None => self.set.clone(),
+        };
+        vec![
+            Published::file(format!("{base}.h5"), names::FILE),
+            Published::file(format!("{base}_solver_stats.parquet"), names::STATS),
+            Published::file(format!("{base}_solver_timings.parquet"), names::TIMINGS),
+        ]
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, shared: &mut Shared<'_>) -> Result<Key, CromError> {
         let cols = shared.columns.get(&self.sweep).ok_or_else(|| {
             CromError::artifact(
@@ -139,14 +152,14 @@ pub(crate) fn run(
         _ => "nested-set",
     };
     // A stored set whose columns have moved since (a block re-solved after quarantine) is stale.
-    let dir = ctx.store.dir(ArtifactKind::TrainingSet, &spec.key());
+    let dir = ctx.store.dir(ArtifactKind::TRAINING_SET, &spec.key());
     if dir.exists() && !locations_match(&dir.join(names::STATS), rows) {
-        let _ = ctx.store.quarantine_dir(ArtifactKind::TrainingSet, &spec.key());
+        let _ = ctx.store.quarantine_dir(ArtifactKind::TRAINING_SET, &spec.key());
         ctx.warnings.push(format!("{set} set {} referred to moved columns; rewritten", spec.key().short()));
     }
     let (scene, pname, names) = (&labels.scene, &labels.parameter, &labels.names);
     let root = ctx.store.root().to_path_buf();
-    ctx.single(ArtifactKind::TrainingSet, label, spec, |staging| {
+    ctx.single(ArtifactKind::TRAINING_SET, label, spec, |staging| {
         let path = staging.path(names::FILE);
         let f = H5Out::create(&path)?;
         f.attr_str("scene", scene)?;
@@ -154,7 +167,7 @@ pub(crate) fn run(
         f.attr_str("set", set)?;
         f.attr_str("parameter_name", pname)?;
         f.attr_str("parameter_names", &names.join(","))?;
-        f.attr_u64("schema_version", u64::from(ArtifactKind::TrainingSet.schema_version()))?;
+        f.attr_u64("schema_version", u64::from(ArtifactKind::TRAINING_SET.schema_version()))?;
         f.attr_str("cache_key", &staging.key().0)?;
         let blocks = block_columns(&root, rows)?;
         let src: Vec<(String, usize)> = rows.iter().map(|r| (format!("{BLOCK_PREFIX}{}", r.block), r.column)).collect();
@@ -225,7 +238,7 @@ mod tests {
     fn typed_key_keeps_the_layout_existing_stores_were_keyed_with() {
         // The untyped layout before typed keys: {"set", "parameters": flat list or list of points}.
         let old = |v: serde_json::Value| {
-            KeySpec::new(ArtifactKind::TrainingSet, 3, serde_json::json!({ "set": "train", "parameters": v })).key()
+            KeySpec::new(ArtifactKind::TRAINING_SET, 3, serde_json::json!({ "set": "train", "parameters": v })).key()
         };
         let scalar = spec("train", &[vec![0.5], vec![1.5]], &[]).key();
         assert_eq!(scalar, old(serde_json::json!([0.5, 1.5])));

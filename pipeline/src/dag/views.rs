@@ -27,7 +27,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::ctx::Ctx;
-use super::graph::{Input, Placement, StageDef};
+use super::graph::{Input, Placement, Published, StageDef};
 use super::labels::Labels;
 use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
@@ -47,7 +47,7 @@ struct ViewsKey<'a> {
 }
 
 impl StageKey for ViewsKey<'_> {
-    const KIND: ArtifactKind = ArtifactKind::Views;
+    const KIND: ArtifactKind = ArtifactKind::VIEWS;
     /// Bump when the layout of the views changes.
     const ALGORITHM_VERSION: u32 = 1;
 }
@@ -71,7 +71,7 @@ struct MeshFacts {
 }
 
 fn mesh_facts(ctx: &Ctx<'_>, mesh: &Key) -> Result<MeshFacts, CromError> {
-    let path = ctx.store.dir(ArtifactKind::Mesh, mesh).join(mesh_names::FILE);
+    let path = ctx.store.dir(ArtifactKind::MESH, mesh).join(mesh_names::FILE);
     let f = H5In::open(&path)?;
     let node_shape = f.shape(mesh_names::NODES)?;
     let n_nodes = node_shape.first().copied().unwrap_or(0);
@@ -86,7 +86,7 @@ fn mesh_facts(ctx: &Ctx<'_>, mesh: &Key) -> Result<MeshFacts, CromError> {
         }
     }
     Ok(MeshFacts {
-        ref_path: format!("{ROOT}{}/{}/{}", ArtifactKind::Mesh.name(), mesh.0, mesh_names::FILE),
+        ref_path: format!("{ROOT}{}/{}/{}", ArtifactKind::MESH.name(), mesh.0, mesh_names::FILE),
         n_nodes,
         n_cells: cells.first().copied().unwrap_or(0),
         nodes_per_cell: cells.get(1).copied().unwrap_or(4),
@@ -327,7 +327,7 @@ impl ViewsStage {
 
 impl StageDef for ViewsStage {
     fn kind(&self) -> ArtifactKind {
-        ArtifactKind::Views
+        ArtifactKind::VIEWS
     }
     fn key(&self) -> Key {
         self.spec.key()
@@ -341,6 +341,22 @@ impl StageDef for ViewsStage {
     fn placement(&self) -> Placement {
         Placement::Beside
     }
+    /// `train.xdmf`, `basis/<group>.xdmf`, `online.xdmf`, `nested/level-K.xdmf`.
+    fn published(&self) -> Vec<Published> {
+        let nested = crom_schemas::artifact::published::NESTED_DIR;
+        match &self.subject {
+            Subject::Basis { .. } => BASIS_VIEWS
+                .iter()
+                .map(|(g, _)| Published::xdmf(format!("basis/{g}.xdmf"), &format!("{g}.xdmf")))
+                .collect(),
+            Subject::Online { .. } => vec![Published::xdmf("online.xdmf", names::ONLINE_XDMF)],
+            Subject::Set { set, .. } => match set.strip_prefix("nested-") {
+                Some(level) => vec![Published::xdmf(format!("{nested}/level-{level}.xdmf"), names::SET_XDMF)],
+                None => vec![Published::xdmf(format!("{set}.xdmf"), names::SET_XDMF)],
+            },
+        }
+    }
+
     fn run(&self, ctx: &mut Ctx<'_>, _: &mut Shared<'_>) -> Result<Key, CromError> {
         let mesh = &self.mesh.key;
         match &self.subject {
@@ -360,10 +376,10 @@ fn set(
     mesh: &Key,
 ) -> Result<Key, CromError> {
     let root = ctx.store.root().to_path_buf();
-    let stats = ctx.store.dir(ArtifactKind::TrainingSet, set_key).join(set_names::STATS);
+    let stats = ctx.store.dir(ArtifactKind::TRAINING_SET, set_key).join(set_names::STATS);
     let mesh_facts = mesh_facts(ctx, mesh)?;
     let shape = super::inputs::sets::set_shape(ctx.store, set_key, &super::inputs::sets::rows_of(&stats)?)?;
-    ctx.single(ArtifactKind::Views, "views", spec, |staging| {
+    ctx.single(ArtifactKind::VIEWS, "views", spec, |staging| {
         let steps = set_steps(&root, &stats, names_of, shape)?;
         write_series(staging, ("set", set), &mesh_facts, &steps, names::SET_XDMF, set)
     })
@@ -376,8 +392,8 @@ pub(crate) const BASIS_VIEWS: [(&str, bool); 3] =
 /// The views of the basis artifact `basis`: one XDMF per group of [`BASIS_VIEWS`].
 fn basis(ctx: &mut Ctx<'_>, spec: &KeySpec, basis: &Key, mesh: &Key) -> Result<Key, CromError> {
     let mesh_facts = mesh_facts(ctx, mesh)?;
-    let basis_file = ctx.store.dir(ArtifactKind::Basis, basis).join(basis_names::FILE);
-    ctx.single(ArtifactKind::Views, "views", spec, |staging| {
+    let basis_file = ctx.store.dir(ArtifactKind::BASIS, basis).join(basis_names::FILE);
+    ctx.single(ArtifactKind::VIEWS, "views", spec, |staging| {
         let f = H5In::open(&basis_file)?;
         let h5 = H5Out::create(&staging.path(names::FILE))?;
         h5.attr_str("kind", "views")?;
@@ -391,7 +407,7 @@ fn basis(ctx: &mut Ctx<'_>, spec: &KeySpec, basis: &Key, mesh: &Key) -> Result<K
             let steps: Vec<Step> = (0..modes)
                 .map(|k| {
                     let c = Column {
-                        file: format!("{ROOT}{}/{}/{}", ArtifactKind::Basis.name(), basis.0, basis_names::FILE),
+                        file: format!("{ROOT}{}/{}/{}", ArtifactKind::BASIS.name(), basis.0, basis_names::FILE),
                         dataset: dataset.clone(),
                         shape: (rows, modes),
                         col: k,
@@ -431,9 +447,9 @@ fn online(
 ) -> Result<Key, CromError> {
     let root = ctx.store.root().to_path_buf();
     let mesh_facts = mesh_facts(ctx, mesh)?;
-    let stats = ctx.store.dir(ArtifactKind::TrainingSet, test).join(set_names::STATS);
-    let online_file = ctx.store.dir(ArtifactKind::Rom, rom).join(rom_names::ONLINE);
-    ctx.single(ArtifactKind::Views, "views", spec, |staging| {
+    let stats = ctx.store.dir(ArtifactKind::TRAINING_SET, test).join(set_names::STATS);
+    let online_file = ctx.store.dir(ArtifactKind::ROM, rom).join(rom_names::ONLINE);
+    ctx.single(ArtifactKind::VIEWS, "views", spec, |staging| {
         let f = H5In::open(&online_file)?;
         let (n_dof, k) = {
             let s = f.shape("primal")?;
@@ -451,7 +467,7 @@ fn online(
                 "delete the rom artifact and rerun",
             ));
         }
-        let here = format!("{ROOT}{}/{}/{}", ArtifactKind::Rom.name(), rom.0, rom_names::ONLINE);
+        let here = format!("{ROOT}{}/{}/{}", ArtifactKind::ROM.name(), rom.0, rom_names::ONLINE);
         for (j, step) in steps.iter_mut().enumerate() {
             let online = |dataset: &str, rows: usize| Column {
                 file: here.clone(),

@@ -32,7 +32,7 @@ pub(super) fn write(
         message: format!("scene `{}` has no mesh", scene.scene.name),
         fix: "query a native scene".into(),
     })?;
-    let mesh_path = Store::open_read_only(root).dir(ArtifactKind::Mesh, mesh_key).join(mesh_names::FILE);
+    let mesh_path = Store::open_read_only(root).dir(ArtifactKind::MESH, mesh_key).join(mesh_names::FILE);
     let mesh = H5In::open(&mesh_path)?;
     let nodes = mesh.matrix(mesh_names::NODES)?; // n_nodes x 2, column-major
     let cells_shape = mesh.shape(mesh_names::CELLS)?;

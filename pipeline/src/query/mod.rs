@@ -89,7 +89,7 @@ impl Loaded {
 /// The model artifact `key` of the store at `root` verified for a reader of its file `read`
 /// ([`Store::verify_reading`]); an error names `path` and `fix`.
 fn verify_model(root: &Path, key: &Key, read: &str, path: &Path, fix: &str) -> Result<(), CromError> {
-    Store::open_read_only(root).verify_reading(ArtifactKind::Model, key, &[read]).map_err(|problem| {
+    Store::open_read_only(root).verify_reading(ArtifactKind::MODEL, key, &[read]).map_err(|problem| {
         CromError::Artifact {
             path: path.to_path_buf(),
             message: format!("the stored reduced model failed verification: {problem}"),
@@ -116,7 +116,7 @@ pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded,
         .key;
     // The model's mesh (its key is a function of the scene's model, as the model's own is).
     let mesh = plan.node("mesh").map(|n| n.key.clone());
-    let dir = Store::open_read_only(root).dir(ArtifactKind::Model, key);
+    let dir = Store::open_read_only(root).dir(ArtifactKind::MODEL, key);
     let run_first =
         || format!("run `crom run {scene_arg}` first (add --store {} if it is not the default)", root.display());
     if !dir.exists() {
@@ -142,7 +142,7 @@ pub fn load(root: &Path, scene: &SceneConfig, scene_arg: &str) -> Result<Loaded,
 /// study). `mesh` is left `None`.
 pub fn load_artifact(root: &Path, key: &Key, fix: &str) -> Result<Loaded, CromError> {
     let store = Store::open_read_only(root);
-    let dir = store.dir(ArtifactKind::Model, key);
+    let dir = store.dir(ArtifactKind::MODEL, key);
     verify_model(root, key, names::FILE, &dir, fix)?;
     let stored = StoredModel::read(&dir.join(names::FILE))?;
     let model =

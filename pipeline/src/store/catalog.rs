@@ -59,7 +59,7 @@ pub struct CatalogRow {
 impl CatalogRow {
     fn from_manifest(m: &Manifest) -> Self {
         let set = m.parameters.get("set").and_then(|v| v.as_str()).unwrap_or_default().to_string();
-        let bases = if m.stage == ArtifactKind::Basis.name() {
+        let bases = if m.stage == ArtifactKind::BASIS.name() {
             [basis_names::PRIMAL_POD, basis_names::DUAL_POD, basis_names::DUAL_CPG, basis_names::DUAL_CPG_TRUNCATED]
                 .join(",")
         } else {
@@ -144,7 +144,7 @@ impl CatalogRow {
 pub fn rows(root: &Path) -> Vec<CatalogRow> {
     let mut rows: Vec<CatalogRow> = columns::families(root).iter().map(|f| CatalogRow::from_family(root, f)).collect();
     let mut artifacts: Vec<CatalogRow> = manifest::read_all(root).iter().map(CatalogRow::from_manifest).collect();
-    let order = |s: &str| ArtifactKind::from_name(s).map_or(usize::MAX, |k| k as usize);
+    let order = |s: &str| ArtifactKind::order_of(s);
     artifacts.sort_by(|a, b| {
         order(&a.stage).cmp(&order(&b.stage)).then(a.created_unix.cmp(&b.created_unix)).then(a.key.cmp(&b.key))
     });

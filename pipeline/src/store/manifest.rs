@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use crom_schemas::artifact::{ArtifactKind, MANIFEST};
+use crom_schemas::artifact::{published, ArtifactKind, MANIFEST};
 use serde::{Deserialize, Serialize};
 
 use crate::cache::Key;
@@ -60,15 +60,28 @@ pub fn hash_file(path: &Path) -> std::io::Result<(u64, String)> {
     Ok((bytes, hasher.finalize().to_hex().to_string()))
 }
 
-/// Every artifact manifest under the store root `root` (unverified; for listing).
+/// Every artifact manifest under the store root `root` (unverified; for listing): in every
+/// top-level directory but the column store, the published names and the hidden ones (staging,
+/// quarantine), the manifests of the artifact directories whose stage is that directory's name
+/// — the shipped kinds' in DAG order, then any other kind's by name.
 pub fn read_all(root: &Path) -> Vec<Manifest> {
     let mut out = Vec::new();
-    for kind in ArtifactKind::ALL {
-        let Ok(entries) = std::fs::read_dir(root.join(kind.name())) else { continue };
-        for e in entries.flatten() {
+    let mut stages: Vec<String> = std::fs::read_dir(root)
+        .map(|d| d.flatten().filter_map(|e| e.file_name().into_string().ok()).collect())
+        .unwrap_or_default();
+    stages.retain(|s| {
+        !s.starts_with('.') && s != super::columns::COLUMNS_DIR && s != published::DIR && root.join(s).is_dir()
+    });
+    stages.sort_by(|a, b| (ArtifactKind::order_of(a), a).cmp(&(ArtifactKind::order_of(b), b)));
+    for stage in stages {
+        let Ok(entries) = std::fs::read_dir(root.join(&stage)) else { continue };
+        let mut entries: Vec<_> = entries.flatten().collect();
+        entries.sort_by_key(|e| e.file_name());
+        for e in entries {
             if let Ok(text) = std::fs::read_to_string(e.path().join(MANIFEST)) {
-                if let Ok(m) = serde_json::from_str::<Manifest>(&text) {
-                    out.push(m);
+                match serde_json::from_str::<Manifest>(&text) {
+                    Ok(m) if m.stage == stage => out.push(m),
+                    _ => {}
                 }
             }
         }

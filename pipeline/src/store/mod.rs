@@ -151,7 +151,7 @@ impl Store {
 
     /// Start writing an artifact: a fresh staging directory.
     pub fn stage(&self, spec: &KeySpec) -> Result<Staging, CromError> {
-        let kind = ArtifactKind::from_name(spec.stage).unwrap_or(ArtifactKind::Mesh);
+        let kind = spec.kind;
         let key = spec.key();
         let tmp = self.root.join(".staging").join(format!(
             "{}-{}-{}-{}",

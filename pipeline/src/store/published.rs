@@ -238,10 +238,10 @@ pub fn withdraw_artifact(root: &Path, kind: ArtifactKind, key: &Key, reason: &st
 /// root) out of the published studies: its file would read the missing block as fill values.
 pub fn withdraw_block(root: &Path, block: &str, reason: &str) -> Result<(), CromError> {
     let uses_block = |e: &Entry| {
-        if e.stage != ArtifactKind::TrainingSet.name() {
+        if e.stage != ArtifactKind::TRAINING_SET.name() {
             return false;
         }
-        let stats = root.join(ArtifactKind::TrainingSet.name()).join(&e.key.0).join(trainset::STATS);
+        let stats = root.join(ArtifactKind::TRAINING_SET.name()).join(&e.key.0).join(trainset::STATS);
         crate::io::table::read_parquet(&stats)
             .ok()
             .and_then(|t| t.strs("block").map(|b| b.iter().any(|x| x == block)))
@@ -339,7 +339,7 @@ mod tests {
         target(root, "k1", "one");
         target(root, "k2", "two");
         publish(root, &study("s", &[("a.h5", "k1"), ("b.h5", "k2")])).expect("publish");
-        withdraw_artifact(root, ArtifactKind::Basis, &Key("k1".into()), "quarantined").expect("withdraw");
+        withdraw_artifact(root, ArtifactKind::BASIS, &Key("k1".into()), "quarantined").expect("withdraw");
         assert!(!root.join("scenes/s/a.h5").exists());
         assert_eq!(std::fs::read_to_string(root.join("scenes/s/b.h5")).expect("kept"), "two");
         let s = &studies(root)[0].1;

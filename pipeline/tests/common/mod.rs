@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use crom_schemas::artifact::{MANIFEST, TIMING_FILES};
+use crom_schemas::artifact::{timing_files, MANIFEST};
 
 /// The repository root.
 pub fn repo() -> PathBuf {
@@ -79,7 +79,7 @@ pub fn variant(dir: &Path, scene: &str, file: &str, edits: &[(&str, &str)]) -> P
 }
 
 /// Every result file of a store: relative path -> bytes. Left out: the files that carry
-/// wall-clock times (`TIMING_FILES`) and the store's metadata (manifests, the columns' index,
+/// wall-clock times (`timing_files`) and the store's metadata (manifests, the columns' index,
 /// the catalog, the published names, run records, staging, quarantine).
 pub fn result_files(store: &Path) -> BTreeMap<String, Vec<u8>> {
     let mut out = BTreeMap::new();
@@ -100,7 +100,7 @@ pub fn result_files(store: &Path) -> BTreeMap<String, Vec<u8>> {
                 || name == ".lock"
                 || rel == "catalog.parquet"
                 || (top == "columns" && (name == "index.parquet" || rel.contains("/index/")));
-            let timing = TIMING_FILES.iter().any(|(stage, file)| top == *stage && name == *file);
+            let timing = timing_files().any(|(stage, file)| top == stage && name == file);
             if !metadata && !timing {
                 out.insert(rel, std::fs::read(&path).expect("read"));
             }

@@ -17,7 +17,7 @@ pub(crate) struct Bases {
 
 /// Load the untruncated-tolerance bases used by the metrics.
 pub(crate) fn load_from(store: &crate::store::Store, key: &Key) -> Result<Bases, CromError> {
-    let f = H5In::open(&store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
+    let f = H5In::open(&store.dir(ArtifactKind::BASIS, key).join(names::FILE))?;
     let m = |g: &str| f.matrix(&format!("{g}/{}", names::MODES));
     Ok(Bases { primal_pod: m(names::PRIMAL_POD)?, dual_pod: m(names::DUAL_POD)?, dual_cpg: m(names::DUAL_CPG)? })
 }
@@ -33,7 +33,7 @@ pub(crate) struct BasisFacts {
 
 /// Singular values and ranks of a stored basis artifact.
 pub(crate) fn load_full(store: &crate::store::Store, key: &Key) -> Result<BasisFacts, CromError> {
-    let f = H5In::open(&store.dir(ArtifactKind::Basis, key).join(names::FILE))?;
+    let f = H5In::open(&store.dir(ArtifactKind::BASIS, key).join(names::FILE))?;
     let sv = |g: &str| f.vec_f64(&format!("{g}/{}", names::SINGULAR_VALUES));
     let rank = |g: &str| f.attr_u64_at(g, "rank").map(|r| r as usize);
     Ok(BasisFacts {

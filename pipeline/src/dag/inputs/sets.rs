@@ -43,7 +43,7 @@ pub(crate) fn locations_match(stats: &Path, rows: &[IndexRow]) -> bool {
 
 /// Load a training set artifact's matrices, reading each column from its block and checking it.
 pub(crate) fn load_from(store: &crate::store::Store, key: &Key) -> Result<TrainingSet, CromError> {
-    let dir = store.dir(ArtifactKind::TrainingSet, key);
+    let dir = store.dir(ArtifactKind::TRAINING_SET, key);
     let rows = rows_of(&dir.join(names::STATS))?;
     let (n_dof, n_contact) = set_shape(store, key, &rows)?;
     let parameters: Vec<Vec<f64>> = rows.iter().map(|r| r.parameters.clone()).collect();
@@ -64,7 +64,7 @@ pub(crate) fn set_shape(
 ) -> Result<(usize, usize), CromError> {
     let (path, primal, dual) = match rows.first() {
         Some(r) => (store.root().join(&r.block), "primal", "dual"),
-        None => (store.dir(ArtifactKind::TrainingSet, key).join(names::FILE), names::PRIMAL, names::DUAL),
+        None => (store.dir(ArtifactKind::TRAINING_SET, key).join(names::FILE), names::PRIMAL, names::DUAL),
     };
     let f = H5In::open(&path)?;
     let rows_of = |name: &str| -> Result<usize, CromError> { Ok(f.shape(name)?.first().copied().unwrap_or(0)) };

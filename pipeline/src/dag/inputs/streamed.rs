@@ -163,7 +163,7 @@ impl ColumnBlocks for PrimalColumns {
 /// read, without holding the primal even for a moment (a 3-D set's primal is 0.9 GB at 1 025
 /// columns of 109 431 dofs).
 pub(crate) fn load_dual(store: &Store, key: &Key) -> Result<(ColMatrix, Vec<Vec<f64>>), CromError> {
-    let dir = store.dir(ArtifactKind::TrainingSet, key);
+    let dir = store.dir(ArtifactKind::TRAINING_SET, key);
     let rows = sets::rows_of(&dir.join(names::STATS))?;
     let (n_dof, n_contact) = sets::set_shape(store, key, &rows)?;
     let parameters: Vec<Vec<f64>> = rows.iter().map(|r| r.parameters.clone()).collect();
@@ -180,7 +180,7 @@ pub(crate) fn load_dual(store: &Store, key: &Key) -> Result<(ColMatrix, Vec<Vec<
 /// Load the training set `key` without its primal matrix: the dual snapshots and the primal
 /// columns' norms, read block by block (one pass; every column verified).
 pub(crate) fn load(store: &Store, key: &Key) -> Result<StreamedSet, CromError> {
-    let dir = store.dir(ArtifactKind::TrainingSet, key);
+    let dir = store.dir(ArtifactKind::TRAINING_SET, key);
     let rows = sets::rows_of(&dir.join(names::STATS))?;
     let (n_dof, n_contact) = sets::set_shape(store, key, &rows)?;
     let count = rows.len();
