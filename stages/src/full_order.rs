@@ -91,6 +91,27 @@ pub enum Surface {
         /// Slaves whose two dofs are Dirichlet (never paired).
         slave_fixed: Vec<bool>,
     },
+    /// Type-2 in 3-D: node-to-surface pairs between `n_slaves` slave nodes and a master surface
+    /// of bilinear quadrilateral facets (`crate::contact3d`'s pairing rule). Contact nodes are the
+    /// slaves then the masters; contact dof `3 c + j` is global dof `dofs[3 c + j]`.
+    NodeToSurface {
+        /// Number of slaves (the first contact nodes); the dual field has one entry per slave.
+        n_slaves: usize,
+        /// Reference coordinates of the contact nodes.
+        x_ref: Vec<[f64; 3]>,
+        /// Global dof of every contact dof.
+        dofs: Vec<usize>,
+        /// Slaves whose three dofs are Dirichlet (never paired).
+        slave_fixed: Vec<bool>,
+        /// The master facets over master-local node ids (master `k` is contact node
+        /// `n_slaves + k`), in the master body's outward orientation.
+        facets: Vec<[usize; 4]>,
+        /// The symmetry planes the surface's normal field respects, and the distance that puts a
+        /// node on one.
+        planes: Vec<crate::solid::symmetry::Plane>,
+        /// See `planes`.
+        plane_tol: f64,
+    },
 }
 
 /// The compliance `W = E^T K_FF^{-1} E` on a set of dofs (zero rows and columns on Dirichlet

@@ -10,6 +10,7 @@
 mod condense;
 pub mod facet;
 pub mod model;
+pub mod rom_view;
 mod scene;
 pub mod solve;
 pub mod surface;
@@ -21,4 +22,4 @@ pub use model::{
 pub use solve::Factored3d;
 pub use theory::HertzSpheres;
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -39,12 +39,15 @@ const MAX_PAIRINGS: usize = 200;
 pub struct Factored3d {
     pub(crate) model: Model3d,
     llt: ContactLastFactor,
-    resp: Vec<Vec<f64>>,
+    pub(super) resp: Vec<Vec<f64>>,
     cnodes: Vec<usize>,
-    x_ref: Vec<[f64; 3]>,
+    pub(super) x_ref: Vec<[f64; 3]>,
     a: Vec<Vec<f64>>,
-    w: Vec<f64>,
-    slave_fixed: Vec<bool>,
+    pub(super) w: Vec<f64>,
+    pub(super) slave_fixed: Vec<bool>,
+    /// The H1 Gram matrix of the primal norm, assembled on first use (the online reduced
+    /// model's error evaluation, `rom_view`).
+    pub(super) h1: std::sync::OnceLock<crate::fem::CsrMatrix>,
 }
 
 impl Model3d {
@@ -75,7 +78,7 @@ impl Model3d {
             }
         }
         let slave_fixed = (0..self.slaves.len()).map(|s| (0..3).all(|c| cfree[3 * s + c].is_none())).collect();
-        Ok(Factored3d { model: self.clone(), llt, resp, cnodes, x_ref, a, w, slave_fixed })
+        Ok(Factored3d { model: self.clone(), llt, resp, cnodes, x_ref, a, w, slave_fixed, h1: Default::default() })
     }
 }
 

@@ -125,6 +125,8 @@ pub struct MasterSurface {
     /// Per master node: the symmetry planes it lies on (bit k: plane k).
     on_plane: Vec<u8>,
     planes: Vec<Plane>,
+    /// The distance that puts a node on a plane.
+    tol: f64,
     /// Per master node: whether it lies on a free edge.
     free_node: Vec<bool>,
 }
@@ -161,7 +163,12 @@ impl MasterSurface {
                 free_node[b] = true;
             }
         }
-        Self { facets, edges, at_node, on_plane, planes: planes.to_vec(), free_node }
+        Self { facets, edges, at_node, on_plane, planes: planes.to_vec(), tol, free_node }
+    }
+
+    /// The symmetry planes and the distance that puts a node on one (as given to [`Self::new`]).
+    pub fn planes(&self) -> (&[Plane], f64) {
+        (&self.planes, self.tol)
     }
 
     /// The facets.

@@ -7,7 +7,7 @@ use crate::fem::Material;
 use crate::float_cmp::Tol;
 use crate::solid::symmetry::Plane;
 
-fn hertz_params(n: usize, grading: f64) -> Hertz3dParams {
+pub(crate) fn hertz_params(n: usize, grading: f64) -> Hertz3dParams {
     let planes = vec![Plane { axis: 0, at: 0.0 }, Plane { axis: 1, at: 0.0 }];
     Hertz3dParams { radius: 1.0, material: Material::new(1.0, 0.3), n, grading, contact_radius: 0.25, planes }
 }

@@ -7,6 +7,7 @@
 
 pub mod assembly;
 pub mod block;
+pub mod h1;
 pub mod hex8;
 pub mod mesh;
 pub mod shapes;

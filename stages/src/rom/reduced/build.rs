@@ -1,7 +1,9 @@
 //! The offline build: everything of length `n_dof` ([`ReducedModel::new`]), the model on leading
 //! ranks, and what the online solve stores.
 
+use super::nts3::Nts3;
 use super::{ReducedModel, RomError, SurfaceData, WarmStarts};
+use crate::contact3d::surface::MasterSurface;
 use crate::full_order::{Compliance, ContactOperator, Linearized, Surface};
 use crate::rom::la::{backward_t, dot, forward};
 use crate::rom::saddle::cholesky;
@@ -178,6 +180,28 @@ impl ReducedModel {
                 let cwc = compliance_gram(&rows, &comp, nc);
                 SurfaceData::Fixed { cphi, cu0, paired: rows.paired, chat, ghat, cwc }
             }
+            Surface::NodeToSurface { n_slaves, x_ref, dofs, slave_fixed, facets, planes, plane_tol } => {
+                assert_eq!(comp.dofs, dofs, "compliance on the contact dofs");
+                let mut phi_c: Vec<f64> =
+                    dofs.iter().flat_map(|&d| (0..r_u).map(move |j| phi[d + j * n_dof])).collect();
+                to_psi(&mut phi_c);
+                let a_terms = lift.iter().map(|t| dofs.iter().map(|&d| t[d]).collect()).collect();
+                let master = MasterSurface::new(facets, &x_ref[n_slaves..], &planes, plane_tol);
+                let w_c = (comp.w.len() <= super::nts3::MAX_W_C).then_some(comp.w);
+                let mut d = Nts3 {
+                    ns: n_slaves,
+                    nm: x_ref.len() - n_slaves,
+                    x_ref,
+                    slave_fixed,
+                    master,
+                    phi_c,
+                    a_terms,
+                    supp: Vec::new(),
+                    w_c,
+                };
+                d.supp = d.support(&by_node);
+                SurfaceData::Nts3(Box::new(d))
+            }
             Surface::NodeToSegment { n_slaves, x_ref, dofs, slave_fixed } => {
                 assert_eq!(comp.dofs, dofs, "compliance on the contact dofs");
                 let mut phi_c: Vec<f64> =
@@ -239,6 +263,7 @@ impl ReducedModel {
         }
         let (by_node, by_col) = csr(&theta, nc, r_l);
         let surf = match &self.surf {
+            SurfaceData::Nts3(d) => SurfaceData::Nts3(Box::new(d.leading(self.r_u, r_u, &by_node))),
             SurfaceData::Fixed { cphi, cu0, paired, chat, ghat, cwc } => SurfaceData::Fixed {
                 cphi: restride(cphi, nc),
                 cu0: cu0.clone(),
@@ -291,6 +316,14 @@ impl ReducedModel {
             ("theta_by_col", self.by_col.2.len()),
         ];
         match &self.surf {
+            SurfaceData::Nts3(d) => v.extend([
+                ("x_ref", 3 * d.x_ref.len()),
+                ("facets", 4 * d.master.facets().len()),
+                ("phi_c", d.phi_c.len()),
+                ("a_terms", d.a_terms.iter().map(Vec::len).sum()),
+                ("supp", d.supp.len()),
+                ("w_c", d.w_c.as_ref().map_or(0, Vec::len)),
+            ]),
             SurfaceData::Fixed { cphi, cu0, chat, ghat, cwc, .. } => v.extend([
                 ("cphi", cphi.len()),
                 ("cu0", cu0.iter().map(Vec::len).sum()),

@@ -27,6 +27,7 @@ impl ReducedModel {
                 *ghat = vec![vec![0.0; r_l]; cu0.len()];
                 reduce_fixed(by_node, &self.weights, r_u, cphi, cu0, chat, ghat);
             }
+            SurfaceData::Nts3(d) => d.supp = d.support(by_node),
             SurfaceData::Nts { ns, slave_fixed, supp, quad, .. } => {
                 supp.clear();
                 supp.extend((0..*ns).filter(|&s| !slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]));
@@ -53,6 +54,7 @@ impl ReducedModel {
         out.clear();
         let ru = self.r_u;
         match &self.surf {
+            SurfaceData::Nts3(d) => self.node_gaps3(d, w, out),
             SurfaceData::Fixed { cphi, cu0, paired, .. } => {
                 for (i, &p) in paired.iter().enumerate() {
                     if p {

@@ -65,7 +65,7 @@ impl ReducedModel {
         // nodes as well as r_u, so more constraining rows than either is exactly singular.
         let paired = match &self.surf {
             SurfaceData::Fixed { paired, .. } => paired.iter().filter(|p| **p).count(),
-            SurfaceData::Nts { .. } => w.lin.ps.len(),
+            SurfaceData::Nts { .. } | SurfaceData::Nts3(_) => w.lin.ps.len(),
         };
         if k > ru.min(paired) {
             return Some(0.0);
@@ -88,6 +88,10 @@ impl ReducedModel {
         phit_f.resize(ru, 0.0);
         let fww; // F^T W F
         match &self.surf {
+            SurfaceData::Nts3(d) => {
+                let (f, p, c, u, ww) = self.indicator3(d, w, &mut phit_f);
+                (force, pen, comp_sum, unpaired, fww) = (f, p, c, u, ww);
+            }
             SurfaceData::Fixed { cphi, cu0, paired, cwc, .. } => {
                 let nc = self.n_contact;
                 w.fnode.clear();
@@ -157,7 +161,8 @@ impl ReducedModel {
                     .sum::<f64>();
             }
         }
-        let residual = energy_residual(&w.u_hat, &phit_f, fww);
+        // a 3-D model without its compliance has no residual (`max` would drop the NaN)
+        let residual = if fww.is_nan() { f64::NAN } else { energy_residual(&w.u_hat, &phit_f, fww) };
         w.phit_f = phit_f;
         Indicator {
             penetration: pen.max(0.0),

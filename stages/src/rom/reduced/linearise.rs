@@ -58,6 +58,9 @@ pub(super) struct LinState {
     pub(super) index: MasterIndex,
     pub(super) ties: VertexTies,
     pub(super) pairs: Vec<Pair>,
+    /// 3-D: the pairs of the slaves, and the masters' positions ([`super::nts3`]).
+    pub(super) pairs3: Vec<crate::contact3d::surface::Pair3>,
+    pub(super) xm3: Vec<[f64; 3]>,
     /// Paired supported slaves, their `C Phi` rows (row-major) and constant parts.
     pub(super) ps: Vec<usize>,
     pub(super) ps_of: Vec<usize>,
@@ -288,6 +291,10 @@ impl LinState {
                 h = h.wrapping_mul(0x0000_0100_0000_01b3);
             }
         }
+        for p in &self.pairs3 {
+            h ^= p.feature.id();
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
         h
     }
 }
@@ -326,6 +333,9 @@ impl ReducedModel {
     /// pairing known unchanged by 1 returns at once: positions, pairs and rows stay those of
     /// the last linearisation, `|Δy| <= u_tol |y|` away.
     pub(super) fn linearize_with(&self, w: &mut RomWork, assemble: bool) -> bool {
+        if let SurfaceData::Nts3(d) = &self.surf {
+            return self.linearize3(d, w, assemble);
+        }
         let SurfaceData::Nts { ns, nm, supp, node_norm, master_norm, phi_c, .. } = &self.surf else {
             w.lin.count = 1;
             return false;
@@ -434,7 +444,7 @@ impl ReducedModel {
     /// copy instead of a sum over the slaves of its column.
     pub(super) fn assemble(&self, w: &mut RomWork) {
         let SurfaceData::Nts { ns, supp, phi_c, .. } = &self.surf else { return };
-        let (ru, rl) = (self.r_u, self.r_l);
+        let ru = self.r_u;
         let l = &mut w.lin;
         l.ps.clear();
         l.g0.clear();
@@ -455,9 +465,17 @@ impl ReducedModel {
             combine_rows(&row, phi_c, ru, &mut l.cphi[at..at + ru]);
             l.g0.push(row.apply(&l.base));
         }
+        self.sum_rows(w);
+    }
+
+    /// For a dual basis of at most [`SUMMED_MAX_RL`] columns, the reduced rows `chat` and
+    /// offsets `ghat0` summed from the paired slaves' rows (`cphi`, `g0`) under the basis.
+    pub(super) fn sum_rows(&self, w: &mut RomWork) {
         if !self.sums_rows() {
             return;
         }
+        let (ru, rl) = (self.r_u, self.r_l);
+        let l = &mut w.lin;
         let np = l.ps.len();
         l.slave_weight.clear();
         l.slave_weight.resize(rl * np, 0.0);

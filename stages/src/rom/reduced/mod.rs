@@ -16,6 +16,7 @@
 //! - `exact_step`: the exact corrected re-pairing step (GMRES on the SQP step's equation);
 //! - `paper`: the paper's Algorithm 1;
 //! - `linearise`: the Type-2 linearisation state and the re-pairing with proofs;
+//! - `nts3`: the 3-D contact surface (node-to-surface pairs) and its linearisation;
 //! - `oracle`: the reduced constraints as the QP sees them;
 //! - `indicator`: the a-posteriori error indicator and the inf-sup diagnostic;
 //! - `switches`: the test-only switches of the linearisation (a no-op outside tests).
@@ -25,6 +26,7 @@ mod dual_basis;
 mod exact_step;
 mod indicator;
 mod linearise;
+mod nts3;
 mod oracle;
 mod paper;
 mod parts;

@@ -27,7 +27,7 @@ impl QpConstraints for Oracle<'_> {
                     *sa = dot(&chat[a * ru..(a + 1) * ru], x) + self.lin.g_mu[a];
                 }
             }
-            SurfaceData::Nts { .. } if m.sums_rows() => {
+            SurfaceData::Nts { .. } | SurfaceData::Nts3(_) if m.sums_rows() => {
                 let l = &*self.lin;
                 // at x = 0 (the QP's warm start) the values are the constant parts
                 let zero = x.iter().all(|&v| v == 0.0);
@@ -35,7 +35,7 @@ impl QpConstraints for Oracle<'_> {
                     *sa = if zero { l.ghat0[a] } else { dot(&l.chat[a * ru..(a + 1) * ru], x) + l.ghat0[a] };
                 }
             }
-            SurfaceData::Nts { .. } => {
+            SurfaceData::Nts { .. } | SurfaceData::Nts3(_) => {
                 s.iter_mut().for_each(|v| *v = 0.0);
                 let l = &*self.lin;
                 // at x = 0 (the QP's warm start) the gaps are the constant parts
@@ -55,8 +55,10 @@ impl QpConstraints for Oracle<'_> {
         let (m, ru) = (self.m, self.m.r_u);
         match &m.surf {
             SurfaceData::Fixed { chat, .. } => out.copy_from_slice(&chat[a * ru..(a + 1) * ru]),
-            SurfaceData::Nts { .. } if m.sums_rows() => out.copy_from_slice(&self.lin.chat[a * ru..(a + 1) * ru]),
-            SurfaceData::Nts { .. } => {
+            SurfaceData::Nts { .. } | SurfaceData::Nts3(_) if m.sums_rows() => {
+                out.copy_from_slice(&self.lin.chat[a * ru..(a + 1) * ru])
+            }
+            SurfaceData::Nts { .. } | SurfaceData::Nts3(_) => {
                 out.iter_mut().for_each(|v| *v = 0.0);
                 let l = &*self.lin;
                 for e in m.by_col.0[a]..m.by_col.0[a + 1] {

@@ -42,7 +42,7 @@ impl ReducedModel {
         // the active constraints' indices and the next mask, refilled each iteration
         let (mut idx, mut new): (Vec<usize>, Vec<bool>) = (Vec::with_capacity(rl), Vec::with_capacity(rl));
         let mut prev = vec![0.0; ru];
-        let repairs = matches!(self.surf, SurfaceData::Nts { .. });
+        let repairs = matches!(self.surf, SurfaceData::Nts { .. } | SurfaceData::Nts3(_));
         for it in 1..=p.max_iter {
             prev.copy_from_slice(&w.u_hat);
             // offsets ĝ0 at the current linearisation, rows of the active constraints

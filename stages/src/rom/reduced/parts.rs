@@ -30,6 +30,13 @@
 //! sampled surface's quadrature weights, absent — length 0 — for the full surface), `w_c`
 //! (`(2 nn)²`, the compliance on the contact dofs, row-major).
 //!
+//! Type-2 in 3-D (`surface = 2`, node-to-surface; `nn = ns + nm` contact nodes, slaves first):
+//! `x_ref` (`3 nn`), `slave_fixed`, `phi_c` (`3 nn · r_u`), `a_terms` (`t · 3 nn`), `supp` as for
+//! node-to-segment; `facets` (u64, `4 · n_facets`, master-local node ids, outward), `plane_axis`
+//! (u64) and `plane_at` (f64), one per symmetry plane, `plane_tol` (f64, 1 value: the distance
+//! that puts a node on a plane); `w_c` (`(3 nn)²` or 0 values: the compliance on the contact
+//! dofs, kept when at most 4M entries, else the indicator's residual is NaN).
+//!
 //! A registered dual basis rebuilt at each query point (`reg_map` > 0; then `r_dual` is 0, the
 //! `theta_*` arrays are empty, the `warm_*` arrays hold primal starts only — every active set
 //! empty, [`ReducedModel::with_primal_starts`] — and [`ReducedModel::dual_at`] sets `Θ(μ)` before
@@ -86,7 +93,7 @@ impl ModelParts {
         "reg_m",
     ];
     /// Names of the float arrays.
-    pub const FLOATS: [&str; 22] = [
+    pub const FLOATS: [&str; 24] = [
         "khat_l",
         "u_of_y",
         "weights",
@@ -103,6 +110,8 @@ impl ModelParts {
         "a_terms",
         "quad",
         "w_c",
+        "plane_at",
+        "plane_tol",
         "reg_surface",
         "reg_table",
         "reg_grid",
@@ -111,8 +120,17 @@ impl ModelParts {
         "reg_weight",
     ];
     /// Names of the integer arrays.
-    pub const INTS: [&str; 7] =
-        ["theta_start", "theta_column", "warm_set_start", "warm_set", "paired", "slave_fixed", SUPP];
+    pub const INTS: [&str; 9] = [
+        "theta_start",
+        "theta_column",
+        "warm_set_start",
+        "warm_set",
+        "paired",
+        "slave_fixed",
+        SUPP,
+        "facets",
+        "plane_axis",
+    ];
 
     /// The scalar `name` (0 when absent).
     pub fn scalar(&self, name: &str) -> u64 {
@@ -225,6 +243,26 @@ impl ReducedModel {
             ("warm_set", sets),
         ];
         match &self.surf {
+            SurfaceData::Nts3(d) => {
+                scalars[0].1 = 2;
+                scalars[4].1 = d.a_terms.len() as u64;
+                scalars.extend([("n_slaves", d.ns as u64), ("n_masters", d.nm as u64)]);
+                let (planes, tol) = d.master.planes();
+                floats.extend([
+                    ("x_ref", d.x_ref.iter().flatten().copied().collect()),
+                    ("phi_c", d.phi_c.clone()),
+                    ("a_terms", flat(&d.a_terms)),
+                    ("w_c", d.w_c.clone().unwrap_or_default()),
+                    ("plane_at", planes.iter().map(|p| p.at).collect()),
+                    ("plane_tol", vec![tol]),
+                ]);
+                ints.extend([
+                    ("slave_fixed", flags(&d.slave_fixed)),
+                    (SUPP, idx(&d.supp)),
+                    ("facets", d.master.facets().iter().flatten().map(|&v| v as u64).collect()),
+                    ("plane_axis", planes.iter().map(|p| p.axis as u64).collect()),
+                ]);
+            }
             SurfaceData::Fixed { cphi, cu0, paired, chat, ghat, cwc } => {
                 scalars[4].1 = cu0.len() as u64;
                 floats.extend([
@@ -396,7 +434,13 @@ impl ReducedModel {
                     w_c: floats_of(p, "w_c", ncd * ncd)?,
                 }
             }
-            s => return Err(bad("surface", format!("{s}: expected 0 (fixed pairs) or 1 (node-to-segment)"))),
+            2 => SurfaceData::Nts3(Box::new(Self::nts3_of(p, nc, r_u, terms)?)),
+            s => {
+                return Err(bad(
+                    "surface",
+                    format!("{s}: expected 0 (fixed pairs), 1 (node-to-segment) or 2 (node-to-surface)"),
+                ))
+            }
         };
         if let SurfaceData::Nts { phi_c, .. } = &surf {
             warm_starts.place(phi_c, r_u);
@@ -428,9 +472,56 @@ impl ReducedModel {
         }
     }
 
+    /// The 3-D contact surface stored in `p` (`surface = 2`), checked.
+    fn nts3_of(p: &ModelParts, nc: usize, r_u: usize, terms: usize) -> Result<super::nts3::Nts3, RomError> {
+        let size = |name: &str| -> Result<usize, RomError> {
+            usize::try_from(p.scalar(name)).ok().filter(|&v| v <= 1 << 32).ok_or_else(|| bad(name, "too large".into()))
+        };
+        let (ns, nm) = (size("n_slaves")?, size("n_masters")?);
+        if ns > nc {
+            return Err(bad("n_slaves", format!("{ns} slaves, more than the {nc} contact nodes")));
+        }
+        let ncd = 3 * (ns + nm);
+        let x_ref: Vec<[f64; 3]> = floats_of(p, "x_ref", ncd)?.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let supp = indices_of(p, SUPP, None, ns)?;
+        if supp.windows(2).any(|w| w[0] >= w[1]) {
+            return Err(bad(SUPP, "not strictly increasing".into()));
+        }
+        let facets = indices_of(p, "facets", None, nm)?;
+        if facets.len() % 4 != 0 {
+            return Err(bad("facets", format!("{} node ids, not four per facet", facets.len())));
+        }
+        let facets: Vec<[usize; 4]> = facets.chunks(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
+        let axes = indices_of(p, "plane_axis", None, 3)?;
+        if axes.len() > 8 {
+            return Err(bad("plane_axis", format!("{} planes, at most 8", axes.len())));
+        }
+        let at = floats_of(p, "plane_at", axes.len())?;
+        let planes: Vec<crate::solid::symmetry::Plane> =
+            axes.iter().zip(&at).map(|(&axis, &at)| crate::solid::symmetry::Plane { axis, at }).collect();
+        let tol = floats_of(p, "plane_tol", 1)?[0];
+        let w_c = match p.float("w_c").len() {
+            0 => None,
+            _ => Some(floats_of(p, "w_c", ncd * ncd)?),
+        };
+        let master = crate::contact3d::surface::MasterSurface::new(facets, &x_ref[ns..], &planes, tol);
+        Ok(super::nts3::Nts3 {
+            ns,
+            nm,
+            slave_fixed: indices_of(p, "slave_fixed", Some(ns), 2)?.into_iter().map(|x| x == 1).collect(),
+            master,
+            phi_c: floats_of(p, "phi_c", ncd * r_u)?,
+            a_terms: split(floats_of(p, "a_terms", terms * ncd)?, terms),
+            supp,
+            w_c,
+            x_ref,
+        })
+    }
+
     /// Components of the parameter the model is affine in (its lift's terms minus one).
     pub fn parameter_dim(&self) -> usize {
         let terms = match &self.surf {
+            SurfaceData::Nts3(d) => d.a_terms.len(),
             SurfaceData::Fixed { cu0, .. } => cu0.len(),
             SurfaceData::Nts { a_terms, .. } => a_terms.len(),
         };

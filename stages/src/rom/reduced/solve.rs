@@ -119,7 +119,7 @@ impl ReducedModel {
         }
         let tol = p.gap_tol * scale;
         let max_steps = 10 * (ru + self.r_l) + 10;
-        let repairs = matches!(self.surf, SurfaceData::Nts { .. });
+        let repairs = matches!(self.surf, SurfaceData::Nts { .. } | SurfaceData::Nts3(_));
         w.seen.clear();
         w.seen.push(w.lin.pairing_hash());
         let (mut steps, mut smooth, mut last_du, mut probed) = (0, false, 0.0f64, false);

@@ -47,6 +47,8 @@ pub(super) enum SurfaceData {
         /// Compliance on the contact dofs (row-major `n_cd^2`), for the indicator.
         w_c: Vec<f64>,
     },
+    /// Type-2 in 3-D: node-to-surface rows ([`super::nts3`]).
+    Nts3(Box<super::nts3::Nts3>),
 }
 
 /// Directions of `û` along which [`ReducedModel::with_sampled_surface`] matches the

@@ -174,7 +174,7 @@ fn sample(
     sets: bool,
     mut prepare: impl FnMut(&mut ReducedModel, &[f64]),
 ) -> WarmStarts {
-    let repairs = matches!(model.surf, SurfaceData::Nts { .. });
+    let repairs = matches!(model.surf, SurfaceData::Nts { .. } | SurfaceData::Nts3(_));
     let n = points.len();
     let take = n.min(WARM_START_SAMPLES);
     let mut lib = WarmStarts { dim: points[0].len(), ..WarmStarts::default() };

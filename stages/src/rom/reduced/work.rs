@@ -62,6 +62,22 @@ impl RomWork {
             self.lin.g_mu.resize(rl, 0.0);
             affine_into(ghat, mu, &mut self.lin.g_mu);
         }
+        if let SurfaceData::Nts3(d) = &m.surf {
+            let ncd = 3 * d.x_ref.len();
+            let l = &mut self.lin;
+            l.base.resize(ncd, 0.0);
+            affine_into(&d.a_terms, mu, &mut l.base);
+            for (cd, b) in l.base.iter_mut().enumerate() {
+                *b += d.x_ref[cd / 3][cd % 3];
+            }
+            l.xc.clear();
+            l.xc.resize(ncd, f64::NAN);
+            l.pairs3.clear();
+            l.pairs3.resize(d.ns, crate::contact3d::surface::Pair3::UNPAIRED);
+            l.ps_of.clear();
+            l.ps_of.resize(d.ns, usize::MAX);
+            l.fresh = true;
+        }
         if let SurfaceData::Nts { ns, nm, x_ref, a_terms, .. } = &m.surf {
             let ncd = 2 * x_ref.len();
             let l = &mut self.lin;

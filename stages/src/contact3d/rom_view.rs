@@ -1,0 +1,144 @@
+//! The 3-D two-body model as a [`ContactOperator`] for the online reduced solve (scenes
+//! hertz3d and ironing3d), as [`crate::contact`]'s `rom_view` is in 2-D. Type-2: the pairing
+//! is recomputed at every linearisation with the solver's own rule ([`super::surface`]), which
+//! is stateless in 3-D (no vertex ties), so the operator's linearisation at a snapshot is the
+//! solver's.
+//!
+//! - dofs: all displacement dofs of both bodies, `(u_x, u_y, u_z)` per node;
+//! - dual field: one pressure per slave node, nodal force = pressure × tributary area (the
+//!   conversion [`Factored3d::solve`] uses);
+//! - lift `u0(mu)`: the contact-free solution, `u_D(mu)` on the Dirichlet dofs and the factor's
+//!   responses on the free ones, bit for bit what the solver adds its contact correction to;
+//! - `stiffness_mul`: the sparse `K` with the Dirichlet rows zeroed;
+//! - the contact compliance `W = E_c^T K_FF^{-1} E_c` is the solver's Delassus operator on the
+//!   contact dofs (slaves, then masters);
+//! - the primal norm is H1 ([`crate::solid::h1`]).
+
+use super::solve::Factored3d;
+use super::surface::{FacetGrid, Pair3};
+use crate::full_order::{Compliance, ContactOperator, Linearized, Surface};
+
+/// `(contact dof, coefficient)` of the gap row of slave `s` (of `ns`) paired by `p`:
+/// `g = n . (x_s - sum_a w_a x_a)` over the contact dofs `3 c + j`.
+pub fn gap_row(s: usize, ns: usize, p: &Pair3) -> impl Iterator<Item = (usize, f64)> + '_ {
+    let n = p.normal;
+    (0..3)
+        .map(move |j| (3 * s + j, n[j]))
+        .chain(p.support[..p.len].iter().flat_map(move |&(m, w)| (0..3).map(move |j| (3 * (ns + m) + j, -w * n[j]))))
+}
+
+impl Factored3d {
+    /// The global dof of each contact dof (three per contact node).
+    fn contact_dofs(&self) -> Vec<usize> {
+        self.contact_nodes().iter().flat_map(|&n| [3 * n, 3 * n + 1, 3 * n + 2]).collect()
+    }
+}
+
+impl ContactOperator for Factored3d {
+    fn n_dof(&self) -> usize {
+        self.model.n_dof()
+    }
+
+    fn n_contact(&self) -> usize {
+        self.model.slaves.len()
+    }
+
+    fn weights(&self) -> &[f64] {
+        &self.model.area
+    }
+
+    fn lift(&self, mu: &[f64]) -> Vec<f64> {
+        let m = &self.model;
+        let mut u: Vec<f64> = (0..m.n_dof()).map(|d| crate::mu::affine(&m.u_d[0], &m.u_d[1..], mu, d)).collect();
+        for (k, &d) in m.split.free().iter().enumerate() {
+            u[d] = crate::mu::affine(&self.resp[0], &self.resp[1..], mu, k);
+        }
+        u
+    }
+
+    fn lift_terms(&self) -> Vec<Vec<f64>> {
+        let m = &self.model;
+        (0..self.resp.len())
+            .map(|k| {
+                let mut t = m.u_d[k].clone();
+                for (fi, &d) in m.split.free().iter().enumerate() {
+                    t[d] = self.resp[k][fi];
+                }
+                t
+            })
+            .collect()
+    }
+
+    fn stiffness_mul(&self, x: &[f64], y: &mut [f64]) {
+        self.model.k.matvec_into(x, y);
+        for &d in self.model.split.fixed() {
+            y[d] = 0.0;
+        }
+    }
+
+    /// The solver's pairing of every non-fixed slave at `u` (the rule is stateless in 3-D).
+    fn linearize(&self, _mu: &[f64], u: &[f64], out: &mut Linearized) {
+        let m = &self.model;
+        assert_eq!(u.len(), m.n_dof(), "displacement length");
+        let ns = m.slaves.len();
+        let cnodes = self.contact_nodes();
+        let x = |c: usize| {
+            let n = cnodes[c];
+            let r = m.mesh.nodes[n];
+            [r[0] + u[3 * n], r[1] + u[3 * n + 1], r[2] + u[3 * n + 2]]
+        };
+        let xm: Vec<[f64; 3]> = (ns..cnodes.len()).map(x).collect();
+        let mut grid = FacetGrid::new(&m.surface, &xm);
+        out.clear();
+        out.start.push(0);
+        for s in 0..ns {
+            let xs = x(s);
+            let p = if self.slave_fixed[s] || xs.iter().any(|v| !v.is_finite()) {
+                Pair3::UNPAIRED
+            } else {
+                grid.pair(&m.surface, &xm, xs)
+            };
+            let mut gap0 = 0.0;
+            if p.is_paired() {
+                for (cd, c) in gap_row(s, ns, &p) {
+                    let n = cnodes[cd / 3];
+                    out.dofs.push(3 * n + cd % 3);
+                    out.coeffs.push(c);
+                    gap0 += c * m.mesh.nodes[n][cd % 3];
+                }
+            }
+            out.start.push(out.dofs.len());
+            out.gap0.push(gap0);
+            out.paired.push(p.is_paired());
+            out.pairing.push(if p.is_paired() { p.feature.id() } else { u64::MAX });
+        }
+    }
+
+    fn primal_norm_sq(&self, u: &[f64]) -> f64 {
+        let mut hu = vec![0.0; u.len()];
+        self.primal_gram_mul(u, &mut hu);
+        u.iter().zip(&hu).map(|(a, b)| a * b).sum()
+    }
+
+    fn primal_gram_mul(&self, u: &[f64], out: &mut [f64]) {
+        self.h1.get_or_init(|| crate::solid::h1::h1_gram(&self.model.mesh)).matvec_into(u, out)
+    }
+
+    fn surface(&self) -> Surface {
+        let m = &self.model;
+        let (planes, plane_tol) = m.surface.planes();
+        Surface::NodeToSurface {
+            n_slaves: m.slaves.len(),
+            x_ref: self.x_ref.clone(),
+            dofs: self.contact_dofs(),
+            slave_fixed: self.slave_fixed.clone(),
+            facets: m.surface.facets().to_vec(),
+            planes: planes.to_vec(),
+            plane_tol,
+        }
+    }
+
+    fn contact_compliance(&self) -> Compliance {
+        Compliance { dofs: self.contact_dofs(), w: self.w.clone() }
+    }
+}
