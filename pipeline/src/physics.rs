@@ -37,13 +37,9 @@ pub enum Physics {
     Rope(Rope, RopeSolveParams),
     /// A 2-D two-body contact problem (hertz, ironing), factored once.
     Contact(Box<FactoredModel>, ContactSolveParams),
-    /// A 3-D two-body contact problem (hertz3d, ironing3d), factored once. It has no operator
-    /// for the online reduced solve ([`Physics::operator`]).
+    /// A 3-D two-body contact problem (hertz3d, ironing3d), factored once.
     Contact3d(Box<Factored3d>, ContactSolveParams),
 }
-
-/// Why a 3-D model has no [`Physics::operator`].
-pub(crate) const NO_ONLINE_OPERATOR: &str = "a 3-D model has no operator for the online reduced solve";
 
 impl std::fmt::Debug for Physics {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -146,28 +142,13 @@ impl Physics {
         }
     }
 
-    /// The model as the online reduced solve sees it; `None` for a 3-D model (the online
-    /// solve handles node-to-segment contact only, and a 3-D scene's plan has no online stage).
-    pub fn operator(&self) -> Option<&dyn ContactOperator> {
+    /// The model as the online reduced solve sees it.
+    pub fn operator(&self) -> &dyn ContactOperator {
         match self {
-            Physics::Rope(r, _) => Some(r),
-            Physics::Contact(f, _) => Some(f.as_ref()),
-            Physics::Contact3d(..) => None,
+            Physics::Rope(r, _) => r,
+            Physics::Contact(f, _) => f.as_ref(),
+            Physics::Contact3d(f, _) => f.as_ref(),
         }
-    }
-
-    /// [`Self::operator`] for a stage that exists only in a plan with online stages: a 3-D
-    /// model here is a planning error, reported as the stage's numerical failure.
-    pub fn online_operator(
-        &self,
-        stage: &'static str,
-        scene: &str,
-    ) -> Result<&dyn ContactOperator, crate::error::CromError> {
-        self.operator().ok_or_else(|| crate::error::CromError::Numerical {
-            stage,
-            scene: scene.to_string(),
-            message: NO_ONLINE_OPERATOR.into(),
-        })
     }
 
     /// Rows of the primal and dual fields (n_dof, n_contact).

@@ -87,8 +87,7 @@ pub fn estimate(scene: &SceneConfig) -> Vec<Term> {
         Term { field: contact_field, what: "Delassus operator on the contact dofs", bytes: 8.0 * c * c },
         Term { field: contact_field, what: "contact solver work (2 threads)", bytes: 2.0 * 8.0 * (c * s + s * s) },
     ];
-    // a 3-D scene has no online stage
-    let online = if scene.model.is_3d() { 0.0 } else { 8.0 * n * (n_train + n_test + 3.0 * n_train) };
+    let online = 8.0 * n * (n_train + n_test + 3.0 * n_train);
     let nested = 8.0 * n * (2f64.powf(level) + 2f64.powf(level - 1.0) + 2.0);
     let (metrics_what, metrics) = metrics_term(n, c, n_train);
     let train = train_field(scene);

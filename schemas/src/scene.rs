@@ -114,8 +114,7 @@ impl Model {
         }
     }
 
-    /// Whether the model is three-dimensional (hexahedra, node-to-surface contact). Its study
-    /// has no online stages yet: the online reduced solve handles node-to-segment contact only.
+    /// Whether the model is three-dimensional (hexahedra, node-to-surface contact).
     pub fn is_3d(&self) -> bool {
         matches!(self, Model::Hertz3d(_) | Model::Ironing3d(_))
     }

@@ -775,17 +775,16 @@ fn check_planes(c: &Checker<'_>, at: &str, planes: &[crate::scene::PlaneSpec]) -
     Ok(())
 }
 
-/// A 3-D scene: no online stage yet (the online reduced solve handles node-to-segment contact),
-/// so nothing that asks for one; and no registered approximation (its maps act along a contact
-/// curve, a 3-D scene's contact is an area).
+/// A 3-D scene: no reduced quadrature of the contact constraints (it fits node-to-segment rows;
+/// the 3-D online solve sums over every supported slave), and no registered approximation (its
+/// maps act along a contact curve, a 3-D scene's contact is an area).
 fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError> {
-    let why = "the online reduced solve handles node-to-segment contact (2-D) only; a 3-D scene's study stops before the online stages";
     if scene.study.contact_sampling.is_some() {
-        return Err(c.fail("study.contact_sampling", format!("is set, but {why}"), "remove study.contact_sampling"));
-    }
-    if scene.study.model_dual.is_some() || scene.study.model_ranks.is_some() {
-        let field = if scene.study.model_dual.is_some() { "study.model_dual" } else { "study.model_ranks" };
-        return Err(c.fail(field, format!("is set, but {why} (a stored model needs it)"), &format!("remove {field}")));
+        return Err(c.fail(
+            "study.contact_sampling",
+            "is set, but the reduced quadrature of the contact constraints is fitted to node-to-segment (2-D) rows; a 3-D model's online solve sums over every supported slave".into(),
+            "remove study.contact_sampling",
+        ));
     }
     if let Some(cmp) = &scene.comparison {
         if let Some(i) = cmp.approximations.iter().position(|a| matches!(a, ApproximationSpec::Registered { .. })) {

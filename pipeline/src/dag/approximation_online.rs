@@ -216,7 +216,7 @@ fn run(
         None => None,
     };
     let phys = physics.get()?;
-    let op = phys.online_operator("online-approximation", scene)?;
+    let op = phys.operator();
     // the reduced model on a primal basis, without a dual basis, and the test points' primal
     // references in its coordinates
     let primal_part = |phi: &ColMatrix| -> Result<(ReducedModel, PrimalErrors), CromError> {

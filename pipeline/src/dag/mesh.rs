@@ -78,7 +78,7 @@ pub(crate) fn run(
     ctx.single(ArtifactKind::MESH, "mesh", spec, |staging| {
         let phys = physics.get()?;
         let m = phys.mesh();
-        let condition = phys.operator().and_then(|op| op.stiffness_condition());
+        let condition = phys.operator().stiffness_condition();
         let path = staging.path(names::FILE);
         let f = H5Out::create(&path)?;
         f.attr_str("scene", scene)?;

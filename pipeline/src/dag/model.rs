@@ -278,7 +278,7 @@ impl StageDef for ModelStage {
                 None => (phi, settings.params()),
             };
             let phys = physics.get()?;
-            let op = phys.online_operator("model", &labels.scene)?;
+            let op = phys.operator();
             let (model, algorithm, dual_basis) = match &pick.source {
                 Source::Exact { algorithm, dual_basis } => {
                     let bfile = H5In::open(&store.dir(ArtifactKind::BASIS, basis).join(bnames::FILE))?;

@@ -73,7 +73,7 @@ pub(crate) fn translated_response_basis(
     let crate::physics::Physics::Contact(fm, _) = phys else {
         return Err("primal_translates needs a two-body contact scene".into());
     };
-    let op = phys.operator().ok_or("primal_translates needs a two-body contact scene")?;
+    let op = phys.operator();
     let (n, data) = (train.primal.rows, responses(op, train));
     let model = fm.model();
     let all = crom_stages::rom::translates::with_translates(model.mesh(), model.slave_nodes(), &data, shift)

@@ -157,9 +157,6 @@ pub fn external_skips(has_mesh: bool) -> &'static str {
 /// The one line an external scene with `test = []` prints about what it does not have.
 pub const NO_TEST: &str = "external scene with test = []: every column trains; the test error T(m) of the comparison and the test views need test points; skipped";
 
-/// The one line a 3-D scene's run prints about the stages it does not have.
-pub const SKIPS_3D: &str = "3-D scene: the online reduced solve, the trade-off, the online comparison and the stored model handle node-to-segment (2-D) contact only; skipped";
-
 /// The abscissae of an external scene's contact entries, for the registered approximations: the
 /// x of their mesh nodes (with a mesh), else the first coordinate of `coordinates`; or why there
 /// are none to use. The registration maps act along a contact curve parametrised by x, so the
@@ -387,14 +384,9 @@ impl Plan {
             let stage = GatherStage::plan(ArtifactKind::COMPARISON, ArtifactKind::APPROXIMATION, parts.clone());
             nodes.add("comparison", false, stage)
         });
-        let Source { sweeps, family, imported, mut skipped, .. } = source;
-        let (Some(mesh), Some(test), true) = (mesh.clone(), test.clone(), imported.is_empty() && !scene.model.is_3d())
-        else {
-            // no online stage: an external scene has no full-order operators ([`external_skips`]),
-            // and a 3-D scene's node-to-surface contact has no online solve yet ([`SKIPS_3D`])
-            if scene.model.is_3d() {
-                skipped.push(SKIPS_3D.to_string());
-            }
+        let Source { sweeps, family, imported, skipped, .. } = source;
+        let (Some(mesh), Some(test), true) = (mesh.clone(), test.clone(), imported.is_empty()) else {
+            // no online stage: an external scene has no full-order operators ([`external_skips`])
             let offline = Offline { mesh, train, basis, compactness, generalization, specificity };
             nodes.offline_report(scene, offline, [nested, comparison], &skipped);
             return Self { sweeps, family, nodes: nodes.0, imported, skipped };

@@ -214,7 +214,7 @@ fn measure(
     let theta_full = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
     let theta_trunc = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG_TRUNCATED, bnames::MODES))?;
     drop(bfile);
-    let op = phys.online_operator("rom", scene)?;
+    let op = phys.operator();
     let sweep = sweep_pairs(phi.cols, theta_full.cols, theta_trunc.cols);
     let queries = train_set.parameters.len() + test_set.parameters.len();
     let paper_pairs = sweep.iter().filter(|s| paper_pair(s, &sweep)).count();

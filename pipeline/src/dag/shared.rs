@@ -94,7 +94,7 @@ impl<'s> LazyPhysics<'s> {
                 return Ok(std::sync::Arc::clone(phi));
             }
         }
-        let op = self.get()?.operator().ok_or_else(|| fail(crate::physics::NO_ONLINE_OPERATOR.into()))?;
+        let op = self.get()?.operator();
         let phi = std::sync::Arc::new(online::response_basis(op, train).map_err(fail)?);
         self.responses = Some((set.clone(), std::sync::Arc::clone(&phi)));
         Ok(phi)
@@ -186,15 +186,11 @@ mod tests {
         let (a, b) = (Key("a".into()), Key("b".into()));
         let fail = |m: String| CromError::Numerical { stage: "rom", scene: "rope".into(), message: m };
         let first = physics.responses(&a, &one, fail).expect("basis");
-        let direct =
-            online::response_basis(physics.get().expect("rope").operator().expect("operator"), &one).expect("basis");
+        let direct = online::response_basis(physics.get().expect("rope").operator(), &one).expect("basis");
         assert_eq!(*first, direct);
         assert!(std::sync::Arc::ptr_eq(&first, &physics.responses(&a, &one, fail).expect("basis")), "not again");
         let other = physics.responses(&b, &two, fail).expect("basis");
         assert!(!std::sync::Arc::ptr_eq(&first, &other), "another set has its own");
-        assert_eq!(
-            *other,
-            online::response_basis(physics.get().expect("rope").operator().expect("operator"), &two).expect("basis")
-        );
+        assert_eq!(*other, online::response_basis(physics.get().expect("rope").operator(), &two).expect("basis"));
     }
 }

@@ -321,7 +321,7 @@ fn check(scene: &SceneConfig, loaded: &Loaded, rows: &mut [Row]) -> Result<(), C
         |message: String| CromError::Numerical { stage: "query --check", scene: scene.scene.name.clone(), message };
     let phys = Physics::build(scene).map_err(numerical)?;
     let rec = loaded.reconstruction("run `crom run SCENE` again")?;
-    let op = phys.online_operator("query --check", &scene.scene.name)?;
+    let op = phys.operator();
     if rec.phi.rows != op.n_dof() || rec.phi.cols != loaded.model.ranks().0 {
         return Err(CromError::artifact(
             loaded.dir.join(names::RECONSTRUCTION),

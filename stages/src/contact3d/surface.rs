@@ -276,6 +276,8 @@ pub struct FacetGrid {
     items: Vec<usize>,
     /// Mean facet extent (the tie tolerance's length).
     size: f64,
+    /// Each facet's `(x, y)` bounding box `[x_min, y_min, x_max, y_max]`.
+    boxes: Vec<[f64; 4]>,
     stamp: Vec<u32>,
     round: u32,
     /// The master nodes' normals at this configuration.
@@ -338,7 +340,20 @@ impl FacetGrid {
         }
         let nodal = surface.nodal_normals(xm);
         let (found, near) = (Vec::new(), Vec::new());
-        Self { origin: lo, cell, dims, start: count, items, size, stamp: vec![0; nf], round: 0, nodal, found, near }
+        Self {
+            origin: lo,
+            cell,
+            dims,
+            start: count,
+            items,
+            size,
+            boxes,
+            stamp: vec![0; nf],
+            round: 0,
+            nodal,
+            found,
+            near,
+        }
     }
 
     /// The pair of the slave at `p` (see the module docs).
@@ -352,7 +367,19 @@ impl FacetGrid {
             self.round = 1;
         }
         self.found.clear();
-        let mut r = self.cell;
+        // Start from the square that reaches the grid: every facet is at least the horizontal
+        // distance to the grid's box away, so a smaller square finds nothing (the search's
+        // answer does not depend on where it starts, only on stopping once `best <= r`).
+        let hi = [self.origin[0] + self.cell * self.dims[0] as f64, self.origin[1] + self.cell * self.dims[1] as f64];
+        let (gx, gy) =
+            ((self.origin[0] - p[0]).max(p[0] - hi[0]).max(0.0), (self.origin[1] - p[1]).max(p[1] - hi[1]).max(0.0));
+        let mut r = self.cell + (gx * gx + gy * gy).sqrt();
+        // The closest point of a facet is no nearer than its (x, y) bounding box: a facet whose
+        // box lies beyond the tie tolerance of the best distance so far cannot be the closest
+        // nor tie with it, and is not measured (the same answer, bit for bit: the best distance
+        // and the tie set are those of the measured facets either way).
+        let mut best_so_far = f64::INFINITY;
+        let tie_of = |best: f64, size: f64| best * (1.0 + 1e-12) + 1e-14 * size;
         let cell_of =
             |x: f64, o: f64, d: usize, cell: f64| ((x - o) / cell).floor().clamp(0.0, (d - 1) as f64) as usize;
         let best = loop {
@@ -369,9 +396,18 @@ impl FacetGrid {
                     let c = j * self.dims[0] + i;
                     for &f in &self.items[self.start[c]..self.start[c + 1]] {
                         if self.stamp[f] != self.round {
+                            let b = self.boxes[f];
+                            let (dx, dy) =
+                                ((b[0] - p[0]).max(p[0] - b[2]).max(0.0), (b[1] - p[1]).max(p[1] - b[3]).max(0.0));
+                            if (dx * dx + dy * dy).sqrt() > tie_of(best_so_far, self.size) {
+                                // not marked: a later, smaller square may meet it again
+                                continue;
+                            }
                             self.stamp[f] = self.round;
                             let cl = facet::closest(&surface.corners(f, xm), p);
-                            self.found.push((cl.d2.sqrt(), f, cl));
+                            let d = cl.d2.sqrt();
+                            best_so_far = best_so_far.min(d);
+                            self.found.push((d, f, cl));
                         }
                     }
                 }
@@ -383,7 +419,7 @@ impl FacetGrid {
             }
             r *= 2.0;
         };
-        let tie = best * (1.0 + 1e-12) + 1e-14 * self.size;
+        let tie = tie_of(best, self.size);
         let (_, f, cl) = self.found.iter().filter(|x| x.0 <= tie).min_by_key(|x| x.1).copied().expect("a facet");
         // the normal projection onto the facets around the closest one, lowest index first
         self.near.clear();
