@@ -31,9 +31,10 @@ fn small_hertz3d(dir: &std::path::Path, edit: impl Fn(String) -> String) -> std:
 /// The whole study runs on a 3-D scene: the mesh holds hexahedra with three coordinates and
 /// three dofs per node, every snapshot converged, the metrics, the comparison, the online stage
 /// and the stored model are published, the views name hexahedra, and a second run finds
-/// everything stored. `crom query --check` on the stored model converges at points between the
-/// training points, with a pressure error below 10 % (four training points on a 6-element
-/// mesh: a regression bound, measured 0.3-2 %) and an answer of the full-order solve's sign.
+/// everything stored. `crom query --check` on the stored model converges at three points between
+/// the training points with a pressure error below 1e-3: on this 6-element mesh a handful of
+/// slaves carry the contact, and four training pressures nearly span it (measured at most 3e-8;
+/// the bound is a regression bound, the 3-D accuracy itself is measured in docs/results.md).
 #[test]
 fn a_3d_scene_runs_its_whole_study() {
     let dir = tempdir().expect("tempdir");
@@ -84,7 +85,7 @@ fn a_3d_scene_runs_its_whole_study() {
     for r in &rows {
         assert_eq!(r[col("outcome")], "converged", "{csv}");
         let e: f64 = r[col("dual_error")].parse().expect("dual_error");
-        assert!(e < 0.1, "{csv}");
+        assert!(e < 1e-3, "{csv}");
     }
 }
 
