@@ -278,6 +278,8 @@ pub struct FacetGrid {
     size: f64,
     /// Each facet's `(x, y)` bounding box `[x_min, y_min, x_max, y_max]`.
     boxes: Vec<[f64; 4]>,
+    /// Each facet's [`Cone`]: where a normal projection onto it can come from.
+    cones: Vec<Cone>,
     stamp: Vec<u32>,
     round: u32,
     /// The master nodes' normals at this configuration.
@@ -286,6 +288,8 @@ pub struct FacetGrid {
     /// the facets around the closest one.
     found: Vec<(f64, usize, Closest)>,
     near: Vec<usize>,
+    /// The facets of the current square by their boxes' horizontal distance.
+    boxed: Vec<(f64, usize)>,
 }
 
 impl FacetGrid {
@@ -339,6 +343,7 @@ impl FacetGrid {
             });
         }
         let nodal = surface.nodal_normals(xm);
+        let cones = (0..nf).map(|f| Cone::of(&surface.corners(f, xm), &surface.facets[f].map(|v| nodal[v]))).collect();
         let (found, near) = (Vec::new(), Vec::new());
         Self {
             origin: lo,
@@ -348,11 +353,13 @@ impl FacetGrid {
             items,
             size,
             boxes,
+            cones,
             stamp: vec![0; nf],
             round: 0,
             nodal,
             found,
             near,
+            boxed: Vec::new(),
         }
     }
 
@@ -391,26 +398,33 @@ impl FacetGrid {
                 cell_of(p[1] - r, self.origin[1], self.dims[1], self.cell),
                 cell_of(p[1] + r, self.origin[1], self.dims[1], self.cell),
             );
+            // the square's facets not met before, nearest box first; measured until the next
+            // box lies beyond the tie tolerance of the best distance (then so do the rest, now
+            // and in any later round, as the best only decreases)
+            self.boxed.clear();
             for j in j0..=j1 {
                 for i in i0..=i1 {
                     let c = j * self.dims[0] + i;
                     for &f in &self.items[self.start[c]..self.start[c + 1]] {
                         if self.stamp[f] != self.round {
+                            self.stamp[f] = self.round;
                             let b = self.boxes[f];
                             let (dx, dy) =
                                 ((b[0] - p[0]).max(p[0] - b[2]).max(0.0), (b[1] - p[1]).max(p[1] - b[3]).max(0.0));
-                            if (dx * dx + dy * dy).sqrt() > tie_of(best_so_far, self.size) {
-                                // not marked: a later, smaller square may meet it again
-                                continue;
-                            }
-                            self.stamp[f] = self.round;
-                            let cl = facet::closest(&surface.corners(f, xm), p);
-                            let d = cl.d2.sqrt();
-                            best_so_far = best_so_far.min(d);
-                            self.found.push((d, f, cl));
+                            self.boxed.push(((dx * dx + dy * dy).sqrt(), f));
                         }
                     }
                 }
+            }
+            self.boxed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            for &(boxed, f) in &self.boxed {
+                if boxed > tie_of(best_so_far, self.size) {
+                    break;
+                }
+                let cl = facet::closest(&surface.corners(f, xm), p);
+                let d = cl.d2.sqrt();
+                best_so_far = best_so_far.min(d);
+                self.found.push((d, f, cl));
             }
             let best = self.found.iter().map(|x| x.0).fold(f64::INFINITY, f64::min);
             let everything = i0 == 0 && j0 == 0 && i1 == self.dims[0] - 1 && j1 == self.dims[1] - 1;
@@ -427,11 +441,61 @@ impl FacetGrid {
         self.near.sort_unstable();
         self.near.dedup();
         for &g in &self.near {
+            if !self.cones[g].may_project(p) {
+                // no point of the facet has `p` on its normal line (`project` would fail)
+                continue;
+            }
             if let Some(pair) = surface.project(g, p, xm, &self.nodal) {
                 return pair;
             }
         }
         surface.pair_of(f, &cl, p, xm, &self.nodal)
+    }
+}
+
+/// Where the normal projection onto a facet can come from: every point `p = x + g m` with `x`
+/// on the facet and `m = sum_a N_a n_a` its interpolated corner normals. The facet lies in the
+/// ball of radius `rho` about its corners' centroid `c`, and every `m` makes an angle of at most
+/// `theta` with the unit axis `nu` (the corners' mean normal; `cos theta = min_a n_a . nu`, as
+/// `m . nu >= min_a n_a . nu` and `|m| <= 1` for weights `N_a >= 0` summing to 1). So `p - x`
+/// lies in the double cone of half-angle `theta` about `nu`, and a point with
+/// `|(p - c)_perp| - rho > tan theta (|(p - c) . nu| + rho)` has no projection on the facet.
+/// The radius and the cosine carry a margin of 1e-6 for the projection's slack outside the square
+/// (`PROJECTION_SLACK`, where weights are down to -1e-10): the test only skips projections that
+/// would fail, it never changes a pair.
+#[derive(Debug, Clone, Copy)]
+struct Cone {
+    centre: [f64; 3],
+    rho: f64,
+    nu: [f64; 3],
+    /// `tan theta`, or infinity when the corners' normals span a half-space or more.
+    tan: f64,
+}
+
+impl Cone {
+    fn of(xf: &[[f64; 3]; 4], nf: &[[f64; 3]; 4]) -> Self {
+        let centre = std::array::from_fn(|k| 0.25 * (xf[0][k] + xf[1][k] + xf[2][k] + xf[3][k]));
+        let rho =
+            xf.iter().map(|x| facet::dot(facet::sub(*x, centre), facet::sub(*x, centre)).sqrt()).fold(0.0, f64::max);
+        let sum: [f64; 3] = std::array::from_fn(|k| nf[0][k] + nf[1][k] + nf[2][k] + nf[3][k]);
+        let len = facet::dot(sum, sum).sqrt();
+        let nu = if len > 0.0 { sum.map(|v| v / len) } else { [0.0; 3] };
+        // the bound needs unit corner normals (normalised averages; a degenerate one, none)
+        let units = nf.iter().all(|n| (facet::dot(*n, *n) - 1.0).abs() <= 1e-9);
+        let cos = nf.iter().map(|n| facet::dot(*n, nu)).fold(f64::INFINITY, f64::min) - 1e-6;
+        let tan = if units && cos > 0.0 && len > 0.0 { (1.0 - cos * cos).max(0.0).sqrt() / cos } else { f64::INFINITY };
+        Self { centre, rho: rho * (1.0 + 1e-6), nu, tan }
+    }
+
+    /// Whether a normal projection of `p` onto the facet may exist.
+    fn may_project(&self, p: [f64; 3]) -> bool {
+        if !self.tan.is_finite() {
+            return true;
+        }
+        let d = facet::sub(p, self.centre);
+        let along = facet::dot(d, self.nu);
+        let perp = (facet::dot(d, d) - along * along).max(0.0).sqrt();
+        perp - self.rho <= self.tan * (along.abs() + self.rho)
     }
 }
 
