@@ -203,16 +203,8 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
 
 /// A run's context on an open store.
 fn new_ctx<'a>(cli: &Cli, store: &'a Store, scene: &'a SceneConfig) -> dag::Ctx<'a> {
-    dag::Ctx {
-        store,
-        scene_name: scene.scene.name.clone(),
-        command: std::env::args().collect::<Vec<_>>().join(" "),
-        progress: Progress::new(cli.quiet),
-        records: Vec::new(),
-        warnings: scenes::warnings(scene),
-        points: dag::PointCounts::default(),
-        loaded: Default::default(),
-    }
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    dag::Ctx { warnings: scenes::warnings(scene), ..dag::Ctx::new(store, &scene.scene.name, command, cli.quiet) }
 }
 
 /// Load a scene file and refuse it, before anything is written, when its estimated memory need

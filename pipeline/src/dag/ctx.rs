@@ -85,6 +85,21 @@ pub struct Ctx<'a> {
 }
 
 impl<'a> Ctx<'a> {
+    /// A context on `store` for `scene_name`'s run with no warnings yet, recording `command`
+    /// in its manifests; `quiet`: no progress output.
+    pub fn new(store: &'a Store, scene_name: &str, command: String, quiet: bool) -> Self {
+        Ctx {
+            store,
+            scene_name: scene_name.to_string(),
+            command,
+            progress: Progress::new(quiet),
+            records: Vec::new(),
+            warnings: Vec::new(),
+            points: PointCounts::default(),
+            loaded: Default::default(),
+        }
+    }
+
     /// Look an artifact up; on a miss (or a quarantined corrupt one) compute it with `compute`,
     /// which writes its files into the staging directory and returns summary facts.
     pub(crate) fn cached(

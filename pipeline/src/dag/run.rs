@@ -239,22 +239,12 @@ fn join_beside<'p>(
 
 #[cfg(test)]
 mod tests {
-    use super::{run_scene, Ctx, PointCounts};
-    use crate::progress::Progress;
+    use super::{run_scene, Ctx};
     use crate::store::Store;
     use crom_schemas::SceneConfig;
 
     fn ctx<'a>(store: &'a Store, scene: &'a SceneConfig) -> Ctx<'a> {
-        Ctx {
-            store,
-            scene_name: scene.scene.name.clone(),
-            command: "test".into(),
-            progress: Progress::new(true),
-            records: Vec::new(),
-            warnings: Vec::new(),
-            points: PointCounts::default(),
-            loaded: Default::default(),
-        }
+        Ctx::new(store, &scene.scene.name, "test".into(), true)
     }
 
     /// A cold run of the rope reads the training set, the test set and the bases once each

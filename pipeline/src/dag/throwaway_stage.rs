@@ -76,8 +76,7 @@ impl StageDef for ThrowawayStage {
 mod tests {
     use super::*;
     use crate::dag::plan::Plan;
-    use crate::dag::{publish, run_scene, PointCounts};
-    use crate::progress::Progress;
+    use crate::dag::{publish, run_scene};
     use crate::status::{render_plan, View};
     use crate::store::{catalog, published, Store};
     use crom_schemas::SceneConfig;
@@ -104,16 +103,7 @@ mod tests {
         assert!(dry.lines().any(|l| l.contains("throwaway") && l.ends_with("would run")), "{dry}");
 
         let store = Store::open(dir.path()).expect("store");
-        let mut ctx = Ctx {
-            store: &store,
-            scene_name: scene.scene.name.clone(),
-            command: "test".into(),
-            progress: Progress::new(true),
-            records: Vec::new(),
-            warnings: Vec::new(),
-            points: PointCounts::default(),
-            loaded: Default::default(),
-        };
+        let mut ctx = Ctx::new(&store, &scene.scene.name, "test".into(), true);
         let out = super::super::run::execute(&mut ctx, &scene, &plan, true).expect("run");
         assert_eq!(out.key("throwaway"), Some(&node.key));
         // the plain study is the same study: the extra node changed no other key

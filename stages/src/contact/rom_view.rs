@@ -76,32 +76,15 @@ impl ContactOperator for FactoredModel {
 
     fn lift(&self, mu: &[f64]) -> Vec<f64> {
         // the same expression as the solver's recovery (solve.rs, `finish`) without contact
-        let m = &self.model;
-        let mut u = m.imposed_displacement(mu);
-        for (fi, &d) in m.split.free().iter().enumerate() {
-            u[d] = crate::mu::affine(&self.resp[0], &self.resp[1..], mu, fi);
-        }
-        u
+        self.model.split.contact_free(&self.model.u_d, &self.resp, mu)
     }
 
     fn lift_terms(&self) -> Vec<Vec<f64>> {
-        let m = &self.model;
-        (0..self.resp.len())
-            .map(|k| {
-                let mut t = m.u_d[k].clone();
-                for (fi, &d) in m.split.free().iter().enumerate() {
-                    t[d] = self.resp[k][fi];
-                }
-                t
-            })
-            .collect()
+        self.model.split.contact_free_terms(&self.model.u_d, &self.resp)
     }
 
     fn stiffness_mul(&self, x: &[f64], y: &mut [f64]) {
-        self.model.k.matvec_into(x, y);
-        for &d in self.model.split.fixed() {
-            y[d] = 0.0;
-        }
+        self.model.split.mul_zero_fixed(&self.model.k, x, y)
     }
 
     /// `K_FF` by products of `K` on free-dof vectors (zero on the Dirichlet dofs) and solves

@@ -93,6 +93,39 @@ impl DofSplit {
             .collect()
     }
 
+    /// The contact-free solution `u0(mu)` of affine Dirichlet data `u_d` (full-length terms,
+    /// zero at the free dofs) and the free dofs' responses `resp` to each term:
+    /// `u_D(mu)` on the Dirichlet dofs, `resp_0 + sum_k mu_k resp_{k+1}` on the free ones.
+    pub fn contact_free(&self, u_d: &[Vec<f64>], resp: &[Vec<f64>], mu: &[f64]) -> Vec<f64> {
+        let mut u: Vec<f64> = (0..self.n_dof()).map(|d| crate::mu::affine(&u_d[0], &u_d[1..], mu, d)).collect();
+        for (k, &d) in self.free.iter().enumerate() {
+            u[d] = crate::mu::affine(&resp[0], &resp[1..], mu, k);
+        }
+        u
+    }
+
+    /// The affine terms of [`Self::contact_free`], full length: `u_d[k]` with its free entries
+    /// replaced by `resp[k]`.
+    pub fn contact_free_terms(&self, u_d: &[Vec<f64>], resp: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        (0..resp.len())
+            .map(|k| {
+                let mut t = u_d[k].clone();
+                for (fi, &d) in self.free.iter().enumerate() {
+                    t[d] = resp[k][fi];
+                }
+                t
+            })
+            .collect()
+    }
+
+    /// `y = K x` with the Dirichlet rows zeroed.
+    pub fn mul_zero_fixed(&self, k: &CsrMatrix, x: &[f64], y: &mut [f64]) {
+        k.matvec_into(x, y);
+        for &d in &self.fixed {
+            y[d] = 0.0;
+        }
+    }
+
     /// `K_FF`'s lower triangle as faer's sparse matrix (the message of faer's error otherwise).
     pub fn free_block(&self, k: &CsrMatrix) -> Result<faer::sparse::SparseColMat<usize, f64>, String> {
         let nf = self.n_free();
