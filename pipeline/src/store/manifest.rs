@@ -61,17 +61,15 @@ pub fn hash_file(path: &Path) -> std::io::Result<(u64, String)> {
 }
 
 /// Every artifact manifest under the store root `root` (unverified; for listing): in every
-/// top-level directory but the column store, the published names and the hidden ones (staging,
-/// quarantine), the manifests of the artifact directories whose stage is that directory's name
-/// — the shipped kinds' in DAG order, then any other kind's by name.
+/// top-level directory but the published names and the hidden ones (staging, quarantine), the
+/// manifests of the artifact directories whose stage is that directory's name — the shipped
+/// kinds' in DAG order, then any other kind's by name (the column store's families have none).
 pub fn read_all(root: &Path) -> Vec<Manifest> {
     let mut out = Vec::new();
     let mut stages: Vec<String> = std::fs::read_dir(root)
         .map(|d| d.flatten().filter_map(|e| e.file_name().into_string().ok()).collect())
         .unwrap_or_default();
-    stages.retain(|s| {
-        !s.starts_with('.') && s != super::columns::COLUMNS_DIR && s != published::DIR && root.join(s).is_dir()
-    });
+    stages.retain(|s| !s.starts_with('.') && s != published::DIR && root.join(s).is_dir());
     stages.sort_by(|a, b| (ArtifactKind::order_of(a), a).cmp(&(ArtifactKind::order_of(b), b)));
     for stage in stages {
         let Ok(entries) = std::fs::read_dir(root.join(&stage)) else { continue };

@@ -199,7 +199,7 @@ impl ReducedModel {
                     supp: Vec::new(),
                     w_c,
                 };
-                d.supp = d.support(&by_node);
+                d.supp = d.support(&by_node.0);
                 SurfaceData::Nts3(Box::new(d))
             }
             Surface::NodeToSegment { n_slaves, x_ref, dofs, slave_fixed } => {
@@ -263,7 +263,7 @@ impl ReducedModel {
         }
         let (by_node, by_col) = csr(&theta, nc, r_l);
         let surf = match &self.surf {
-            SurfaceData::Nts3(d) => SurfaceData::Nts3(Box::new(d.leading(self.r_u, r_u, &by_node))),
+            SurfaceData::Nts3(d) => SurfaceData::Nts3(Box::new(d.leading(self.r_u, r_u, &by_node.0))),
             SurfaceData::Fixed { cphi, cu0, paired, chat, ghat, cwc } => SurfaceData::Fixed {
                 cphi: restride(cphi, nc),
                 cu0: cu0.clone(),

@@ -27,7 +27,7 @@ impl ReducedModel {
                 *ghat = vec![vec![0.0; r_l]; cu0.len()];
                 reduce_fixed(by_node, &self.weights, r_u, cphi, cu0, chat, ghat);
             }
-            SurfaceData::Nts3(d) => d.supp = d.support(by_node),
+            SurfaceData::Nts3(d) => d.supp = d.support(&by_node.0),
             SurfaceData::Nts { ns, slave_fixed, supp, quad, .. } => {
                 supp.clear();
                 supp.extend((0..*ns).filter(|&s| !slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]));

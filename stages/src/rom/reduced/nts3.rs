@@ -42,17 +42,18 @@ pub(super) struct Nts3 {
 pub(super) const MAX_W_C: usize = 1 << 22;
 
 impl Nts3 {
-    /// The slaves in the support of the dual basis `by_node` (CSR by node), not fixed.
-    pub(super) fn support(&self, by_node: &super::build::Compressed) -> Vec<usize> {
-        (0..self.ns).filter(|&s| !self.slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]).collect()
+    /// The slaves in the support of the dual basis whose CSR-by-node row starts are `starts`,
+    /// not fixed.
+    pub(super) fn support(&self, starts: &[usize]) -> Vec<usize> {
+        (0..self.ns).filter(|&s| !self.slave_fixed[s] && starts[s + 1] > starts[s]).collect()
     }
 
     /// `Psi_c` restricted to the leading `r` of its `r_u` columns.
-    pub(super) fn leading(&self, r_u: usize, r: usize, by_node: &super::build::Compressed) -> Self {
+    pub(super) fn leading(&self, r_u: usize, r: usize, starts: &[usize]) -> Self {
         let rows = self.phi_c.len() / r_u.max(1);
         let phi_c = (0..rows).flat_map(|i| self.phi_c[i * r_u..i * r_u + r].to_vec()).collect();
         let mut out = Self { phi_c, ..self.clone() };
-        out.supp = out.support(by_node);
+        out.supp = out.support(starts);
         out
     }
 }
