@@ -276,6 +276,13 @@ impl SceneConfig {
             };
             check_press(c, &field, deepest, i)?;
         }
+        if let Model::Ironing3d(i) = &self.model {
+            // the d_z axis's upper end, the deepest press of the study (a fixed d_z is checked
+            // with the model)
+            if let (None, Some(k)) = (i.d_z, p.axes.iter().position(|a| a.name == "d_z")) {
+                check_die_press(c, &format!("parameter.axes[{k}].max"), p.axes[k].max, i)?;
+            }
+        }
         Ok(())
     }
 }
@@ -721,8 +728,7 @@ fn check_ironing3d(c: &Checker<'_>, i: &Ironing3dSpec) -> Result<(), SceneError>
             "give the die a depth at most the block's",
         ));
     }
-    // the sole's rise at the die's edges above its lowest line
-    let rise = d.sole_radius - (d.sole_radius * d.sole_radius - 0.25 * d.width * d.width).max(0.0).sqrt();
+    let rise = die_rise(i);
     if d.height <= rise {
         return Err(c.fail(
             "model.ironing3d.die.height",
@@ -753,13 +759,28 @@ fn check_ironing3d(c: &Checker<'_>, i: &Ironing3dSpec) -> Result<(), SceneError>
     }
     if let Some(dz) = i.d_z {
         c.finite("model.ironing3d.d_z", dz)?;
-        if dz >= rise {
-            return Err(c.fail(
-                "model.ironing3d.d_z",
-                format!("is {dz}, not below the rise {rise:.4} of the die's sole: its edges, not its sole, would meet the block, and the contact model has only the sole"),
-                &format!("press less than {rise:.4}, or give the sole more rise (a smaller sole_radius or a wider die)"),
-            ));
-        }
+        check_die_press(c, "model.ironing3d.d_z", dz, i)?;
+    }
+    Ok(())
+}
+
+/// The rise of the die's cylindrical sole at its edges above its lowest line,
+/// `R - sqrt(R^2 - (w/2)^2)`.
+pub fn die_rise(i: &Ironing3dSpec) -> f64 {
+    let d = &i.die;
+    d.sole_radius - (d.sole_radius * d.sole_radius - 0.25 * d.width * d.width).max(0.0).sqrt()
+}
+
+/// A press `dz` (the field `field`: `d_z`, or the `d_z` axis's upper end) must stay below the
+/// die's rise ([`die_rise`]).
+fn check_die_press(c: &Checker<'_>, field: &str, dz: f64, i: &Ironing3dSpec) -> Result<(), SceneError> {
+    let rise = die_rise(i);
+    if dz.is_finite() && dz >= rise {
+        return Err(c.fail(
+            field,
+            format!("is {dz}, not below the rise {rise:.4} of the die's sole: its edges, not its sole, would meet the block, and the contact model has only the sole"),
+            &format!("press less than {rise:.4} (d_z), or give the sole more rise (a smaller model.ironing3d.die.sole_radius or a wider die)"),
+        ));
     }
     Ok(())
 }
@@ -1021,6 +1042,33 @@ mod tests {
         match SceneConfig::from_toml_str(&text, Path::new("i2.toml")) {
             Err(SceneError::Invalid { field, .. }) => assert_eq!(field, "parameter.axes[0].max"),
             other => panic!("d_y axis to 0.07: {other:?}"),
+        }
+    }
+
+    /// The same for the 3-D die (rise 0.0635 for the shipped sole, R = 2, w = 1) when `d_z` is
+    /// a parameter axis: its upper end is refused naming the axis, a shallower one passes.
+    #[test]
+    fn a_die_pressed_past_its_sole_by_the_d_z_axis_is_refused() {
+        let three_d = include_str!("../../data/scenes/ironing-3d.toml");
+        let parse = |max: &str| {
+            assert!(
+                three_d.contains("d_z = 0.04\n") && three_d.contains("train_level = 7\n"),
+                "ironing-3d.toml changed"
+            );
+            let text = three_d.replacen("d_z = 0.04\n", "", 1).replacen(
+                "train_level = 7\n",
+                &format!("train_level = 5\n\n[[parameter.axes]]\nname = \"d_z\"\ndescription = \"downward displacement of the die\"\nmin = 0.02\nmax = {max}\ntrain_level = 2\n"),
+                1,
+            );
+            SceneConfig::from_toml_str(&text, Path::new("i3.toml"))
+        };
+        assert!(parse("0.06").is_ok(), "{:?}", parse("0.06"));
+        match parse("0.07") {
+            Err(SceneError::Invalid { field, problem, .. }) => {
+                assert_eq!(field, "parameter.axes[0].max");
+                assert!(problem.contains("0.0635"), "{problem}");
+            }
+            other => panic!("d_z axis to 0.07: {other:?}"),
         }
     }
 
