@@ -283,11 +283,6 @@ impl ContactModel {
     pub fn n_params(&self) -> usize {
         self.u_d.len() - 1
     }
-    /// Imposed displacement at parameter `mu` (`n_params` components), full length (zero at
-    /// free dofs).
-    pub fn imposed_displacement(&self, mu: &[f64]) -> Vec<f64> {
-        (0..self.n_dof()).map(|i| crate::mu::affine(&self.u_d[0], &self.u_d[1..], mu, i)).collect()
-    }
     /// Resultant `sum_n (K u)_n` over `nodes`: for Dirichlet nodes this is the reaction force
     /// the support exerts on the body.
     pub fn resultant(&self, u: &[f64], nodes: &[usize]) -> [f64; 2] {

@@ -550,9 +550,9 @@ impl FactoredModel {
             }
         }
         self.solve_free_in_place(&mut rhs);
-        let mut u = m.imposed_displacement(mu);
+        let mut u = m.split.contact_free(&m.u_d, &self.resp, mu);
         for (fi, &d) in m.split.free().iter().enumerate() {
-            u[d] = affine(&self.resp[0], &self.resp[1..], mu, fi) + rhs[fi];
+            u[d] += rhs[fi];
         }
         // gaps of the final pairing from the recovered displacement (contact-dof positions)
         let xc: Vec<f64> =

@@ -18,15 +18,6 @@ use super::solve::Factored3d;
 use super::surface::{FacetGrid, Pair3};
 use crate::full_order::{Compliance, ContactOperator, Linearized, Surface};
 
-/// `(contact dof, coefficient)` of the gap row of slave `s` (of `ns`) paired by `p`:
-/// `g = n . (x_s - sum_a w_a x_a)` over the contact dofs `3 c + j`.
-pub fn gap_row(s: usize, ns: usize, p: &Pair3) -> impl Iterator<Item = (usize, f64)> + '_ {
-    let n = p.normal;
-    (0..3)
-        .map(move |j| (3 * s + j, n[j]))
-        .chain(p.support[..p.len].iter().flat_map(move |&(m, w)| (0..3).map(move |j| (3 * (ns + m) + j, -w * n[j]))))
-}
-
 impl Factored3d {
     /// The global dof of each contact dof (three per contact node).
     fn contact_dofs(&self) -> Vec<usize> {
@@ -83,7 +74,7 @@ impl ContactOperator for Factored3d {
             };
             let mut gap0 = 0.0;
             if p.is_paired() {
-                for (cd, c) in gap_row(s, ns, &p) {
+                for (cd, c) in p.row(s, ns) {
                     let n = cnodes[cd / 3];
                     out.dofs.push(3 * n + cd % 3);
                     out.coeffs.push(c);

@@ -100,14 +100,7 @@ impl Rows {
                 continue;
             }
             rows.slave.push(s);
-            for c in 0..3 {
-                rows.entries.push((3 * s + c, p.normal[c]));
-            }
-            for &(m, w) in &p.support[..p.len] {
-                for c in 0..3 {
-                    rows.entries.push((3 * (ns + m) + c, -w * p.normal[c]));
-                }
-            }
+            rows.entries.extend(p.row(s, ns));
             rows.start.push(rows.entries.len());
         }
         rows
@@ -310,9 +303,9 @@ impl Factored3d {
         let nf = split.n_free();
         let mut b: Vec<f64> = split.free().iter().map(|&d| f[d]).collect();
         self.llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut b, nf, 1));
-        let mut u: Vec<f64> = (0..m.n_dof()).map(|d| affine(&m.u_d[0], &m.u_d[1..], mu, d)).collect();
+        let mut u = split.contact_free(&m.u_d, &self.resp, mu);
         for (k, &d) in split.free().iter().enumerate() {
-            u[d] = affine(&self.resp[0], &self.resp[1..], mu, k) + b[k];
+            u[d] += b[k];
         }
         // backward error of K u = f_c on the free dofs (with the lift's loads: f = 0 there)
         let ku = m.k.matvec(&u);

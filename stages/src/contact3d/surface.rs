@@ -108,6 +108,15 @@ impl Pair3 {
         }
     }
 
+    /// `(contact dof, coefficient)` of the gap row of slave `s` (of `ns`) paired by this pair:
+    /// `g = n . (x_s - sum_a w_a x_a)` over the contact dofs `3 c + j` (slaves, then masters).
+    pub fn row(&self, s: usize, ns: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let n = self.normal;
+        (0..3).map(move |j| (3 * s + j, n[j])).chain(
+            self.support[..self.len].iter().flat_map(move |&(m, w)| (0..3).map(move |j| (3 * (ns + m) + j, -w * n[j]))),
+        )
+    }
+
     /// No pair: the slave is free of contact.
     pub const UNPAIRED: Pair3 =
         Pair3 { feature: Feature::Free, support: [(0, 0.0); 4], len: 0, normal: [0.0; 3], gap: 0.0 };

@@ -2,8 +2,8 @@
 //! nodes and a master surface of bilinear facets, paired at each linearisation with the
 //! full-order solver's own rule (`crate::contact3d::surface`, stateless: no ties, no history).
 //!
-//! A linearisation places every contact node at `y`, `x_c = X_c + u0_c(mu) + Psi_c y` (three
-//! rows of `Psi_c` per node), indexes the masters' deformed positions in a facet grid, pairs
+//! A linearisation places the supported slaves and every master at `y`,
+//! `x_c = X_c + u0_c(mu) + Psi_c y` (three rows of `Psi_c` per node), indexes the masters' deformed positions in a facet grid, pairs
 //! each supported slave and builds its gap row `g = n . (x_s - sum_a w_a x_a)` with the pair's
 //! normal and weights frozen: `C Psi` is the row combined with `Psi_c`, the constant part the
 //! row applied to `X_c + u0_c(mu)`. Everything after (the rows summed under the dual basis, the
@@ -13,7 +13,6 @@
 //! search of every supported slave per linearisation, `O((n_s + n_m) r_u)` for the positions.
 
 use super::{ReducedModel, RomWork};
-use crate::contact3d::rom_view::gap_row;
 use crate::contact3d::surface::{FacetGrid, MasterSurface, Pair3};
 use crate::rom::la::dot;
 
@@ -59,14 +58,16 @@ impl Nts3 {
 }
 
 impl ReducedModel {
-    /// Positions of every contact node at `w.u_hat` into `w.lin.xc` (3 per node) and the
-    /// masters' into `w.lin.xm3`.
-    fn place3(&self, d: &Nts3, w: &mut RomWork) {
+    /// Positions at `w.u_hat` of the slaves `slaves` and of every master into `w.lin.xc` (3 per
+    /// node), and the masters' into `w.lin.xm3`.
+    fn place3(&self, d: &Nts3, w: &mut RomWork, slaves: impl Iterator<Item = usize>) {
         let (ru, l) = (self.r_u, &mut w.lin);
         let zero = w.u_hat.iter().all(|&v| v == 0.0);
-        for (cd, x) in l.xc.iter_mut().enumerate() {
-            let m = if zero { 0.0 } else { dot(&d.phi_c[cd * ru..(cd + 1) * ru], &w.u_hat) };
-            *x = l.base[cd] + m;
+        for c in slaves.chain(d.ns..d.ns + d.nm) {
+            for cd in 3 * c..3 * c + 3 {
+                let m = if zero { 0.0 } else { dot(&d.phi_c[cd * ru..(cd + 1) * ru], &w.u_hat) };
+                l.xc[cd] = l.base[cd] + m;
+            }
         }
         l.xm3.clear();
         l.xm3.extend((d.ns..d.ns + d.nm).map(|c| [l.xc[3 * c], l.xc[3 * c + 1], l.xc[3 * c + 2]]));
@@ -85,7 +86,8 @@ impl ReducedModel {
     /// Type-2 in 3-D ([`Self::linearize_with`]): place every contact node, re-pair every
     /// supported slave, rebuild the gap rows if `assemble`; whether a pairing changed.
     pub(super) fn linearize3(&self, d: &Nts3, w: &mut RomWork, assemble: bool) -> bool {
-        self.place3(d, w);
+        // the supported slaves only: the others are neither paired nor in a row
+        self.place3(d, w, d.supp.iter().copied());
         let mut grid = FacetGrid::new(&d.master, &w.lin.xm3);
         let mut changed = false;
         for &s in &d.supp {
@@ -124,7 +126,7 @@ impl ReducedModel {
             let row = &mut l.cphi[at..at + ru];
             row.iter_mut().for_each(|v| *v = 0.0);
             let mut g0 = 0.0;
-            for (cd, c) in gap_row(s, d.ns, &p) {
+            for (cd, c) in p.row(s, d.ns) {
                 for (o, v) in row.iter_mut().zip(&d.phi_c[cd * ru..(cd + 1) * ru]) {
                     *o += c * v;
                 }
@@ -140,7 +142,7 @@ impl ReducedModel {
     /// `phit_f` and `F^T W F` (NaN without a stored compliance).
     pub(super) fn indicator3(&self, d: &Nts3, w: &mut RomWork, phit_f: &mut [f64]) -> (f64, f64, f64, f64, f64) {
         let ru = self.r_u;
-        self.place3(d, w);
+        self.place3(d, w, 0..d.ns);
         let mut grid = FacetGrid::new(&d.master, &w.lin.xm3);
         let ncd = w.lin.xc.len();
         let mut fc = std::mem::take(&mut w.lin.fc);
@@ -155,11 +157,11 @@ impl ReducedModel {
                 unpaired += f;
                 continue;
             }
-            let g: f64 = gap_row(s, d.ns, &p).map(|(cd, c)| c * w.lin.xc[cd]).sum();
+            let g: f64 = p.row(s, d.ns).map(|(cd, c)| c * w.lin.xc[cd]).sum();
             pen = pen.max(-g);
             comp += f * g.abs();
             if f != 0.0 {
-                for (cd, c) in gap_row(s, d.ns, &p) {
+                for (cd, c) in p.row(s, d.ns) {
                     fc[cd] += f * c;
                     for (o, v) in phit_f.iter_mut().zip(&d.phi_c[cd * ru..(cd + 1) * ru]) {
                         *o += f * c * v;
@@ -180,12 +182,12 @@ impl ReducedModel {
 
     /// [`Self::node_gaps`] in 3-D: the gap of every non-fixed slave paired at the answer.
     pub(super) fn node_gaps3(&self, d: &Nts3, w: &mut RomWork, out: &mut Vec<(usize, f64)>) {
-        self.place3(d, w);
+        self.place3(d, w, 0..d.ns);
         let mut grid = FacetGrid::new(&d.master, &w.lin.xm3);
         for s in (0..d.ns).filter(|&s| !d.slave_fixed[s]) {
             let p = Self::pair3(d, &mut grid, w, s);
             if p.is_paired() {
-                out.push((s, gap_row(s, d.ns, &p).map(|(cd, c)| c * w.lin.xc[cd]).sum()));
+                out.push((s, p.row(s, d.ns).map(|(cd, c)| c * w.lin.xc[cd]).sum()));
             }
         }
     }
