@@ -90,12 +90,13 @@ fn a_3d_scene_runs_its_whole_study() {
 }
 
 /// Bad 3-D scene files exit 2 naming the field, and nothing is written: a symmetry plane missing
-/// (the hemispheres free to slide along y), a registered approximation (its maps need a contact
-/// curve), a reduced quadrature of the contact constraints (fitted to 2-D rows).
+/// (the hemispheres free to slide along y), a registered neighbours basis (built on a contact
+/// curve), a stored model on a registered basis (measured offline only in 3-D), a reduced
+/// quadrature of the contact constraints (fitted to 2-D rows).
 #[test]
 fn bad_3d_scenes_are_refused_before_anything_is_written() {
     let dir = tempdir().expect("tempdir");
-    let cases: [(&str, Edit); 3] = [
+    let cases: [(&str, Edit); 4] = [
         (
             "model.hertz3d.symmetry",
             Box::new(|s: String| {
@@ -107,8 +108,18 @@ fn bad_3d_scenes_are_refused_before_anything_is_written() {
             Box::new(|s: String| {
                 s.replace(
                     "  { kind = \"dictionary\" },",
-                    "  { kind = \"dictionary\" },\n  { kind = \"registered\", map = \"moments\", basis = \"pod\" },",
+                    "  { kind = \"dictionary\" },\n  { kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"neighbours\" },",
                 )
+            }),
+        ),
+        (
+            "study.model_dual",
+            Box::new(|s: String| {
+                s.replace(
+                    "  { kind = \"dictionary\" },",
+                    "  { kind = \"dictionary\" },\n  { kind = \"registered\", map = \"moments\", basis = \"cpg\" },",
+                )
+                .replace("seed = 20235", "seed = 20235\nmodel_dual = \"registered-moments-cpg\"")
             }),
         ),
         (
@@ -126,4 +137,64 @@ fn bad_3d_scenes_are_refused_before_anything_is_written() {
         assert!(text(&out).contains(field) && text(&out).contains("fix:"), "{field}: {}", text(&out));
         assert!(!store.exists(), "{field}: the store was created");
     }
+}
+
+/// The shipped ironing-3d scene made small: 20 x 3 x 4 block elements (3 lines of 17 slaves
+/// across the travel), a 4 x 2 x 2 die, 9 training points.
+fn small_ironing3d(dir: &std::path::Path) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(repo().join("data/scenes/ironing-3d.toml")).expect("ironing-3d.toml");
+    let small = text
+        .replace("name = \"ironing-3d\"", "name = \"ironing-3d-small\"")
+        .replace("nx = 100\nny = 15\nnz = 20", "nx = 20\nny = 3\nnz = 4")
+        .replace("nx = 20\nny = 10\nnz = 10", "nx = 4\nny = 2\nnz = 2")
+        .replace("train_level = 7", "train_level = 3")
+        .replace("max_m = 32", "max_m = 4")
+        .replace("loo_folds = 16", "loo_folds = 4")
+        .replace("cells = [4, 16]", "cells = [2]")
+        .replace("specificity_samples = 1000", "specificity_samples = 50");
+    assert!(small.contains("nx = 20\nny = 3\nnz = 4") && small.contains("nx = 4\nny = 2\nnz = 2"), "{small}");
+    let path = dir.join("ironing-3d-small.toml");
+    std::fs::write(&path, small).expect("write scene");
+    path
+}
+
+/// A 3-D contact area registers through the pipeline: the shipped ironing-3d comparison (its
+/// registered entries included) runs on a small mesh, the registered approximations' curves are
+/// stored beside the others, the run says once per registered CPG entry why it has no online
+/// stage, and the registered POD on whole-node shifts beats the plain POD at every m of the test
+/// error (the die's pressure travels with `d_x` along every line of slaves, so the shift removes
+/// what plain modes spend their rank on).
+#[test]
+fn a_3d_contact_area_registers_in_the_comparison() {
+    let dir = tempdir().expect("tempdir");
+    let scene = small_ironing3d(dir.path());
+    let store = dir.path().join("store");
+    let out = crom(&store, &["run", scene.to_str().expect("utf-8")]);
+    assert!(out.status.success(), "{}", text(&out));
+    let log = text(&out);
+    for name in ["registered-translate-nodes-cpg", "registered-translate-linear-cpg"] {
+        let line = format!("approximation {name} online: {}", crom_pipeline::dag::plan::REGISTERED_3D_ONLINE);
+        assert_eq!(log.matches(&line).count(), 1, "{name}: {log}");
+    }
+    assert!(!log.contains("registered-translate-nodes-pod online"), "a POD has no online stage to skip: {log}");
+    let arts: Vec<_> = std::fs::read_dir(store.join("comparison")).expect("comparison").flatten().collect();
+    assert_eq!(arts.len(), 1);
+    let curves =
+        crom_pipeline::io::table::read_parquet(&arts[0].path().join(crom_schemas::artifact::comparison::CURVES))
+            .expect("curves");
+    let (Some(a), Some(metric), Some(m), Some(mean)) =
+        (curves.strs("approximation"), curves.strs("metric"), curves.u64s("m"), curves.f64s("mean"))
+    else {
+        panic!("comparison.parquet lacks a documented column");
+    };
+    let test = |name: &str| -> Vec<(u64, f64)> {
+        (0..a.len()).filter(|&i| a[i] == name && metric[i] == "test").map(|i| (m[i], mean[i])).collect()
+    };
+    let (pod, registered) = (test("pod"), test("registered-translate-nodes-pod"));
+    assert_eq!(pod.len(), 4, "m = 1..4: {pod:?}");
+    assert_eq!(registered.iter().map(|r| r.0).collect::<Vec<_>>(), pod.iter().map(|r| r.0).collect::<Vec<_>>());
+    for ((m, p), (_, r)) in pod.iter().zip(&registered) {
+        assert!(r < p, "m = {m}: registered {r} against POD {p}");
+    }
+    assert!(!test("registered-translate-linear-cpg").is_empty());
 }

@@ -797,8 +797,9 @@ fn check_planes(c: &Checker<'_>, at: &str, planes: &[crate::scene::PlaneSpec]) -
 }
 
 /// A 3-D scene: no reduced quadrature of the contact constraints (it fits node-to-segment rows;
-/// the 3-D online solve sums over every supported slave), and no registered approximation (its
-/// maps act along a contact curve, a 3-D scene's contact is an area).
+/// the 3-D online solve sums over every supported slave), and no registered neighbours basis
+/// (built on a contact curve). The other registered maps act along x on each line of the
+/// contact area, offline.
 fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError> {
     if scene.study.contact_sampling.is_some() {
         return Err(c.fail(
@@ -808,13 +809,37 @@ fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError
         ));
     }
     if let Some(cmp) = &scene.comparison {
-        if let Some(i) = cmp.approximations.iter().position(|a| matches!(a, ApproximationSpec::Registered { .. })) {
+        if let Some(i) = cmp
+            .approximations
+            .iter()
+            .position(|a| matches!(a, ApproximationSpec::Registered { basis: BasisSpec::Neighbours, .. }))
+        {
             return Err(c.fail(
                 &format!("comparison.approximations[{i}]"),
-                "is a registered approximation; its maps act along a contact curve parametrised by x, and a 3-D scene's contact is an area".into(),
-                "remove the registered entries from a 3-D scene's comparison",
+                "is a registered neighbours basis; its order and its online solve are built on a contact curve (2-D), and a 3-D scene's contact is an area".into(),
+                "use basis = \"pod\" or \"cpg\" for a 3-D scene's registered entries",
             ));
         }
+    }
+    if let Some(cmp) = &scene.comparison {
+        if let Some(i) = cmp
+            .approximations
+            .iter()
+            .position(|a| matches!(a, ApproximationSpec::Registered { primal_translates: Some(_), .. }))
+        {
+            return Err(c.fail(
+                &format!("comparison.approximations[{i}].primal_translates"),
+                "is set, but a 3-D scene's registered bases are measured offline only, and the translates serve the online solve".into(),
+                "remove primal_translates from a 3-D scene's registered entries",
+            ));
+        }
+    }
+    if let Some(dual) = scene.study.model_dual.as_deref().filter(|d| *d != MODEL_DUAL_CPG) {
+        return Err(c.fail(
+            "study.model_dual",
+            format!("is \"{dual}\", but a 3-D stored model's online solve has the study's CPG basis only (a registered basis is measured offline in 3-D)"),
+            &format!("use \"{MODEL_DUAL_CPG}\" or remove study.model_dual"),
+        ));
     }
     Ok(())
 }

@@ -60,13 +60,29 @@ fn every_shipped_scene_loads_and_matches_scenes_md() {
                 assert_eq!((i.die.nx, i.die.ny, i.die.nz), (20, 10, 10));
                 assert_eq!(cfg.parameter.train_points().len(), 129);
             }
+            (Model::Ironing3d(i), "ironing-3d-2d") => {
+                // docs/scenes.md#ironing-3d-2d: ironing-3d's mesh, d_z a parameter axis: 33 x 5
+                assert_eq!((i.block.nx, i.block.ny, i.block.nz), (100, 15, 20));
+                assert_eq!((i.d_z, cfg.parameter.names()), (None, vec!["d_x", "d_z"]));
+                assert_eq!(cfg.parameter.train_points().len(), 33 * 5);
+            }
             (m, n) => panic!("scene {n} has unexpected model {}", m.kind()),
         }
     }
     names.sort();
     assert_eq!(
         names,
-        ["hertz", "hertz-3d", "hertz-fine", "ironing-3d", "ironing-coarse", "ironing-fine", "ironing-fine-2d", "rope"]
+        [
+            "hertz",
+            "hertz-3d",
+            "hertz-fine",
+            "ironing-3d",
+            "ironing-3d-2d",
+            "ironing-coarse",
+            "ironing-fine",
+            "ironing-fine-2d",
+            "rope"
+        ]
     );
 }
 

@@ -65,6 +65,7 @@ fn main() {
         snapshots: MatRef::from_column_major_slice(&train_p, nc, train.len()),
         params: &params,
         surface: &x,
+        across: &[],
         ms: &ms,
     };
     let kind = MapKind::Translate { interpolation: Interpolation::Nodes };

@@ -20,7 +20,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::basis::Ticker;
-use super::comparison::{self, contact_x, item};
+use super::comparison::{self, contact_surface, item};
 use super::convert::view;
 use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
@@ -193,15 +193,21 @@ fn run(
     ctx.single(ArtifactKind::APPROXIMATION, "approximation", spec, |staging| {
         let set = loaded.level(store, train)?;
         let tset = test.map(|t| loaded.level(store, t)).transpose()?;
-        let surface = match surface {
-            SurfaceSource::Mesh(mesh) => contact_x(store, &mesh.key)?,
-            SurfaceSource::Given { x, .. } => x.clone(),
-            SurfaceSource::Absent => Vec::new(),
+        let (surface, across) = match surface {
+            SurfaceSource::Mesh(mesh) => contact_surface(store, &mesh.key)?,
+            SurfaceSource::Given { x, .. } => (x.clone(), Vec::new()),
+            SurfaceSource::Absent => (Vec::new(), Vec::new()),
         };
         let n_train = set.parameters.len();
         let ms = dual::m_grid(max_m.min(n_train));
         let folds = crom_schemas::scene::spaced_folds(loo_folds.min(n_train), n_train);
-        let training = Training { snapshots: view(&set.dual), params: &set.parameters, surface: &surface, ms: &ms };
+        let training = Training {
+            snapshots: view(&set.dual),
+            params: &set.parameters,
+            surface: &surface,
+            across: &across,
+            ms: &ms,
+        };
         // The nested levels' pressures and parameters (small: n_contact x (2^n + 1) each).
         let levels = nested.iter().map(|k| loaded.level(store, k)).collect::<Result<Vec<_>, _>>()?;
         let bar = Ticker::new(progress, &format!("approximation {}", item.name), folds.len() + 2);
@@ -254,8 +260,13 @@ fn run(
             for (n, pair) in levels.windows(2).enumerate() {
                 let (lo, hi) = (&pair[0], &pair[1]);
                 let lo_ms = dual::m_grid(max_m.min(lo.parameters.len()));
-                let lower =
-                    Training { snapshots: view(&lo.dual), params: &lo.parameters, surface: &surface, ms: &lo_ms };
+                let lower = Training {
+                    snapshots: view(&lo.dual),
+                    params: &lo.parameters,
+                    surface: &surface,
+                    across: &across,
+                    ms: &lo_ms,
+                };
                 // A level too small for the approach (a local basis with more cells than the
                 // level has points) has no H(n): no row, counted in the facts.
                 match study::nested_error(a, &lower, view(&hi.dual), &hi.parameters) {

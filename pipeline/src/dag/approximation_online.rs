@@ -269,8 +269,13 @@ fn run(
     } else {
         let surface = contact_x(ctx.store, mesh)?;
         let ms = dual::m_grid(settings.max_m.min(train_set.parameters.len()));
-        let training =
-            Training { snapshots: view(&train_set.dual), params: &train_set.parameters, surface: &surface, ms: &ms };
+        let training = Training {
+            snapshots: view(&train_set.dual),
+            params: &train_set.parameters,
+            surface: &surface,
+            across: &[],
+            ms: &ms,
+        };
         let model = dual::build(&item.approach, &training).map_err(|e| fail(e.to_string()))?;
         for m in ONLINE_MS.into_iter().filter(|&m| m <= model.size()) {
             // a basis that depends on the parameter: the queries start their re-pairing from the

@@ -92,10 +92,23 @@ fn approach_of(spec: &ApproximationSpec) -> Approach {
 
 /// The abscissa of each potential-contact node, in dual-field order, from the mesh artifact.
 pub(crate) fn contact_x(store: &Store, mesh: &Key) -> Result<Vec<f64>, CromError> {
+    Ok(contact_surface(store, mesh)?.0)
+}
+
+/// The abscissa of each potential-contact node and, on a 3-D mesh, its coordinate across the
+/// travel (y; empty in 2-D), in dual-field order, from the mesh artifact: the registration
+/// maps' surface.
+pub(crate) fn contact_surface(store: &Store, mesh: &Key) -> Result<(Vec<f64>, Vec<f64>), CromError> {
     let h5 = H5In::open(&store.dir(ArtifactKind::MESH, mesh).join(mnames::FILE))?;
     let nodes = h5.matrix(mnames::NODES)?;
     let contact = h5.vec_u64(mnames::CONTACT_NODES)?;
-    Ok(contact.iter().map(|&i| nodes.data[i as usize]).collect())
+    let x = contact.iter().map(|&i| nodes.data[i as usize]).collect();
+    let across = if nodes.cols == 3 {
+        contact.iter().map(|&i| nodes.data[nodes.rows + i as usize]).collect()
+    } else {
+        Vec::new()
+    };
+    Ok((x, across))
 }
 
 /// What determines a side-by-side artifact besides the approximations it gathers.

@@ -321,6 +321,7 @@ impl StageDef for ModelStage {
                         snapshots: view(&train_set.dual),
                         params: &train_set.parameters,
                         surface: &surface,
+                        across: &[],
                         ms: &ms,
                     };
                     let reg = Registered::build(&training, map, inner).map_err(|e| fail(e.to_string()))?;

@@ -123,7 +123,7 @@ mod tests {
         });
         let _ = rng.uniform();
         let ms = [1usize, 2];
-        let t = Training { snapshots: s.as_ref(), params: &params, surface: &[], ms: &ms };
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &[], across: &[], ms: &ms };
         let local = LocalBases::build(&t, 2, 0.0).expect("build");
         assert_eq!(local.cell_of(&[1.0]), 0);
         assert_eq!(local.cell_of(&[6.0]), 1);

@@ -150,6 +150,10 @@ pub struct Training<'a> {
     /// Abscissa `x` of each slave node in the reference configuration, in dual-field order
     /// (used by the registration maps).
     pub surface: &'a [f64],
+    /// Coordinate across the travel of each slave node (a 3-D contact area: y), in dual-field
+    /// order; empty for a contact curve. The registration maps act along x on each line of
+    /// equal coordinate.
+    pub across: &'a [f64],
     /// Basis sizes the approximation is asked for, ascending (the curves' m grid).
     pub ms: &'a [usize],
 }
@@ -327,7 +331,7 @@ mod tests {
         let params: Vec<Vec<f64>> = (0..count).map(|j| vec![j as f64]).collect();
         let s = Mat::from_fn(n, count, |i, j| (4.0 - (i as f64 - 10.0 - j as f64).powi(2)).max(0.0));
         let ms = [1, 2, 3];
-        let training = Training { snapshots: s.as_ref(), params: &params, surface: &surface, ms: &ms };
+        let training = Training { snapshots: s.as_ref(), params: &params, surface: &surface, across: &[], ms: &ms };
         for a in all_approaches() {
             let built = build(&a, &training).expect("build");
             assert_eq!(a.has_cone_basis(), built.cone_basis(&params[3], 2).is_some(), "{}", a.name());

@@ -132,57 +132,105 @@ fn levels(points: &[&(Vec<f64>, f64, f64)], mu: &[f64], dims: usize) -> (f64, f6
 /// coordinates from a structured mesh agree to round-off).
 const UNIFORM_REL: f64 = 1e-9;
 
-/// The surface's nodes sorted by abscissa.
+/// Two slave nodes lie on one line of a contact area when their coordinates across the travel
+/// differ by at most this fraction of the across extent (a structured mesh repeats a row's
+/// coordinate to round-off).
+const LINE_REL: f64 = 1e-9;
+
+/// The surface's nodes, line by line (a contact curve is one line; a contact area, the lines of
+/// equal coordinate across the travel), each line sorted by abscissa.
 #[derive(Debug, Clone)]
 struct Surface {
-    /// Node order by increasing x.
+    /// Node order: by line, then by increasing x.
     order: Vec<usize>,
-    /// Sorted abscissae.
+    /// Abscissae in that order.
     x: Vec<f64>,
-    /// Tributary widths (sorted order).
+    /// Tributary widths along the line (same order).
     w: Vec<f64>,
+    /// Where each line starts in that order, and the end (`lines + 1` entries).
+    starts: Vec<usize>,
 }
 
 impl Surface {
-    fn new(x: &[f64]) -> Self {
-        let mut order: Vec<usize> = (0..x.len()).collect();
-        order.sort_by(|&a, &b| x[a].total_cmp(&x[b]));
+    /// `x`: each node's abscissa; `across`: each node's coordinate across the travel, or empty
+    /// for a contact curve (one line).
+    fn new(x: &[f64], across: &[f64]) -> Self {
+        let n = x.len();
+        // the line of each node: distinct across-coordinates (to LINE_REL of their extent)
+        let mut line = vec![0usize; n];
+        if across.len() == n && n > 0 {
+            let mut by: Vec<usize> = (0..n).collect();
+            by.sort_by(|&a, &b| across[a].total_cmp(&across[b]));
+            let extent = across[by[n - 1]] - across[by[0]];
+            let tol = crate::float_cmp::Tol { abs: LINE_REL * extent.abs(), rel: 0.0 };
+            let mut l = 0;
+            for k in 1..n {
+                if !crate::float_cmp::close(across[by[k - 1]], across[by[k]], tol) {
+                    l += 1;
+                }
+                line[by[k]] = l;
+            }
+        }
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| line[a].cmp(&line[b]).then(x[a].total_cmp(&x[b])));
         let xs: Vec<f64> = order.iter().map(|&i| x[i]).collect();
-        let n = xs.len();
-        let w = (0..n)
-            .map(|i| {
-                let lo = if i > 0 { xs[i - 1] } else { xs[i] };
-                let hi = if i + 1 < n { xs[i + 1] } else { xs[i] };
-                0.5 * (hi - lo)
-            })
-            .collect();
-        Self { order, x: xs, w }
+        let mut starts = vec![0];
+        starts.extend((1..n).filter(|&k| line[order[k]] != line[order[k - 1]]));
+        starts.push(n);
+        let mut w = vec![0.0; n];
+        for seg in starts.windows(2) {
+            let xl = &xs[seg[0]..seg[1]];
+            let m = xl.len();
+            for (i, wi) in w[seg[0]..seg[1]].iter_mut().enumerate() {
+                let lo = if i > 0 { xl[i - 1] } else { xl[i] };
+                let hi = if i + 1 < m { xl[i + 1] } else { xl[i] };
+                *wi = 0.5 * (hi - lo);
+            }
+        }
+        Self { order, x: xs, w, starts }
     }
 
-    /// Smallest positive spacing.
+    /// Number of lines.
+    fn lines(&self) -> usize {
+        self.starts.len() - 1
+    }
+
+    /// The positions (in [`Surface::order`]) of line `l`.
+    fn line(&self, l: usize) -> std::ops::Range<usize> {
+        self.starts[l]..self.starts[l + 1]
+    }
+
+    /// Smallest positive spacing along a line.
     fn min_spacing(&self) -> f64 {
-        self.x.windows(2).map(|p| p[1] - p[0]).filter(|d| *d > 0.0).fold(f64::INFINITY, f64::min)
+        (0..self.lines())
+            .flat_map(|l| self.x[self.line(l)].windows(2).map(|p| p[1] - p[0]).collect::<Vec<_>>())
+            .filter(|d| *d > 0.0)
+            .fold(f64::INFINITY, f64::min)
     }
 
-    /// Linear interpolation of the nodal values `v` (dual order) at `t` (0 beyond the ends).
-    fn eval(&self, v: &[f64], t: f64) -> f64 {
-        let n = self.x.len();
-        if n == 0 || t < self.x[0] || t > self.x[n - 1] {
+    /// Linear interpolation along line `l` of the nodal values `v` (dual order) at `t` (0
+    /// beyond the line's ends).
+    fn eval(&self, l: usize, v: &[f64], t: f64) -> f64 {
+        let r = self.line(l);
+        let (xs, order) = (&self.x[r.clone()], &self.order[r]);
+        let n = xs.len();
+        if n == 0 || t < xs[0] || t > xs[n - 1] {
             return 0.0;
         }
-        let k = self.x.partition_point(|&x| x <= t);
+        let k = xs.partition_point(|&x| x <= t);
         if k == 0 {
-            return v[self.order[0]];
+            return v[order[0]];
         }
         if k >= n {
-            return v[self.order[n - 1]];
+            return v[order[n - 1]];
         }
-        let (x0, x1) = (self.x[k - 1], self.x[k]);
+        let (x0, x1) = (xs[k - 1], xs[k]);
         let th = if x1 > x0 { (t - x0) / (x1 - x0) } else { 0.0 };
-        (1.0 - th) * v[self.order[k - 1]] + th * v[self.order[k]]
+        (1.0 - th) * v[order[k - 1]] + th * v[order[k]]
     }
 
-    /// `(c, a)` of one snapshot by its moments (None for a zero snapshot).
+    /// `(c, a)` of one snapshot by its moments along the travel, summed over the lines (None
+    /// for a zero snapshot).
     fn moments(&self, s: &[f64]) -> Option<(f64, f64)> {
         let m0: f64 = self.order.iter().zip(&self.w).map(|(&i, w)| w * s[i]).sum();
         if m0 <= 0.0 {
@@ -214,8 +262,10 @@ pub struct Map {
     /// Nodes: spacing h and the shift offset; Linear: reference grid start and spacing.
     grid_start: f64,
     grid_step: f64,
-    /// Reference grid length.
+    /// Reference grid length: [`Map::line_len`] per line of the surface.
     len: usize,
+    /// Reference points per line.
+    line_len: usize,
 }
 
 impl Map {
@@ -229,10 +279,24 @@ impl Map {
                 training.surface.len()
             )));
         }
-        let surface = Surface::new(training.surface);
+        if !training.across.is_empty() && training.across.len() != n {
+            return Err(DualError::NotApplicable(format!(
+                "registration needs the coordinate across the travel of each of the {n} slave nodes; {} given",
+                training.across.len()
+            )));
+        }
+        let surface = Surface::new(training.surface, training.across);
         let col = |j: usize| -> Vec<f64> { (0..n).map(|i| s[(i, j)]).collect() };
-        let mut map =
-            Self { kind, surface, table: Vec::new(), points: Vec::new(), grid_start: 0.0, grid_step: 1.0, len: 0 };
+        let mut map = Self {
+            kind,
+            surface,
+            table: Vec::new(),
+            points: Vec::new(),
+            grid_start: 0.0,
+            grid_step: 1.0,
+            len: 0,
+            line_len: 0,
+        };
         if let MapKind::Moments { .. } = kind {
             let dims = training.params.first().map_or(1, Vec::len);
             if training.params.iter().any(|p| p.len() != dims) {
@@ -259,19 +323,36 @@ impl Map {
         let frames: Vec<(f64, f64)> = training.params.iter().map(|p| map.frame(p)).collect();
         match kind {
             MapKind::Translate { interpolation: Interpolation::Nodes } => {
-                let xs = &map.surface.x;
-                let h = if xs.len() > 1 { (xs[xs.len() - 1] - xs[0]) / (xs.len() - 1) as f64 } else { 1.0 };
-                if xs.iter().enumerate().any(|(i, x)| (x - (xs[0] + i as f64 * h)).abs() > UNIFORM_REL * h) {
-                    return Err(DualError::NotApplicable(
-                        "whole-node shifts need uniformly spaced slave nodes; use interpolation = \"linear\"".into(),
-                    ));
+                // One spacing h for every line (the first line's), and each line's nodes at
+                // whole multiples of h from the first line's first node.
+                let first = &map.surface.x[map.surface.line(0)];
+                let h =
+                    if first.len() > 1 { (first[first.len() - 1] - first[0]) / (first.len() - 1) as f64 } else { 1.0 };
+                let x0 = first.first().copied().unwrap_or(0.0);
+                let mut reach = 0usize;
+                for l in 0..map.surface.lines() {
+                    let xs = &map.surface.x[map.surface.line(l)];
+                    let offset = ((xs[0] - x0) / h).round();
+                    if offset < 0.0
+                        || xs
+                            .iter()
+                            .enumerate()
+                            .any(|(i, x)| (x - (x0 + (offset + i as f64) * h)).abs() > UNIFORM_REL * h)
+                    {
+                        return Err(DualError::NotApplicable(
+                            "whole-node shifts need uniformly spaced slave nodes, one spacing on every line; use interpolation = \"linear\"".into(),
+                        ));
+                    }
+                    reach = reach.max(offset as usize + xs.len());
                 }
                 let shifts: Vec<i64> = frames.iter().map(|f| (f.0 / h).round() as i64).collect();
                 let (lo, hi) = (shifts.iter().copied().min().unwrap_or(0), shifts.iter().copied().max().unwrap_or(0));
                 map.grid_step = h;
-                // Reference index of sorted node k at shift t: k - t + hi.
+                // Reference index of node k of a line (counted from the first line's first
+                // node) at shift t: k - t + hi, in that line's block of the grid.
                 map.grid_start = hi as f64;
-                map.len = xs.len() + (hi - lo) as usize;
+                map.line_len = reach + (hi - lo) as usize;
+                map.len = map.line_len * map.surface.lines();
             }
             MapKind::Translate { interpolation: Interpolation::Linear { refine } } | MapKind::Moments { refine } => {
                 let refine = refine.max(1);
@@ -305,7 +386,8 @@ impl Map {
                 }
                 map.grid_step = step / refine as f64;
                 map.grid_start = lo;
-                map.len = ((hi - lo) / map.grid_step).ceil() as usize + 1;
+                map.line_len = ((hi - lo) / map.grid_step).ceil() as usize + 1;
+                map.len = map.line_len * map.surface.lines();
             }
         }
         Ok(map)
@@ -352,6 +434,12 @@ impl Map {
         self.len == 0
     }
 
+    /// Whole-node offset of line `l`'s first node from the first line's (Nodes only).
+    fn offset(&self, l: usize) -> i64 {
+        let x0 = self.surface.x.first().copied().unwrap_or(0.0);
+        self.surface.x.get(self.surface.starts[l]).map_or(0, |x| ((x - x0) / self.grid_step).round() as i64)
+    }
+
     /// Whole-node shift at `mu` (Nodes only).
     fn shift(&self, mu: &[f64]) -> i64 {
         (self.frame(mu).0 / self.grid_step).round() as i64
@@ -363,17 +451,22 @@ impl Map {
         match self.kind {
             MapKind::Translate { interpolation: Interpolation::Nodes } => {
                 let t = self.shift(mu);
-                for (k, &i) in self.surface.order.iter().enumerate() {
-                    let q = (k as i64).saturating_sub(t).saturating_add(self.grid_start as i64);
-                    if q >= 0 && (q as usize) < self.len {
-                        out[q as usize] = s[i];
+                for (l, block) in (0..self.surface.lines()).zip(out.chunks_mut(self.line_len.max(1))) {
+                    let offset = self.offset(l);
+                    for (k, &i) in self.surface.order[self.surface.line(l)].iter().enumerate() {
+                        let q = (k as i64 + offset).saturating_sub(t).saturating_add(self.grid_start as i64);
+                        if q >= 0 && (q as usize) < self.line_len {
+                            block[q as usize] = s[i];
+                        }
                     }
                 }
             }
             _ => {
                 let (c, a) = self.frame(mu);
-                for (k, o) in out.iter_mut().enumerate() {
-                    *o = self.surface.eval(s, c + a * (self.grid_start + k as f64 * self.grid_step));
+                for (l, block) in (0..self.surface.lines()).zip(out.chunks_mut(self.line_len.max(1))) {
+                    for (k, o) in block.iter_mut().enumerate() {
+                        *o = self.surface.eval(l, s, c + a * (self.grid_start + k as f64 * self.grid_step));
+                    }
                 }
             }
         }
@@ -384,27 +477,34 @@ impl Map {
         match self.kind {
             MapKind::Translate { interpolation: Interpolation::Nodes } => {
                 let t = self.shift(mu);
-                for (k, &i) in self.surface.order.iter().enumerate() {
-                    let q = (k as i64).saturating_sub(t).saturating_add(self.grid_start as i64);
-                    out[i] = if q >= 0 && (q as usize) < self.len { r[q as usize] } else { 0.0 };
+                for (l, block) in (0..self.surface.lines()).zip(r.chunks(self.line_len.max(1))) {
+                    let offset = self.offset(l);
+                    for (k, &i) in self.surface.order[self.surface.line(l)].iter().enumerate() {
+                        let q = (k as i64 + offset).saturating_sub(t).saturating_add(self.grid_start as i64);
+                        out[i] = if q >= 0 && (q as usize) < self.line_len { block[q as usize] } else { 0.0 };
+                    }
                 }
             }
             _ => {
                 let (c, a) = self.frame(mu);
-                for (k, &i) in self.surface.order.iter().enumerate() {
-                    let xi = (self.surface.x[k] - c) / a;
-                    let u = (xi - self.grid_start) / self.grid_step;
-                    out[i] = if u < 0.0 || u > (self.len - 1) as f64 {
-                        0.0
-                    } else {
-                        let k0 = (u.floor() as usize).min(self.len.saturating_sub(2));
-                        let th = u - k0 as f64;
-                        if k0 + 1 < self.len {
-                            (1.0 - th) * r[k0] + th * r[k0 + 1]
+                let len = self.line_len;
+                for (l, block) in (0..self.surface.lines()).zip(r.chunks(len.max(1))) {
+                    let line = self.surface.line(l);
+                    for (&x, &i) in self.surface.x[line.clone()].iter().zip(&self.surface.order[line]) {
+                        let xi = (x - c) / a;
+                        let u = (xi - self.grid_start) / self.grid_step;
+                        out[i] = if u < 0.0 || u > (len - 1) as f64 {
+                            0.0
                         } else {
-                            r[k0]
-                        }
-                    };
+                            let k0 = (u.floor() as usize).min(len.saturating_sub(2));
+                            let th = u - k0 as f64;
+                            if k0 + 1 < len {
+                                (1.0 - th) * block[k0] + th * block[k0 + 1]
+                            } else {
+                                block[k0]
+                            }
+                        };
+                    }
                 }
             }
         }
@@ -650,7 +750,7 @@ mod tests {
         let bump = |t: f64| (1.0 - ((t - 1.0) / 0.5).powi(2)).max(0.0);
         let s = translated(&x, &params, bump);
         let ms = [1usize, 2];
-        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &[], ms: &ms };
         let kind = MapKind::Translate { interpolation: Interpolation::Nodes };
         let reg = Registered::build(&t, kind, Inner::Pod).expect("build");
         assert_eq!(reg.size(), 1, "registered rank");
@@ -663,6 +763,94 @@ mod tests {
         // Without registration the same snapshots need many modes.
         let pod = SpanPrefix::new(pod_modes(s.as_ref(), 12).expect("pod").as_ref());
         assert!(pod.size() > 5);
+    }
+
+    /// A contact area: lines of slave nodes across the travel, in a scrambled dual order, some
+    /// lines starting a few nodes later than others (a staggered structured patch). A profile
+    /// `f(x - mu) g(y)` translates along every line at once, so whole-node shifts register it
+    /// to rank one (`g(y) f(xi)` for every `mu`), with an exact round trip and a new shift
+    /// reproduced to round-off; the moments map (summed over the lines) and linear
+    /// interpolation reproduce it to the interpolation's order. On one line the area's maps
+    /// give the curve's bits.
+    #[test]
+    fn a_contact_area_registers_line_by_line() {
+        let h = 0.1;
+        let (nx, ny) = (40usize, 5usize);
+        // line l starts l % 3 nodes later; dual order scrambled by a fixed permutation
+        let mut pts: Vec<(f64, f64)> = Vec::new();
+        for l in 0..ny {
+            for i in (l % 3)..nx {
+                pts.push((i as f64 * h, 0.2 * l as f64));
+            }
+        }
+        let n = pts.len();
+        let perm: Vec<usize> = (0..n).map(|k| (k * 37) % n).collect();
+        assert_eq!(
+            {
+                let mut p = perm.clone();
+                p.sort();
+                p
+            },
+            (0..n).collect::<Vec<_>>(),
+            "37 is prime to n"
+        );
+        let x: Vec<f64> = perm.iter().map(|&k| pts[k].0).collect();
+        let y: Vec<f64> = perm.iter().map(|&k| pts[k].1).collect();
+        let bump = |t: f64| (1.0 - ((t - 1.0) / 0.5).powi(2)).max(0.0);
+        let g = |y: f64| 1.0 + y * y;
+        let params: Vec<Vec<f64>> = (0..10).map(|j| vec![j as f64 * 2.0 * h]).collect();
+        let s = Mat::from_fn(n, params.len(), |i, j| bump(x[i] - params[j][0]) * g(y[i]));
+        let ms = [1usize, 2];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &y, ms: &ms };
+        let nodes = MapKind::Translate { interpolation: Interpolation::Nodes };
+        let reg = Registered::build(&t, nodes, Inner::Pod).expect("build");
+        assert_eq!(reg.map().surface.lines(), ny);
+        assert_eq!(reg.size(), 1, "registered rank");
+        assert_eq!(reg.round_trip.1.to_bits(), 0.0f64.to_bits(), "exact round trip");
+        let mu = vec![7.0 * h];
+        let q: Vec<f64> = (0..n).map(|i| bump(x[i] - mu[0]) * g(y[i])).collect();
+        let mut out = [0.0; 2];
+        reg.residuals(&q, &mu, &ms, &mut out).expect("project");
+        // one mode spans the pushed profile: round-off of the projection (1e-12 of the norm)
+        assert!(out[0] <= 1e-12 * norm2(&q), "new shift: {out:?}");
+        // Linear interpolation (refine 8) on a smooth profile: the round trip of every training
+        // snapshot within 1e-2 (first order in the reference spacing, O(h h_ref |p''|) here:
+        // h = 0.1, h_ref = h / 8, |p''| = 8, relative to a unit profile: about 1e-2 at most).
+        for kind in
+            [MapKind::Translate { interpolation: Interpolation::Linear { refine: 8 } }, MapKind::Moments { refine: 8 }]
+        {
+            let reg = Registered::build(&t, kind, Inner::Pod).expect("build");
+            assert!(reg.round_trip.1 < 1e-2, "{}: round trip {:?}", kind.name(), reg.round_trip);
+            assert!(reg.map().len().is_multiple_of(ny), "one block per line");
+        }
+        // The moments map's centre is the profile's: bump centred at 1 + mu (g weights lines,
+        // not abscissae), to the tributary quadrature's error (exact for a symmetric bump away
+        // from the ends: 1e-12).
+        let map = Map::fit(&t, MapKind::Moments { refine: 8 }).expect("fit");
+        for p in &params {
+            let (c, _) = map.frame(p);
+            assert!((c - (1.0 + p[0])).abs() < 1e-12, "centre {c} at {p:?}");
+        }
+        // One line: the same bits as the curve (no across coordinates).
+        let x1 = grid(nx, h);
+        let s1 = translated(&x1, &params, bump);
+        let flat = vec![0.5; nx];
+        for kind in [
+            nodes,
+            MapKind::Translate { interpolation: Interpolation::Linear { refine: 4 } },
+            MapKind::Moments { refine: 4 },
+        ] {
+            let a = Training { snapshots: s1.as_ref(), params: &params, surface: &x1, across: &[], ms: &ms };
+            let b = Training { across: &flat, ..a };
+            let (ra, rb) = (
+                Registered::build(&a, kind, Inner::Cpg).expect("a"),
+                Registered::build(&b, kind, Inner::Cpg).expect("b"),
+            );
+            let bits = |r: &Registered| {
+                r.modes.col_iter().flat_map(|c| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>()).collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&ra), bits(&rb), "{}", kind.name());
+        }
     }
 
     /// Linear interpolation: the round trip is first order in the reference spacing (halving
@@ -680,7 +868,7 @@ mod tests {
         for f in [&smooth as &dyn Fn(f64) -> f64, &steep] {
             let s = translated(&x, &params, f);
             let ms = [1usize];
-            let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+            let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &[], ms: &ms };
             // The node-to-reference-to-node round trip of one snapshot at a fractional shift,
             // for reference grids 2 and 4 times finer than the nodes.
             let err = |refine: usize| {
@@ -720,7 +908,7 @@ mod tests {
             b * (1.0 - (x[i] / b).powi(2)).max(0.0).sqrt()
         });
         let ms = [1usize, 2, 3];
-        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &[], ms: &ms };
         let map = Map::fit(&t, MapKind::Moments { refine: 4 }).expect("fit");
         for (j, b) in widths.iter().enumerate() {
             let (c, a) = map.frame(&params[j]);
@@ -764,7 +952,7 @@ mod tests {
             let s = Mat::from_fn(x.len(), keep.len(), |i, j| cols[keep[j]][i]);
             let ps: Vec<Vec<f64>> = keep.iter().map(|&j| params[j].clone()).collect();
             let ms = [1usize];
-            let t = Training { snapshots: s.as_ref(), params: &ps, surface: &x, ms: &ms };
+            let t = Training { snapshots: s.as_ref(), params: &ps, surface: &x, across: &[], ms: &ms };
             Map::fit(&t, MapKind::Moments { refine: 4 }).expect("fit")
         };
         let all: Vec<usize> = (0..params.len()).collect();
@@ -785,7 +973,7 @@ mod tests {
         let s = Mat::from_fn(4, 2, |i, j| (i + j) as f64);
         let params = vec![vec![0.0], vec![0.1]];
         let ms = [1usize];
-        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &[], ms: &ms };
         let Err(e) = Map::fit(&t, MapKind::Translate { interpolation: Interpolation::Nodes }) else {
             panic!("a non-uniform surface was accepted");
         };

@@ -313,7 +313,7 @@ mod tests {
     fn pod_and_cpg_through_the_interface_match_the_dedicated_metrics() {
         let (s, params) = bumps(30, 14, 1);
         let ms: Vec<usize> = (1..=13).collect();
-        let t = Training { snapshots: s.as_ref(), params: &params, surface: &[], ms: &ms };
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &[], across: &[], ms: &ms };
         let folds: Vec<usize> = (0..14).collect();
         let pod = build(&Approach::Pod, &t).expect("pod");
         let c = compactness(pod.as_ref(), &t).expect("c");
@@ -339,7 +339,7 @@ mod tests {
         let (lo, lo_p) = bumps(30, 9, 3);
         let (hi, hi_p) = bumps(30, 17, 4);
         let ms: Vec<usize> = (1..=9).collect();
-        let t = Training { snapshots: lo.as_ref(), params: &lo_p, surface: &[], ms: &ms };
+        let t = Training { snapshots: lo.as_ref(), params: &lo_p, surface: &[], across: &[], ms: &ms };
         let pod = nested_error(&Approach::Pod, &t, hi.as_ref(), &hi_p).expect("pod");
         let reference = crate::metrics::nested_error_orth(lo.as_ref(), hi.as_ref()).expect("orth");
         assert!(crate::float_cmp::close(pod, reference, Tol { abs: 1e-12, rel: 1e-10 }), "{pod} vs {reference}");
@@ -358,7 +358,7 @@ mod tests {
     fn pod_specificity_follows_the_definition() {
         let (s, params) = bumps(20, 10, 5);
         let ms = [1usize, 2, 4];
-        let t = Training { snapshots: s.as_ref(), params: &params, surface: &[], ms: &ms };
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &[], across: &[], ms: &ms };
         let pod = build(&Approach::Pod, &t).expect("pod");
         let got = specificity(pod.as_ref(), &t, 50, 7).expect("s").expect("pod has modes");
         let modes = crate::dual::pod_modes(s.as_ref(), 10).expect("modes");
@@ -402,7 +402,7 @@ mod tests {
         let (s, params) = bumps(40, 16, 2);
         let x: Vec<f64> = (0..40).map(|i| i as f64).collect();
         let ms: Vec<usize> = (1..=6).collect();
-        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &[], ms: &ms };
         use crate::dual::{Inner, Interpolation, MapKind};
         let approaches = [
             Approach::Pod,

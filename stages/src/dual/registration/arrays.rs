@@ -50,7 +50,8 @@ impl Registered {
     pub fn arrays(&self) -> Option<RegisteredArrays> {
         // a registered POD has no online solve; a moments map over several parameter components
         // is not stored (its interpolation levels are not in the arrays)
-        if self.inner == Inner::Pod || !self.map.points.is_empty() {
+        // nor a map of a contact area (the stored model's online solve registers curves only)
+        if self.inner == Inner::Pod || !self.map.points.is_empty() || self.map.surface.lines() > 1 {
             return None;
         }
         let m = &self.map;
@@ -121,12 +122,13 @@ impl Registered {
         }
         let map = Map {
             kind: a.kind,
-            surface: Surface::new(&a.surface),
+            surface: Surface::new(&a.surface, &[]),
             table,
             points: Vec::new(),
             grid_start: start,
             grid_step: step,
             len: a.len,
+            line_len: a.len,
         };
         let modes = Mat::from_fn(a.len, a.generators, |i, j| a.modes[i + j * a.len]);
         let neighbours = if a.travels.is_empty() {
@@ -173,7 +175,7 @@ mod tests {
         let bump = |t: f64, w: f64| (1.0 - (t / w).powi(2)).max(0.0);
         let s = Mat::from_fn(n, params.len(), |i, j| bump(x[i] - 1.0 - params[j][0], 0.2 + 0.05 * params[j][0]));
         let ms = [1usize, 2, 3, 4];
-        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, ms: &ms };
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &[], ms: &ms };
         let nodes = MapKind::Translate { interpolation: Interpolation::Nodes };
         for (kind, inner) in [
             (nodes, Inner::Cpg),

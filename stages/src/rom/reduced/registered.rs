@@ -163,6 +163,7 @@ mod tests {
             snapshots: MatRef::from_column_major_slice(&pressures, nc, mus.len()),
             params: &params,
             surface: &x,
+            across: &[],
             ms: &ms,
         };
         let kind = MapKind::Translate { interpolation: Interpolation::Nodes };
