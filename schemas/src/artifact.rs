@@ -14,6 +14,7 @@
 //! | table | column | null when |
 //! |---|---|---|
 //! | `rom_timings.parquet` | `fom_seconds` | `set == "train"`: the full-order solve is timed at test points only |
+//! | `rom_timings.parquet` | `online_seconds`, `indicator_seconds`, `fom_seconds` | the point is not among the set's 32 timed points (evenly spaced with both ends; every point of a set of at most 32 is timed) |
 //! | `rom_errors.parquet` | `dual_error` | the full-order pressure of the point is zero everywhere (`0/0`; no contact) |
 //! | `tradeoff.parquet` | `median_primal_error`, `p95_primal_error`, `mean_primal_error`, `max_primal_error`, `median_dual_error` | `converged == 0` (errors are taken over converged points only), or no converged point has a defined dual error |
 //! | `tradeoff.parquet` | `indicator_spearman` | fewer than three converged points with finite indicator and error, or either side constant |

@@ -315,7 +315,7 @@ fn solve_dictionary(
     base: &ReducedModel,
     points: &[Vec<f64>],
     params: &RomParams,
-    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64),
+    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64) + Sync,
 ) -> Vec<Query> {
     let state = (base.clone(), RomWork::default(), WorkingSetScratch::default());
     time_each(
@@ -344,7 +344,7 @@ fn solve_all(
     base: &ReducedModel,
     points: &[Vec<f64>],
     params: &RomParams,
-    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64),
+    errors: impl Fn(usize, &ReducedModel, &crom_stages::rom::ReducedSolution) -> (f64, f64) + Sync,
 ) -> Vec<Query> {
     let mut rm = base.clone();
     if let Source::Fixed(theta, k) = source {

@@ -440,8 +440,9 @@ struct Query {
 /// the stage's time).
 const INF_SUP_SAMPLES: usize = 8;
 
-/// Solve every point of the set, each solve timed alone ([`time_each`]), and the indicator
-/// timed separately, once, right after the point's first solve.
+/// Solve every point of the set, the timed sample's solves each alone ([`time_each`]), and the
+/// indicator timed separately, once, right after the point's first solve (at the timed points
+/// only).
 fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -> Vec<Query> {
     let stride = set.parameters.len().div_ceil(INF_SUP_SAMPLES).max(1);
     time_each(
@@ -460,7 +461,12 @@ fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -
         },
     )
     .into_iter()
-    .map(|(q, seconds)| Query { seconds, ..q })
+    // an untimed point's indicator ran beside other solves: its time is undefined too
+    .map(|(q, seconds)| Query {
+        seconds,
+        indicator_seconds: if seconds.is_nan() { f64::NAN } else { q.indicator_seconds },
+        ..q
+    })
     .collect()
 }
 

@@ -13,13 +13,21 @@
 //!   converge, a full-order solve that errs) is timed by its one run: no speed-up target reads
 //!   a failure's time, and repeating the paper algorithm's failures, most of which run to the
 //!   iteration cap, tripled that stage.
-//! - **The repetitions in rounds.** The first run of every point comes first, in order; it
-//!   gives the result. The further runs follow in rounds over the points that want them, so a
+//! - **The repetitions in rounds.** The first timed run of every point comes first, in order.
+//!   The further runs follow in rounds over the points that want them, so a
 //!   point's runs are spread over the whole set instead of back to back. This machine slows
 //!   down in phases of tens of milliseconds to seconds; back to back, all runs of a point fell
 //!   into one such phase, and the median online query of one process read 44–64 µs where, in
 //!   rounds, it read 45–46 µs (docs/design-notes.md#what-the-online-stage-times-and-reports).
 //!   The number of runs and what is kept are the same; only their order changes.
+//! - **Answers on every core, times alone, of a sample.** Every point is solved once, in
+//!   parallel, and that run gives its answer. Then [`TIMED_POINTS`] of them, evenly spaced with
+//!   both ends ([`timed_points`]; all of a smaller set), are timed alone by the rules above, their
+//!   results dropped; the others' times are undefined (NaN, a Parquet null). A speed-up is the
+//!   ratio of two medians over the same sample, so it needs the sample, not every point; timing
+//!   every point of ironing-fine's 127, each first run with its errors computed on one core
+//!   beside an idle one, was 5 of the whole run's 13 s
+//!   (docs/design-notes.md#what-the-online-stage-times-and-reports).
 
 use std::time::Instant;
 
@@ -40,6 +48,20 @@ pub(crate) const REPEAT_BELOW: f64 = 0.1;
 pub(crate) const MIN_TIMED: f64 = 2e-5;
 /// Cap on the repetitions of [`MIN_TIMED`].
 pub(crate) const MAX_REPEATS: usize = 1000;
+/// Points of a set that are timed, at most ([`timed_points`]).
+pub(crate) const TIMED_POINTS: usize = 32;
+
+/// Which of `n` points are timed: all when `n <= TIMED_POINTS`, else [`TIMED_POINTS`] evenly
+/// spaced with both ends (point `k (n - 1) / (TIMED_POINTS - 1)` for k = 0, 1, …).
+pub(crate) fn timed_points(n: usize) -> Vec<bool> {
+    let mut timed = vec![n <= TIMED_POINTS; n];
+    if n > TIMED_POINTS {
+        for k in 0..TIMED_POINTS {
+            timed[k * (n - 1) / (TIMED_POINTS - 1)] = true;
+        }
+    }
+    timed
+}
 
 /// The runs of one point so far.
 struct Clock {
@@ -67,41 +89,71 @@ impl Clock {
     }
 }
 
-/// Time `solve(state, item)` at every item by the rules of this module: the first runs in the
-/// order of `items`, each followed (untimed) by `keep(state, item, its result)`, whose value is
-/// kept; then the further runs in rounds, their results dropped. Returns, in the order of
-/// `items`, the kept value and the fastest run in seconds. One `state` (a work buffer) serves
-/// every call; `solve` must give the same result whatever ran before it, which the online
-/// queries and full-order solves do (they read only their model, their point and buffers they
-/// overwrite).
+/// Solve every item and time those of [`timed_points`] by the rules of this module. First every
+/// item once, in parallel, each thread with its own clone of `state`, each solve followed by
+/// `keep(state, item, its result)`, whose value is kept; then the timed items alone
+/// ([`time_alone`]), their results dropped. Returns, in the order of `items`, the kept value and
+/// the fastest timed run in seconds (NaN for an untimed item). `solve` must give the same result
+/// whatever ran before it, on whichever clone of `state`, which the online queries and
+/// full-order solves do (they read only their model, their point and buffers they overwrite),
+/// so the kept values depend neither on the sample nor on the thread count.
 pub(crate) fn time_each<I, S, R, T>(
     items: impl IntoIterator<Item = I>,
-    mut state: S,
-    mut solve: impl FnMut(&mut S, &I) -> R,
+    state: S,
+    solve: impl Fn(&mut S, &I) -> R + Sync,
     solved: impl Fn(&R) -> bool,
-    mut keep: impl FnMut(&mut S, &I, R) -> T,
-) -> Vec<(T, f64)> {
+    keep: impl Fn(&mut S, &I, R) -> T + Sync,
+) -> Vec<(T, f64)>
+where
+    I: Sync,
+    S: Clone + Send + Sync,
+    T: Send,
+{
+    use rayon::prelude::*;
     let items: Vec<I> = items.into_iter().collect();
-    let mut kept = Vec::with_capacity(items.len());
+    let kept: Vec<T> = items
+        .par_iter()
+        .map_init(
+            || state.clone(),
+            |st, item| {
+                let result = solve(st, item);
+                keep(st, item, result)
+            },
+        )
+        .collect();
+    let timed = timed_points(items.len());
+    let sample: Vec<&I> = items.iter().zip(&timed).filter(|(_, t)| **t).map(|(i, _)| i).collect();
+    let mut state = state;
+    let mut seconds = time_alone(&sample, |item| solve(&mut state, item), solved).into_iter();
+    kept.into_iter()
+        .zip(&timed)
+        .map(|(k, &t)| (k, if t { seconds.next().unwrap_or(f64::NAN) } else { f64::NAN }))
+        .collect()
+}
+
+/// The fastest run of `solve(item)` at every item, each run alone on the calling thread, by the
+/// rules of this module: the first runs in the order of `items`, then the further runs in
+/// rounds; every result is dropped.
+pub(crate) fn time_alone<I, R>(items: &[I], mut solve: impl FnMut(&I) -> R, solved: impl Fn(&R) -> bool) -> Vec<f64> {
     let mut clocks = Vec::with_capacity(items.len());
-    for item in &items {
+    for item in items {
         let t = Instant::now();
-        let result = solve(&mut state, item);
+        let result = solve(item);
         let seconds = t.elapsed().as_secs_f64();
         clocks.push(Clock::first(seconds, solved(&result)));
-        kept.push(keep(&mut state, item, result));
+        drop(result);
     }
     while clocks.iter().any(Clock::wants_more) {
         for (item, clock) in items.iter().zip(&mut clocks) {
             if clock.wants_more() {
                 let t = Instant::now();
-                let result = solve(&mut state, item);
+                let result = solve(item);
                 clock.add(t.elapsed().as_secs_f64());
                 drop(result);
             }
         }
     }
-    kept.into_iter().zip(clocks).map(|(k, c)| (k, c.best)).collect()
+    clocks.into_iter().map(|c| c.best).collect()
 }
 
 #[cfg(test)]
@@ -109,21 +161,82 @@ mod tests {
     use super::*;
     use std::time::Duration;
 
-    /// How often `solve` ran per item, with each item's first run ok or not and taking `secs`.
+    /// How often `solve` ran per item in [`time_alone`], with each item's first run ok or not
+    /// and taking `secs`.
     fn runs(cases: &[(bool, f64)]) -> Vec<usize> {
         let mut n = vec![0; cases.len()];
-        time_each(
-            0..cases.len(),
-            (),
-            |(), &k| {
+        let items: Vec<usize> = (0..cases.len()).collect();
+        time_alone(
+            &items,
+            |&k| {
                 n[k] += 1;
                 std::thread::sleep(Duration::from_secs_f64(cases[k].1));
                 cases[k].0
             },
             |&ok| ok,
-            |(), _, _| (),
         );
         n
+    }
+
+    /// The sample: all of a set of at most [`TIMED_POINTS`], else exactly [`TIMED_POINTS`] with
+    /// both ends, evenly spaced (the gaps between timed points differ by at most one).
+    #[test]
+    fn the_timed_sample_is_evenly_spaced_with_both_ends() {
+        for n in [0, 1, 11, TIMED_POINTS] {
+            assert!(timed_points(n).iter().all(|&t| t), "{n}");
+        }
+        for n in [TIMED_POINTS + 1, 127, 1024] {
+            let t = timed_points(n);
+            let at: Vec<usize> = (0..n).filter(|&k| t[k]).collect();
+            assert_eq!(at.len(), TIMED_POINTS, "{n}");
+            assert_eq!((at[0], at[TIMED_POINTS - 1]), (0, n - 1), "{n}");
+            let gaps: Vec<usize> = at.windows(2).map(|w| w[1] - w[0]).collect();
+            let (lo, hi) = (gaps.iter().min().copied().unwrap_or(0), gaps.iter().max().copied().unwrap_or(0));
+            assert!(hi - lo <= 1, "{n}: gaps {lo}..{hi}");
+        }
+    }
+
+    /// Above [`TIMED_POINTS`] items: every item is solved once on the pool and kept (the kept
+    /// values in item order), the untimed ones only then and with a NaN time, the timed ones
+    /// again at least [`TIMING_REPEATS`] times with a finite time; and no timed run overlaps any
+    /// other call, although the first runs share a pool of two threads.
+    #[test]
+    fn a_sample_is_timed_alone_and_every_item_is_kept() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        const N: usize = 100;
+        let timed = timed_points(N);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("a pool");
+        let calls: Vec<AtomicUsize> = (0..N).map(|_| AtomicUsize::new(0)).collect();
+        let (running, overlapped) = (AtomicUsize::new(0), AtomicUsize::new(0));
+        let out = pool.install(|| {
+            time_each(
+                0..N,
+                0usize,
+                |_, &k| {
+                    // every call after an item's first is a timed run
+                    let again = calls[k].fetch_add(1, Ordering::SeqCst) > 0;
+                    let now = running.fetch_add(1, Ordering::SeqCst) + 1;
+                    std::thread::sleep(Duration::from_micros(20));
+                    if again && (now > 1 || running.load(Ordering::SeqCst) > 1) {
+                        overlapped.fetch_add(1, Ordering::SeqCst);
+                    }
+                    running.fetch_sub(1, Ordering::SeqCst);
+                    3 * k
+                },
+                |_| true,
+                |_, _, r| r + 1,
+            )
+        });
+        assert_eq!(overlapped.load(Ordering::SeqCst), 0, "a timed run overlapped another call");
+        assert_eq!(out.iter().map(|(v, _)| *v).collect::<Vec<_>>(), (0..N).map(|k| 3 * k + 1).collect::<Vec<_>>());
+        for k in 0..N {
+            let n = calls[k].load(Ordering::SeqCst);
+            if timed[k] {
+                assert!(n > TIMING_REPEATS && out[k].1.is_finite() && out[k].1 >= 2e-5, "{k}: {n} {}", out[k].1);
+            } else {
+                assert!(n == 1 && out[k].1.is_nan(), "{k}: {n} {}", out[k].1);
+            }
+        }
     }
 
     /// A fast query that succeeds is timed [`TIMING_REPEATS`] times at least, and a slow one
@@ -136,46 +249,34 @@ mod tests {
         assert_eq!((n[2], n[3]), (1, 1), "{n:?}");
     }
 
-    /// The calls run one at a time, never two at once, even from a pool with two threads (a
-    /// parallel loop would overlap the sleeping calls); the first runs come in order, each
-    /// followed by its `keep`, which sees that run's result; the further runs come in rounds
-    /// over the set. Each call sleeps 10 µs, so three runs reach [`MIN_TIMED`] and there are
-    /// exactly three rounds.
+    /// [`time_alone`]'s runs go one at a time, never two at once, even from a pool with two
+    /// threads (a parallel loop would overlap the sleeping calls); the first runs come in order,
+    /// the further runs in rounds over the set. Each call sleeps 10 µs, so three runs reach
+    /// [`MIN_TIMED`] and there are exactly three rounds.
     #[test]
     fn first_runs_in_order_then_rounds_one_call_at_a_time() {
         use std::sync::atomic::{AtomicUsize, Ordering};
         const { assert!(3.0 * 1e-5 >= MIN_TIMED && TIMING_REPEATS == 3) };
         let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("a pool");
         let (running, most) = (AtomicUsize::new(0), AtomicUsize::new(0));
-        let log = std::sync::Mutex::new(Vec::new());
+        let mut log = Vec::new();
+        let items: Vec<usize> = (0..5).collect();
         let out = pool.install(|| {
-            time_each(
-                0..5usize,
-                0usize,
-                |calls, &k| {
+            time_alone(
+                &items,
+                |&k| {
                     let now = running.fetch_add(1, Ordering::SeqCst) + 1;
                     most.fetch_max(now, Ordering::SeqCst);
                     std::thread::sleep(Duration::from_micros(10));
                     running.fetch_sub(1, Ordering::SeqCst);
-                    *calls += 1;
-                    log.lock().expect("log").push(('s', k));
-                    (k, *calls)
+                    log.push(k);
                 },
                 |_| true,
-                |_, &k, result| {
-                    log.lock().expect("log").push(('k', k));
-                    result
-                },
             )
         });
         assert_eq!(most.load(Ordering::SeqCst), 1, "two timed calls overlapped");
-        let firsts: Vec<(usize, usize)> = out.iter().map(|(r, _)| *r).collect();
-        assert_eq!(firsts, (0..5).map(|k| (k, k + 1)).collect::<Vec<_>>(), "keep sees the first run");
-        let mut expected: Vec<(char, usize)> = (0..5).flat_map(|k| [('s', k), ('k', k)]).collect();
-        for _ in 1..TIMING_REPEATS {
-            expected.extend((0..5).map(|k| ('s', k)));
-        }
-        assert_eq!(log.into_inner().expect("log"), expected);
-        assert!(out.iter().all(|(_, s)| *s >= 1e-5), "{out:?}");
+        let expected: Vec<usize> = (0..TIMING_REPEATS).flat_map(|_| 0..5).collect();
+        assert_eq!(log, expected);
+        assert!(out.iter().all(|s| *s >= 1e-5), "{out:?}");
     }
 }
