@@ -90,7 +90,7 @@ impl Clock {
 }
 
 /// Solve every item and time those of [`timed_points`] by the rules of this module. First every
-/// item once, in parallel, each thread with its own clone of `state`, each solve followed by
+/// item once, in parallel, each thread a contiguous run of items with one clone of `state`, each solve followed by
 /// `keep(state, item, its result)`, whose value is kept; then the timed items alone
 /// ([`time_alone`]), their results dropped. Returns, in the order of `items`, the kept value and
 /// the fastest timed run in seconds (NaN for an untimed item). `solve` must give the same result
@@ -111,15 +111,23 @@ where
 {
     use rayon::prelude::*;
     let items: Vec<I> = items.into_iter().collect();
+    // one contiguous run of items per thread, each with one clone of `state` (a reduced model
+    // is costly to clone)
+    let chunk = items.len().div_ceil(rayon::current_num_threads().max(1)).max(1);
     let kept: Vec<T> = items
-        .par_iter()
-        .map_init(
-            || state.clone(),
-            |st, item| {
-                let result = solve(st, item);
-                keep(st, item, result)
-            },
-        )
+        .par_chunks(chunk)
+        .map(|run| {
+            let mut st = state.clone();
+            run.iter()
+                .map(|item| {
+                    let result = solve(&mut st, item);
+                    keep(&mut st, item, result)
+                })
+                .collect::<Vec<T>>()
+        })
+        .collect::<Vec<Vec<T>>>()
+        .into_iter()
+        .flatten()
         .collect();
     let timed = timed_points(items.len());
     let sample: Vec<&I> = items.iter().zip(&timed).filter(|(_, t)| **t).map(|(i, _)| i).collect();
