@@ -160,8 +160,8 @@ fn small_ironing3d(dir: &std::path::Path) -> std::path::PathBuf {
 
 /// A 3-D contact area registers through the pipeline: the shipped ironing-3d comparison (its
 /// registered entries included) runs on a small mesh, the registered approximations' curves are
-/// stored beside the others, the run says once per registered CPG entry why it has no online
-/// stage, and the registered POD on whole-node shifts beats the plain POD at every m of the test
+/// stored beside the others, the run (and the report) says once per registered CPG entry why it
+/// has no online stage, and the registered POD on whole-node shifts beats the plain POD at every m of the test
 /// error (the die's pressure travels with `d_x` along every line of slaves, so the shift removes
 /// what plain modes spend their rank on).
 #[test]
@@ -177,6 +177,8 @@ fn a_3d_contact_area_registers_in_the_comparison() {
         assert_eq!(log.matches(&line).count(), 1, "{name}: {log}");
     }
     assert!(!log.contains("registered-translate-nodes-pod online"), "a POD has no online stage to skip: {log}");
+    let html = std::fs::read_to_string(store.join("scenes/ironing-3d-small/report/index.html")).expect("report");
+    assert!(html.contains(crom_pipeline::dag::plan::REGISTERED_3D_ONLINE), "the report says what it does not show");
     let arts: Vec<_> = std::fs::read_dir(store.join("comparison")).expect("comparison").flatten().collect();
     assert_eq!(arts.len(), 1);
     let curves =

@@ -140,7 +140,7 @@ impl Nodes {
         let mut inputs: Vec<Input> = o.mesh.into_iter().collect();
         inputs.extend([o.train, o.basis, o.compactness, o.generalization, o.specificity]);
         inputs.extend([nested, comparison].into_iter().flatten());
-        self.add("report", true, ReportStage::plan_with(scene, shows, inputs, skipped.to_vec()));
+        self.add("report", true, ReportStage::plan(scene, shows, inputs, skipped.to_vec()));
     }
 }
 
@@ -437,7 +437,8 @@ impl Plan {
         };
         let mut inputs = vec![mesh, train, basis, compactness, rom, generalization, specificity, model];
         inputs.extend([nested, comparison, online_comparison].into_iter().flatten());
-        nodes.add("report", true, ReportStage::plan(scene, shows, inputs));
+        // a 3-D scene's registered approximations, measured offline only, say so in the report
+        nodes.add("report", true, ReportStage::plan(scene, shows, inputs, skipped.clone()));
         Self { sweeps, family, nodes: nodes.0, imported, skipped }
     }
 

@@ -204,7 +204,7 @@ fn online_summary(d: &ReportData, basis: &str) -> Option<String> {
     };
     let converged = rows.iter().filter(|&&i| outcome[i] == "converged").count();
     Some(format!(
-        "median primal error (H1) {:.2e}, median dual error {:.2e}, median speed-up {:.1}x, converged {}/{}",
+        "median primal error (H1) {:.2e}, median dual error {:.2e}, median speed-up {:.1}x (timed points), converged {}/{}",
         median(rows.iter().map(|&i| pe[i]).collect()),
         median(rows.iter().map(|&i| de[i]).collect()),
         median(rows.iter().map(|&i| fom[i] / on[i]).collect()),
