@@ -30,7 +30,8 @@ fn small_hertz3d(dir: &std::path::Path, edit: impl Fn(String) -> String) -> std:
 
 /// The whole study runs on a 3-D scene: the mesh holds hexahedra with three coordinates and
 /// three dofs per node, every snapshot converged, the metrics, the comparison, the online stage
-/// and the stored model are published, the views name hexahedra, and a second run finds
+/// and the stored model are published, the report draws the full-order and the online pressure
+/// on the contact surface side by side, the views name hexahedra, and a second run finds
 /// everything stored. `crom query --check` on the stored model converges at three points between
 /// the training points with a pressure error below 1e-3: on this 6-element mesh a handful of
 /// slaves carry the contact, and four training pressures nearly span it (measured at most 3e-8;
@@ -60,6 +61,9 @@ fn a_3d_scene_runs_its_whole_study() {
     ] {
         assert!(published.join(f).exists(), "{f} missing");
     }
+    // the pressure on the contact surface, full order and online side by side, in the report
+    let html = std::fs::read_to_string(published.join("report/index.html")).expect("report");
+    assert!(published.join("report/fig_pressure_online.png").exists() && html.contains("fig_pressure_online.png"));
     let xdmf = std::fs::read_to_string(published.join("mesh.xdmf")).expect("mesh.xdmf");
     assert!(xdmf.contains("Hexahedron") && xdmf.contains("XYZ"), "{xdmf}");
     let mesh = hdf5::File::open(published.join("mesh.h5")).expect("mesh.h5");

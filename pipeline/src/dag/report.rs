@@ -42,7 +42,8 @@ impl StageKey for ReportKey {
     /// Bump when the report's content changes (10: the sampled-surface series of the trade-off
     /// figure; 11: the stored reduced model among the facts; 12: the captions say that times are
     /// over the timed sample of test points, and a full study's report lists what its plan
-    /// skipped). The scene joined the key without a bump: the key changed with it.
+    /// skipped, and a surface-drawn scene the full-order and online pressure side by side). The
+    /// scene joined the key without a bump: the key changed with it.
     const ALGORITHM_VERSION: u32 = 12;
 }
 
@@ -152,6 +153,35 @@ fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, settings: &ReportKey, inputs: &ReportI
     })
 }
 
+/// The full-order and the online pressure at the first, middle and last test points of
+/// `online.h5` (the full-order one is the online one less its recorded error); `None` without
+/// test points.
+fn online_pressure(path: &std::path::Path) -> Result<Option<crate::report::OnlinePressure>, CromError> {
+    let h5 = H5In::open(path)?;
+    let (dual, error) = (h5.matrix("dual")?, h5.matrix("dual_error")?);
+    let k = dual.cols;
+    if k == 0 || error.cols != k || error.rows != dual.rows {
+        return Ok(None);
+    }
+    let parameters: Vec<Vec<f64>> = match h5.shape("parameters")?.len() {
+        1 => h5.vec_f64("parameters")?.into_iter().map(|v| vec![v]).collect(),
+        _ => {
+            let p = h5.matrix("parameters")?;
+            (0..p.rows).map(|i| (0..p.cols).map(|j| p.data[i + j * p.rows]).collect()).collect()
+        }
+    };
+    let mut picks = vec![0, k / 2, k - 1];
+    picks.dedup();
+    let mut out = crate::report::OnlinePressure { parameters: Vec::new(), full: Vec::new(), online: Vec::new() };
+    for j in picks {
+        let (on, err) = (dual.col(j), error.col(j));
+        out.parameters.push(parameters.get(j).cloned().unwrap_or_default());
+        out.full.push(on.iter().zip(err).map(|(a, e)| a - e).collect());
+        out.online.push(on.to_vec());
+    }
+    Ok(Some(out))
+}
+
 fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<ReportData, CromError> {
     let train = loaded.set(store, &inputs.train)?;
     let mesh = match &inputs.mesh {
@@ -235,8 +265,13 @@ fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<Repor
         Some(k) => Some(model_facts(store, k)?),
         None => None,
     };
+    let online_pressure = match (&inputs.rom, &surface) {
+        (Some(k), Some(_)) => online_pressure(&store.dir(ArtifactKind::ROM, k).join(rnames::ONLINE))?,
+        _ => None,
+    };
     Ok(ReportData {
         model,
+        online_pressure,
         contact_x,
         profile,
         line_x,

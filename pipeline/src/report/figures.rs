@@ -101,6 +101,9 @@ pub(crate) fn all(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Vec
     }
     if let Some(surface) = &d.surface {
         figs.push(pressure_on_mesh(scene, surface, d, dir)?);
+        if let Some(online) = &d.online_pressure {
+            figs.push(pressure_online(scene, surface, online, dir)?);
+        }
     }
     if let Some(g) = &d.geometry {
         figs.push(deformed_bodies(scene, g, d, dir)?);
@@ -379,10 +382,32 @@ fn pressure_on_mesh(scene: &SceneConfig, s: &super::Surface, d: &ReportData, dir
         .map(|j| super::surface::Panel { label: label(scene, &d.train.parameters[j]), pressure: d.train.dual.col(j) })
         .collect();
     let title = format!("{}: contact pressure on the mesh at three training points", scene.scene.name);
-    super::surface::render(&title, s, &panels, dir, "fig_pressure_mesh")?;
+    super::surface::render(&title, s, &panels, 3, dir, "fig_pressure_mesh")?;
     Ok(Figure {
         stem: "fig_pressure_mesh".into(),
         caption: "The contact pressure λ (the dual snapshots) on the scene's mesh at the first, middle and last training points: each cell coloured by the mean of its nodes' pressures (0 at nodes that carry no dual entry), one colour scale for the three (colour bar at the right).".into(),
+    })
+}
+
+/// The full-order and the online reduced pressure side by side on the contact surface, at the
+/// first, middle and last test points.
+fn pressure_online(
+    scene: &SceneConfig,
+    s: &super::Surface,
+    o: &super::OnlinePressure,
+    dir: &Path,
+) -> Result<Figure, CromError> {
+    let mut panels: Vec<super::surface::Panel<'_>> = Vec::new();
+    for ((mu, full), online) in o.parameters.iter().zip(&o.full).zip(&o.online) {
+        let at = label(scene, mu);
+        panels.push(super::surface::Panel { label: format!("full order, {at}"), pressure: full });
+        panels.push(super::surface::Panel { label: format!("online reduced, {at}"), pressure: online });
+    }
+    let title = format!("{}: contact pressure at three test points, full order and online", scene.scene.name);
+    super::surface::render(&title, s, &panels, 2, dir, "fig_pressure_online")?;
+    Ok(Figure {
+        stem: "fig_pressure_online".into(),
+        caption: "The contact pressure λ on the contact surface at the first, middle and last test points: the full-order solution (left) and the online reduced solution (right; exact algorithm, full ranks, full CPG basis, as in online.h5), each cell coloured by the mean of its nodes' pressures, one colour scale for all panels.".into(),
     })
 }
 

@@ -52,6 +52,9 @@ pub(crate) struct ReportData {
     pub geometry: Option<bodies::Geometry>,
     /// A planar mesh to draw the pressure on (external scenes with a 2-D mesh).
     pub surface: Option<Surface>,
+    /// The full-order and the online pressure at three test points (`online.h5`), for a scene
+    /// drawn on its contact surface with the online stage.
+    pub online_pressure: Option<OnlinePressure>,
     /// The scene has the online stage (native scenes); an external scene does not.
     pub online: bool,
     /// The scene has a mesh (every native scene; an external one when it gives one).
@@ -85,6 +88,18 @@ pub(crate) struct ReportData {
     pub conditioning: Table,
     /// The reduced model the study stored for `crom query`, if it has one.
     pub model: Option<ModelFacts>,
+}
+
+/// The pressure at a few test points, full order and online (from `online.h5`: its online
+/// pressure, and that minus its recorded error).
+#[derive(Debug)]
+pub(crate) struct OnlinePressure {
+    /// Parameter point of each.
+    pub parameters: Vec<Vec<f64>>,
+    /// Full-order pressure of each (dual-entry order).
+    pub full: Vec<Vec<f64>>,
+    /// Online pressure of each.
+    pub online: Vec<Vec<f64>>,
 }
 
 /// What the report says of the stored reduced model (`model.h5` and `model_speed.parquet`).

@@ -51,21 +51,52 @@ fn cell_values(s: &Surface, panels: &[Panel<'_>]) -> (Vec<Vec<f64>>, f64) {
     (values, max)
 }
 
-/// Draw the panels to `<stem>.png` and `<stem>.svg` in `dir`.
-pub(crate) fn render(title: &str, s: &Surface, panels: &[Panel<'_>], dir: &Path, stem: &str) -> Result<(), CromError> {
+/// The drawn cells' extent: `[x0, x1, y0, y1]` (a 3-D scene's nodes hold both bodies; its
+/// cells are the contact surface).
+fn extent(s: &Surface) -> [f64; 4] {
+    let mut e = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+    for p in s.cells.iter().flatten().map(|&i| s.nodes[i]) {
+        e = [e[0].min(p[0]), e[1].max(p[0]), e[2].min(p[1]), e[3].max(p[1])];
+    }
+    e
+}
+
+/// Panel width in pixels; its height follows the surface's aspect ratio (between
+/// [`MIN_PANEL_HEIGHT`] and [`MAX_PANEL_HEIGHT`]), so that a long contact strip is not drawn in
+/// a square of white.
+const PANEL_WIDTH: u32 = 480;
+const MIN_PANEL_HEIGHT: u32 = 170;
+const MAX_PANEL_HEIGHT: u32 = 520;
+
+/// Draw the panels, `cols` to a row, to `<stem>.png` and `<stem>.svg` in `dir`.
+pub(crate) fn render(
+    title: &str,
+    s: &Surface,
+    panels: &[Panel<'_>],
+    cols: usize,
+    dir: &Path,
+    stem: &str,
+) -> Result<(), CromError> {
     register_font();
     let (values, max) = cell_values(s, panels);
-    let size = (480 * panels.len().max(1) as u32 + 120, 520);
+    let cols = cols.clamp(1, panels.len().max(1));
+    let rows = panels.len().div_ceil(cols).max(1);
+    let [x0, x1, y0, y1] = extent(s);
+    let aspect = if x1 > x0 && y1 >= y0 { (y1 - y0) / (x1 - x0) } else { 1.0 };
+    // the drawing area less the panel's margins and labels (70 x 80 pixels), as in `draw`
+    let height = ((f64::from(PANEL_WIDTH) - 70.0) * aspect * 1.02 + 80.0) as u32;
+    let height = height.clamp(MIN_PANEL_HEIGHT, MAX_PANEL_HEIGHT);
+    let size = (PANEL_WIDTH * cols as u32 + 120, height * rows as u32 + 40);
     let png = dir.join(format!("{stem}.png"));
     let svg = dir.join(format!("{stem}.svg"));
     let fail = |p: &Path, e: String| CromError::artifact(p, format!("drawing figure: {e}"), "report this as a bug");
     {
         let root = BitMapBackend::new(&png, size).into_drawing_area();
-        draw(&root, title, s, panels, (&values, max)).map_err(|e| fail(&png, e))?;
+        draw(&root, title, s, panels, (rows, cols), (&values, max)).map_err(|e| fail(&png, e))?;
         root.present().map_err(|e| fail(&png, e.to_string()))?;
     }
     let root = SVGBackend::new(&svg, size).into_drawing_area();
-    draw(&root, title, s, panels, (&values, max)).map_err(|e| fail(&svg, e))?;
+    draw(&root, title, s, panels, (rows, cols), (&values, max)).map_err(|e| fail(&svg, e))?;
     root.present().map_err(|e| fail(&svg, e.to_string()))
 }
 
@@ -74,22 +105,15 @@ fn draw<DB: DrawingBackend>(
     title: &str,
     s: &Surface,
     panels: &[Panel<'_>],
+    (rows, cols): (usize, usize),
     (values, max): (&[Vec<f64>], f64),
 ) -> Result<(), String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(e)?;
     let root = root.titled(title, ("sans-serif", 22)).map_err(e)?;
     let (main, bar) = root.split_horizontally(root.dim_in_pixel().0 - 110);
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    // the extent of the drawn cells (a 3-D scene's nodes hold both bodies; its cells are the
-    // contact surface)
-    for p in s.cells.iter().flatten().map(|&i| s.nodes[i]) {
-        x0 = x0.min(p[0]);
-        x1 = x1.max(p[0]);
-        y0 = y0.min(p[1]);
-        y1 = y1.max(p[1]);
-    }
-    for ((panel, cells), area) in panels.iter().zip(values).zip(main.split_evenly((1, panels.len().max(1)))) {
+    let [x0, x1, y0, y1] = extent(s);
+    for ((panel, cells), area) in panels.iter().zip(values).zip(main.split_evenly((rows, cols))) {
         // Equal aspect ratio: widen the narrower range to the panel's pixel proportions.
         let (w, h) = area.dim_in_pixel();
         let (w, h) = (f64::from(w.max(1)) - 70.0, f64::from(h.max(1)) - 80.0);
