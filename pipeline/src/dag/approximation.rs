@@ -14,14 +14,14 @@ use std::time::Instant;
 use crom_schemas::artifact::{comparison as names, ArtifactKind};
 use crom_schemas::comparison::ApproximationSpec;
 use crom_schemas::SceneConfig;
-use crom_stages::dual::{self, study, Approach, DualApprox, Training};
+use crom_stages::dual::{self, study, Approach, DualApprox};
 use crom_stages::running_stats::RunningStats;
 use serde::Serialize;
 use serde_json::json;
 
 use super::basis::Ticker;
 use super::comparison::{self, contact_surface, item};
-use super::convert::view;
+use super::convert::{self, view};
 use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
 use super::shared::Shared;
@@ -201,13 +201,7 @@ fn run(
         let n_train = set.parameters.len();
         let ms = dual::m_grid(max_m.min(n_train));
         let folds = crom_schemas::scene::spaced_folds(loo_folds.min(n_train), n_train);
-        let training = Training {
-            snapshots: view(&set.dual),
-            params: &set.parameters,
-            surface: &surface,
-            across: &across,
-            ms: &ms,
-        };
+        let training = convert::training((&set.dual, &set.parameters), &surface, &across, &ms);
         // The nested levels' pressures and parameters (small: n_contact x (2^n + 1) each).
         let levels = nested.iter().map(|k| loaded.level(store, k)).collect::<Result<Vec<_>, _>>()?;
         let bar = Ticker::new(progress, &format!("approximation {}", item.name), folds.len() + 2);
@@ -260,13 +254,7 @@ fn run(
             for (n, pair) in levels.windows(2).enumerate() {
                 let (lo, hi) = (&pair[0], &pair[1]);
                 let lo_ms = dual::m_grid(max_m.min(lo.parameters.len()));
-                let lower = Training {
-                    snapshots: view(&lo.dual),
-                    params: &lo.parameters,
-                    surface: &surface,
-                    across: &across,
-                    ms: &lo_ms,
-                };
+                let lower = convert::training((&lo.dual, &lo.parameters), &surface, &across, &lo_ms);
                 // A level too small for the approach (a local basis with more cells than the
                 // level has points) has no H(n): no row, counted in the facts.
                 match study::nested_error(a, &lower, view(&hi.dual), &hi.parameters) {

@@ -29,7 +29,7 @@ use std::time::Instant;
 use crom_schemas::artifact::{comparison as names, ArtifactKind};
 use crom_schemas::comparison::ApproximationSpec;
 use crom_schemas::SceneConfig;
-use crom_stages::dual::{self, Approach, DualApprox, Training};
+use crom_stages::dual::{self, Approach, DualApprox};
 use crom_stages::metrics::order::quantile;
 use crom_stages::rom::working_set::{WorkingSet, WorkingSetScratch, WS_START};
 use crom_stages::rom::{
@@ -269,13 +269,7 @@ fn run(
     } else {
         let surface = contact_x(ctx.store, mesh)?;
         let ms = dual::m_grid(settings.max_m.min(train_set.parameters.len()));
-        let training = Training {
-            snapshots: view(&train_set.dual),
-            params: &train_set.parameters,
-            surface: &surface,
-            across: &[],
-            ms: &ms,
-        };
+        let training = super::convert::training((&train_set.dual, &train_set.parameters), &surface, &[], &ms);
         let model = dual::build(&item.approach, &training).map_err(|e| fail(e.to_string()))?;
         for m in ONLINE_MS.into_iter().filter(|&m| m <= model.size()) {
             // a basis that depends on the parameter: the queries start their re-pairing from the

@@ -41,13 +41,12 @@ use crom_schemas::comparison::ApproximationSpec;
 use crom_schemas::scene::{ContactSamplingSpec, MODEL_DUAL_CPG};
 use crom_schemas::SceneConfig;
 use crom_stages::dual::registration::Registered;
-use crom_stages::dual::{self, Approach, DualApprox, Inner, Training};
+use crom_stages::dual::{self, Approach, DualApprox, Inner};
 use crom_stages::rom::{Algorithm, ReducedModel, RomParams, EXACT_STEP_ITERATIONS};
 use serde::Serialize;
 use serde_json::json;
 
 use super::comparison::{contact_x, item_of};
-use super::convert::view;
 use super::ctx::Ctx;
 use super::graph::{Input, Published, StageDef};
 use super::labels::Labels;
@@ -317,13 +316,8 @@ impl StageDef for ModelStage {
                     };
                     let surface = contact_x(store, &mesh.key)?;
                     let ms = dual::m_grid(key.max_m.min(train_set.parameters.len()));
-                    let training = Training {
-                        snapshots: view(&train_set.dual),
-                        params: &train_set.parameters,
-                        surface: &surface,
-                        across: &[],
-                        ms: &ms,
-                    };
+                    let training =
+                        super::convert::training((&train_set.dual, &train_set.parameters), &surface, &[], &ms);
                     let reg = Registered::build(&training, map, inner).map_err(|e| fail(e.to_string()))?;
                     let m = pick.r_dual.min(reg.size());
                     let base = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
