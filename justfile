@@ -72,6 +72,11 @@ bench-3d: build
     /usr/bin/time -f "bench_contact3d: peak memory %M KB" just example bench_contact3d
     tmp=$(mktemp -d) && /usr/bin/time -f "whole cold crom run ironing-3d: %e s, peak %M KB" "${CARGO_TARGET_DIR:-target}/release/crom" -q --store "$tmp/store" run ironing-3d > /dev/null && rm -rf "$tmp"
 
+# The 3-D level-10 rows: ironing-3d at train_level = 10 offline on the single-node Slurm and
+# locally, and the two stores compared byte for byte (about 25 minutes; not part of `just bench`).
+bench-3d-level10:
+    {{python}} scripts/bench_3d_level10.py
+
 # Only the online reduced-model targets: speed-ups, convergence, mesh independence.
 bench-rom:
     {{python}} scripts/bench_rom.py
