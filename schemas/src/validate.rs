@@ -180,7 +180,7 @@ impl SceneConfig {
             }
         }
         if let Some(dual) = &self.study.model_dual {
-            check_model_dual(&c, dual, self.comparison.as_ref())?;
+            check_model_dual(&c, dual, self.comparison.as_ref(), self.parameter.dim())?;
         }
         match &self.model {
             Model::Rope(r) => check_rope(&c, r),
@@ -797,9 +797,9 @@ fn check_planes(c: &Checker<'_>, at: &str, planes: &[crate::scene::PlaneSpec]) -
 }
 
 /// A 3-D scene: no reduced quadrature of the contact constraints (it fits node-to-segment rows;
-/// the 3-D online solve sums over every supported slave), and no registered neighbours basis
-/// (built on a contact curve). The other registered maps act along x on each line of the
-/// contact area, offline.
+/// the 3-D online solve sums over every supported slave), no registered neighbours basis (its
+/// order is built on a contact curve) and no primal translates (of a 2-D slab). The other
+/// registered maps act along x on each line of the contact area.
 fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError> {
     if scene.study.contact_sampling.is_some() {
         return Err(c.fail(
@@ -816,7 +816,7 @@ fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError
         {
             return Err(c.fail(
                 &format!("comparison.approximations[{i}]"),
-                "is a registered neighbours basis; its order and its online solve are built on a contact curve (2-D), and a 3-D scene's contact is an area".into(),
+                "is a registered neighbours basis, whose per-query order is built and tested on a contact curve (2-D) only, and a 3-D scene's contact is an area".into(),
                 "use basis = \"pod\" or \"cpg\" for a 3-D scene's registered entries",
             ));
         }
@@ -829,29 +829,25 @@ fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError
         {
             return Err(c.fail(
                 &format!("comparison.approximations[{i}].primal_translates"),
-                "is set, but a 3-D scene's registered bases are measured offline only, and the translates serve the online solve".into(),
+                "is set, but the translates shift a 2-D slave slab by whole columns; a 3-D scene's registered bases are solved online on the study's own primal space".into(),
                 "remove primal_translates from a 3-D scene's registered entries",
             ));
         }
-    }
-    if let Some(dual) = scene.study.model_dual.as_deref().filter(|d| *d != MODEL_DUAL_CPG) {
-        return Err(c.fail(
-            "study.model_dual",
-            format!("is \"{dual}\", but a 3-D stored model's online solve has the study's CPG basis only (a registered basis is measured offline in 3-D)"),
-            &format!("use \"{MODEL_DUAL_CPG}\" or remove study.model_dual"),
-        ));
     }
     Ok(())
 }
 
 /// `study.model_dual`: `cpg` or the name of a registered CPG approximation of `[comparison]`.
-fn check_model_dual(c: &Checker<'_>, dual: &str, cmp: Option<&ComparisonSpec>) -> Result<(), SceneError> {
+fn check_model_dual(c: &Checker<'_>, dual: &str, cmp: Option<&ComparisonSpec>, dims: usize) -> Result<(), SceneError> {
+    // a moments map over several parameter components is not stored (its interpolation levels
+    // are not among the model's arrays)
     let registered: Vec<String> = cmp
         .map(|cmp| {
             cmp.approximations
                 .iter()
                 .filter(|a| {
                     matches!(a, ApproximationSpec::Registered { basis: BasisSpec::Cpg | BasisSpec::Neighbours, .. })
+                        && !(dims > 1 && matches!(a, ApproximationSpec::Registered { map: MapSpec::Moments, .. }))
                 })
                 .map(ApproximationSpec::name)
                 .collect()

@@ -404,3 +404,21 @@ fn model_ranks_are_checked() {
     assert_names(&load_err(&with("[4, 0]")), &["study.model_ranks (r_dual)"]);
     assert_names(&load_err(&with("[4]")), &["model_ranks"]);
 }
+
+/// A stored model cannot carry a moments map over several parameter components (its
+/// interpolation levels are not among the model's arrays): `study.model_dual` naming one is
+/// refused with the storable names; over one component the same map is accepted.
+#[test]
+fn model_dual_refuses_a_moments_map_over_a_vector_parameter() {
+    let text = std::fs::read_to_string(scenes_dir().join("ironing-fine-2d.toml")).expect("shipped");
+    assert!(text.contains("map = \"moments\", refine = 16, basis = \"cpg\""), "the shipped entry moved");
+    let pinned = text.replace("seed = 20234", "seed = 20234\nmodel_dual = \"registered-moments-cpg\"");
+    assert_ne!(pinned, text);
+    let err = load_err(&pinned);
+    assert_names(&err, &["study.model_dual", "registered-moments-cpg"]);
+    let one = std::fs::read_to_string(scenes_dir().join("hertz.toml")).expect("shipped");
+    assert!(one.contains("map = \"moments\"") && one.contains("basis = \"cpg\""), "hertz's moments CPG entry moved");
+    let seed = one.lines().find(|l| l.starts_with("seed = ")).expect("a seed line").to_string();
+    let pinned = one.replace(&seed, &format!("{seed}\nmodel_dual = \"registered-moments-cpg\""));
+    SceneConfig::from_toml_str(&pinned, Path::new("ok.toml")).expect("a moments map over one component is storable");
+}

@@ -40,7 +40,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::approximation::ONLINE_MS;
-use super::comparison::{self, contact_x, item};
+use super::comparison::{self, contact_surface, item};
 use super::convert::view;
 use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
@@ -267,9 +267,9 @@ fn run(
             rows.push(&name, m, b.r_primal, &queries, b.fom_median);
         }
     } else {
-        let surface = contact_x(ctx.store, mesh)?;
+        let (surface, across) = contact_surface(ctx.store, mesh)?;
         let ms = dual::m_grid(settings.max_m.min(train_set.parameters.len()));
-        let training = super::convert::training((&train_set.dual, &train_set.parameters), &surface, &[], &ms);
+        let training = super::convert::training((&train_set.dual, &train_set.parameters), &surface, &across, &ms);
         let model = dual::build(&item.approach, &training).map_err(|e| fail(e.to_string()))?;
         for m in ONLINE_MS.into_iter().filter(|&m| m <= model.size()) {
             // a basis that depends on the parameter: the queries start their re-pairing from the

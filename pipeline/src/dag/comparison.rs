@@ -90,11 +90,6 @@ fn approach_of(spec: &ApproximationSpec) -> Approach {
     }
 }
 
-/// The abscissa of each potential-contact node, in dual-field order, from the mesh artifact.
-pub(crate) fn contact_x(store: &Store, mesh: &Key) -> Result<Vec<f64>, CromError> {
-    Ok(contact_surface(store, mesh)?.0)
-}
-
 /// The abscissa of each potential-contact node and, on a 3-D mesh, its coordinate across the
 /// travel (y; empty in 2-D), in dual-field order, from the mesh artifact: the registration
 /// maps' surface.

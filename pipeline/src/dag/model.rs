@@ -46,7 +46,7 @@ use crom_stages::rom::{Algorithm, ReducedModel, RomParams, EXACT_STEP_ITERATIONS
 use serde::Serialize;
 use serde_json::json;
 
-use super::comparison::{contact_x, item_of};
+use super::comparison::{contact_surface, item_of};
 use super::ctx::Ctx;
 use super::graph::{Input, Published, StageDef};
 use super::labels::Labels;
@@ -151,6 +151,15 @@ pub(crate) fn is_registered_cone(spec: &ApproximationSpec) -> bool {
     matches!(item_of(spec).approach, Approach::Registered { inner: Inner::Cpg | Inner::Neighbours, .. })
 }
 
+/// Whether a stored model can carry the registered cone basis `spec` over a parameter of `dims`
+/// components: not a moments map over several (its interpolation levels are not among the
+/// model's arrays, `Registered::arrays`).
+pub(crate) fn storable(spec: &ApproximationSpec, dims: usize) -> bool {
+    is_registered_cone(spec)
+        && !(dims > 1
+            && matches!(spec, ApproximationSpec::Registered { map: crom_schemas::comparison::MapSpec::Moments, .. }))
+}
+
 /// The reduced model a user runs.
 #[derive(Debug)]
 pub(crate) struct ModelStage {
@@ -182,7 +191,7 @@ impl ModelStage {
         };
         let (registered, online): (Vec<RegisteredKey>, Vec<Input>) = online
             .iter()
-            .filter(|(spec, _)| is_registered_cone(spec) && wanted(spec))
+            .filter(|(spec, _)| storable(spec, scene.parameter.dim()) && wanted(spec))
             .map(|(spec, input)| (RegisteredKey { approximation: spec.clone(), max_m }, input.clone()))
             .unzip();
         let settings = ModelKey::of(scene, registered);
@@ -314,10 +323,10 @@ impl StageDef for ModelStage {
                     else {
                         return Err(fail(format!("{} is not a registered cone basis", key.approximation.name())));
                     };
-                    let surface = contact_x(store, &mesh.key)?;
+                    let (surface, across) = contact_surface(store, &mesh.key)?;
                     let ms = dual::m_grid(key.max_m.min(train_set.parameters.len()));
                     let training =
-                        super::convert::training((&train_set.dual, &train_set.parameters), &surface, &[], &ms);
+                        super::convert::training((&train_set.dual, &train_set.parameters), &surface, &across, &ms);
                     let reg = Registered::build(&training, map, inner).map_err(|e| fail(e.to_string()))?;
                     let m = pick.r_dual.min(reg.size());
                     let base = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;

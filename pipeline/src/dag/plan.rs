@@ -154,9 +154,6 @@ pub fn external_skips(has_mesh: bool) -> &'static str {
     }
 }
 
-/// Why a registered approximation of a 3-D scene is measured offline only.
-pub const REGISTERED_3D_ONLINE: &str = "the online solve of a registered basis re-pairs a contact curve (2-D); in 3-D the registered bases are measured offline, and the online comparison has the others; skipped";
-
 /// The one line an external scene with `test = []` prints about what it does not have.
 pub const NO_TEST: &str = "external scene with test = []: every column trains; the test error T(m) of the comparison and the test views need test points; skipped";
 
@@ -397,14 +394,8 @@ impl Plan {
         let rom = nodes.add("rom", true, RomStage::plan(scene, train.clone(), test.clone(), basis.clone(), &labels));
         let mut online_parts: Vec<(String, Input)> = Vec::new();
         let mut online_specs: Vec<(ApproximationSpec, Input)> = Vec::new();
-        let mut skipped = skipped;
         for (i, item) in items.iter().enumerate() {
             let Some((_, offline)) = parts.iter().find(|(n, _)| *n == item.name) else { continue };
-            let registered = matches!(item.approach, crom_stages::dual::Approach::Registered { .. });
-            if registered && scene.model.is_3d() && item.approach.has_cone_basis() {
-                skipped.push(format!("approximation {} online: {REGISTERED_3D_ONLINE}", item.name));
-                continue;
-            }
             let (t, te, m, a) = (train.clone(), test.clone(), mesh.clone(), offline.clone());
             let Some(stage) = OnlineApproximationStage::plan(scene, i, t, te, m, a) else { continue };
             let name = format!("{}{}", comparison::ONLINE_NODE, item.name);
@@ -437,7 +428,7 @@ impl Plan {
         };
         let mut inputs = vec![mesh, train, basis, compactness, rom, generalization, specificity, model];
         inputs.extend([nested, comparison, online_comparison].into_iter().flatten());
-        // a 3-D scene's registered approximations, measured offline only, say so in the report
+        // the report lists what the plan skipped
         nodes.add("report", true, ReportStage::plan(scene, shows, inputs, skipped.clone()));
         Self { sweeps, family, nodes: nodes.0, imported, skipped }
     }

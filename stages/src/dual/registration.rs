@@ -266,6 +266,8 @@ pub struct Map {
     len: usize,
     /// Reference points per line.
     line_len: usize,
+    /// The coordinate across the travel of each node, dual order, as fitted (empty: a curve).
+    across: Vec<f64>,
 }
 
 impl Map {
@@ -296,6 +298,7 @@ impl Map {
             grid_step: 1.0,
             len: 0,
             line_len: 0,
+            across: training.across.to_vec(),
         };
         if let MapKind::Moments { .. } = kind {
             let dims = training.params.first().map_or(1, Vec::len);

@@ -22,6 +22,9 @@ pub struct RegisteredArrays {
     pub kind: MapKind,
     /// Abscissa of each contact node in the reference configuration, dual-entry order.
     pub surface: Vec<f64>,
+    /// Coordinate across the travel of each contact node (a 3-D contact area: y), dual-entry
+    /// order; empty for a contact curve.
+    pub across: Vec<f64>,
     /// Moments map: `(μ_j, c_j, a_j)` of the training snapshots with contact, sorted by μ,
     /// flattened (`3 · count`); empty for a translation.
     pub table: Vec<f64>,
@@ -50,8 +53,7 @@ impl Registered {
     pub fn arrays(&self) -> Option<RegisteredArrays> {
         // a registered POD has no online solve; a moments map over several parameter components
         // is not stored (its interpolation levels are not in the arrays)
-        // nor a map of a contact area (the stored model's online solve registers curves only)
-        if self.inner == Inner::Pod || !self.map.points.is_empty() || self.map.surface.lines() > 1 {
+        if self.inner == Inner::Pod || !self.map.points.is_empty() {
             return None;
         }
         let m = &self.map;
@@ -64,6 +66,7 @@ impl Registered {
         Some(RegisteredArrays {
             kind: m.kind,
             surface,
+            across: m.across.clone(),
             table: m.table.iter().flat_map(|&(t, c, a)| [t, c, a]).collect(),
             grid: [m.grid_start, m.grid_step],
             len,
@@ -120,15 +123,31 @@ impl Registered {
                 }
             }
         }
+        if !a.across.is_empty() && (a.across.len() != n || a.across.iter().any(|y| !y.is_finite())) {
+            return Err(bad(format!(
+                "{} coordinates across the travel for {n} surface nodes, or a non-finite one",
+                a.across.len()
+            )));
+        }
+        let surface = Surface::new(&a.surface, &a.across);
+        if !a.len.is_multiple_of(surface.lines()) {
+            return Err(bad(format!(
+                "reference grid of {} points for {} lines of the surface",
+                a.len,
+                surface.lines()
+            )));
+        }
+        let line_len = a.len / surface.lines();
         let map = Map {
             kind: a.kind,
-            surface: Surface::new(&a.surface, &[]),
+            surface,
             table,
             points: Vec::new(),
             grid_start: start,
             grid_step: step,
             len: a.len,
-            line_len: a.len,
+            line_len,
+            across: a.across.clone(),
         };
         let modes = Mat::from_fn(a.len, a.generators, |i, j| a.modes[i + j * a.len]);
         let neighbours = if a.travels.is_empty() {
@@ -216,5 +235,52 @@ mod tests {
         }
         let pod = Registered::build(&t, MapKind::Moments { refine: 2 }, Inner::Pod).expect("pod");
         assert!(pod.arrays().is_none(), "a registered POD is not a dual basis of the online solve");
+    }
+
+    /// A contact area (4 lines across the travel, shuffled dual order): the basis rebuilt from
+    /// its arrays, the lines' coordinates among them, pushes its generators to the same bits for
+    /// every map kind; arrays whose across coordinates are short or whose grid does not split
+    /// into the lines are refused.
+    #[test]
+    fn a_registered_basis_of_an_area_survives_its_arrays_bit_for_bit() {
+        let (nx, lines) = (30usize, 4usize);
+        let n = nx * lines;
+        let perm: Vec<usize> = (0..n).map(|i| (i * 7) % n).collect();
+        let x: Vec<f64> = perm.iter().map(|&p| 0.1 * (p % nx) as f64).collect();
+        let y: Vec<f64> = perm.iter().map(|&p| 0.25 * (p / nx) as f64).collect();
+        let params: Vec<Vec<f64>> = (0..7).map(|j| vec![0.2 * j as f64]).collect();
+        let bump = |t: f64| (1.0 - ((t - 1.0) / 0.3).powi(2)).max(0.0);
+        let s = Mat::from_fn(n, params.len(), |i, j| bump(x[i] - params[j][0]) * (1.0 + y[i]));
+        let ms = [1usize, 2, 3];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &y, ms: &ms };
+        for kind in [
+            MapKind::Translate { interpolation: Interpolation::Nodes },
+            MapKind::Translate { interpolation: Interpolation::Linear { refine: 2 } },
+            MapKind::Moments { refine: 2 },
+        ] {
+            let built = Registered::build(&t, kind, Inner::Cpg).expect("build");
+            let arrays = built.arrays().expect("a cone basis");
+            assert_eq!(arrays.across, y, "{kind:?}");
+            let back = Registered::from_arrays(&arrays).expect("rebuilt");
+            assert_eq!(back.arrays().as_ref(), Some(&arrays), "{kind:?}");
+            for mu in [0.0, 0.33, 0.9, 2.5] {
+                let (a, b) = (built.cone_basis(&[mu], 2).expect("a"), back.cone_basis(&[mu], 2).expect("b"));
+                assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()), "{kind:?} at {mu}");
+                for (p, q) in a
+                    .col_iter()
+                    .flat_map(|c| c.iter().copied().collect::<Vec<_>>())
+                    .zip(b.col_iter().flat_map(|c| c.iter().copied().collect::<Vec<_>>()))
+                {
+                    assert_eq!(p.to_bits(), q.to_bits(), "{kind:?} at {mu}");
+                }
+            }
+            let mut short = arrays.clone();
+            short.across.pop();
+            assert!(Registered::from_arrays(&short).is_err(), "{kind:?}: across coordinates missing");
+            let mut grid = arrays.clone();
+            grid.len += 1;
+            grid.modes.extend(std::iter::repeat_n(0.0, grid.generators));
+            assert!(Registered::from_arrays(&grid).is_err(), "{kind:?}: a grid that does not split into the lines");
+        }
     }
 }

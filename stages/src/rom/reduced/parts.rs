@@ -53,6 +53,7 @@
 //! | `reg_modes` | f64 | `reg_len · reg_generators` | reference generators, column-major |
 //! | `reg_travels` | f64 | `reg_generators` or 0 | neighbours basis: each generator's travel `c_j` (absent for CPG) |
 //! | `reg_weight` | f64 | 1 or 0 | neighbours basis: the weight `w` of the per-query order |
+//! | `reg_across` | f64 | `nc` or 0 | a 3-D contact area: each contact node's coordinate across the travel (y), whose lines the map acts along (absent for a contact curve) |
 //!
 //! Scalars: `surface`, `r_primal`, `r_dual`, `n_contact`, `lift_terms`, `warm_dim`, and for
 //! Type-2 `n_slaves`, `n_masters`. `Θ` by column and the per-node norms of `phi_c` are derived
@@ -93,7 +94,7 @@ impl ModelParts {
         "reg_m",
     ];
     /// Names of the float arrays.
-    pub const FLOATS: [&str; 24] = [
+    pub const FLOATS: [&str; 25] = [
         "khat_l",
         "u_of_y",
         "weights",
@@ -118,6 +119,7 @@ impl ModelParts {
         "reg_modes",
         "reg_travels",
         "reg_weight",
+        "reg_across",
     ];
     /// Names of the integer arrays.
     pub const INTS: [&str; 9] = [
@@ -301,6 +303,9 @@ impl ReducedModel {
                 ("reg_generators", a.generators as u64),
                 ("reg_m", m as u64),
             ]);
+            if !a.across.is_empty() {
+                floats.push(("reg_across", a.across));
+            }
             floats.extend([
                 ("reg_surface", a.surface),
                 ("reg_table", a.table),
@@ -335,6 +340,7 @@ impl ReducedModel {
         let arrays = RegisteredArrays {
             kind,
             surface: p.float("reg_surface").to_vec(),
+            across: p.float("reg_across").to_vec(),
             table: p.float("reg_table").to_vec(),
             grid: [*start, *step],
             len: size("reg_len")?,
