@@ -131,6 +131,19 @@ pub enum BasisSpec {
 }
 
 impl ApproximationSpec {
+    /// Whether a stored model can carry this entry as its dual basis over a parameter of `dims`
+    /// components: a registered CPG or neighbours basis (non-negative generators), but not a
+    /// moments map over several components (its interpolation levels are not among the
+    /// model's arrays).
+    pub fn storable(&self, dims: usize) -> bool {
+        match self {
+            ApproximationSpec::Registered { basis: BasisSpec::Cpg | BasisSpec::Neighbours, map, .. } => {
+                !(dims > 1 && *map == MapSpec::Moments)
+            }
+            _ => false,
+        }
+    }
+
     /// The translates of the training responses an online solve with this entry adds to its
     /// primal space (`primal_translates`), if any.
     pub fn primal_translates(&self) -> Option<usize> {

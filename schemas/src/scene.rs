@@ -489,6 +489,16 @@ impl StudySpec {
     }
 }
 
+/// `count` of `n` points evenly spaced with both ends, `i_k = floor(k (n - 1) / (count - 1))`,
+/// k = 0..count (every point when `n <= count` or `count < 2`): the training points a sampled
+/// surface is fitted to, and the test points the online stages time.
+pub fn spaced_with_ends(count: usize, n: usize) -> Vec<usize> {
+    if n <= count || count < 2 {
+        return (0..n).collect();
+    }
+    (0..count).map(|k| k * (n - 1) / (count - 1)).collect()
+}
+
 /// `f` evenly spaced leave-one-out folds of `n` snapshots, `i_k = floor(k n / f)`, k = 0..f
 /// (every fold when `f = n`): the folds of [`StudySpec::loo_folds_for`], from their count.
 pub fn spaced_folds(f: usize, n: usize) -> Vec<usize> {

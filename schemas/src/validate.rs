@@ -808,25 +808,16 @@ fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError
             "remove study.contact_sampling",
         ));
     }
-    if let Some(cmp) = &scene.comparison {
-        if let Some(i) = cmp
-            .approximations
-            .iter()
-            .position(|a| matches!(a, ApproximationSpec::Registered { basis: BasisSpec::Neighbours, .. }))
-        {
+    let entries = scene.comparison.as_ref().map_or(&[][..], |cmp| cmp.approximations.as_slice());
+    for (i, a) in entries.iter().enumerate() {
+        if matches!(a, ApproximationSpec::Registered { basis: BasisSpec::Neighbours, .. }) {
             return Err(c.fail(
                 &format!("comparison.approximations[{i}]"),
                 "is a registered neighbours basis, whose per-query order is built and tested on a contact curve (2-D) only, and a 3-D scene's contact is an area".into(),
                 "use basis = \"pod\" or \"cpg\" for a 3-D scene's registered entries",
             ));
         }
-    }
-    if let Some(cmp) = &scene.comparison {
-        if let Some(i) = cmp
-            .approximations
-            .iter()
-            .position(|a| matches!(a, ApproximationSpec::Registered { primal_translates: Some(_), .. }))
-        {
+        if matches!(a, ApproximationSpec::Registered { primal_translates: Some(_), .. }) {
             return Err(c.fail(
                 &format!("comparison.approximations[{i}].primal_translates"),
                 "is set, but the translates shift a 2-D slave slab by whole columns; a 3-D scene's registered bases are solved online on the study's own primal space".into(),
@@ -839,19 +830,8 @@ fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError
 
 /// `study.model_dual`: `cpg` or the name of a registered CPG approximation of `[comparison]`.
 fn check_model_dual(c: &Checker<'_>, dual: &str, cmp: Option<&ComparisonSpec>, dims: usize) -> Result<(), SceneError> {
-    // a moments map over several parameter components is not stored (its interpolation levels
-    // are not among the model's arrays)
     let registered: Vec<String> = cmp
-        .map(|cmp| {
-            cmp.approximations
-                .iter()
-                .filter(|a| {
-                    matches!(a, ApproximationSpec::Registered { basis: BasisSpec::Cpg | BasisSpec::Neighbours, .. })
-                        && !(dims > 1 && matches!(a, ApproximationSpec::Registered { map: MapSpec::Moments, .. }))
-                })
-                .map(ApproximationSpec::name)
-                .collect()
-        })
+        .map(|cmp| cmp.approximations.iter().filter(|a| a.storable(dims)).map(ApproximationSpec::name).collect())
         .unwrap_or_default();
     if dual == MODEL_DUAL_CPG || registered.iter().any(|n| n == dual) {
         return Ok(());

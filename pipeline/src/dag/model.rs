@@ -145,21 +145,6 @@ pub(crate) fn domain(scene: &SceneConfig) -> (Vec<&str>, Vec<f64>, Vec<f64>) {
     (p.names(), lo, hi)
 }
 
-/// Whether `spec` is a registered cone basis, CPG or neighbours (a dual basis a model can
-/// carry).
-pub(crate) fn is_registered_cone(spec: &ApproximationSpec) -> bool {
-    matches!(item_of(spec).approach, Approach::Registered { inner: Inner::Cpg | Inner::Neighbours, .. })
-}
-
-/// Whether a stored model can carry the registered cone basis `spec` over a parameter of `dims`
-/// components: not a moments map over several (its interpolation levels are not among the
-/// model's arrays, `Registered::arrays`).
-pub(crate) fn storable(spec: &ApproximationSpec, dims: usize) -> bool {
-    is_registered_cone(spec)
-        && !(dims > 1
-            && matches!(spec, ApproximationSpec::Registered { map: crom_schemas::comparison::MapSpec::Moments, .. }))
-}
-
 /// The reduced model a user runs.
 #[derive(Debug)]
 pub(crate) struct ModelStage {
@@ -191,7 +176,7 @@ impl ModelStage {
         };
         let (registered, online): (Vec<RegisteredKey>, Vec<Input>) = online
             .iter()
-            .filter(|(spec, _)| storable(spec, scene.parameter.dim()) && wanted(spec))
+            .filter(|(spec, _)| spec.storable(scene.parameter.dim()) && wanted(spec))
             .map(|(spec, input)| (RegisteredKey { approximation: spec.clone(), max_m }, input.clone()))
             .unzip();
         let settings = ModelKey::of(scene, registered);

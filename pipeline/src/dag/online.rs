@@ -9,7 +9,7 @@ use crom_stages::basis::{pod_by_gram, pod_full};
 use crom_stages::rom::{ContactOperator, PrimalErrors, ReducedModel, ReducedSolution};
 use faer::MatRef;
 
-use super::timing::{time_alone, timed_points};
+use super::timing::time_sample;
 use crate::cache::Key;
 use crate::io::h5::ColMatrix;
 use crate::io::snapshot_set::TrainingSet;
@@ -22,23 +22,17 @@ pub(crate) const SAMPLING_FIT_POINTS: usize = 32;
 
 /// At most `n` of `points`, evenly spaced with both ends.
 pub(crate) fn subsample(points: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
-    if points.len() <= n || n < 2 {
-        return points.to_vec();
-    }
-    (0..n).map(|k| points[k * (points.len() - 1) / (n - 1)].clone()).collect()
+    crom_schemas::scene::spaced_with_ends(n, points.len()).into_iter().map(|k| points[k].clone()).collect()
 }
 
-/// High-fidelity solve time at each parameter of the timed sample ([`timed_points`]; NaN at the
+/// High-fidelity solve time at each parameter of the timed sample ([`time_sample`]; NaN at the
 /// others, which are not solved: their snapshots are in the store), measured here — same build,
-/// same process, by the same rules as the online queries ([`time_alone`]: alone, the fastest of
+/// same process, by the same rules as the online queries (alone, the fastest of
 /// repeated runs, a failed solve by its one run) — rather than read from the snapshot
 /// artifacts, which may have been computed by another build (once per run and set:
 /// `LazyPhysics::fom_seconds`).
 pub(crate) fn fom_seconds(phys: &Physics, parameters: &[Vec<f64>]) -> Vec<f64> {
-    let timed = timed_points(parameters.len());
-    let sample: Vec<&Vec<f64>> = parameters.iter().zip(&timed).filter(|(_, t)| **t).map(|(p, _)| p).collect();
-    let mut seconds = time_alone(&sample, |mu| phys.solve(mu), Result::is_ok).into_iter();
-    timed.iter().map(|&t| if t { seconds.next().unwrap_or(f64::NAN) } else { f64::NAN }).collect()
+    time_sample(parameters, |mu| phys.solve(mu), Result::is_ok)
 }
 
 /// POD (numerical rank) of the training contact responses `u_k - u0(mu_k)`.

@@ -153,14 +153,12 @@ fn run(ctx: &mut Ctx<'_>, spec: &KeySpec, settings: &ReportKey, inputs: &ReportI
     })
 }
 
-/// The full-order and the online pressure at the first, middle and last test points of
-/// `online.h5` (the full-order one is the online one less its recorded error); `None` without
-/// test points.
+/// The online pressure at every test point of `online.h5`, its error against the full-order one
+/// and the points; `None` without test points.
 fn online_pressure(path: &std::path::Path) -> Result<Option<crate::report::OnlinePressure>, CromError> {
     let h5 = H5In::open(path)?;
-    let (dual, error) = (h5.matrix("dual")?, h5.matrix("dual_error")?);
-    let k = dual.cols;
-    if k == 0 || error.cols != k || error.rows != dual.rows {
+    let (online, error) = (h5.matrix("dual")?, h5.matrix("dual_error")?);
+    if online.cols == 0 || error.cols != online.cols || error.rows != online.rows {
         return Ok(None);
     }
     let parameters: Vec<Vec<f64>> = match h5.shape("parameters")?.len() {
@@ -170,16 +168,7 @@ fn online_pressure(path: &std::path::Path) -> Result<Option<crate::report::Onlin
             (0..p.rows).map(|i| (0..p.cols).map(|j| p.data[i + j * p.rows]).collect()).collect()
         }
     };
-    let mut picks = vec![0, k / 2, k - 1];
-    picks.dedup();
-    let mut out = crate::report::OnlinePressure { parameters: Vec::new(), full: Vec::new(), online: Vec::new() };
-    for j in picks {
-        let (on, err) = (dual.col(j), error.col(j));
-        out.parameters.push(parameters.get(j).cloned().unwrap_or_default());
-        out.full.push(on.iter().zip(err).map(|(a, e)| a - e).collect());
-        out.online.push(on.to_vec());
-    }
-    Ok(Some(out))
+    Ok(Some(crate::report::OnlinePressure { parameters, online, error }))
 }
 
 fn gather(store: &Store, loaded: &Loaded, inputs: &ReportInputs) -> Result<ReportData, CromError> {

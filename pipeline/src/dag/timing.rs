@@ -52,13 +52,12 @@ pub(crate) const MAX_REPEATS: usize = 1000;
 pub(crate) const TIMED_POINTS: usize = 32;
 
 /// Which of `n` points are timed: all when `n <= TIMED_POINTS`, else [`TIMED_POINTS`] evenly
-/// spaced with both ends (point `k (n - 1) / (TIMED_POINTS - 1)` for k = 0, 1, …).
+/// spaced with both ends (point `k (n - 1) / (TIMED_POINTS - 1)` for k = 0, 1, …;
+/// `crom_schemas::scene::spaced_with_ends`).
 pub(crate) fn timed_points(n: usize) -> Vec<bool> {
-    let mut timed = vec![n <= TIMED_POINTS; n];
-    if n > TIMED_POINTS {
-        for k in 0..TIMED_POINTS {
-            timed[k * (n - 1) / (TIMED_POINTS - 1)] = true;
-        }
+    let mut timed = vec![false; n];
+    for k in crom_schemas::scene::spaced_with_ends(TIMED_POINTS, n) {
+        timed[k] = true;
     }
     timed
 }
@@ -129,14 +128,19 @@ where
         .into_iter()
         .flatten()
         .collect();
+    let mut state = state;
+    let seconds = time_sample(&items, |item| solve(&mut state, item), solved);
+    kept.into_iter().zip(seconds).collect()
+}
+
+/// The fastest run of `solve(item)` at the items of [`timed_points`] ([`time_alone`]), NaN at
+/// the others, which are not solved: one time per item, in the order of `items`.
+pub(crate) fn time_sample<I, R>(items: &[I], solve: impl FnMut(&I) -> R, solved: impl Fn(&R) -> bool) -> Vec<f64> {
     let timed = timed_points(items.len());
     let sample: Vec<&I> = items.iter().zip(&timed).filter(|(_, t)| **t).map(|(i, _)| i).collect();
-    let mut state = state;
-    let mut seconds = time_alone(&sample, |item| solve(&mut state, item), solved).into_iter();
-    kept.into_iter()
-        .zip(&timed)
-        .map(|(k, &t)| (k, if t { seconds.next().unwrap_or(f64::NAN) } else { f64::NAN }))
-        .collect()
+    let mut solve = solve;
+    let mut seconds = time_alone(&sample, |item| solve(item), solved).into_iter();
+    timed.iter().map(|&t| if t { seconds.next().unwrap_or(f64::NAN) } else { f64::NAN }).collect()
 }
 
 /// The fastest run of `solve(item)` at every item, each run alone on the calling thread, by the

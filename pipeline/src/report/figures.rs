@@ -367,7 +367,7 @@ fn by_x(d: &ReportData, mut entries: Vec<usize>) -> (Vec<usize>, Vec<f64>) {
     (entries, xs)
 }
 
-/// The first, middle and last training points (distinct).
+/// The first, middle and last of `n` points (distinct).
 fn three(n: usize) -> Vec<usize> {
     let mut picks = vec![0, n / 2, n.saturating_sub(1)];
     picks.dedup();
@@ -397,11 +397,14 @@ fn pressure_online(
     o: &super::OnlinePressure,
     dir: &Path,
 ) -> Result<Figure, CromError> {
+    let picks = three(o.online.cols);
+    let full: Vec<Vec<f64>> =
+        picks.iter().map(|&j| o.online.col(j).iter().zip(o.error.col(j)).map(|(a, e)| a - e).collect()).collect();
     let mut panels: Vec<super::surface::Panel<'_>> = Vec::new();
-    for ((mu, full), online) in o.parameters.iter().zip(&o.full).zip(&o.online) {
-        let at = label(scene, mu);
+    for (&j, full) in picks.iter().zip(&full) {
+        let at = o.parameters.get(j).map_or_else(String::new, |mu| label(scene, mu));
         panels.push(super::surface::Panel { label: format!("full order, {at}"), pressure: full });
-        panels.push(super::surface::Panel { label: format!("online reduced, {at}"), pressure: online });
+        panels.push(super::surface::Panel { label: format!("online reduced, {at}"), pressure: o.online.col(j) });
     }
     let title = format!("{}: contact pressure at three test points, full order and online", scene.scene.name);
     super::surface::render(&title, s, &panels, 2, dir, "fig_pressure_online")?;

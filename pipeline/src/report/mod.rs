@@ -52,8 +52,8 @@ pub(crate) struct ReportData {
     pub geometry: Option<bodies::Geometry>,
     /// A planar mesh to draw the pressure on (external scenes with a 2-D mesh).
     pub surface: Option<Surface>,
-    /// The full-order and the online pressure at three test points (`online.h5`), for a scene
-    /// drawn on its contact surface with the online stage.
+    /// The online pressure and its error at the test points (`online.h5`), for a scene drawn on
+    /// its contact surface with the online stage.
     pub online_pressure: Option<OnlinePressure>,
     /// The scene has the online stage (native scenes); an external scene does not.
     pub online: bool,
@@ -90,16 +90,16 @@ pub(crate) struct ReportData {
     pub model: Option<ModelFacts>,
 }
 
-/// The pressure at a few test points, full order and online (from `online.h5`: its online
-/// pressure, and that minus its recorded error).
+/// The online pressure at the test points and its error against the full-order one (from
+/// `online.h5`; the full-order pressure is the online one less its error).
 #[derive(Debug)]
 pub(crate) struct OnlinePressure {
-    /// Parameter point of each.
+    /// Parameter point of each test point.
     pub parameters: Vec<Vec<f64>>,
-    /// Full-order pressure of each (dual-entry order).
-    pub full: Vec<Vec<f64>>,
-    /// Online pressure of each.
-    pub online: Vec<Vec<f64>>,
+    /// Online pressure, `n_contact x k` (dual-entry order).
+    pub online: crate::io::h5::ColMatrix,
+    /// Online minus full-order pressure, same shape.
+    pub error: crate::io::h5::ColMatrix,
 }
 
 /// What the report says of the stored reduced model (`model.h5` and `model_speed.parquet`).
