@@ -16,6 +16,9 @@
 //! * A scene that asks for the full ranks (`study.model_ranks`) gets the model whose every test
 //!   point the online stage tabled (`rom_errors.parquet`, exact, full CPG basis): point by
 //!   point, the query's outcome, steps, indicator terms and dual error have the same bits.
+//! * Over a two-component parameter (a small ironing-fine-2d) the stored model carries the
+//!   registered CPG on the moments map and answers the test points as the online comparison
+//!   measured it.
 //! * Bad input — an unknown parameter, a malformed `--at`, a point outside the training domain,
 //!   a points file without the parameter's column, a stale model (the scene changed) — exits 2
 //!   naming the field and the fix, and leaves the store as it was.
@@ -332,4 +335,80 @@ fn a_scene_chooses_the_dual_approximation_of_its_model() {
     let model = StoredModel::read(&store.join("scenes/hertz/model.h5")).expect("model");
     assert_eq!((model.dual_basis.as_str(), model.parts.scalar("reg_m")), ("registered-moments-cpg", 3));
     check_against(&store, ("hertz", pinned), "d", tmp.path());
+}
+
+/// A stored model over a two-component parameter carries the registered CPG on the moments map
+/// (a small ironing-fine-2d: 9 x 3 training points, the map interpolated over the grid level by
+/// level): the model stage stores it (`reg_dims` = 2, the table one row per training point with
+/// contact; a damaged component count refused), and `crom query --check` at the scene's test
+/// points, given by both components,
+/// answers as the online comparison measured its row (bit for bit: the median and 95th
+/// percentile dual error, the median number of non-zero dual coefficients). A points file
+/// without the second component is refused (exit 2, naming it) and writes nothing.
+#[test]
+fn a_moments_map_over_two_components_is_stored_and_answers_as_measured() {
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let scene = common::variant(
+        tmp.path(),
+        "ironing-fine-2d",
+        "ironing-2d-small.toml",
+        &[
+            ("name = \"ironing-fine-2d\"", "name = \"ironing-2d-small\""),
+            ("nx = 200\nny = 40", "nx = 50\nny = 10"),
+            ("nx = 60\nny = 60", "nx = 15\nny = 15"),
+            ("train_level = 6", "train_level = 3"),
+            ("train_level = 4", "train_level = 1"),
+            ("max_m = 16", "max_m = 4"),
+            ("loo_folds = 32", "loo_folds = 4"),
+            (
+                "  { kind = \"pod\" },\n  { kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"pod\" },\n",
+                "",
+            ),
+        ],
+    );
+    let scene = scene.to_str().expect("utf8");
+    let o = crom(&store, &["--quiet", "run", scene]);
+    assert!(o.status.success(), "{}", text(&o));
+    let published = store.join("scenes/ironing-2d-small");
+    let model = StoredModel::read(&published.join("model.h5")).expect("model.h5");
+    assert_eq!(model.dual_basis, "registered-moments-cpg");
+    assert_eq!(model.parts.scalar("reg_dims"), 2);
+    let table = model.parts.float("reg_table");
+    assert!(!table.is_empty() && table.len().is_multiple_of(4) && table.len() / 4 <= 27, "{} values", table.len());
+    // the parts make a model; a damaged component count is refused, never a wrong map
+    assert!(crom_stages::rom::ReducedModel::from_parts(&model.parts).is_ok());
+    for dims in [3, 70] {
+        let mut bad = model.parts.clone();
+        bad.scalars.iter_mut().filter(|(n, _)| *n == "reg_dims").for_each(|(_, v)| *v = dims);
+        assert!(crom_stages::rom::ReducedModel::from_parts(&bad).is_err(), "reg_dims = {dims} accepted");
+    }
+    let errors = read_parquet(&published.join("rom_errors.parquet")).expect("errors");
+    let (set, alg, basis) =
+        (errors.strs("set").expect("set"), errors.strs("algorithm").expect("a"), errors.strs("dual_basis").expect("b"));
+    let (dx, dy) = (errors.f64s("d_x").expect("d_x"), errors.f64s("d_y").expect("d_y"));
+    let rows: Vec<usize> =
+        (0..errors.rows()).filter(|&i| set[i] == "test" && alg[i] == "exact" && basis[i] == "full").collect();
+    assert!(rows.len() >= 8, "{} test points", rows.len());
+    let csv: Vec<String> =
+        std::iter::once("d_x,d_y".to_string()).chain(rows.iter().map(|&i| format!("{},{}", dx[i], dy[i]))).collect();
+    let points = tmp.path().join("points.csv");
+    std::fs::write(&points, csv.join("\n")).expect("points");
+    let out = tmp.path().join("answers.parquet");
+    let before = listing(&store);
+    let o = crom(
+        &store,
+        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(listing(&store), before, "the query wrote to the store");
+    let q = read_parquet(&out).expect("answers");
+    assert_eq!(q.rows(), rows.len());
+    check_registered(&published, &model, &q, "ironing-2d-small");
+    let one = tmp.path().join("one.csv");
+    std::fs::write(&one, "d_x\n0.5\n").expect("points");
+    let o = crom(&store, &["query", scene, "--points", one.to_str().expect("utf8")]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("d_y") && text(&o).contains("fix:"), "{}", text(&o));
+    assert_eq!(listing(&store), before, "a refused query wrote to the store");
 }

@@ -131,17 +131,10 @@ pub enum BasisSpec {
 }
 
 impl ApproximationSpec {
-    /// Whether a stored model can carry this entry as its dual basis over a parameter of `dims`
-    /// components: a registered CPG or neighbours basis (non-negative generators), but not a
-    /// moments map over several components (its interpolation levels are not among the
-    /// model's arrays).
-    pub fn storable(&self, dims: usize) -> bool {
-        match self {
-            ApproximationSpec::Registered { basis: BasisSpec::Cpg | BasisSpec::Neighbours, map, .. } => {
-                !(dims > 1 && *map == MapSpec::Moments)
-            }
-            _ => false,
-        }
+    /// Whether a stored model can carry this entry as its dual basis: a registered CPG or
+    /// neighbours basis (non-negative generators), whatever its map.
+    pub fn storable(&self) -> bool {
+        matches!(self, ApproximationSpec::Registered { basis: BasisSpec::Cpg | BasisSpec::Neighbours, .. })
     }
 
     /// The translates of the training responses an online solve with this entry adds to its

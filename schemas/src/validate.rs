@@ -180,7 +180,7 @@ impl SceneConfig {
             }
         }
         if let Some(dual) = &self.study.model_dual {
-            check_model_dual(&c, dual, self.comparison.as_ref(), self.parameter.dim())?;
+            check_model_dual(&c, dual, self.comparison.as_ref())?;
         }
         match &self.model {
             Model::Rope(r) => check_rope(&c, r),
@@ -829,9 +829,9 @@ fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError
 }
 
 /// `study.model_dual`: `cpg` or the name of a registered CPG approximation of `[comparison]`.
-fn check_model_dual(c: &Checker<'_>, dual: &str, cmp: Option<&ComparisonSpec>, dims: usize) -> Result<(), SceneError> {
+fn check_model_dual(c: &Checker<'_>, dual: &str, cmp: Option<&ComparisonSpec>) -> Result<(), SceneError> {
     let registered: Vec<String> = cmp
-        .map(|cmp| cmp.approximations.iter().filter(|a| a.storable(dims)).map(ApproximationSpec::name).collect())
+        .map(|cmp| cmp.approximations.iter().filter(|a| a.storable()).map(ApproximationSpec::name).collect())
         .unwrap_or_default();
     if dual == MODEL_DUAL_CPG || registered.iter().any(|n| n == dual) {
         return Ok(());

@@ -405,20 +405,27 @@ fn model_ranks_are_checked() {
     assert_names(&load_err(&with("[4]")), &["model_ranks"]);
 }
 
-/// A stored model cannot carry a moments map over several parameter components (its
-/// interpolation levels are not among the model's arrays): `study.model_dual` naming one is
-/// refused with the storable names; over one component the same map is accepted.
+/// A stored model carries a registered CPG on the moments map over one parameter component and
+/// over several (its table keeps each training point's components): `study.model_dual` naming
+/// it is accepted on ironing-fine-2d and on hertz; naming the registered POD of the same map is
+/// refused with the storable names.
 #[test]
-fn model_dual_refuses_a_moments_map_over_a_vector_parameter() {
+fn model_dual_takes_a_moments_map_over_a_vector_parameter() {
     let text = std::fs::read_to_string(scenes_dir().join("ironing-fine-2d.toml")).expect("shipped");
     assert!(text.contains("map = \"moments\", refine = 16, basis = \"cpg\""), "the shipped entry moved");
-    let pinned = text.replace("seed = 20234", "seed = 20234\nmodel_dual = \"registered-moments-cpg\"");
-    assert_ne!(pinned, text);
-    let err = load_err(&pinned);
+    let pin = |text: &str, name: &str| {
+        let seed = text.lines().find(|l| l.starts_with("seed = ")).expect("a seed line").to_string();
+        let pinned = text.replace(&seed, &format!("{seed}\nmodel_dual = \"{name}\""));
+        assert_ne!(pinned, text);
+        pinned
+    };
+    let cfg = SceneConfig::from_toml_str(&pin(&text, "registered-moments-cpg"), Path::new("ok.toml"))
+        .expect("a moments map over two components is storable");
+    assert_eq!(cfg.study.model_dual.as_deref(), Some("registered-moments-cpg"));
+    let err = load_err(&pin(&text, "registered-moments-pod"));
     assert_names(&err, &["study.model_dual", "registered-moments-cpg"]);
     let one = std::fs::read_to_string(scenes_dir().join("hertz.toml")).expect("shipped");
     assert!(one.contains("map = \"moments\"") && one.contains("basis = \"cpg\""), "hertz's moments CPG entry moved");
-    let seed = one.lines().find(|l| l.starts_with("seed = ")).expect("a seed line").to_string();
-    let pinned = one.replace(&seed, &format!("{seed}\nmodel_dual = \"registered-moments-cpg\""));
-    SceneConfig::from_toml_str(&pinned, Path::new("ok.toml")).expect("a moments map over one component is storable");
+    SceneConfig::from_toml_str(&pin(&one, "registered-moments-cpg"), Path::new("ok.toml"))
+        .expect("a moments map over one component is storable");
 }

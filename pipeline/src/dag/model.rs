@@ -176,7 +176,7 @@ impl ModelStage {
         };
         let (registered, online): (Vec<RegisteredKey>, Vec<Input>) = online
             .iter()
-            .filter(|(spec, _)| spec.storable(scene.parameter.dim()) && wanted(spec))
+            .filter(|(spec, _)| spec.storable() && wanted(spec))
             .map(|(spec, input)| (RegisteredKey { approximation: spec.clone(), max_m }, input.clone()))
             .unzip();
         let settings = ModelKey::of(scene, registered);

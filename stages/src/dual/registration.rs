@@ -99,7 +99,9 @@ impl MapKind {
 /// `mu` (every point agrees with `mu`'s components beyond them).
 fn levels(points: &[&(Vec<f64>, f64, f64)], mu: &[f64], dims: usize) -> (f64, f64) {
     let last = dims - 1;
-    let t = mu[last];
+    // a point with fewer components than the map's (refused where a model is loaded) reads
+    // the lowest level: never an index out of range
+    let t = mu.get(last).copied().unwrap_or(f64::NAN);
     // the distinct values of the last component, ascending
     let mut values: Vec<f64> = points.iter().map(|p| p.0[last]).collect();
     values.sort_by(f64::total_cmp);
@@ -408,7 +410,7 @@ impl Map {
             MapKind::Translate { .. } => (mu.first().copied().unwrap_or(0.0), 1.0),
             MapKind::Moments { .. } if !self.points.is_empty() => {
                 let refs: Vec<&(Vec<f64>, f64, f64)> = self.points.iter().collect();
-                levels(&refs, mu, mu.len())
+                levels(&refs, mu, self.points[0].0.len())
             }
             MapKind::Moments { .. } => {
                 let t = mu.first().copied().unwrap_or(0.0);

@@ -5,7 +5,9 @@
 //!
 //! Kept: the map's kind (and reference refinement), the contact surface's abscissae in
 //! dual-entry order (the node order and tributary widths are derived from them by the code that
-//! derived them at the fit), the moments map's table `(μ_j, c_j, a_j)`, the reference grid
+//! derived them at the fit), the moments map's table `(μ_j, c_j, a_j)` (over several
+//! parameter components, `(μ_j1, …, μ_jd, c_j, a_j)` in the fit's order: the level-by-level
+//! interpolation reads the rows in that order), the reference grid
 //! (start, step, length) and the reference generators (`len x k`, column-major); for a
 //! neighbours basis also each column's travel and the weight of the order. The offline
 //! round-trip errors are facts of the build and are not kept.
@@ -26,8 +28,12 @@ pub struct RegisteredArrays {
     /// order; empty for a contact curve.
     pub across: Vec<f64>,
     /// Moments map: `(μ_j, c_j, a_j)` of the training snapshots with contact, sorted by μ,
-    /// flattened (`3 · count`); empty for a translation.
+    /// flattened (`3 · count`); over a parameter of [`Self::dims`] components, the rows
+    /// `(μ_j1, …, μ_jd, c_j, a_j)` in the training points' order (`(d + 2) · count`); empty
+    /// for a translation.
     pub table: Vec<f64>,
+    /// Components of the moments map's parameter points (1 for a translation).
+    pub dims: usize,
     /// Reference grid: `[start, step]` (whole-node shifts: `[largest training shift, h]`).
     pub grid: [f64; 2],
     /// Reference grid length.
@@ -51,9 +57,8 @@ impl Registered {
     /// The basis as arrays; `None` for a registered POD (only non-negative generators make a
     /// dual basis of the online solve).
     pub fn arrays(&self) -> Option<RegisteredArrays> {
-        // a registered POD has no online solve; a moments map over several parameter components
-        // is not stored (its interpolation levels are not in the arrays)
-        if self.inner == Inner::Pod || !self.map.points.is_empty() {
+        // a registered POD has no online solve
+        if self.inner == Inner::Pod {
             return None;
         }
         let m = &self.map;
@@ -67,7 +72,12 @@ impl Registered {
             kind: m.kind,
             surface,
             across: m.across.clone(),
-            table: m.table.iter().flat_map(|&(t, c, a)| [t, c, a]).collect(),
+            table: if m.points.is_empty() {
+                m.table.iter().flat_map(|&(t, c, a)| [t, c, a]).collect()
+            } else {
+                m.points.iter().flat_map(|(mu, c, a)| mu.iter().copied().chain([*c, *a])).collect()
+            },
+            dims: m.points.first().map_or(1, |p| p.0.len()),
             grid: [m.grid_start, m.grid_step],
             len,
             modes: (0..k).flat_map(|j| self.modes.col(j).iter().copied().collect::<Vec<_>>()).collect(),
@@ -100,21 +110,36 @@ impl Registered {
         if !(start.is_finite() && step.is_finite() && step > 0.0) {
             return Err(bad(format!("reference grid start {start}, step {step}")));
         }
-        let table: Vec<(f64, f64, f64)> =
-            a.table.chunks(3).map(|c| (c[0], c[1], c.get(2).copied().unwrap_or(0.0))).collect();
+        if a.dims == 0 || a.dims > 64 {
+            return Err(bad(format!("{} parameter components of the moments table", a.dims)));
+        }
+        // rows of `dims` components, then c and a
+        let row = a.dims + 2;
+        let rows = || a.table.chunks(row);
+        let (mut table, mut points) = (Vec::new(), Vec::new());
         match a.kind {
             MapKind::Moments { .. } => {
                 if a.table.is_empty()
-                    || !a.table.len().is_multiple_of(3)
+                    || !a.table.len().is_multiple_of(row)
                     || a.table.iter().any(|v| !v.is_finite())
-                    || table.iter().any(|&(_, _, w)| w <= 0.0)
-                    || table.windows(2).any(|p| p[0].0 > p[1].0)
+                    || rows().any(|r| r[row - 1] <= 0.0)
                 {
-                    return Err(bad("the moments table is not sorted triples (mu, c, a > 0)".into()));
+                    return Err(bad(format!(
+                        "the moments table is not rows of {} parameter components, c and a > 0",
+                        a.dims
+                    )));
+                }
+                if a.dims == 1 {
+                    table = rows().map(|r| (r[0], r[1], r[2])).collect();
+                    if table.windows(2).any(|p| p[0].0 > p[1].0) {
+                        return Err(bad("the moments table is not sorted by mu".into()));
+                    }
+                } else {
+                    points = rows().map(|r| (r[..a.dims].to_vec(), r[a.dims], r[a.dims + 1])).collect();
                 }
             }
             MapKind::Translate { interpolation } => {
-                if !a.table.is_empty() {
+                if !a.table.is_empty() || a.dims != 1 {
                     return Err(bad("a translation has no moments table".into()));
                 }
                 if interpolation == Interpolation::Nodes && (start.fract() != 0.0 || start.abs() > (1u64 << 52) as f64)
@@ -142,7 +167,7 @@ impl Registered {
             kind: a.kind,
             surface,
             table,
-            points: Vec::new(),
+            points,
             grid_start: start,
             grid_step: step,
             len: a.len,
@@ -177,7 +202,7 @@ impl Registered {
 mod tests {
     use faer::Mat;
 
-    use crate::dual::registration::{Interpolation, MapKind, Registered};
+    use crate::dual::registration::{Interpolation, MapKind, Registered, RegisteredArrays};
     use crate::dual::{DualApprox, Inner, Training};
 
     /// Every map kind: the basis rebuilt from its arrays pushes its generators to the same bits
@@ -235,6 +260,64 @@ mod tests {
         }
         let pod = Registered::build(&t, MapKind::Moments { refine: 2 }, Inner::Pod).expect("pod");
         assert!(pod.arrays().is_none(), "a registered POD is not a dual basis of the online solve");
+    }
+
+    /// A moments map over two parameter components (a 5 x 4 grid with two points missing, as
+    /// in a leave-one-out fold, on a shuffled surface): the basis rebuilt from its arrays, whose
+    /// table keeps each point's two components in the fit's order, pushes its generators to the
+    /// same bits at grid points, between them and beyond the grid; damaged tables are refused.
+    #[test]
+    fn a_moments_map_over_two_components_survives_its_arrays_bit_for_bit() {
+        let n = 60;
+        let perm: Vec<usize> = (0..n).map(|i| (i * 23) % n).collect();
+        let x: Vec<f64> = perm.iter().map(|&p| 0.05 * p as f64).collect();
+        let params: Vec<Vec<f64>> = (0..4)
+            .flat_map(|k| (0..5).map(move |j| vec![0.3 * j as f64, 1.0 + 0.5 * k as f64]))
+            .filter(|p| p != &vec![0.6, 1.5] && p != &vec![1.2, 2.5])
+            .collect();
+        let bump = |t: f64, w: f64| (1.0 - (t / w).powi(2)).max(0.0).sqrt();
+        let s = Mat::from_fn(n, params.len(), |i, j| {
+            let (c, w) = (0.8 + params[j][0], 0.1 * params[j][1]);
+            params[j][1] * bump(x[i] - c, w)
+        });
+        let ms = [1usize, 2, 3];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &[], ms: &ms };
+        let built = Registered::build(&t, MapKind::Moments { refine: 4 }, Inner::Cpg).expect("build");
+        let arrays = built.arrays().expect("a cone basis over two components");
+        assert_eq!(arrays.dims, 2);
+        assert_eq!(arrays.table.len(), 4 * params.len(), "one row (mu_1, mu_2, c, a) per training point");
+        for (row, mu) in arrays.table.chunks(4).zip(&params) {
+            assert_eq!(&row[..2], mu.as_slice(), "the rows keep the fit's order");
+        }
+        let back = Registered::from_arrays(&arrays).expect("rebuilt");
+        assert_eq!(back.arrays().as_ref(), Some(&arrays));
+        for mu in [[0.0, 1.0], [0.6, 1.5], [0.45, 1.75], [1.2, 2.5], [0.1, 2.9], [-1.0, 0.0], [3.0, 9.0]] {
+            let (a, b) = (built.cone_basis(&mu, 3).expect("a"), back.cone_basis(&mu, 3).expect("b"));
+            assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()), "at {mu:?}");
+            for j in 0..a.ncols() {
+                for i in 0..n {
+                    assert_eq!(a[(i, j)].to_bits(), b[(i, j)].to_bits(), "at {mu:?}: ({i}, {j})");
+                }
+            }
+        }
+        // a point with one component reads the lowest level instead of indexing past the row
+        assert!(back.cone_basis(&[0.3], 3).is_some());
+        let refused = |edit: &dyn Fn(&mut RegisteredArrays)| {
+            let mut a = arrays.clone();
+            edit(&mut a);
+            Registered::from_arrays(&a).is_err()
+        };
+        assert!(refused(&|a| {
+            a.table.pop();
+        }));
+        assert!(refused(&|a| a.table[3] = 0.0), "a zero width");
+        assert!(refused(&|a| a.table[0] = f64::INFINITY), "a non-finite component");
+        assert!(refused(&|a| a.dims = 0));
+        assert!(refused(&|a| a.dims = 3), "rows of the wrong length");
+        let mut translate = arrays.clone();
+        translate.kind = MapKind::Translate { interpolation: Interpolation::Linear { refine: 4 } };
+        translate.table.clear();
+        assert!(Registered::from_arrays(&translate).is_err(), "a translation over two components has no table");
     }
 
     /// A contact area (4 lines across the travel, shuffled dual order): the basis rebuilt from

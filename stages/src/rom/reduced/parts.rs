@@ -48,7 +48,8 @@
 //! | `reg_refine` | scalar | | reference cells per finest node spacing (2, 3) |
 //! | `reg_len`, `reg_generators`, `reg_m` | scalars | | reference grid length, generators stored, most generators per query |
 //! | `reg_surface` | f64 | `nc` | abscissa of each contact node (reference configuration) |
-//! | `reg_table` | f64 | `3 · count` or 0 | moments map: `(μ_j, c_j, a_j)` sorted by `μ_j` |
+//! | `reg_table` | f64 | `3 · count` or 0 | moments map: `(μ_j, c_j, a_j)` sorted by `μ_j`; over `reg_dims` components `(μ_j1, …, μ_jd, c_j, a_j)` in the fit's order, `(d + 2) · count` |
+//! | `reg_dims` | scalar | | the moments map's parameter components, written only when more than one (absent: 1) |
 //! | `reg_grid` | f64 | 2 | reference grid start and step |
 //! | `reg_modes` | f64 | `reg_len · reg_generators` | reference generators, column-major |
 //! | `reg_travels` | f64 | `reg_generators` or 0 | neighbours basis: each generator's travel `c_j` (absent for CPG) |
@@ -78,7 +79,7 @@ pub struct ModelParts {
 
 impl ModelParts {
     /// Names of the integer scalars, in the order [`ReducedModel::parts`] gives them.
-    pub const SCALARS: [&str; 13] = [
+    pub const SCALARS: [&str; 14] = [
         "surface",
         "r_primal",
         "r_dual",
@@ -92,6 +93,7 @@ impl ModelParts {
         "reg_len",
         "reg_generators",
         "reg_m",
+        "reg_dims",
     ];
     /// Names of the float arrays.
     pub const FLOATS: [&str; 25] = [
@@ -303,6 +305,10 @@ impl ReducedModel {
                 ("reg_generators", a.generators as u64),
                 ("reg_m", m as u64),
             ]);
+            if a.dims > 1 {
+                // absent for one component, so a model over one keeps its layout
+                scalars.push(("reg_dims", a.dims as u64));
+            }
             if !a.across.is_empty() {
                 floats.push(("reg_across", a.across));
             }
@@ -342,6 +348,10 @@ impl ReducedModel {
             surface: p.float("reg_surface").to_vec(),
             across: p.float("reg_across").to_vec(),
             table: p.float("reg_table").to_vec(),
+            dims: match p.scalar("reg_dims") {
+                0 => 1,
+                d => usize::try_from(d).map_err(|_| bad("reg_dims", format!("{d}: too large")))?,
+            },
             grid: [*start, *step],
             len: size("reg_len")?,
             modes: p.float("reg_modes").to_vec(),
@@ -471,6 +481,14 @@ impl ReducedModel {
                     return Err(bad(
                         "r_dual",
                         "a model with a registered dual basis stores no fixed one and no warm-start active sets".into(),
+                    ));
+                }
+                let dims = usize::try_from(p.scalar("reg_dims")).unwrap_or(usize::MAX).max(1);
+                // (a model without warm starts has no points to compare with: `warm_dim` 0)
+                if dims > 1 && dim > 0 && dims != dim {
+                    return Err(bad(
+                        "reg_dims",
+                        format!("{dims} parameter components in the moments table, {dim} in the warm starts' points"),
                     ));
                 }
                 model.with_registered_dual(basis, m)
