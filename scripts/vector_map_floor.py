@@ -1,19 +1,22 @@
 #!/usr/bin/env python3
 """Why registration stops near 1 % on a vector parameter (docs/results.md#the-vector-parameter-ironing-fine-2d).
 
-Reads a finished `crom run ironing-fine-2d` (its published train.h5, test.h5 and the contact nodes'
-abscissae in model.h5's `reg_surface`) and, independently of crom's Rust code (NumPy and SciPy):
+Reads a finished `crom run SCENE` of a vector-parameter scene (ironing-fine-2d, ironing-3d-2d):
+its published train.h5 and test.h5, and the contact nodes' abscissae (and, on a 3-D contact area,
+their coordinates across the travel) from model.h5's `reg_surface` (`reg_across`). Independently
+of crom's Rust code (NumPy and SciPy) it
 
 1. rebuilds the registered POD on the moments map (centre and width from each training
-   pressure's moments, interpolated multilinearly over the (d_x, d_y) grid for the test points;
-   reference grid refine 16) and prints C(m) and the mean test error: it should read what
-   crom's comparison reports (1.07 % at m = 5);
+   pressure's moments along x, summed over the lines of a contact area; multilinear over the
+   grid for the test points; reference grid refine 16) and prints C(m) and the mean test error,
+   which should read what crom's comparison reports (1.07 % and 1.06 % at m = 5);
 2. replaces the map by piecewise-linear warps through 3, 5 and 7 quantiles of each pressure's
-   cumulative distribution (a strictly richer family of smooth maps than centre and width);
-3. measures where the remaining error lives: the share of the m = 5 residual's energy in the
-   upper half of the nodal spectrum over the contact (a smooth residual has almost none).
+   cumulative distribution along x (a strictly richer family of smooth maps);
+3. measures where the remaining error lives: the share of the m = 5 test residual's energy in
+   the upper half of the nodal spectrum along each line, over the contact (a smooth residual has
+   little; a node-to-node ripple nearly all).
 
-Usage: scripts/vector_map_floor.py [STORE]   (default data/store)
+Usage: scripts/vector_map_floor.py [SCENE [STORE]]   (default ironing-fine-2d, data/store)
 """
 import sys
 
@@ -21,32 +24,43 @@ import h5py
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-store = sys.argv[1] if len(sys.argv) > 1 else "data/store"
-D = f"{store}/scenes/ironing-fine-2d"
-train, test = h5py.File(f"{D}/train.h5"), h5py.File(f"{D}/test.h5")
+scene = sys.argv[1] if len(sys.argv) > 1 else "ironing-fine-2d"
+store = sys.argv[2] if len(sys.argv) > 2 else "data/store"
+D = f"{store}/scenes/{scene}"
+train, test, model = h5py.File(f"{D}/train.h5"), h5py.File(f"{D}/test.h5"), h5py.File(f"{D}/model.h5")
 S, P, T, Q = train["dual"][:], train["parameters"][:], test["dual"][:], test["parameters"][:]
-x = h5py.File(f"{D}/model.h5")["reg_surface"][:]
-order = np.argsort(x, kind="stable")
-xs, n = x[order], len(x)
-w = np.empty(n)
-w[1:-1], w[0], w[-1] = 0.5 * (xs[2:] - xs[:-2]), 0.5 * (xs[1] - xs[0]), 0.5 * (xs[-1] - xs[-2])
-h = np.min(np.diff(xs)[np.diff(xs) > 0])
+x = model["reg_surface"][:]
+y = model["reg_across"][:] if "reg_across" in model else np.zeros_like(x)
+# the lines of equal coordinate across the travel, each by increasing x (a curve is one line)
+lines = [np.flatnonzero(np.isclose(y, v, rtol=0, atol=1e-9 * max(np.ptp(y), 1.0))) for v in np.unique(y)]
+lines = [line[np.argsort(x[line], kind="stable")] for line in lines]
+
+
+def tributary(xl):
+    w = np.empty(len(xl))
+    w[1:-1], w[0], w[-1] = 0.5 * (xl[2:] - xl[:-2]), 0.5 * (xl[1] - xl[0]), 0.5 * (xl[-1] - xl[-2])
+    return w
+
+
+W = [tributary(x[line]) for line in lines]
+h = min(np.min(np.diff(x[line])[np.diff(x[line]) > 0]) for line in lines)
+xg = np.unique(x)
 has = S.sum(axis=0) > 0
 
 
 def moments(s):
-    """(c, a): centre and twice the standard deviation of the pressure along x (crom's rule)."""
-    ss = s[order]
-    m0 = (w * ss).sum()
-    c = (w * ss * xs).sum() / m0
-    return np.array([c, 2 * np.sqrt((w * ss * ((xs - c) ** 2 + w * w / 12)).sum() / m0)])
+    """(c, a): centre and twice the standard deviation along x, over every line (crom's rule)."""
+    m0 = sum((w * s[line]).sum() for line, w in zip(lines, W))
+    c = sum((w * s[line] * x[line]).sum() for line, w in zip(lines, W)) / m0
+    var = sum((w * s[line] * ((x[line] - c) ** 2 + w * w / 12)).sum() for line, w in zip(lines, W)) / m0
+    return np.array([c, 2 * np.sqrt(var)])
 
 
 def quantiles(s, qs):
-    """Where the cumulative of the piecewise-linear pressure reaches each of `qs`."""
-    ss = s[order]
-    F = np.concatenate([[0], np.cumsum(0.5 * (ss[1:] + ss[:-1]) * np.diff(xs))])
-    return np.interp(qs, F / F[-1], xs)
+    """Where the cumulative of the pressure summed over the lines reaches each of `qs`."""
+    prof = sum(np.interp(xg, x[line], s[line], left=0, right=0) for line in lines)
+    F = np.concatenate([[0], np.cumsum(0.5 * (prof[1:] + prof[:-1]) * np.diff(xg))])
+    return np.interp(qs, F / F[-1], xg)
 
 
 def over_grid(vals):
@@ -69,59 +83,73 @@ def warp(k, ref):
     return (lambda v: through(k, ref, v)), (lambda v: through(ref, k, v))
 
 
-def study(knots, ref, ms=(1, 3, 5, 6), report_spectrum=False):
-    """C(m) with each training pressure's own map and the mean test error with the interpolated one."""
-    maps = {j: warp(knots[j], ref) for j in np.flatnonzero(has)}
+def study(knots, ref, ms, spectrum=None):
+    """'C / test' (%) per m: C(m) with each training pressure's own map, the mean test error with the
+    interpolated one; the m = 5 test residuals' spectra into `spectrum`."""
     lo, hi, step = np.inf, -np.inf, np.inf
-    for j, (fwd, _) in maps.items():
-        sup = xs[S[order, j] > 0]
-        lo, hi = min(lo, fwd(np.array([sup[0] - 2 * h]))[0]), max(hi, fwd(np.array([sup[-1] + 2 * h]))[0])
-        step = min(step, np.min(np.diff(fwd(xs))))
+    for j in np.flatnonzero(has):
+        fwd = warp(knots[j], ref)[0]
+        for line in lines:
+            sup = x[line][S[line, j] > 0]
+            if len(sup):
+                e = fwd(np.array([sup[0] - 2 * h, sup[-1] + 2 * h]))
+                lo, hi = min(lo, e[0]), max(hi, e[1])
+        step = min(step, np.min(np.diff(fwd(xg))))
     xi = np.arange(lo, hi + step / 16, step / 16)
-    R = np.array([np.interp(inv(xi), xs, S[order, j], left=0, right=0) for j, (_, inv) in maps.items()]).T
+    L = len(xi)
+
+    def pull(s, k):
+        inv = warp(k, ref)[1]
+        return np.concatenate([np.interp(inv(xi), x[line], s[line], left=0, right=0) for line in lines])
+
+    R = np.array([pull(S[:, j], knots[j]) for j in np.flatnonzero(has)]).T
     U = np.linalg.svd(R, full_matrices=False)[0]
     test_knots = over_grid(knots)
 
-    def errors(cols, snaps, kn, m, spectrum=None):
+    def errors(snaps, kn, cols, m, spec=None):
         out = []
         for j in cols:
-            s = snaps[order, j]
+            s = snaps[:, j]
             if not s.any():
                 continue
-            u = warp(kn[j], ref)[0](xs)
-            B = np.array([np.interp(u, xi, U[:, i], left=0, right=0) for i in range(m)]).T
+            fwd = warp(kn[j], ref)[0]
+            B = np.zeros((len(s), m))
+            for i in range(m):
+                for li, line in enumerate(lines):
+                    B[line, i] = np.interp(fwd(x[line]), xi, U[li * L:(li + 1) * L, i], left=0, right=0)
             r = s - B @ np.linalg.lstsq(B, s, rcond=None)[0]
             out.append(np.linalg.norm(r) / np.linalg.norm(s))
-            if spectrum is not None:
-                sup = np.flatnonzero(s > 0)
-                F = np.abs(np.fft.rfft(r[sup[0]:sup[-1] + 1])) ** 2
-                spectrum.append(F[len(F) // 2:].sum() / F.sum())
+            if spec is not None:
+                upper = total = 0.0
+                for line in lines:
+                    sup = np.flatnonzero(s[line] > 0)
+                    if len(sup) >= 4:
+                        F = np.abs(np.fft.rfft(r[line][sup[0]:sup[-1] + 1])) ** 2
+                        upper, total = upper + F[len(F) // 2:].sum(), total + F.sum()
+                spec.append(upper / total)
         return np.mean(out)
 
     cells = []
     for m in ms:
-        c = errors(np.flatnonzero(has), S, knots, m)
-        t = errors(range(T.shape[1]), T, test_knots, m)
+        c = errors(S, knots, np.flatnonzero(has), m)
+        t = errors(T, test_knots, range(T.shape[1]), m, spectrum if m == 5 else None)
         cells.append(f"{c * 100:.2f} / {t * 100:.2f}")
-    spectrum = []
-    if report_spectrum:
-        errors(range(T.shape[1]), T, test_knots, 5, spectrum)
-    return cells, spectrum
+    return cells
 
 
 ms = (1, 3, 5, 6)
-print("| map | " + " | ".join(f"C / test, m = {m} (%)" for m in ms) + " |")
+print(f"{scene}: {len(lines)} line(s), {S.shape[1]} training and {T.shape[1]} test pressures\n")
+print("| map (C / mean test error, %) | " + " | ".join(f"m = {m}" for m in ms) + " |")
 print("|---|" + "---|" * len(ms))
 mom = np.array([moments(S[:, j]) if has[j] else [np.nan, np.nan] for j in range(S.shape[1])])
+spectrum = []
 # centre and width as a two-knot warp: xi = (x - c) / a
-knots2 = np.stack([mom[:, 0], mom[:, 0] + mom[:, 1]], axis=1)
-cells, spectrum = study(knots2, np.array([0.0, 1.0]), ms, report_spectrum=True)
+cells = study(np.stack([mom[:, 0], mom[:, 0] + mom[:, 1]], axis=1), np.array([0.0, 1.0]), ms, spectrum)
 print("| moments (centre, width) | " + " | ".join(cells) + " |")
 for qs in ([0.1, 0.5, 0.9], [0.02, 0.25, 0.5, 0.75, 0.98], [0.01, 0.1, 0.3, 0.5, 0.7, 0.9, 0.99]):
     qs = np.array(qs)
     kn = np.array([quantiles(S[:, j], qs) if has[j] else np.full(len(qs), np.nan) for j in range(S.shape[1])])
     ref = np.nanmean(kn, axis=0)
-    cells, _ = study(kn, ref - ref[len(ref) // 2], ms)
-    print(f"| {len(qs)} quantiles {qs.tolist()} | " + " | ".join(cells) + " |")
+    print(f"| warp through {len(qs)} quantiles {qs.tolist()} | " + " | ".join(study(kn, ref - ref[len(ref) // 2], ms)) + " |")
 print(f"\nmoments map, m = 5: median share of the test residual's energy in the upper half of the nodal "
-      f"spectrum over the contact: {np.median(spectrum) * 100:.0f} %")
+      f"spectrum along the lines, over the contact: {np.median(spectrum) * 100:.0f} %")

@@ -337,6 +337,13 @@ impl StageDef for ModelStage {
                 parameter_max: settings.parameter_max.clone(),
                 measured: pick.measured.clone(),
             };
+            // the reader's checks on what is about to be stored: a model `crom query` would refuse
+            // is never committed (nothing is written; the message names the array)
+            if let Err(e) = ReducedModel::from_parts(&stored.parts) {
+                return Err(fail(format!(
+                    "the built model fails the reader's own checks ({e}); report this as a bug in crom"
+                )));
+            }
             let key = staging.key().0.clone();
             stored.write(&staging.path(names::FILE), &key)?;
             let (r, r_dual) = model.stored_ranks();
