@@ -11,7 +11,8 @@ of crom's Rust code (NumPy and SciPy) it
    grid for the test points; reference grid refine 16) and prints C(m) and the mean test error,
    which should read what crom's comparison reports (1.07 % and 1.06 % at m = 5);
 2. replaces the map by piecewise-linear warps through 3, 5 and 7 quantiles of each pressure's
-   cumulative distribution along x (a strictly richer family of smooth maps);
+   cumulative distribution along x, and through the points where the profile crosses 3 or 4
+   levels of its peak on either side (richer families of smooth maps);
 3. measures where the remaining error lives: the share of the m = 5 test residual's energy in
    the upper half of the nodal spectrum along each line, over the contact (a smooth residual has
    little; a node-to-node ripple nearly all).
@@ -61,6 +62,18 @@ def quantiles(s, qs):
     prof = sum(np.interp(xg, x[line], s[line], left=0, right=0) for line in lines)
     F = np.concatenate([[0], np.cumsum(0.5 * (prof[1:] + prof[:-1]) * np.diff(xg))])
     return np.interp(qs, F / F[-1], xg)
+
+
+def level_sets(s, levels):
+    """Where the profile summed over the lines (normalised to its peak) crosses each of `levels`,
+    on its rising side and then on its falling side (2 len(levels) knots, increasing)."""
+    prof = sum(np.interp(xg, x[line], s[line], left=0, right=0) for line in lines)
+    xf = np.linspace(xg[0], xg[-1], 20 * len(xg))
+    pf = np.interp(xf, xg, prof) / prof.max()
+    k = np.argmax(pf)
+    rising = [np.interp(t, pf[:k + 1], xf[:k + 1]) for t in levels]
+    falling = [np.interp(t, pf[k:][::-1], xf[k:][::-1]) for t in levels]
+    return np.array(rising + falling[::-1])
 
 
 def over_grid(vals):
@@ -151,5 +164,9 @@ for qs in ([0.1, 0.5, 0.9], [0.02, 0.25, 0.5, 0.75, 0.98], [0.01, 0.1, 0.3, 0.5,
     kn = np.array([quantiles(S[:, j], qs) if has[j] else np.full(len(qs), np.nan) for j in range(S.shape[1])])
     ref = np.nanmean(kn, axis=0)
     print(f"| warp through {len(qs)} quantiles {qs.tolist()} | " + " | ".join(study(kn, ref - ref[len(ref) // 2], ms)) + " |")
+for levels in ([0.02, 0.3, 0.7], [0.02, 0.2, 0.5, 0.8]):
+    kn = np.array([level_sets(S[:, j], levels) if has[j] else np.full(2 * len(levels), np.nan) for j in range(S.shape[1])])
+    ref = np.nanmean(kn, axis=0)
+    print(f"| warp through the level sets {levels} of the profile | " + " | ".join(study(kn, ref - ref.mean(), ms)) + " |")
 print(f"\nmoments map, m = 5: median share of the test residual's energy in the upper half of the nodal "
       f"spectrum along the lines, over the contact: {np.median(spectrum) * 100:.0f} %")
