@@ -49,6 +49,29 @@ fn listing(store: &Path) -> Vec<(String, u64)> {
     out
 }
 
+/// The rows of the online stage's table `errors` (`rom_errors.parquet`) at the test points with
+/// the exact solve and the full dual basis.
+fn exact_full_test_rows(errors: &Table) -> Vec<usize> {
+    let (set, alg, basis) =
+        (errors.strs("set").expect("set"), errors.strs("algorithm").expect("a"), errors.strs("dual_basis").expect("b"));
+    (0..errors.rows()).filter(|&i| set[i] == "test" && alg[i] == "exact" && basis[i] == "full").collect()
+}
+
+/// `crom query SCENE --points … --check` at the points `lines` (CSV rows under `header`), written
+/// in `dir`; the answers, after asserting success.
+fn query_checked(store: &Path, scene: &str, header: &str, lines: &[String], dir: &Path) -> Table {
+    let csv: Vec<&str> = std::iter::once(header).chain(lines.iter().map(String::as_str)).collect();
+    let points = dir.join("points.csv");
+    std::fs::write(&points, csv.join("\n")).expect("points");
+    let out = dir.join("answers.parquet");
+    let o = crom(
+        store,
+        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    read_parquet(&out).expect("answers")
+}
+
 fn check_against_the_online_stage(store: &Path, scene: &str, param: &str, tmp: &Path) {
     check_against(store, (scene, scene), param, tmp);
 }
@@ -257,25 +280,10 @@ fn a_model_at_the_full_ranks_answers_every_test_point_as_the_online_stage() {
     let o = crom(&store, &["--quiet", "run", scene]);
     assert!(o.status.success(), "{}", text(&o));
     let errors = read_parquet(&store.join("scenes/rope/rom_errors.parquet")).expect("errors");
-    let (set, alg, basis) = (
-        errors.strs("set").expect("set"),
-        errors.strs("algorithm").expect("alg"),
-        errors.strs("dual_basis").expect("b"),
-    );
-    let rows: Vec<usize> =
-        (0..errors.rows()).filter(|&i| set[i] == "test" && alg[i] == "exact" && basis[i] == "full").collect();
+    let rows = exact_full_test_rows(&errors);
     let mu = errors.f64s("parameter").expect("parameter");
-    let csv =
-        std::iter::once("gamma".to_string()).chain(rows.iter().map(|&i| format!("{}", mu[i]))).collect::<Vec<_>>();
-    let points = tmp.path().join("points.csv");
-    std::fs::write(&points, csv.join("\n")).expect("points");
-    let out = tmp.path().join("answers.parquet");
-    let o = crom(
-        &store,
-        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let q = read_parquet(&out).expect("answers");
+    let lines: Vec<String> = rows.iter().map(|&i| format!("{}", mu[i])).collect();
+    let q = query_checked(&store, scene, "gamma", &lines, tmp.path());
     let ranks = (errors.u64s("r_primal").expect("ru")[rows[0]], errors.u64s("r_dual").expect("rl")[rows[0]]);
     assert_eq!(
         (q.u64s("r_primal").expect("ru")[0], q.u64s("r_dual").expect("rl")[0]),
@@ -341,10 +349,10 @@ fn a_scene_chooses_the_dual_approximation_of_its_model() {
 /// (a small ironing-fine-2d: 9 x 3 training points, the map interpolated over the grid level by
 /// level): the model stage stores it (`reg_dims` = 2, the table one row per training point with
 /// contact; a damaged component count refused), and `crom query --check` at the scene's test
-/// points, given by both components,
-/// answers as the online comparison measured its row (bit for bit: the median and 95th
-/// percentile dual error, the median number of non-zero dual coefficients). A points file
-/// without the second component is refused (exit 2, naming it) and writes nothing.
+/// points, given by both components, answers as the online comparison measured its row (bit for
+/// bit: the median and 95th percentile dual error, the median number of non-zero dual
+/// coefficients). A points file without the second component is refused (exit 2, naming it) and
+/// writes nothing.
 #[test]
 fn a_moments_map_over_two_components_is_stored_and_answers_as_measured() {
     let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
@@ -384,25 +392,13 @@ fn a_moments_map_over_two_components_is_stored_and_answers_as_measured() {
         assert!(crom_stages::rom::ReducedModel::from_parts(&bad).is_err(), "reg_dims = {dims} accepted");
     }
     let errors = read_parquet(&published.join("rom_errors.parquet")).expect("errors");
-    let (set, alg, basis) =
-        (errors.strs("set").expect("set"), errors.strs("algorithm").expect("a"), errors.strs("dual_basis").expect("b"));
     let (dx, dy) = (errors.f64s("d_x").expect("d_x"), errors.f64s("d_y").expect("d_y"));
-    let rows: Vec<usize> =
-        (0..errors.rows()).filter(|&i| set[i] == "test" && alg[i] == "exact" && basis[i] == "full").collect();
+    let rows = exact_full_test_rows(&errors);
     assert!(rows.len() >= 8, "{} test points", rows.len());
-    let csv: Vec<String> =
-        std::iter::once("d_x,d_y".to_string()).chain(rows.iter().map(|&i| format!("{},{}", dx[i], dy[i]))).collect();
-    let points = tmp.path().join("points.csv");
-    std::fs::write(&points, csv.join("\n")).expect("points");
-    let out = tmp.path().join("answers.parquet");
+    let lines: Vec<String> = rows.iter().map(|&i| format!("{},{}", dx[i], dy[i])).collect();
     let before = listing(&store);
-    let o = crom(
-        &store,
-        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
-    );
-    assert!(o.status.success(), "{}", text(&o));
+    let q = query_checked(&store, scene, "d_x,d_y", &lines, tmp.path());
     assert_eq!(listing(&store), before, "the query wrote to the store");
-    let q = read_parquet(&out).expect("answers");
     assert_eq!(q.rows(), rows.len());
     check_registered(&published, &model, &q, "ironing-2d-small");
     let one = tmp.path().join("one.csv");
