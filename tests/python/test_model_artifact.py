@@ -78,10 +78,32 @@ def _check_layout(store, scene):
     assert list(speed.columns) == ["median_online_seconds", "median_fom_seconds", "speedup"] and len(speed) == 1
 
 
+def _levels(rows, mu, d):
+    """(c, a) of the moments table `rows` (`d` components, then c and a) at `mu`, level by level
+    along the last component as docs/store-format.md describes it."""
+    t = mu[d - 1]
+    values = np.unique(rows[:, d - 1])
+
+    def at(v):
+        on = rows[rows[:, d - 1] == v]
+        return (on[0, -2], on[0, -1]) if d == 1 else _levels(on, mu, d - 1)
+
+    k = np.searchsorted(values, t, side="right")
+    if k == 0:
+        return at(values[0])
+    if k >= len(values):
+        return at(values[-1])
+    p, q = values[k - 1], values[k]
+    (c0, a0), (c1, a1) = at(p), at(q)
+    th = (t - p) / (q - p)
+    return (1 - th) * c0 + th * c1, (1 - th) * a0 + th * a1
+
+
 def _push(model, mu):
-    """The registered generators pushed forward to the parameter `mu` (one component), from the
-    `reg_*` arrays as docs/store-format.md describes them: n_contact x (the first reg_m that are
-    not zero there)."""
+    """The registered generators pushed forward to the parameter point `mu` (a number, or one
+    value per component), from the `reg_*` arrays as docs/store-format.md describes them:
+    n_contact x (the first reg_m that are not zero there)."""
+    mu = np.atleast_1d(np.asarray(mu, dtype=float))
     a = model.attrs
     kind, length, k, m = (int(a[n]) for n in ("reg_map", "reg_len", "reg_generators", "reg_m"))
     x, (start, step) = model["reg_surface"][:], model["reg_grid"][:]
@@ -89,23 +111,23 @@ def _push(model, mu):
     out = np.zeros((len(x), k))
     if kind == 1:  # whole-node shifts: sorted node j takes reference value j - round(mu / h) + start
         order = np.argsort(x, kind="stable")
-        t = np.sign(mu / step) * np.floor(abs(mu / step) + 0.5)
+        t = np.sign(mu[0] / step) * np.floor(abs(mu[0] / step) + 0.5)
         q = np.arange(len(x)) - t + start
         inside = (q >= 0) & (q < length)
         out[order[inside]] = modes[q[inside].astype(int)]
     else:
         if kind == 2:
-            c, w = mu, 1.0
-        else:  # moments: (c, a) interpolated in mu between the table's rows, clamped at its ends
-            tab = model["reg_table"][:].reshape(-1, 3)
-            c, w = np.interp(mu, tab[:, 0], tab[:, 1]), np.interp(mu, tab[:, 0], tab[:, 2])
+            c, w = mu[0], 1.0
+        else:  # moments: (c, a) interpolated between the table's rows, clamped at its ends
+            d = int(a["reg_dims"]) if "reg_dims" in a else 1
+            c, w = _levels(model["reg_table"][:].reshape(-1, d + 2), mu, d)
         u = ((x - c) / w - start) / step
         inside = (u >= 0) & (u <= length - 1)
         k0 = np.minimum(np.floor(u[inside]).astype(int), length - 2)
         th = (u[inside] - k0)[:, None]
         out[inside] = (1 - th) * modes[k0] + th * modes[k0 + 1]
     if "reg_travels" in model:  # a neighbours basis: the generators in the order at mu
-        out = out[:, _neighbour_order(model, mu, step)]
+        out = out[:, _neighbour_order(model, mu[0], step)]
     keep = [j for j in range(out.shape[1]) if np.any(out[:, j] != 0)][:m]
     return out[:, keep]
 

@@ -1,6 +1,8 @@
 """A two-component parameter μ = (d_x, d_y) end to end: a coarse, small version of
 `ironing-fine-2d` (3 × 3 training points, 2 × 2 test points) runs through every stage, and its
-snapshots at d_y = 0.04 equal those of the 1-D ironing scene with d_y fixed at 0.04.
+snapshots at d_y = 0.04 equal those of the 1-D ironing scene with d_y fixed at 0.04. Its stored
+model, pinned to the registered CPG on the moments map, is rebuilt in NumPy from model.h5 as
+docs/store-format.md describes it (the table over both components, level by level).
 
 Tolerance of that comparison: 1e-12 relative to the largest displacement — the two models solve
 the same linear system, assembled from a different affine split of the Dirichlet data (one
@@ -14,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from conftest import REPO, crom_bin, only_artifact
+from test_model_artifact import _push
 
 COARSE = {"nx = 200": "nx = 100", "ny = 40": "ny = 20", "nx = 60": "nx = 30", "ny = 60": "ny = 30"}
 
@@ -77,3 +80,27 @@ def test_two_component_parameter_runs_every_stage_and_matches_the_1d_scene(tmp_p
         scale = np.abs(u1[:, j]).max()
         np.testing.assert_allclose(u2[:, k], u1[:, j], rtol=0, atol=1e-12 * scale)
         np.testing.assert_allclose(lam2[:, k], lam1[:, j], rtol=0, atol=1e-9 * np.abs(lam1[:, j]).max())
+
+
+def test_a_moments_map_over_two_components_rebuilds_from_the_model_file(tmp_path):
+    """Θ(μ) from model.h5 alone (NumPy, the documented level-by-level rule) times the answer's
+    dual coefficients is the pressure `rom.solve` returns, at grid points, between them and
+    outside the grid (clamped), to 1e-12 of the largest pressure (the same sums in another
+    order)."""
+    import crom_data
+
+    store = tmp_path / "store"
+    scene = scene_2d(tmp_path)
+    scene.write_text(scene.read_text().replace("seed = 20234", 'seed = 20234\nmodel_dual = "registered-moments-cpg"'))
+    run(store, scene)
+    with h5py.File(store / "scenes/ironing-2d-small/model.h5", "r") as model:
+        assert model.attrs["dual_basis"] == "registered-moments-cpg" and int(model.attrs["reg_dims"]) == 2
+        assert len(model["reg_table"]) % 4 == 0 and len(model["reg_table"]) // 4 <= 9
+        rom = crom_data.open_store(store).scene("ironing-2d-small").rom()
+        for d_x, d_y in [(0.0, 0.02), (1.5, 0.04), (0.7, 0.031), (2.9, 0.055), (3.0, 0.06), (1.1, 0.0201)]:
+            r = rom.solve(d_x=d_x, d_y=d_y)
+            theta = _push(model, [d_x, d_y])
+            assert theta.shape[1] == len(r.dual_coefficients)
+            p = theta @ r.dual_coefficients
+            assert r.pressure.max() > 0, (d_x, d_y)
+            np.testing.assert_allclose(p, r.pressure, rtol=0, atol=1e-12 * np.abs(r.pressure).max())
