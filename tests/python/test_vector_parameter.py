@@ -86,7 +86,7 @@ def test_a_moments_map_over_two_components_rebuilds_from_the_model_file(tmp_path
     """Θ(μ) from model.h5 alone (NumPy, the documented level-by-level rule) times the answer's
     dual coefficients is the pressure `rom.solve` returns, at grid points, between them and
     outside the grid (clamped), to 1e-12 of the largest pressure (the same sums in another
-    order)."""
+    order). The report's example query names both components and runs."""
     import crom_data
 
     store = tmp_path / "store"
@@ -104,3 +104,10 @@ def test_a_moments_map_over_two_components_rebuilds_from_the_model_file(tmp_path
             p = theta @ r.dual_coefficients
             assert r.pressure.max() > 0, (d_x, d_y)
             np.testing.assert_allclose(p, r.pressure, rtol=0, atol=1e-12 * np.abs(r.pressure).max())
+    # the report's example query gives both components, and it runs
+    import re
+    html = (store / "scenes/ironing-2d-small/report/index.html").read_text()
+    example = re.search(r"<code>crom query (\S+) --at (\S+)</code>", html)
+    assert example and example.group(2).startswith("d_x=") and ",d_y=" in example.group(2), example
+    subprocess.run([str(crom_bin()), "--store", str(store), "query", str(scene), "--at", example.group(2)], cwd=REPO,
+                   check=True, capture_output=True)

@@ -385,9 +385,11 @@ fn model_facts(store: &Store, key: &Key) -> Result<ModelFacts, CromError> {
         median_dual_error: m.measured.median_dual_error,
         median_primal_error: m.measured.median_primal_error,
         speedup: speed.f64s("speedup").and_then(|v| v.first().copied()).filter(|v| v.is_finite()),
-        example: (
-            m.parameter_names.first().cloned().unwrap_or_default(),
-            0.5 * (m.parameter_min.first().copied().unwrap_or(0.0) + m.parameter_max.first().copied().unwrap_or(0.0)),
-        ),
+        example: m
+            .parameter_names
+            .iter()
+            .zip(m.parameter_min.iter().zip(&m.parameter_max))
+            .map(|(n, (lo, hi))| (n.clone(), 0.5 * (lo + hi)))
+            .collect(),
     })
 }

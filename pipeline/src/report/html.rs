@@ -130,7 +130,7 @@ fn model_fact(scene: &SceneConfig, m: &super::ModelFacts) -> String {
     format!(
         "{} solve, {primal}, {dual} with {} dual vectors: converged {}/{} test points, median dual error {}, \
          median primal error (H1) {}{speed}. Query it without rerunning the study: \
-         <code>crom query {} --at {}={}</code>",
+         <code>crom query {} --at {}</code>",
         esc(&m.algorithm),
         m.ranks.1,
         m.converged,
@@ -138,8 +138,7 @@ fn model_fact(scene: &SceneConfig, m: &super::ModelFacts) -> String {
         error(m.median_dual_error),
         error(m.median_primal_error),
         esc(&scene.scene.name),
-        esc(&m.example.0),
-        m.example.1
+        m.example.iter().map(|(n, v)| format!("{}={v}", esc(n))).collect::<Vec<_>>().join(",")
     )
 }
 
@@ -228,7 +227,7 @@ mod tests {
             median_dual_error: 9.8e-4,
             median_primal_error: 6.4e-5,
             speedup: Some(80.0),
-            example: ("d_x".into(), 1.5),
+            example: vec![("d_x".into(), 1.5)],
         }
     }
 
@@ -253,5 +252,18 @@ mod tests {
             let line = model_fact(&scene, &facts(plain));
             assert!(line.contains("primal rank 128,") && !line.contains("translates"), "{line}");
         }
+    }
+
+    /// The example query names every parameter component once (`crom query --at` refuses a
+    /// point that leaves one out): one component as before, two joined by a comma.
+    #[test]
+    fn the_example_query_gives_every_component() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes");
+        let scene = SceneConfig::load(&dir.join("ironing-fine-2d.toml")).expect("shipped scene");
+        let one = model_fact(&scene, &facts("full"));
+        assert!(one.contains("<code>crom query ironing-fine-2d --at d_x=1.5</code>"), "{one}");
+        let two = ModelFacts { example: vec![("d_x".into(), 1.5), ("d_y".into(), 0.04)], ..facts("full") };
+        let line = model_fact(&scene, &two);
+        assert!(line.contains("<code>crom query ironing-fine-2d --at d_x=1.5,d_y=0.04</code>"), "{line}");
     }
 }

@@ -121,8 +121,9 @@ pub(crate) struct ModelFacts {
     pub median_primal_error: f64,
     /// Its speed-up over the full-order solve timed in the same process (a timing).
     pub speedup: Option<f64>,
-    /// The first parameter component's name and the middle of its range (the example query).
-    pub example: (String, f64),
+    /// Every parameter component's name and the middle of its range (the example query, which
+    /// must give each component once).
+    pub example: Vec<(String, f64)>,
 }
 
 /// The comparison artifact's tables (`crom_schemas::artifact::comparison`).
