@@ -64,6 +64,11 @@ pub(crate) struct OnlineApproximationKey {
     u_tol: f64,
     /// The dictionary's first working set.
     ws_start: usize,
+    /// A 3-D scene: its queries with a dual basis set per query start from the warm-start
+    /// samples' answers too (since 2026-11-29; only the path changes). Absent from a 2-D
+    /// scene's key, whose solves did already.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    starts_3d: bool,
 }
 
 impl StageKey for OnlineApproximationKey {
@@ -98,6 +103,7 @@ impl OnlineApproximationKey {
             gap_tol: p.gap_tol,
             u_tol: p.u_tol,
             ws_start: WS_START,
+            starts_3d: scene.model.is_3d(),
         })
     }
 

@@ -83,6 +83,11 @@ pub(crate) struct ModelKey {
     registered: Vec<RegisteredKey>,
     parameter_min: Vec<f64>,
     parameter_max: Vec<f64>,
+    /// A 3-D scene: its queries with a dual basis set per query start from the warm-start
+    /// samples' answers too (since 2026-11-29; only the path changes). Absent from a 2-D
+    /// scene's key, whose solves did already.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    starts_3d: bool,
 }
 
 /// A registered CPG approximation the model may carry: what its basis is built from besides
@@ -122,6 +127,7 @@ impl ModelKey {
             registered,
             parameter_min,
             parameter_max,
+            starts_3d: scene.model.is_3d(),
         }
     }
 

@@ -75,12 +75,13 @@ impl ReducedModel {
     /// point, and its answer `y`, with an empty active set — the active sets would index one
     /// point's basis, the answers `y` do not. A query then starts its re-pairing from the
     /// nearest samples' `y` (`seed_warm`) and its QP cold, so only the path changes, as
-    /// with [`Self::with_warm_starts`]. Type-2 only (a Type-1 query does not re-pair: the model
-    /// is returned unchanged), and the exact algorithm only. The model's own dual basis is left
-    /// as it is.
+    /// with [`Self::with_warm_starts`]. Type-2 only, node-to-segment and node-to-surface (a
+    /// Type-1 query does not re-pair: the model is returned unchanged), and the exact algorithm
+    /// only. The model's own dual basis is left as it is.
     pub fn with_primal_starts(mut self, approx: &dyn DualApprox, m: usize, points: &[Vec<f64>], p: &RomParams) -> Self {
         self.warm_starts = WarmStarts::default();
-        if p.algorithm != Algorithm::Exact || points.is_empty() || !matches!(self.surf, SurfaceData::Nts { .. }) {
+        let repairs = matches!(self.surf, SurfaceData::Nts { .. } | SurfaceData::Nts3(_));
+        if p.algorithm != Algorithm::Exact || points.is_empty() || !repairs {
             return self;
         }
         let mut probe = self.clone();
