@@ -43,6 +43,17 @@ use crate::store::Lookup;
 /// 3: the stored equilibrium residual of the 2-D scenes is a backward error (`contact::solve`).
 const ALGORITHM_VERSION: u32 = 3;
 
+/// The version of the node-to-surface rule's arithmetic in a 3-D scene's keys (absent from a
+/// 2-D scene's, whose keys stay as they were): 2, the normal projection stops at its rounding
+/// floor instead of running out its 25 Newton steps (`crom_stages::contact3d::surface`; the
+/// same pairs, answers that move by rounding).
+const NODE_TO_SURFACE: u32 = 2;
+
+/// [`NODE_TO_SURFACE`] for a 3-D scene, nothing for a 2-D one.
+fn node_to_surface(scene: &SceneConfig) -> Option<u32> {
+    scene.model.is_3d().then_some(NODE_TO_SURFACE)
+}
+
 /// A block is committed when it holds about this many bytes of snapshot data...
 const BLOCK_BYTES: usize = 32 << 20;
 
@@ -52,12 +63,16 @@ const BLOCK_BYTES: usize = 32 << 20;
 struct SnapshotParams<'a> {
     parameter: f64,
     solver: &'a SolverSpec,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    node_to_surface: Option<u32>,
 }
 
 #[derive(Serialize)]
 struct VectorSnapshotParams<'a> {
     parameters: &'a [f64],
     solver: &'a SolverSpec,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    node_to_surface: Option<u32>,
 }
 
 #[derive(Serialize)]
@@ -65,6 +80,8 @@ struct FamilyParams<'a> {
     family: &'static str,
     solver: &'a SolverSpec,
     parameters: Vec<&'a str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    node_to_surface: Option<u32>,
 }
 
 impl StageKey for SnapshotParams<'_> {
@@ -77,18 +94,24 @@ impl StageKey for VectorSnapshotParams<'_> {
     const ALGORITHM_VERSION: u32 = ALGORITHM_VERSION;
 }
 
-/// The key spec of the snapshot at the parameter point `mu` on the mesh `mesh`.
-pub(crate) fn spec(mesh: &Key, solver: &SolverSpec, mu: &[f64]) -> KeySpec {
+/// The key spec of the snapshot at the parameter point `mu` on the mesh `mesh`
+/// (`node_to_surface`: [`NODE_TO_SURFACE`] for a 3-D scene).
+pub(crate) fn spec(mesh: &Key, solver: &SolverSpec, mu: &[f64], node_to_surface: Option<u32>) -> KeySpec {
     let spec = match mu {
-        [parameter] => KeySpec::of(&SnapshotParams { parameter: *parameter, solver }),
-        _ => KeySpec::of(&VectorSnapshotParams { parameters: mu, solver }),
+        [parameter] => KeySpec::of(&SnapshotParams { parameter: *parameter, solver, node_to_surface }),
+        _ => KeySpec::of(&VectorSnapshotParams { parameters: mu, solver, node_to_surface }),
     };
     spec.input("mesh", mesh)
 }
 
 /// The key of the column family holding every snapshot of this mesh and solver.
-pub(crate) fn family_key(mesh: &Key, solver: &SolverSpec, parameter_names: &[&str]) -> Key {
-    let p = FamilyParams { family: "columns", solver, parameters: parameter_names.to_vec() };
+pub(crate) fn family_key(
+    mesh: &Key,
+    solver: &SolverSpec,
+    parameter_names: &[&str],
+    node_to_surface: Option<u32>,
+) -> Key {
+    let p = FamilyParams { family: "columns", solver, parameters: parameter_names.to_vec(), node_to_surface };
     let mut spec = KeySpec::new(ArtifactKind::SNAPSHOT, ALGORITHM_VERSION, params(&p)).input("mesh", mesh);
     spec.schema_version = COLUMNS_SCHEMA_VERSION;
     spec.key()
@@ -150,7 +173,8 @@ pub(crate) fn sweeps(scene: &SceneConfig, mesh: &Key) -> Vec<Sweep> {
     lists
         .into_iter()
         .map(|(name, points)| {
-            let keys: Vec<Key> = points.iter().map(|mu| spec(mesh, &scene.solver, mu).key()).collect();
+            let keys: Vec<Key> =
+                points.iter().map(|mu| spec(mesh, &scene.solver, mu, node_to_surface(scene)).key()).collect();
             let novel: Vec<usize> = (0..keys.len()).filter(|&i| seen.insert(keys[i].clone())).collect();
             let chunks = novel.chunks(per_chunk).map(<[usize]>::to_vec).collect();
             Sweep { name, points, keys, chunks }
@@ -166,7 +190,7 @@ pub(crate) fn shard_range(total: usize, k: usize, n: usize) -> std::ops::Range<u
 /// The key of this scene's column family on the mesh `mesh`.
 pub(crate) fn scene_family(scene: &SceneConfig, mesh: &Key) -> Key {
     let names = scene.parameter.names();
-    family_key(mesh, &scene.solver, &names.iter().map(|s| &**s).collect::<Vec<&str>>())
+    family_key(mesh, &scene.solver, &names.iter().map(|s| &**s).collect::<Vec<&str>>(), node_to_surface(scene))
 }
 
 /// The family's index as it stands (empty when the family does not exist yet).

@@ -511,6 +511,11 @@ impl Cone {
 /// Newton steps of the normal projection.
 const PROJECTION_STEPS: usize = 25;
 
+/// A projection whose last Newton step is at most this (reference units) has converged: the
+/// steps stall at the rounding of the residual, about 1e-16 of the facet's size over the
+/// Jacobian's smallest singular value.
+const PROJECTION_CONVERGED: f64 = 1e-11;
+
 /// How far outside its square a facet's normal projection may land and still count (reference
 /// units): rounding at a shared edge, where the neighbouring facet gives the same point.
 const PROJECTION_SLACK: f64 = 1e-10;
@@ -543,6 +548,7 @@ impl MasterSurface {
         let mut g = facet::dot(facet::sub(p, x0), m0) / facet::dot(m0, m0).max(f64::MIN_POSITIVE);
         let mut last_step = f64::INFINITY;
         for _ in 0..PROJECTION_STEPS {
+            let previous = last_step;
             let (m, mx, my, x) = interp(r);
             let (tx, ty) = facet::tangents(&xf, r);
             // residual G = p - x - g m; Jacobian columns dG/dxi, dG/deta, dG/dg
@@ -569,14 +575,18 @@ impl MasterSurface {
                 return None;
             }
             last_step = d[0].abs().max(d[1].abs());
-            if last_step <= 1e-15 {
+            // converged: below 1e-15, or at the rounding floor (a step of at most
+            // `PROJECTION_CONVERGED` that no longer shrinks; more steps only move `(xi, eta)`
+            // about the root by rounding: measured, 84 % of the projections of 2 000 ironing-3d
+            // queries ran out all 25 steps there)
+            if last_step <= 1e-15 || (last_step <= PROJECTION_CONVERGED && last_step >= previous) {
                 break;
             }
         }
         // Newton's steps stall at the rounding of the residual (about 1e-16 of the facet's size
         // over the Jacobian's smallest singular value): a last step of 1e-11 is converged
         let inside = r[0].abs() <= 1.0 + PROJECTION_SLACK && r[1].abs() <= 1.0 + PROJECTION_SLACK;
-        if !(last_step <= 1e-11 && inside) {
+        if !(last_step <= PROJECTION_CONVERGED && inside) {
             return None;
         }
         let r = [r[0].clamp(-1.0, 1.0), r[1].clamp(-1.0, 1.0)];
