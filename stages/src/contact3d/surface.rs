@@ -454,7 +454,10 @@ impl FacetGrid {
                 // no point of the facet has `p` on its normal line (`project` would fail)
                 continue;
             }
-            if let Some(pair) = surface.project(g, p, xm, &self.nodal) {
+            // the closest point of a facet the search measured is reused as the projection's
+            // start (the same function of the same corners and point: the same bits)
+            let start = self.found.iter().find(|x| x.1 == g).map(|x| x.2);
+            if let Some(pair) = surface.project(g, p, xm, &self.nodal, start) {
                 return pair;
             }
         }
@@ -525,11 +528,19 @@ impl MasterSurface {
     /// `p = x(xi, eta) + g m(xi, eta)`, `m = sum_a N_a n_a` the interpolated nodal normals, by
     /// Newton on the three equations from the closest point's coordinates; `None` unless it
     /// converges inside the square (within [`PROJECTION_SLACK`]).
-    fn project(&self, f: usize, p: [f64; 3], xm: &[[f64; 3]], nodal: &[[f64; 3]]) -> Option<Pair3> {
+    /// `start`: the facet's closest point to `p` if the caller has it (else it is computed).
+    fn project(
+        &self,
+        f: usize,
+        p: [f64; 3],
+        xm: &[[f64; 3]],
+        nodal: &[[f64; 3]],
+        start: Option<Closest>,
+    ) -> Option<Pair3> {
         let q = self.facets[f];
         let xf = self.corners(f, xm);
         let nf = q.map(|v| nodal[v]);
-        let c = facet::closest(&xf, p);
+        let c = start.unwrap_or_else(|| facet::closest(&xf, p));
         let mut r = facet::spot_ref(c.spot);
         let interp = |r: [f64; 2]| -> ([f64; 3], [f64; 3], [f64; 3], [f64; 3]) {
             let dn = crate::q1::shape_derivatives(r[0], r[1]);
