@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{crom, repo, text};
+use common::{crom, query_checked, repo, text};
 use crom_pipeline::scratch::tempdir;
 
 /// An edit of a scene file's text.
@@ -73,24 +73,12 @@ fn a_3d_scene_runs_its_whole_study() {
     let again = crom(&store, &["run", scene.to_str().expect("utf-8")]);
     assert!(again.status.success(), "{}", text(&again));
     assert!(text(&again).contains("0 solved"), "{}", text(&again));
-    let points = dir.path().join("points.csv");
-    std::fs::write(&points, "d\n0.0023\n0.0051\n0.0087\n").expect("points");
-    let q = crom(
-        &store,
-        &["query", scene.to_str().expect("utf-8"), "--points", points.to_str().expect("utf-8"), "--check"],
-    );
-    assert!(q.status.success(), "{}", text(&q));
-    let csv = String::from_utf8_lossy(&q.stdout).to_string();
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
-    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    assert_eq!(rows.len(), 3, "{csv}");
-    for r in &rows {
-        assert_eq!(r[col("outcome")], "converged", "{csv}");
-        let e: f64 = r[col("dual_error")].parse().expect("dual_error");
-        assert!(e < 1e-3, "{csv}");
-    }
+    let points: Vec<String> = ["0.0023", "0.0051", "0.0087"].map(String::from).to_vec();
+    let q = query_checked(&store, scene.to_str().expect("utf-8"), "d", &points, dir.path());
+    assert_eq!(q.rows(), 3);
+    let (outcome, error) = (q.strs("outcome").expect("outcome"), q.f64s("dual_error").expect("dual_error"));
+    assert!(outcome.iter().all(|o| o == "converged"), "{outcome:?}");
+    assert!(error.iter().all(|&e| e < 1e-3), "{error:?}");
 }
 
 /// Bad 3-D scene files exit 2 naming the field, and nothing is written: a symmetry plane missing
@@ -210,13 +198,8 @@ fn a_3d_contact_area_registers_in_the_comparison_and_online() {
     let model = hdf5::File::open(store.join("scenes/ironing-3d-small/model.h5")).expect("model.h5");
     let across = model.dataset("reg_across").expect("reg_across").read_raw::<f64>().expect("f64");
     assert_eq!(across.len(), 3 * 17, "one across coordinate per slave: 3 lines of 17");
-    let points = dir.path().join("points.csv");
-    std::fs::write(&points, "d_x\n0.4\n1.7\n2.9\n").expect("points");
-    let q = crom(
-        &store,
-        &["query", scene.to_str().expect("utf-8"), "--points", points.to_str().expect("utf-8"), "--check"],
-    );
-    assert!(q.status.success(), "{}", text(&q));
-    let csv = String::from_utf8_lossy(&q.stdout).to_string();
-    assert_eq!(csv.lines().filter(|l| l.contains("converged")).count(), 3, "{csv}");
+    let points: Vec<String> = ["0.4", "1.7", "2.9"].map(String::from).to_vec();
+    let q = query_checked(&store, scene.to_str().expect("utf-8"), "d_x", &points, dir.path());
+    let outcome = q.strs("outcome").expect("outcome");
+    assert!(q.rows() == 3 && outcome.iter().all(|o| o == "converged"), "{outcome:?}");
 }

@@ -27,7 +27,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{crom, text};
+use common::{crom, query_checked, text};
 use crom_pipeline::io::model::StoredModel;
 use crom_pipeline::io::table::{read_parquet, Table};
 use crom_stages::metrics::order::{quantile, spearman};
@@ -57,21 +57,6 @@ fn exact_full_test_rows(errors: &Table) -> Vec<usize> {
     (0..errors.rows()).filter(|&i| set[i] == "test" && alg[i] == "exact" && basis[i] == "full").collect()
 }
 
-/// `crom query SCENE --points … --check` at the points `lines` (CSV rows under `header`), written
-/// in `dir`; the answers, after asserting success.
-fn query_checked(store: &Path, scene: &str, header: &str, lines: &[String], dir: &Path) -> Table {
-    let csv: Vec<&str> = std::iter::once(header).chain(lines.iter().map(String::as_str)).collect();
-    let points = dir.join("points.csv");
-    std::fs::write(&points, csv.join("\n")).expect("points");
-    let out = dir.join("answers.parquet");
-    let o = crom(
-        store,
-        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    read_parquet(&out).expect("answers")
-}
-
 fn check_against_the_online_stage(store: &Path, scene: &str, param: &str, tmp: &Path) {
     check_against(store, (scene, scene), param, tmp);
 }
@@ -80,39 +65,14 @@ fn check_against_the_online_stage(store: &Path, scene: &str, param: &str, tmp: &
 fn check_against(store: &Path, (scene, scene_arg): (&str, &str), param: &str, tmp: &Path) {
     let published = store.join("scenes").join(scene);
     let errors = read_parquet(&published.join("rom_errors.parquet")).expect("errors");
-    let (set, alg, basis) = (
-        errors.strs("set").expect("set"),
-        errors.strs("algorithm").expect("alg"),
-        errors.strs("dual_basis").expect("b"),
-    );
     let mu = errors.f64s("parameter").expect("parameter");
-    let tests: Vec<f64> = (0..errors.rows())
-        .filter(|&i| set[i] == "test" && alg[i] == "exact" && basis[i] == "full")
-        .map(|i| mu[i])
-        .collect();
+    let tests: Vec<f64> = exact_full_test_rows(&errors).into_iter().map(|i| mu[i]).collect();
     assert!(tests.len() >= 5, "{scene}: {} test points", tests.len());
     // `{}` prints the shortest decimal that parses back to the same f64
-    let csv =
-        std::iter::once(param.to_string()).chain(tests.iter().map(|x| format!("{x}"))).collect::<Vec<_>>().join("\n");
-    let points = tmp.join(format!("{scene}-points.csv"));
-    std::fs::write(&points, csv).expect("points");
-    let out = tmp.join(format!("{scene}-answers.parquet"));
+    let lines: Vec<String> = tests.iter().map(|x| format!("{x}")).collect();
     let before = listing(store);
-    let o = crom(
-        store,
-        &[
-            "query",
-            scene_arg,
-            "--points",
-            points.to_str().expect("utf8"),
-            "--check",
-            "--out",
-            out.to_str().expect("utf8"),
-        ],
-    );
-    assert!(o.status.success(), "{}", text(&o));
+    let q = query_checked(store, scene_arg, param, &lines, tmp);
     assert_eq!(listing(store), before, "{scene}: the query wrote to the store");
-    let q = read_parquet(&out).expect("answers");
     assert_eq!(q.rows(), tests.len());
     assert_eq!(q.f64s(param).expect("param"), tests.as_slice(), "rows in input order");
     let model = StoredModel::read(&published.join("model.h5")).expect("model.h5");

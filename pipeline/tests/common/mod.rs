@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use crom_pipeline::io::table::{read_parquet, Table};
 use crom_schemas::artifact::{timing_files, MANIFEST};
 
 /// The repository root.
@@ -35,6 +36,21 @@ pub fn crom(store: &Path, args: &[&str]) -> Output {
 /// Standard output and error of a finished command.
 pub fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+/// `crom query SCENE --points … --check` at the points `lines` (CSV rows under `header`), written
+/// in `dir`; the answers, after asserting success.
+pub fn query_checked(store: &Path, scene: &str, header: &str, lines: &[String], dir: &Path) -> Table {
+    let csv: Vec<&str> = std::iter::once(header).chain(lines.iter().map(String::as_str)).collect();
+    let points = dir.join("points.csv");
+    std::fs::write(&points, csv.join("\n")).expect("points");
+    let out = dir.join("answers.parquet");
+    let o = crom(
+        store,
+        &["query", scene, "--points", points.to_str().expect("utf8"), "--check", "--out", out.to_str().expect("utf8")],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    read_parquet(&out).expect("answers")
 }
 
 /// Spawn `cmd` and kill it (SIGKILL) as soon as `ready()` holds (waiting at most `patience`),
