@@ -326,8 +326,10 @@ impl ReducedModel {
     }
 
     /// The registered dual basis stored in `p` (`reg_map` > 0) with its most generators per
-    /// query, checked; `None` where the dual basis is fixed.
-    fn registered_of(p: &ModelParts) -> Result<Option<(Registered, usize)>, RomError> {
+    /// query, checked (a moments table over several components against the `warm_dim`
+    /// components of the warm starts' points, where there are any); `None` where the dual basis
+    /// is fixed.
+    fn registered_of(p: &ModelParts, warm_dim: usize) -> Result<Option<(Registered, usize)>, RomError> {
         let size = |name: &str| -> Result<usize, RomError> {
             usize::try_from(p.scalar(name)).ok().filter(|&v| v <= 1 << 32).ok_or_else(|| bad(name, "too large".into()))
         };
@@ -364,6 +366,16 @@ impl ReducedModel {
             },
         };
         let basis = Registered::from_arrays(&arrays).map_err(|e| bad("reg_modes", e.to_string()))?;
+        // (a model without warm starts has no points to compare with: `warm_dim` 0)
+        if arrays.dims > 1 && warm_dim > 0 && arrays.dims != warm_dim {
+            return Err(bad(
+                "reg_dims",
+                format!(
+                    "{} parameter components in the moments table, {warm_dim} in the warm starts' points",
+                    arrays.dims
+                ),
+            ));
+        }
         Ok(Some((basis, size("reg_m")?)))
     }
 
@@ -474,21 +486,13 @@ impl ReducedModel {
             warm_starts,
             per_query: None,
         };
-        match Self::registered_of(p)? {
+        match Self::registered_of(p, dim)? {
             None => Ok(model),
             Some((basis, m)) => {
                 if r_l != 0 || model.warm_starts.sets.iter().any(|s| !s.is_empty()) {
                     return Err(bad(
                         "r_dual",
                         "a model with a registered dual basis stores no fixed one and no warm-start active sets".into(),
-                    ));
-                }
-                let dims = usize::try_from(p.scalar("reg_dims")).unwrap_or(usize::MAX).max(1);
-                // (a model without warm starts has no points to compare with: `warm_dim` 0)
-                if dims > 1 && dim > 0 && dims != dim {
-                    return Err(bad(
-                        "reg_dims",
-                        format!("{dims} parameter components in the moments table, {dim} in the warm starts' points"),
                     ));
                 }
                 model.with_registered_dual(basis, m)
