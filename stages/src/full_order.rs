@@ -147,12 +147,18 @@ pub trait ContactOperator: Sync {
     fn primal_norm_sq(&self, u: &[f64]) -> f64;
     /// `out = H u`, `H` the Gram matrix of [`Self::primal_norm_sq`] (for error evaluation).
     fn primal_gram_mul(&self, u: &[f64], out: &mut [f64]);
-    /// [`Self::primal_gram_mul`] of `cols` column-major vectors at once.
+    /// [`Self::primal_gram_mul`] of `cols` column-major vectors at once, the columns in
+    /// parallel (each column's product is the one [`Self::primal_gram_mul`] computes alone).
     fn primal_gram_mul_cols(&self, u: &[f64], cols: usize, out: &mut [f64]) {
+        use rayon::prelude::*;
         let n = self.n_dof();
-        for j in 0..cols {
-            self.primal_gram_mul(&u[j * n..(j + 1) * n], &mut out[j * n..(j + 1) * n]);
+        if n == 0 {
+            return;
         }
+        out[..n * cols]
+            .par_chunks_mut(n)
+            .zip(u[..n * cols].par_chunks(n))
+            .for_each(|(o, x)| self.primal_gram_mul(x, o));
     }
     /// The contact surface for the online solve.
     fn surface(&self) -> Surface;

@@ -18,6 +18,7 @@ use super::la::{backward_t, dot, forward};
 use super::saddle::cholesky;
 use crate::full_order::ContactOperator;
 use faer::{Mat, MatRef};
+use rayon::prelude::*;
 
 /// Precomputed references for [`PrimalErrors::relative`].
 #[derive(Debug, Clone)]
@@ -48,13 +49,13 @@ impl PrimalErrors {
             return None;
         }
         let mut out = Vec::with_capacity(refs.len());
-        let mut he = vec![0.0; n];
         // references in blocks, so the products are matrix-matrix (faer) and memory stays bounded
         for block in refs.chunks(64) {
             let k = block.len();
             let mut res = Mat::<f64>::zeros(n, k);
-            for (j, (mu, u)) in block.iter().enumerate() {
-                for (i, (a, b)) in u.iter().zip(op.lift(mu)).enumerate() {
+            let lifts: Vec<Vec<f64>> = block.par_iter().map(|(mu, _)| op.lift(mu)).collect();
+            for (j, ((_, u), lift)) in block.iter().zip(lifts).enumerate() {
+                for (i, (a, b)) in u.iter().zip(lift).enumerate() {
                     res[(i, j)] = a - b;
                 }
             }
@@ -73,13 +74,23 @@ impl PrimalErrors {
                 ys.push(y);
             }
             let e = &res - phi_m * &c;
-            for (j, y) in ys.into_iter().enumerate() {
-                let ej: Vec<f64> = e.col(j).iter().copied().collect();
-                op.primal_gram_mul(&ej, &mut he);
-                let tail = dot(&ej, &he);
-                op.primal_gram_mul(block[j].1, &mut he);
-                out.push((y, tail, dot(block[j].1, &he)));
-            }
+            // per reference, in parallel: the two products with H and their dots, each the
+            // same arithmetic as alone
+            let e = &e;
+            let norms: Vec<(f64, f64)> = (0..k)
+                .into_par_iter()
+                .map_init(
+                    || vec![0.0; n],
+                    |he, j| {
+                        let ej: Vec<f64> = e.col(j).iter().copied().collect();
+                        op.primal_gram_mul(&ej, he);
+                        let tail = dot(&ej, he);
+                        op.primal_gram_mul(block[j].1, he);
+                        (tail, dot(block[j].1, he))
+                    },
+                )
+                .collect();
+            out.extend(ys.into_iter().zip(norms).map(|(y, (tail, norm))| (y, tail, norm)));
         }
         Some(Self { r, l: m, refs: out })
     }

@@ -62,11 +62,13 @@ fn inverse_transpose(l: &[f64], r: usize) -> Vec<f64> {
     u
 }
 /// `K̂ = Phi^T K Phi` (column-major `r_u x r_u`, `phi` column-major `n_dof x r_u`), with the
-/// rounding of the two-sided product symmetrised.
+/// rounding of the two-sided product symmetrised. The products `K phi_j` are taken in parallel
+/// over the columns, each the one `stiffness_mul` computes alone.
 fn reduced_stiffness(op: &dyn ContactOperator, phi: &[f64], n_dof: usize, r_u: usize) -> Vec<f64> {
+    use rayon::prelude::*;
     let mut kphi = vec![0.0; n_dof * r_u];
-    for j in 0..r_u {
-        op.stiffness_mul(&phi[j * n_dof..(j + 1) * n_dof], &mut kphi[j * n_dof..(j + 1) * n_dof]);
+    if n_dof > 0 {
+        kphi.par_chunks_mut(n_dof).zip(phi.par_chunks(n_dof)).for_each(|(y, x)| op.stiffness_mul(x, y));
     }
     let kg = MatRef::from_column_major_slice(phi, n_dof, r_u).transpose()
         * MatRef::from_column_major_slice(&kphi, n_dof, r_u);
