@@ -191,15 +191,16 @@ impl MasterSurface {
 
     /// Each master node's normal at positions `xm` (see the module docs).
     pub fn nodal_normals(&self, xm: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        (0..self.at_node.len())
-            .map(|v| {
-                let normals = self.at_node[v].iter().map(|&g| {
-                    let k = self.facets[g].iter().position(|&x| x == v).expect("corner");
-                    facet::normal(&self.corners(g, xm), facet::corner_ref(k))
-                });
-                self.averaged(normals, self.on_plane[v])
-            })
-            .collect()
+        (0..self.at_node.len()).map(|v| self.node_normal(v, xm)).collect()
+    }
+
+    /// Master node `v`'s normal at positions `xm` (see the module docs).
+    fn node_normal(&self, v: usize, xm: &[[f64; 3]]) -> [f64; 3] {
+        let normals = self.at_node[v].iter().map(|&g| {
+            let k = self.facets[g].iter().position(|&x| x == v).expect("corner");
+            facet::normal(&self.corners(g, xm), facet::corner_ref(k))
+        });
+        self.averaged(normals, self.on_plane[v])
     }
 
     /// The normalised sum of `normals`, without the components normal to the planes in `mask`.
@@ -287,12 +288,15 @@ pub struct FacetGrid {
     size: f64,
     /// Each facet's `(x, y)` bounding box `[x_min, y_min, x_max, y_max]`.
     boxes: Vec<[f64; 4]>,
-    /// Each facet's [`Cone`]: where a normal projection onto it can come from.
-    cones: Vec<Cone>,
+    /// Each facet's [`Cone`] (where a normal projection onto it can come from), once asked for.
+    cones: Vec<Option<Cone>>,
+    /// Whether the search's index (`origin` … `boxes`) is built.
+    indexed: bool,
     stamp: Vec<u32>,
     round: u32,
-    /// The master nodes' normals at this configuration.
+    /// The master nodes' normals at this configuration, those with `have_normal` computed.
     nodal: Vec<[f64; 3]>,
+    have_normal: Vec<bool>,
     /// [`Self::pair`]'s scratch: the facets found `(distance, facet, closest point)`, and
     /// the facets around the closest one.
     found: Vec<(f64, usize, Closest)>,
@@ -302,8 +306,42 @@ pub struct FacetGrid {
 }
 
 impl FacetGrid {
-    /// The grid of `surface`'s facets at master positions `xm`.
+    /// The grid of `surface`'s facets at master positions `xm`. Nothing is computed here: the
+    /// search's index on the first search ([`Self::pair_located`]), a node's normal and a
+    /// facet's cone when a pairing first reads them. A query's later linearisations pair most
+    /// slaves without a search ([`Self::pair_at`]) and near a part of the surface only, so
+    /// building all of it per linearisation was a fifth of ironing-3d's online solve. Every
+    /// method must be called with the positions `xm` given here.
     pub fn new(surface: &MasterSurface, xm: &[[f64; 3]]) -> Self {
+        let (nf, nn) = (surface.facets.len(), surface.at_node.len());
+        let _ = xm;
+        Self {
+            origin: [0.0; 2],
+            cell: 1.0,
+            dims: [1, 1],
+            start: Vec::new(),
+            items: Vec::new(),
+            size: 1.0,
+            boxes: Vec::new(),
+            cones: vec![None; nf],
+            indexed: false,
+            stamp: vec![0; nf],
+            round: 0,
+            nodal: vec![[0.0; 3]; nn],
+            have_normal: vec![false; nn],
+            found: Vec::new(),
+            near: Vec::new(),
+            boxed: Vec::new(),
+        }
+    }
+
+    /// The search's index at `xm`: each facet's `(x, y)` bounding box, the mean facet extent
+    /// (the cell size), and the facets of each cell.
+    fn index(&mut self, surface: &MasterSurface, xm: &[[f64; 3]]) {
+        if self.indexed {
+            return;
+        }
+        self.indexed = true;
         let nf = surface.facets.len();
         let boxes: Vec<[f64; 4]> = (0..nf)
             .map(|f| {
@@ -351,32 +389,53 @@ impl FacetGrid {
                 fill[c] += 1;
             });
         }
-        let nodal = surface.nodal_normals(xm);
-        let cones = (0..nf).map(|f| Cone::of(&surface.corners(f, xm), &surface.facets[f].map(|v| nodal[v]))).collect();
-        let (found, near) = (Vec::new(), Vec::new());
-        Self {
-            origin: lo,
-            cell,
-            dims,
-            start: count,
-            items,
-            size,
-            boxes,
-            cones,
-            stamp: vec![0; nf],
-            round: 0,
-            nodal,
-            found,
-            near,
-            boxed: Vec::new(),
+        (self.origin, self.cell, self.dims, self.start, self.items, self.size, self.boxes) =
+            (lo, cell, dims, count, items, size, boxes);
+    }
+
+    /// The normals of facet `f`'s corners, computed where not yet.
+    fn normals_of(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], f: usize) {
+        for v in surface.facets[f] {
+            if !self.have_normal[v] {
+                self.nodal[v] = surface.node_normal(v, xm);
+                self.have_normal[v] = true;
+            }
         }
+    }
+
+    /// Facet `g`'s cone, computed where not yet (with its corners' normals).
+    fn cone(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], g: usize) -> Cone {
+        if let Some(c) = self.cones[g] {
+            return c;
+        }
+        self.normals_of(surface, xm, g);
+        let c = Cone::of(&surface.corners(g, xm), &surface.facets[g].map(|v| self.nodal[v]));
+        self.cones[g] = Some(c);
+        c
     }
 
     /// The pair of the slave at `p` (see the module docs).
     pub fn pair(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], p: [f64; 3]) -> Pair3 {
+        self.pair_located(surface, xm, p).0
+    }
+
+    /// The pair of the slave at `p` whose search is known to locate `facet` ([`Located::holds`]):
+    /// the search's answer without the search. Step 2 of the rule (module docs) from that facet's
+    /// closest point, which the search would have measured with the same arithmetic, so the
+    /// pair is the one [`Self::pair`] returns, bit for bit.
+    pub fn pair_at(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], p: [f64; 3], facet: usize) -> Pair3 {
+        let cl = facet::closest(&surface.corners(facet, xm), p);
+        self.found.clear();
+        self.found.push((cl.d2.sqrt(), facet, cl));
+        self.finish(surface, xm, p, facet, cl)
+    }
+
+    /// [`Self::pair`], and what its search proves ([`Located`]; `None` without facets).
+    pub fn pair_located(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], p: [f64; 3]) -> (Pair3, Option<Located>) {
         if surface.facets.is_empty() {
-            return Pair3::UNPAIRED;
+            return (Pair3::UNPAIRED, None);
         }
+        self.index(surface, xm);
         self.round = self.round.wrapping_add(1);
         if self.round == 0 {
             self.stamp.fill(0);
@@ -395,6 +454,9 @@ impl FacetGrid {
         // nor tie with it, and is not measured (the same answer, bit for bit: the best distance
         // and the tie set are those of the measured facets either way).
         let mut best_so_far = f64::INFINITY;
+        // the nearest box of a facet left unmeasured, and whether the last square held every cell
+        let mut pruned = f64::INFINITY;
+        let mut everything;
         let tie_of = |best: f64, size: f64| best * (1.0 + 1e-12) + 1e-14 * size;
         let cell_of =
             |x: f64, o: f64, d: usize, cell: f64| ((x - o) / cell).floor().clamp(0.0, (d - 1) as f64) as usize;
@@ -428,6 +490,9 @@ impl FacetGrid {
             self.boxed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             for &(boxed, f) in &self.boxed {
                 if boxed > tie_of(best_so_far, self.size) {
+                    // this facet and the rest of the square's new ones are not measured: no
+                    // nearer than their boxes
+                    pruned = pruned.min(boxed);
                     break;
                 }
                 let cl = facet::closest(&surface.corners(f, xm), p);
@@ -436,7 +501,7 @@ impl FacetGrid {
                 self.found.push((d, f, cl));
             }
             let best = self.found.iter().map(|x| x.0).fold(f64::INFINITY, f64::min);
-            let everything = i0 == 0 && j0 == 0 && i1 == self.dims[0] - 1 && j1 == self.dims[1] - 1;
+            everything = i0 == 0 && j0 == 0 && i1 == self.dims[0] - 1 && j1 == self.dims[1] - 1;
             if best <= r || everything {
                 break best;
             }
@@ -444,13 +509,25 @@ impl FacetGrid {
         };
         let tie = tie_of(best, self.size);
         let (_, f, cl) = self.found.iter().filter(|x| x.0 <= tie).min_by_key(|x| x.1).copied().expect("a facet");
+        // every other facet: measured, pruned by its box, or outside the last square (whose
+        // boxes lie more than `r` away horizontally)
+        let measured = self.found.iter().filter(|x| x.1 != f).map(|x| x.0).fold(f64::INFINITY, f64::min);
+        let others = measured.min(pruned).min(if everything { f64::INFINITY } else { r });
+        let located = Located { facet: f, best, others, size: self.size };
+        (self.finish(surface, xm, p, f, cl), Some(located))
+    }
+
+    /// Step 2 of the rule (module docs) for the slave at `p` located on facet `f` with closest
+    /// point `cl` (`self.found` holding the closest points the search measured).
+    fn finish(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], p: [f64; 3], f: usize, cl: Closest) -> Pair3 {
         // the normal projection onto the facets around the closest one, lowest index first
         self.near.clear();
         self.near.extend(surface.facets[f].iter().flat_map(|&v| surface.at_node[v].iter().copied()));
         self.near.sort_unstable();
         self.near.dedup();
-        for &g in &self.near {
-            if !self.cones[g].may_project(p) {
+        for k in 0..self.near.len() {
+            let g = self.near[k];
+            if !self.cone(surface, xm, g).may_project(p) {
                 // no point of the facet has `p` on its normal line (`project` would fail)
                 continue;
             }
@@ -461,7 +538,43 @@ impl FacetGrid {
                 return pair;
             }
         }
+        self.normals_of(surface, xm, f);
         surface.pair_of(f, &cl, p, xm, &self.nodal)
+    }
+}
+
+/// What a search of [`FacetGrid::pair_located`] proves: the facet it located, that facet's
+/// distance `best` and a lower bound `others` on the distance of every other facet (measured,
+/// pruned by its bounding box, or outside the searched square), at the grid's facet extent
+/// `size`.
+///
+/// A facet's points are convex combinations of its corners (bilinear weights are non-negative
+/// and sum to one), so when the slave moves by `a` and every master node by at most `b`, each
+/// facet's distance changes by at most `a + b`. After moves adding up to `moved`, the located
+/// facet lies within `best + moved` and every other beyond `others - moved`; while the first
+/// stays below the second by more than the search's tie tolerance, the search locates the same
+/// facet ([`Self::holds`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Located {
+    /// The located facet.
+    pub facet: usize,
+    /// Its distance.
+    pub best: f64,
+    /// A lower bound on every other facet's distance.
+    pub others: f64,
+    /// The grid's mean facet extent.
+    pub size: f64,
+}
+
+impl Located {
+    /// Whether the search still locates [`Self::facet`] after the slave and the master nodes
+    /// moved by at most `moved` in all (see the type's docs). The tie tolerance is taken a
+    /// thousand times wider than the search's (1e-9 relative and of the facet extent instead of
+    /// 1e-12 and 1e-14), for the rounding of the closest points and of the extent, which moves
+    /// with the masters.
+    pub fn holds(&self, moved: f64) -> bool {
+        let near = self.best + moved;
+        moved.is_finite() && near * (1.0 + 1e-9) + 1e-9 * self.size < self.others - moved
     }
 }
 
@@ -635,6 +748,57 @@ mod tests {
             [4 * j + i, 4 * j + i + 1, 4 * j + i + 5, 4 * j + i + 4]
         });
         (MasterSurface::new(facets.collect(), &x, &[Plane { axis: 1, at: 0.0 }], 1e-12), x)
+    }
+
+    /// A search's certificate ([`Located::holds`]) is sound and its shortcut exact: on the bent
+    /// patch, 4 000 slaves at random above, below and beside it are searched; then the slave and
+    /// every master node move by random amounts up to 1e-3 ... 0.3 (each a random direction and
+    /// length) and, wherever the certificate holds for the sum of the two largest moves, the
+    /// search at the new positions locates the same facet and [`FacetGrid::pair_at`] returns
+    /// the search's pair bit for bit (`Pair3`'s `==` on every float). The draws include
+    /// certificates that hold and that fail (both counted), so the test sees both branches.
+    #[test]
+    fn a_searchs_certificate_holds_where_it_says_and_its_shortcut_is_the_search() {
+        let (s, x) = patch(0.2);
+        let mut rng = crate::rng::Rng::new(7);
+        let dir = |rng: &mut crate::rng::Rng, len: f64| {
+            let v = [rng.uniform_in(-1.0, 1.0), rng.uniform_in(-1.0, 1.0), rng.uniform_in(-1.0, 1.0)];
+            let n = facet::dot(v, v).sqrt().max(1e-300);
+            v.map(|c| c / n * len)
+        };
+        let (mut held, mut refused) = (0, 0);
+        for k in 0..4000 {
+            let p0 = [rng.uniform_in(-0.5, 3.5), rng.uniform_in(-0.5, 3.5), rng.uniform_in(-0.6, 1.2)];
+            let mut g0 = FacetGrid::new(&s, &x);
+            let (_, at) = g0.pair_located(&s, &x, p0);
+            let at = at.expect("facets");
+            let scale = [1e-3, 1e-2, 0.1, 0.3][k % 4];
+            let len = rng.uniform() * scale;
+            let step = dir(&mut rng, len);
+            let p1 = [p0[0] + step[0], p0[1] + step[1], p0[2] + step[2]];
+            let mut largest = 0.0f64;
+            let x1: Vec<[f64; 3]> = x
+                .iter()
+                .map(|xa| {
+                    let len = rng.uniform() * scale;
+                    let d = dir(&mut rng, len);
+                    largest = largest.max(facet::dot(d, d).sqrt());
+                    [xa[0] + d[0], xa[1] + d[1], xa[2] + d[2]]
+                })
+                .collect();
+            let moved = facet::dot(step, step).sqrt() + largest;
+            if !at.holds(moved) {
+                refused += 1;
+                continue;
+            }
+            held += 1;
+            let mut g1 = FacetGrid::new(&s, &x1);
+            let (want, again) = g1.pair_located(&s, &x1, p1);
+            assert_eq!(again.expect("facets").facet, at.facet, "case {k}: the certificate held");
+            let mut g2 = FacetGrid::new(&s, &x1);
+            assert_eq!(g2.pair_at(&s, &x1, p1, at.facet), want, "case {k}");
+        }
+        assert!(held > 500 && refused > 500, "held {held}, refused {refused}");
     }
 
     /// The cases of the rule, each with its gap and normal:

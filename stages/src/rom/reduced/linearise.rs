@@ -61,6 +61,13 @@ pub(super) struct LinState {
     /// 3-D: the pairs of the slaves, and the masters' positions ([`super::nts3`]).
     pub(super) pairs3: Vec<crate::contact3d::surface::Pair3>,
     pub(super) xm3: Vec<[f64; 3]>,
+    /// 3-D: per slave what its last search proved, the distance the slave and the masters
+    /// moved since (a bound), and its position at the last linearisation; the masters'
+    /// positions at the last linearisation ([`ReducedModel::linearize3`]).
+    pub(super) located3: Vec<Option<crate::contact3d::surface::Located>>,
+    pub(super) moved3: Vec<f64>,
+    pub(super) last3: Vec<[f64; 3]>,
+    pub(super) xm3_prev: Vec<[f64; 3]>,
     /// Paired supported slaves, their `C Phi` rows (row-major) and constant parts.
     pub(super) ps: Vec<usize>,
     pub(super) ps_of: Vec<usize>,

@@ -7,14 +7,26 @@
 //! each supported slave and builds its gap row `g = n . (x_s - sum_a w_a x_a)` with the pair's
 //! normal and weights frozen: `C Psi` is the row combined with `Psi_c`, the constant part the
 //! row applied to `X_c + u0_c(mu)`. Everything after (the rows summed under the dual basis, the
-//! QP, the re-pairing loop) is the 2-D node-to-segment path's. The 2-D path's refinements are
-//! not used: the proofs that spare searches, the vertex-zone rule (3-D has no ties) and the
-//! Newton correction for the gaps' curvature (first-order re-pairing steps); its cost is a
-//! search of every supported slave per linearisation, `O((n_s + n_m) r_u)` for the positions.
+//! QP, the re-pairing loop) is the 2-D node-to-segment path's. A slave whose last search still
+//! proves its facet is paired on it without a search ([`ReducedModel::linearize3`]); the 2-D
+//! path's vertex-zone rule (3-D has no ties) and Newton correction for the gaps' curvature
+//! (first-order re-pairing steps) are not used. Its cost per linearisation: the searches that
+//! are not proved, a projection per supported slave, `O((n_s + n_m) r_u)` for the positions.
 
 use super::{ReducedModel, RomWork};
 use crate::contact3d::surface::{FacetGrid, MasterSurface, Pair3};
 use crate::rom::la::dot;
+
+/// `|a - b|` (infinite when either is not finite: a slave placed for the first time).
+fn norm3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    if n.is_finite() {
+        n
+    } else {
+        f64::INFINITY
+    }
+}
 
 /// The 3-D contact surface's offline data.
 #[derive(Debug, Clone)]
@@ -85,17 +97,46 @@ impl ReducedModel {
 
     /// Type-2 in 3-D ([`Self::linearize_with`]): place every contact node, re-pair every
     /// supported slave, rebuild the gap rows if `assemble`; whether a pairing changed.
+    ///
+    /// A slave whose last search still proves its facet ([`crate::contact3d::surface::Located::holds`]) is paired on that
+    /// facet without a search ([`FacetGrid::pair_at`], the search's answer bit for bit): the
+    /// distance it and the masters moved since is bounded by the sum, over the linearisations
+    /// since, of its own displacement and the largest master displacement.
     pub(super) fn linearize3(&self, d: &Nts3, w: &mut RomWork, assemble: bool) -> bool {
         // the supported slaves only: the others are neither paired nor in a row
         self.place3(d, w, d.supp.iter().copied());
         let mut grid = FacetGrid::new(&d.master, &w.lin.xm3);
+        let l = &mut w.lin;
+        // the largest master displacement since the last linearisation (none before the first)
+        let masters_moved = if l.xm3_prev.len() == l.xm3.len() {
+            l.xm3.iter().zip(&l.xm3_prev).map(|(a, b)| norm3(a, b)).fold(0.0, f64::max)
+        } else {
+            f64::INFINITY
+        };
         let mut changed = false;
         for &s in &d.supp {
-            let p = Self::pair3(d, &mut grid, w, s);
-            changed |= p.feature != w.lin.pairs3[s].feature;
-            w.lin.pairs3[s] = p;
+            let xs = [l.xc[3 * s], l.xc[3 * s + 1], l.xc[3 * s + 2]];
+            let p = if d.slave_fixed[s] || xs.iter().any(|v| !v.is_finite()) {
+                l.located3[s] = None;
+                Pair3::UNPAIRED
+            } else {
+                l.moved3[s] += norm3(&xs, &l.last3[s]) + masters_moved;
+                match l.located3[s] {
+                    Some(at) if at.holds(l.moved3[s]) => grid.pair_at(&d.master, &l.xm3, xs, at.facet),
+                    _ => {
+                        let (p, at) = grid.pair_located(&d.master, &l.xm3, xs);
+                        l.located3[s] = at;
+                        l.moved3[s] = 0.0;
+                        p
+                    }
+                }
+            };
+            l.last3[s] = xs;
+            changed |= p.feature != l.pairs3[s].feature;
+            l.pairs3[s] = p;
         }
-        let l = &mut w.lin;
+        l.xm3_prev.clear();
+        l.xm3_prev.extend_from_slice(&l.xm3);
         l.count += 1;
         l.fresh = false;
         if assemble {

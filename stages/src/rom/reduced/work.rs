@@ -74,6 +74,13 @@ impl RomWork {
             l.xc.resize(ncd, f64::NAN);
             l.pairs3.clear();
             l.pairs3.resize(d.ns, crate::contact3d::surface::Pair3::UNPAIRED);
+            l.located3.clear();
+            l.located3.resize(d.ns, None);
+            l.moved3.clear();
+            l.moved3.resize(d.ns, 0.0);
+            l.last3.clear();
+            l.last3.resize(d.ns, [f64::NAN; 3]);
+            l.xm3_prev.clear();
             l.ps_of.clear();
             l.ps_of.resize(d.ns, usize::MAX);
             l.fresh = true;
