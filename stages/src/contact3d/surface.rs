@@ -131,6 +131,9 @@ pub struct MasterSurface {
     edges: BTreeMap<(usize, usize), Vec<usize>>,
     /// Facets of each master node.
     at_node: Vec<Vec<usize>>,
+    /// Per facet, the facets that share a node with it (itself included), ascending: where
+    /// step 2 of the rule projects.
+    around: Vec<Vec<usize>>,
     /// Per master node: the symmetry planes it lies on (bit k: plane k).
     on_plane: Vec<u8>,
     planes: Vec<Plane>,
@@ -172,7 +175,16 @@ impl MasterSurface {
                 free_node[b] = true;
             }
         }
-        Self { facets, edges, at_node, on_plane, planes: planes.to_vec(), tol, free_node }
+        let around = facets
+            .iter()
+            .map(|q| {
+                let mut near: Vec<usize> = q.iter().flat_map(|&v| at_node[v].iter().copied()).collect();
+                near.sort_unstable();
+                near.dedup();
+                near
+            })
+            .collect();
+        Self { facets, edges, at_node, around, on_plane, planes: planes.to_vec(), tol, free_node }
     }
 
     /// The symmetry planes and the distance that puts a node on one (as given to [`Self::new`]).
@@ -297,10 +309,8 @@ pub struct FacetGrid {
     /// The master nodes' normals at this configuration, those with `have_normal` computed.
     nodal: Vec<[f64; 3]>,
     have_normal: Vec<bool>,
-    /// [`Self::pair`]'s scratch: the facets found `(distance, facet, closest point)`, and
-    /// the facets around the closest one.
+    /// [`Self::pair`]'s scratch: the facets found `(distance, facet, closest point)`.
     found: Vec<(f64, usize, Closest)>,
-    near: Vec<usize>,
     /// The facets of the current square by their boxes' horizontal distance.
     boxed: Vec<(f64, usize)>,
 }
@@ -330,7 +340,6 @@ impl FacetGrid {
             nodal: vec![[0.0; 3]; nn],
             have_normal: vec![false; nn],
             found: Vec::new(),
-            near: Vec::new(),
             boxed: Vec::new(),
         }
     }
@@ -521,12 +530,7 @@ impl FacetGrid {
     /// point `cl` (`self.found` holding the closest points the search measured).
     fn finish(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], p: [f64; 3], f: usize, cl: Closest) -> Pair3 {
         // the normal projection onto the facets around the closest one, lowest index first
-        self.near.clear();
-        self.near.extend(surface.facets[f].iter().flat_map(|&v| surface.at_node[v].iter().copied()));
-        self.near.sort_unstable();
-        self.near.dedup();
-        for k in 0..self.near.len() {
-            let g = self.near[k];
+        for &g in &surface.around[f] {
             if !self.cone(surface, xm, g).may_project(p) {
                 // no point of the facet has `p` on its normal line (`project` would fail)
                 continue;
