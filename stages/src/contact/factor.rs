@@ -38,6 +38,32 @@ pub struct FactoredModel {
     pub(crate) slave_fixed: Vec<bool>,
     /// The H1 Gram matrix, assembled on first use (error evaluation).
     pub(crate) h1: std::sync::OnceLock<crate::fem::CsrMatrix>,
+    /// The estimate of `K_FF`'s extreme eigenvalues ([`stiffness_condition`]).
+    pub(crate) condition: Option<crate::condition::Condition>,
+}
+
+/// `K_FF`'s extreme eigenvalues ([`crate::condition::estimate`]) by products of `K` on free-dof
+/// vectors (zero on the Dirichlet dofs) and solves with the solver's own sparse Cholesky
+/// factor.
+fn stiffness_condition(model: &ContactModel, llt: &Llt<usize, f64>) -> Option<crate::condition::Condition> {
+    let free = model.split.free();
+    let n = model.n_dof();
+    let mul = |x: &[f64], y: &mut [f64]| {
+        let mut full = vec![0.0; n];
+        for (&d, v) in free.iter().zip(x) {
+            full[d] = *v;
+        }
+        let mut out = vec![0.0; n];
+        model.k.matvec_into(&full, &mut out);
+        for (&d, v) in free.iter().zip(y.iter_mut()) {
+            *v = out[d];
+        }
+    };
+    let solve = |x: &mut [f64]| {
+        let b = MatMut::from_column_major_slice_mut(x, free.len(), 1);
+        llt.solve_in_place(b);
+    };
+    crate::condition::estimate(free.len(), crate::condition::ITERATIONS, &mul, &solve)
 }
 
 impl ContactModel {
@@ -66,7 +92,10 @@ impl ContactModel {
             })
             .collect();
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(4);
-        let w = compliance(&llt, nf, &cfree, threads);
+        // the condition estimate beside the Delassus operator: its inverse iteration is a chain
+        // of solves that kept one core of two busy after the operator (90 ms on ironing-fine);
+        // each is computed as alone, so both are the same whatever runs beside them
+        let (w, condition) = rayon::join(|| compliance(&llt, nf, &cfree, threads), || stiffness_condition(self, &llt));
         let slave_fixed =
             (0..self.slaves.len()).map(|s| cfree[2 * s].is_none() && cfree[2 * s + 1].is_none()).collect();
         Ok(FactoredModel {
@@ -81,6 +110,7 @@ impl ContactModel {
             w,
             slave_fixed,
             h1: std::sync::OnceLock::new(),
+            condition,
         })
     }
 }

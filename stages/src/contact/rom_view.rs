@@ -87,27 +87,10 @@ impl ContactOperator for FactoredModel {
         self.model.split.mul_zero_fixed(&self.model.k, x, y)
     }
 
-    /// `K_FF` by products of `K` on free-dof vectors (zero on the Dirichlet dofs) and solves
-    /// with the solver's own sparse Cholesky factor.
+    /// Estimated beside the Delassus operator when the model was factored
+    /// ([`super::factor::stiffness_condition`]).
     fn stiffness_condition(&self) -> Option<crate::condition::Condition> {
-        let free = self.model.split.free();
-        let n = self.n_dof();
-        let mul = |x: &[f64], y: &mut [f64]| {
-            let mut full = vec![0.0; n];
-            for (&d, v) in free.iter().zip(x) {
-                full[d] = *v;
-            }
-            let mut out = vec![0.0; n];
-            self.model.k.matvec_into(&full, &mut out);
-            for (&d, v) in free.iter().zip(y.iter_mut()) {
-                *v = out[d];
-            }
-        };
-        let solve = |x: &mut [f64]| {
-            let b = faer::MatMut::from_column_major_slice_mut(x, free.len(), 1);
-            faer::linalg::solvers::Solve::solve_in_place(&self.llt, b);
-        };
-        crate::condition::estimate(free.len(), crate::condition::ITERATIONS, &mul, &solve)
+        self.condition
     }
 
     fn linearize(&self, _mu: &[f64], u: &[f64], out: &mut Linearized) {
