@@ -418,22 +418,33 @@ impl<A, B, C> IntoFlat<A, B, C> for (A, (B, C)) {
     }
 }
 
+/// The largest finest nested level (its columns, bytes) that the nested stage reads once and
+/// takes every other level from ([`sets::Nested`]); larger studies read two levels at a time.
+const NESTED_IN_MEMORY: usize = 256 << 20;
+
 /// H(n), n = 1..levels-1, from the nested sets (level n at index n-1).
 fn nested(ctx: &mut Ctx<'_>, spec: &KeySpec, scene: &str, levels: &[Key]) -> Result<Key, CromError> {
-    let store = ctx.store;
-    let progress = ctx.progress;
+    let (store, progress, loaded) = (ctx.store, ctx.progress, std::sync::Arc::clone(&ctx.loaded));
     ctx.single(ArtifactKind::NESTED, "nested", spec, |staging| {
         // Two levels in memory at a time (level n and n + 1), the finer one kept for the next
         // pair: memory is bounded by the two finest levels, not by all of them.
         let mut t = NestedRows::default();
         let n_levels = levels.len();
         let mut bar = progress.stage("nested pairs", n_levels.saturating_sub(1));
-        let mut lo = match levels.first() {
-            Some(k) => Some(sets::load_from(store, k)?),
-            None => None,
+        // sets up to NESTED_IN_MEMORY bytes: every level from the finest, read once
+        let nested = sets::Nested::open(store, levels, NESTED_IN_MEMORY)?;
+        // each level's pressures are kept for the comparison's H(n), which reads every level
+        let load = |i: usize| -> Result<_, CromError> {
+            let level = match &nested {
+                Some(n) => n.level(i),
+                None => sets::load_from(store, &levels[i])?,
+            };
+            loaded.keep_level(&levels[i], &level.dual, &level.parameters);
+            Ok(level)
         };
-        for (i, key) in levels.iter().enumerate().skip(1) {
-            let hi = sets::load_from(store, key)?;
+        let mut lo = if levels.is_empty() { None } else { Some(load(0)?) };
+        for i in 1..levels.len() {
+            let hi = load(i)?;
             let lo_set = lo.as_ref().expect("loaded above");
             let ((po, dor), dc) = rayon::join(
                 || {

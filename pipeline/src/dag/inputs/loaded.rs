@@ -80,6 +80,14 @@ impl Loaded {
         })
     }
 
+    /// Keep nested level `key`'s pressures and points, read by a stage that had the whole level
+    /// (the nested stage), for the stages after it ([`Self::level`]); a level already kept stays.
+    pub(crate) fn keep_level(&self, key: &Key, dual: &ColMatrix, parameters: &[Vec<f64>]) {
+        let mut map = self.levels.lock().unwrap_or_else(PoisonError::into_inner);
+        map.entry(key.clone())
+            .or_insert_with(|| Arc::new(NestedLevel { dual: dual.clone(), parameters: parameters.to_vec() }));
+    }
+
     /// The bases `key`.
     pub(crate) fn bases(&self, store: &Store, key: &Key) -> Result<Arc<Bases>, CromError> {
         get_or_load(&self.bases, key, || bases::load_from(store, key))
