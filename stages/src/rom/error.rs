@@ -48,50 +48,56 @@ impl PrimalErrors {
         if !cholesky(&mut m, r) {
             return None;
         }
-        let mut out = Vec::with_capacity(refs.len());
-        // references in blocks, so the products are matrix-matrix (faer) and memory stays bounded
-        for block in refs.chunks(64) {
-            let k = block.len();
-            let mut res = Mat::<f64>::zeros(n, k);
-            let lifts: Vec<Vec<f64>> = block.par_iter().map(|(mu, _)| op.lift(mu)).collect();
-            for (j, ((_, u), lift)) in block.iter().zip(lifts).enumerate() {
-                for (i, (a, b)) in u.iter().zip(lift).enumerate() {
-                    res[(i, j)] = a - b;
+        // references in blocks of 64, so the products are matrix-matrix (faer) and memory stays
+        // bounded; the blocks in parallel, each computed as alone (the same sizes, so the same
+        // products to the bit), two at a time on two cores
+        let m_ref = &m;
+        let blocks: Vec<Vec<(Vec<f64>, f64, f64)>> = refs
+            .par_chunks(64)
+            .map(|block| {
+                let k = block.len();
+                let mut res = Mat::<f64>::zeros(n, k);
+                let lifts: Vec<Vec<f64>> = block.par_iter().map(|(mu, _)| op.lift(mu)).collect();
+                for (j, ((_, u), lift)) in block.iter().zip(lifts).enumerate() {
+                    for (i, (a, b)) in u.iter().zip(lift).enumerate() {
+                        res[(i, j)] = a - b;
+                    }
                 }
-            }
-            let b = hphi_m.transpose() * &res;
-            let mut c = Mat::<f64>::zeros(r, k);
-            let mut ys = Vec::with_capacity(k);
-            for j in 0..k {
-                // y = L^{-1} b, c = M^{-1} b
-                let mut y: Vec<f64> = (0..r).map(|i| b[(i, j)]).collect();
-                forward(&m, r, &mut y);
-                let mut cj = y.clone();
-                backward_t(&m, r, &mut cj);
-                for (i, v) in cj.iter().enumerate() {
-                    c[(i, j)] = *v;
+                let b = hphi_m.transpose() * &res;
+                let mut c = Mat::<f64>::zeros(r, k);
+                let mut ys = Vec::with_capacity(k);
+                for j in 0..k {
+                    // y = L^{-1} b, c = M^{-1} b
+                    let mut y: Vec<f64> = (0..r).map(|i| b[(i, j)]).collect();
+                    forward(m_ref, r, &mut y);
+                    let mut cj = y.clone();
+                    backward_t(m_ref, r, &mut cj);
+                    for (i, v) in cj.iter().enumerate() {
+                        c[(i, j)] = *v;
+                    }
+                    ys.push(y);
                 }
-                ys.push(y);
-            }
-            let e = &res - phi_m * &c;
-            // per reference, in parallel: the two products with H and their dots, each the
-            // same arithmetic as alone
-            let e = &e;
-            let norms: Vec<(f64, f64)> = (0..k)
-                .into_par_iter()
-                .map_init(
-                    || vec![0.0; n],
-                    |he, j| {
-                        let ej: Vec<f64> = e.col(j).iter().copied().collect();
-                        op.primal_gram_mul(&ej, he);
-                        let tail = dot(&ej, he);
-                        op.primal_gram_mul(block[j].1, he);
-                        (tail, dot(block[j].1, he))
-                    },
-                )
-                .collect();
-            out.extend(ys.into_iter().zip(norms).map(|(y, (tail, norm))| (y, tail, norm)));
-        }
+                let e = &res - phi_m * &c;
+                // per reference, in parallel: the two products with H and their dots, each the
+                // same arithmetic as alone
+                let e = &e;
+                let norms: Vec<(f64, f64)> = (0..k)
+                    .into_par_iter()
+                    .map_init(
+                        || vec![0.0; n],
+                        |he, j| {
+                            let ej: Vec<f64> = e.col(j).iter().copied().collect();
+                            op.primal_gram_mul(&ej, he);
+                            let tail = dot(&ej, he);
+                            op.primal_gram_mul(block[j].1, he);
+                            (tail, dot(block[j].1, he))
+                        },
+                    )
+                    .collect();
+                ys.into_iter().zip(norms).map(|(y, (tail, norm))| (y, tail, norm)).collect()
+            })
+            .collect();
+        let out: Vec<(Vec<f64>, f64, f64)> = blocks.into_iter().flatten().collect();
         Some(Self { r, l: m, refs: out })
     }
 
