@@ -394,15 +394,19 @@ fn write_online(
     let dual = f.column_writer("dual", m, k, "online contact pressure Theta lambda_hat")?;
     let primal_error = f.column_writer("primal_error", n, k, "online minus full-order displacement")?;
     let dual_error = f.column_writer("dual_error", m, k, "online minus full-order contact pressure")?;
-    const BLOCK: usize = 64;
-    for start in (0..k).step_by(BLOCK) {
-        let cols: Vec<(Vec<f64>, Vec<f64>)> = (start..(start + BLOCK).min(k))
+    // the fields of a block of test points are computed (on every core) while the block before
+    // is written (HDF5, one thread): the same columns in the same order
+    const BLOCK: usize = 32;
+    let fields = |start: usize| -> Vec<(Vec<f64>, Vec<f64>)> {
+        (start..(start + BLOCK).min(k))
             .into_par_iter()
             .map(|j| {
                 let u = ReducedModel::displacement(op, &phi.data, &test.parameters[j], &shown[j].u_hat);
                 (u, model.pressure(&shown[j].lambda_hat))
             })
-            .collect();
+            .collect()
+    };
+    let write = |start: usize, cols: &[(Vec<f64>, Vec<f64>)]| -> Result<(), CromError> {
         for (i, (u, p)) in cols.iter().enumerate() {
             let j = start + i;
             primal.write(j, u)?;
@@ -412,6 +416,15 @@ fn write_online(
             primal_error.write(j, &du)?;
             dual_error.write(j, &dp)?;
         }
+        Ok(())
+    };
+    let mut next = (k > 0).then(|| fields(0));
+    for start in (0..k).step_by(BLOCK) {
+        let cols = next.take().unwrap_or_default();
+        let following = start + BLOCK;
+        let (written, computed) = rayon::join(|| write(start, &cols), || (following < k).then(|| fields(following)));
+        written?;
+        next = computed;
     }
     let names_len = test.parameters.first().map_or(1, Vec::len);
     let flat: Vec<f64> = test.parameters.iter().flatten().copied().collect();
