@@ -324,7 +324,7 @@ impl FacetGrid {
     /// method must be called with the positions `xm` given here.
     pub fn new(surface: &MasterSurface, xm: &[[f64; 3]]) -> Self {
         let (nf, nn) = (surface.facets.len(), surface.at_node.len());
-        let _ = xm;
+        debug_assert_eq!(xm.len(), nn, "a position per master node");
         Self {
             origin: [0.0; 2],
             cell: 1.0,
