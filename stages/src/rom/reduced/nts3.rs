@@ -85,14 +85,17 @@ impl ReducedModel {
         l.xm3.extend((d.ns..d.ns + d.nm).map(|c| [l.xc[3 * c], l.xc[3 * c + 1], l.xc[3 * c + 2]]));
     }
 
-    /// The pair of slave `s` at the positions in `w.lin` (a non-finite position is unpaired).
+    /// Slave `s`'s position in `xc` (3 per contact node), or `None` for a slave that is fixed or
+    /// placed at a non-finite position (it is unpaired).
+    fn pairable(d: &Nts3, xc: &[f64], s: usize) -> Option<[f64; 3]> {
+        let xs = [xc[3 * s], xc[3 * s + 1], xc[3 * s + 2]];
+        (!d.slave_fixed[s] && xs.iter().all(|v| v.is_finite())).then_some(xs)
+    }
+
+    /// The pair of slave `s` at the positions in `w.lin` ([`Self::pairable`]).
     fn pair3(d: &Nts3, grid: &mut FacetGrid, w: &RomWork, s: usize) -> Pair3 {
         let l = &w.lin;
-        let xs = [l.xc[3 * s], l.xc[3 * s + 1], l.xc[3 * s + 2]];
-        if d.slave_fixed[s] || xs.iter().any(|v| !v.is_finite()) {
-            return Pair3::UNPAIRED;
-        }
-        grid.pair(&d.master, &l.xm3, xs)
+        Self::pairable(d, &l.xc, s).map_or(Pair3::UNPAIRED, |xs| grid.pair(&d.master, &l.xm3, xs))
     }
 
     /// Type-2 in 3-D ([`Self::linearize_with`]): place every contact node, re-pair every
@@ -115,23 +118,26 @@ impl ReducedModel {
         };
         let mut changed = false;
         for &s in &d.supp {
-            let xs = [l.xc[3 * s], l.xc[3 * s + 1], l.xc[3 * s + 2]];
-            let p = if d.slave_fixed[s] || xs.iter().any(|v| !v.is_finite()) {
-                l.located3[s] = None;
-                Pair3::UNPAIRED
-            } else {
-                l.moved3[s] += norm3(&xs, &l.last3[s]) + masters_moved;
-                match l.located3[s] {
-                    Some(at) if at.holds(l.moved3[s]) => grid.pair_at(&d.master, &l.xm3, xs, at.facet),
-                    _ => {
-                        let (p, at) = grid.pair_located(&d.master, &l.xm3, xs);
-                        l.located3[s] = at;
-                        l.moved3[s] = 0.0;
-                        p
+            let p = match Self::pairable(d, &l.xc, s) {
+                None => {
+                    // no certificate survives: the next pairing searches
+                    l.located3[s] = None;
+                    Pair3::UNPAIRED
+                }
+                Some(xs) => {
+                    l.moved3[s] += norm3(&xs, &l.last3[s]) + masters_moved;
+                    l.last3[s] = xs;
+                    match l.located3[s] {
+                        Some(at) if at.holds(l.moved3[s]) => grid.pair_at(&d.master, &l.xm3, xs, at.facet),
+                        _ => {
+                            let (p, at) = grid.pair_located(&d.master, &l.xm3, xs);
+                            l.located3[s] = at;
+                            l.moved3[s] = 0.0;
+                            p
+                        }
                     }
                 }
             };
-            l.last3[s] = xs;
             changed |= p.feature != l.pairs3[s].feature;
             l.pairs3[s] = p;
         }
