@@ -90,8 +90,14 @@ impl Nested {
             let Some(cols) = cols else { return Ok(None) };
             columns.push(cols);
         }
-        let parameters = rows.iter().map(|level| level.iter().map(|r| r.parameters.clone()).collect()).collect();
-        Ok(Some(Self { top: load_from(store, finest)?, columns, parameters }))
+        let parameters: Vec<Vec<Vec<f64>>> =
+            rows.iter().map(|level| level.iter().map(|r| r.parameters.clone()).collect()).collect();
+        // the finest level's columns, from the rows and shape read above (`load_from` would
+        // read both again)
+        let refs: Vec<&IndexRow> = top_rows.iter().collect();
+        let (primal, dual) = read_columns(store.root(), n_dof, n_contact, &refs)?;
+        let top = TrainingSet { primal, dual, parameters: parameters.last().cloned().unwrap_or_default() };
+        Ok(Some(Self { top, columns, parameters }))
     }
 
     /// Level `i` (in the order of the keys given to [`Self::open`]).
