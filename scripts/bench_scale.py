@@ -61,7 +61,12 @@ def crom(store, *args):
     if p.returncode != 0:
         sys.exit(f"crom {' '.join(map(str, args))} failed:\n{p.stdout}\n{p.stderr}")
     rss = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr).group(1)) * 1024
+    LAST["cpu"] = sum(float(re.search(rf"{k} time \(seconds\): ([0-9.]+)", p.stderr).group(1)) for k in ("User", "System"))
     return wall, rss, p.stdout
+
+
+# The CPU seconds (user + system) of the last `crom` call, from GNU time.
+LAST = {"cpu": 0.0}
 
 
 def snapshot_counts(stdout):
@@ -92,6 +97,11 @@ def bench_a(tmp):
     whole, rss, out = crom(pathlib.Path(tmp) / "a-whole", "run", "ironing-fine")
     row("the whole `crom run ironing-fine` (`just run ironing-fine`: comparison, online, report)", "<= 8 s",
         f"{whole:.2f} s", whole <= 8)
+    # What bounds it on this machine: its CPU seconds spread over every core, plus the solves
+    # timed alone with the other cores idle by design (docs/results.md#where-the-whole-run-stands).
+    cores = os.cpu_count() or 1
+    row("its CPU seconds (user + system), and their share of the cores busy", "-",
+        f"{LAST['cpu']:.1f} s: {LAST['cpu'] / (cores * whole):.0%} of {cores} cores x {whole:.2f} s", True)
 
 
 def bench_b(tmp):
