@@ -62,14 +62,26 @@ pub struct Units {
 
 impl Physics {
     /// Build the model of a validated scene (meshing, assembly and factorisation happen here).
+    /// The stiffness's condition estimate is computed on its first read.
     pub fn build(scene: &SceneConfig) -> Result<Self, String> {
+        Self::build_with(scene, false)
+    }
+
+    /// [`Self::build`] for the mesh artifact, which states the stiffness's condition estimate:
+    /// a 2-D contact model computes it beside its Delassus operator
+    /// (`ContactModel::factor_with_condition`).
+    pub fn build_with_condition(scene: &SceneConfig) -> Result<Self, String> {
+        Self::build_with(scene, true)
+    }
+
+    fn build_with(scene: &SceneConfig, with_condition: bool) -> Result<Self, String> {
         match &scene.model {
             Model::Rope(r) => Ok(Physics::Rope(
                 Rope::new(RopeParams::from(r)),
                 RopeSolveParams { rel_tol: scene.solver.rel_tol, max_iter: scene.solver.max_iter },
             )),
-            Model::Hertz(h) => contact(build_hertz(&HertzParams::from(h)), scene),
-            Model::Ironing(i) => contact(build_ironing(&IroningParams::from(i)), scene),
+            Model::Hertz(h) => contact(build_hertz(&HertzParams::from(h)), scene, with_condition),
+            Model::Ironing(i) => contact(build_ironing(&IroningParams::from(i)), scene, with_condition),
             Model::Hertz3d(h) => contact3d(build_hertz3d(&Hertz3dParams::from(h)), scene),
             Model::Ironing3d(i) => contact3d(build_ironing3d(&Ironing3dParams::from(i)), scene),
             Model::External(_) => {
@@ -222,8 +234,11 @@ fn contact3d(
 fn contact(
     built: Result<crom_stages::contact::ContactModel, crom_stages::contact::ModelError>,
     scene: &SceneConfig,
+    with_condition: bool,
 ) -> Result<Physics, String> {
-    let factored = built.and_then(|m| m.factor()).map_err(|e| e.to_string())?;
+    let factor =
+        |m: crom_stages::contact::ContactModel| if with_condition { m.factor_with_condition() } else { m.factor() };
+    let factored = built.and_then(factor).map_err(|e| e.to_string())?;
     let params = ContactSolveParams { rel_tol: scene.solver.rel_tol, max_iter: scene.solver.max_iter };
     Ok(Physics::Contact(Box::new(factored), params))
 }

@@ -76,7 +76,7 @@ pub(crate) fn run(
     let key = spec.key();
     let scene = &labels.scene;
     ctx.single(ArtifactKind::MESH, "mesh", spec, |staging| {
-        let phys = physics.get()?;
+        let phys = physics.get_with_condition()?;
         let m = phys.mesh();
         let condition = phys.operator().stiffness_condition();
         let path = staging.path(names::FILE);

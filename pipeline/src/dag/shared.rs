@@ -128,8 +128,20 @@ impl<'s> LazyPhysics<'s> {
 
     /// The model, building it if needed.
     pub(crate) fn get(&mut self) -> Result<&Physics, CromError> {
+        self.get_with(false)
+    }
+
+    /// [`Self::get`] for the mesh stage, which reads the stiffness's condition estimate: a model
+    /// built here computes it beside the rest of its factorisation
+    /// ([`Physics::build_with_condition`]); one built before computes it on that read.
+    pub(crate) fn get_with_condition(&mut self) -> Result<&Physics, CromError> {
+        self.get_with(true)
+    }
+
+    fn get_with(&mut self, with_condition: bool) -> Result<&Physics, CromError> {
         if self.built.is_none() {
-            let p = Physics::build(self.scene).map_err(|message| CromError::Numerical {
+            let build = if with_condition { Physics::build_with_condition } else { Physics::build };
+            let p = build(self.scene).map_err(|message| CromError::Numerical {
                 stage: "mesh",
                 scene: self.scene.scene.name.clone(),
                 message,

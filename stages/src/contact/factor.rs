@@ -38,14 +38,15 @@ pub struct FactoredModel {
     pub(crate) slave_fixed: Vec<bool>,
     /// The H1 Gram matrix, assembled on first use (error evaluation).
     pub(crate) h1: std::sync::OnceLock<crate::fem::CsrMatrix>,
-    /// The estimate of `K_FF`'s extreme eigenvalues ([`stiffness_condition`]).
-    pub(crate) condition: Option<crate::condition::Condition>,
+    /// The estimate of `K_FF`'s extreme eigenvalues ([`stiffness_condition`]): computed beside
+    /// the Delassus operator by [`ContactModel::factor_with_condition`], else on first read.
+    pub(crate) condition: std::sync::OnceLock<Option<crate::condition::Condition>>,
 }
 
 /// `K_FF`'s extreme eigenvalues ([`crate::condition::estimate`]) by products of `K` on free-dof
 /// vectors (zero on the Dirichlet dofs) and solves with the solver's own sparse Cholesky
 /// factor.
-fn stiffness_condition(model: &ContactModel, llt: &Llt<usize, f64>) -> Option<crate::condition::Condition> {
+pub(super) fn stiffness_condition(model: &ContactModel, llt: &Llt<usize, f64>) -> Option<crate::condition::Condition> {
     let free = model.split.free();
     let n = model.n_dof();
     let mul = |x: &[f64], y: &mut [f64]| {
@@ -68,8 +69,22 @@ fn stiffness_condition(model: &ContactModel, llt: &Llt<usize, f64>) -> Option<cr
 
 impl ContactModel {
     /// Factor `K_FF` (sparse Cholesky), compute the unconstrained responses and the Delassus
-    /// operator. Done once per scene; the result is shared by every solve.
+    /// operator. Done once per scene; the result is shared by every solve. The stiffness's
+    /// condition estimate is left for its first read ([`FactoredModel`]'s
+    /// `stiffness_condition`): only the mesh artifact states it.
     pub fn factor(&self) -> Result<FactoredModel, ModelError> {
+        self.factor_with(false)
+    }
+
+    /// [`Self::factor`] with the stiffness's condition estimate computed beside the Delassus
+    /// operator: its inverse iteration is a chain of solves that kept one core of two busy after
+    /// the operator (90 ms on ironing-fine). Each is computed as alone, so both are the same
+    /// whatever runs beside them, and the same as a later first read.
+    pub fn factor_with_condition(&self) -> Result<FactoredModel, ModelError> {
+        self.factor_with(true)
+    }
+
+    fn factor_with(&self, with_condition: bool) -> Result<FactoredModel, ModelError> {
         let split = &self.split;
         let nf = split.n_free();
         let kff = split.free_block(&self.k).map_err(ModelError::Sparse)?;
@@ -92,10 +107,14 @@ impl ContactModel {
             })
             .collect();
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(4);
-        // the condition estimate beside the Delassus operator: its inverse iteration is a chain
-        // of solves that kept one core of two busy after the operator (90 ms on ironing-fine);
-        // each is computed as alone, so both are the same whatever runs beside them
-        let (w, condition) = rayon::join(|| compliance(&llt, nf, &cfree, threads), || stiffness_condition(self, &llt));
+        let condition = std::sync::OnceLock::new();
+        let w = if with_condition {
+            let (w, c) = rayon::join(|| compliance(&llt, nf, &cfree, threads), || stiffness_condition(self, &llt));
+            let _ = condition.set(c);
+            w
+        } else {
+            compliance(&llt, nf, &cfree, threads)
+        };
         let slave_fixed =
             (0..self.slaves.len()).map(|s| cfree[2 * s].is_none() && cfree[2 * s + 1].is_none()).collect();
         Ok(FactoredModel {

@@ -87,10 +87,11 @@ impl ContactOperator for FactoredModel {
         self.model.split.mul_zero_fixed(&self.model.k, x, y)
     }
 
-    /// Estimated beside the Delassus operator when the model was factored
+    /// Estimated beside the Delassus operator when the model was factored with it
+    /// ([`super::model::ContactModel::factor_with_condition`]), else here on first read
     /// ([`super::factor::stiffness_condition`]).
     fn stiffness_condition(&self) -> Option<crate::condition::Condition> {
-        self.condition
+        *self.condition.get_or_init(|| super::factor::stiffness_condition(&self.model, &self.llt))
     }
 
     fn linearize(&self, _mu: &[f64], u: &[f64], out: &mut Linearized) {
@@ -348,5 +349,20 @@ mod tests {
         assert!(c.lambda_min >= lo * (1.0 - 1e-10) && c.lambda_max <= hi * (1.0 + 1e-10), "{c:?} vs [{lo}, {hi}]");
         assert_close!(c.lambda_min, lo, Tol::rel(1e-8));
         assert!(c.lambda_max >= 0.9 * hi, "{} vs {hi}", c.lambda_max);
+    }
+
+    /// The estimate computed beside the Delassus operator (`factor_with_condition`) is the one
+    /// a model factored without it computes on first read, to the bit, and the rest of the
+    /// factorisation is the same too (the operator's entries).
+    #[test]
+    fn the_condition_beside_the_operator_is_the_condition_read_later() {
+        let p = HertzParams { radius: 1.0, material: Material::new(1.0, 0.3), n_arc: 12, n_side: None };
+        let model = build_hertz(&p).expect("hertz");
+        let (eager, lazy) = (model.factor_with_condition().expect("factor"), model.factor().expect("factor"));
+        assert!(eager.condition.get().is_some() && lazy.condition.get().is_none(), "when each is computed");
+        let (a, b) = (eager.stiffness_condition().expect("SPD"), lazy.stiffness_condition().expect("SPD"));
+        assert_eq!((a.lambda_min.to_bits(), a.lambda_max.to_bits()), (b.lambda_min.to_bits(), b.lambda_max.to_bits()));
+        let bits = |w: &[f64]| w.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&eager.w), bits(&lazy.w), "the Delassus operator");
     }
 }
