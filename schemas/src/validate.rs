@@ -967,10 +967,13 @@ fn check_comparison(
                         "use map = \"translate\" with interpolation = \"nodes\", or basis = \"cpg\"",
                     ));
                 }
-                if *basis == BasisSpec::Neighbours && dims > 1 {
+                if *basis == BasisSpec::Neighbours && dims > 2 {
                     return Err(c.fail(
                         &format!("{field}.basis"),
-                        format!("is \"neighbours\", which measures distance by the travel alone; this scene has {dims} parameter components"),
+                        format!(
+                            "is \"neighbours\", which orders the training snapshots by the travel and at most one \
+                             more component; this scene has {dims} parameter components"
+                        ),
                         "use basis = \"cpg\"",
                     ));
                 }

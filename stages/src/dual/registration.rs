@@ -51,7 +51,7 @@ mod neighbours;
 use faer::Mat;
 
 pub use arrays::RegisteredArrays;
-pub use neighbours::{Neighbours, WEIGHTS as NEIGHBOUR_WEIGHTS};
+pub use neighbours::{Neighbours, Second as NeighbourSecond, WEIGHTS as NEIGHBOUR_WEIGHTS};
 
 use super::{cpg_generators, pod_modes, ConePrefix, DualApprox, DualError, Fact, Inner, SpanPrefix, Training};
 use crate::cone::norm2;
@@ -574,12 +574,12 @@ impl Registered {
                             .into(),
                     ));
                 }
-                if training.params.iter().any(|p| p.len() != 1) {
-                    return Err(DualError::NotApplicable(
-                        "basis = \"neighbours\" measures the distance between points by the travel alone; this \
-                         scene has several parameter components (use basis = \"cpg\")"
-                            .into(),
-                    ));
+                let dims = training.params.first().map_or(1, Vec::len);
+                if dims > 2 || training.params.iter().any(|p| p.len() != dims) {
+                    return Err(DualError::NotApplicable(format!(
+                        "basis = \"neighbours\" orders the training snapshots by the travel and at most one \
+                         more parameter component; this scene has {dims} (use basis = \"cpg\")"
+                    )));
                 }
                 for j in 0..count {
                     let norm = reg.col(j).norm_l2();
@@ -587,8 +587,10 @@ impl Registered {
                         (0..map.len()).for_each(|k| reg[(k, j)] /= norm);
                     }
                 }
-                let travels = training.params.iter().map(|p| map.frame(p).0).collect();
-                let nb = Neighbours::fit(&map, reg.as_ref(), s, travels);
+                let travels: Vec<f64> = training.params.iter().map(|p| map.frame(p).0).collect();
+                let second = (dims == 2)
+                    .then(|| neighbours::Second::of(&travels, training.params.iter().map(|p| p[1]).collect()));
+                let nb = Neighbours::fit(&map, reg.as_ref(), s, travels, second);
                 let registered = Self { map, inner, modes: reg, round_trip, neighbours: Some((nb, training.max_m())) };
                 return Ok(registered);
             }
@@ -601,7 +603,11 @@ impl Registered {
     fn order_at(&self, mu: &[f64]) -> Box<dyn Iterator<Item = usize> + '_> {
         match &self.neighbours {
             None => Box::new(0..self.size()),
-            Some((nb, _)) => Box::new(nb.order(self.map.frame(mu).0).take(self.size())),
+            Some((nb, _)) => {
+                // a vector parameter's second component (a point of one component has none)
+                let second = mu.get(1).copied().unwrap_or(0.0);
+                Box::new(nb.order(self.map.frame(mu).0, second).take(self.size()))
+            }
         }
     }
 
@@ -725,6 +731,9 @@ impl DualApprox for Registered {
         ];
         if let Some((nb, _)) = &self.neighbours {
             facts.push(Fact::new("neighbour_weight", None, nb.weight()));
+            if let Some(sec) = nb.second() {
+                facts.push(Fact::new("neighbour_second_scale", None, sec.scale));
+            }
         }
         facts
     }

@@ -46,6 +46,12 @@ pub struct RegisteredArrays {
     pub travels: Vec<f64>,
     /// Neighbours: the weight `w` of the order (0 for CPG).
     pub weight: f64,
+    /// Neighbours over a vector parameter: the second component of each generator's training
+    /// point; empty otherwise.
+    pub seconds: Vec<f64>,
+    /// Neighbours over a vector parameter: the scale `s` of the second component's distances
+    /// (0 otherwise).
+    pub second_scale: f64,
 }
 
 /// A refused array: what is wrong.
@@ -84,6 +90,8 @@ impl Registered {
             generators: k,
             travels: self.neighbours().map(|nb| nb.centres().to_vec()).unwrap_or_default(),
             weight: self.neighbours().map_or(0.0, |nb| nb.weight()),
+            seconds: self.neighbours().and_then(|nb| nb.second()).map(|s| s.values.clone()).unwrap_or_default(),
+            second_scale: self.neighbours().and_then(|nb| nb.second()).map_or(0.0, |s| s.scale),
         })
     }
 
@@ -191,7 +199,23 @@ impl Registered {
             if !(a.weight.is_finite() && a.weight >= 0.0) {
                 return Err(bad(format!("neighbour weight {}", a.weight)));
             }
-            Some((Neighbours::with_weight(a.travels.clone(), step, a.weight), a.generators))
+            let nb = Neighbours::with_weight(a.travels.clone(), step, a.weight);
+            let nb = if a.seconds.is_empty() {
+                nb
+            } else {
+                if a.seconds.len() != a.generators || a.seconds.iter().any(|t| !t.is_finite()) {
+                    return Err(bad(format!(
+                        "{} neighbour second components for {} generators, or a non-finite one",
+                        a.seconds.len(),
+                        a.generators
+                    )));
+                }
+                if !(a.second_scale.is_finite() && a.second_scale > 0.0) {
+                    return Err(bad(format!("neighbour second scale {}", a.second_scale)));
+                }
+                nb.with_second(super::neighbours::Second { values: a.seconds.clone(), scale: a.second_scale })
+            };
+            Some((nb, a.generators))
         };
         let inner = if neighbours.is_some() { Inner::Neighbours } else { Inner::Cpg };
         Ok(Self { map, inner, modes, round_trip: (f64::NAN, f64::NAN), neighbours })
@@ -318,6 +342,71 @@ mod tests {
         translate.kind = MapKind::Translate { interpolation: Interpolation::Linear { refine: 4 } };
         translate.table.clear();
         assert!(Registered::from_arrays(&translate).is_err(), "a translation over two components has no table");
+    }
+
+    /// Registered neighbours over two parameter components (a 9 x 4 grid of a bump moved by the
+    /// first and widened by the second, on a shuffled uniform surface): the first four columns
+    /// at a point between the grid's points come one from each side (the part of a node the
+    /// shift leaves below or above the point's, the second component below or above its); the
+    /// basis rebuilt from its arrays, which keep each generator's second component and their
+    /// scale, pushes the same columns to the same bits; damaged second components are refused.
+    #[test]
+    fn neighbours_over_two_components_survive_their_arrays_bit_for_bit() {
+        let (n, h) = (60, 0.05);
+        let perm: Vec<usize> = (0..n).map(|i| (i * 23) % n).collect();
+        let x: Vec<f64> = perm.iter().map(|&p| h * p as f64).collect();
+        let params: Vec<Vec<f64>> =
+            (0..4).flat_map(|k| (0..9).map(move |j| vec![0.13 * j as f64, 1.0 + 0.5 * k as f64])).collect();
+        let bump = |t: f64, w: f64| (1.0 - (t / w).powi(2)).max(0.0).sqrt();
+        let s =
+            Mat::from_fn(n, params.len(), |i, j| params[j][1] * bump(x[i] - 0.8 - params[j][0], 0.1 * params[j][1]));
+        let ms = [1usize, 2, 3, 4, 5];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &[], ms: &ms };
+        let kind = MapKind::Translate { interpolation: Interpolation::Nodes };
+        let built = Registered::build(&t, kind, Inner::Neighbours).expect("build");
+        let nb = built.neighbours().expect("a neighbours basis");
+        let second = nb.second().expect("two components");
+        // the grids' steps: 0.13 of travel against 0.5 of the second component
+        assert!((second.scale - 0.26).abs() < 1e-12, "scale {}", second.scale);
+        let mu = [0.52 + 0.3 * h, 1.75];
+        let rho = |c: f64| c / h - (c / h).round();
+        let wrap = |d: f64| {
+            let d = d - d.round();
+            if d <= -0.5 {
+                d + 1.0
+            } else {
+                d
+            }
+        };
+        let sides: std::collections::BTreeSet<(bool, bool)> = nb
+            .order(mu[0], mu[1])
+            .take(4)
+            .map(|j| (wrap(rho(params[j][0]) - rho(mu[0])) > 0.0, params[j][1] > mu[1]))
+            .collect();
+        assert_eq!(sides.len(), 4, "the first four columns bracket both components");
+        let arrays = built.arrays().expect("a cone basis");
+        assert_eq!(arrays.seconds, params.iter().map(|p| p[1]).collect::<Vec<_>>());
+        let back = Registered::from_arrays(&arrays).expect("rebuilt");
+        assert_eq!(back.arrays().as_ref(), Some(&arrays));
+        for mu in [[0.0, 1.0], [0.52, 1.5], [0.6, 1.75], [0.99, 2.2], [1.04, 2.5]] {
+            let (a, b) = (built.cone_basis(&mu, 5).expect("a"), back.cone_basis(&mu, 5).expect("b"));
+            assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()), "at {mu:?}");
+            for j in 0..a.ncols() {
+                for i in 0..n {
+                    assert_eq!(a[(i, j)].to_bits(), b[(i, j)].to_bits(), "at {mu:?}: ({i}, {j})");
+                }
+            }
+        }
+        let refused = |edit: &dyn Fn(&mut RegisteredArrays)| {
+            let mut a = arrays.clone();
+            edit(&mut a);
+            Registered::from_arrays(&a).is_err()
+        };
+        assert!(refused(&|a| {
+            a.seconds.pop();
+        }));
+        assert!(refused(&|a| a.seconds[0] = f64::NAN), "a non-finite component");
+        assert!(refused(&|a| a.second_scale = 0.0), "a zero scale");
     }
 
     /// A contact area (4 lines across the travel, shuffled dual order): the basis rebuilt from

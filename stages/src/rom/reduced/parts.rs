@@ -54,6 +54,7 @@
 //! | `reg_modes` | f64 | `reg_len · reg_generators` | reference generators, column-major |
 //! | `reg_travels` | f64 | `reg_generators` or 0 | neighbours basis: each generator's travel `c_j` (absent for CPG) |
 //! | `reg_weight` | f64 | 1 or 0 | neighbours basis: the weight `w` of the per-query order |
+//! | `reg_second`, `reg_second_scale` | f64 | `reg_generators` and 1, or 0 | neighbours basis over a vector parameter: each generator's second parameter component, and the scale of their distances (absent over one component) |
 //! | `reg_across` | f64 | `nc` or 0 | a 3-D contact area: each contact node's coordinate across the travel (y), whose lines the map acts along (absent for a contact curve) |
 //!
 //! Scalars: `surface`, `r_primal`, `r_dual`, `n_contact`, `lift_terms`, `warm_dim`, and for
@@ -96,7 +97,7 @@ impl ModelParts {
         "reg_dims",
     ];
     /// Names of the float arrays.
-    pub const FLOATS: [&str; 25] = [
+    pub const FLOATS: [&str; 27] = [
         "khat_l",
         "u_of_y",
         "weights",
@@ -122,6 +123,8 @@ impl ModelParts {
         "reg_travels",
         "reg_weight",
         "reg_across",
+        "reg_second",
+        "reg_second_scale",
     ];
     /// Names of the integer arrays.
     pub const INTS: [&str; 9] = [
@@ -321,6 +324,9 @@ impl ReducedModel {
             if !a.travels.is_empty() {
                 floats.extend([("reg_travels", a.travels), ("reg_weight", vec![a.weight])]);
             }
+            if !a.seconds.is_empty() {
+                floats.extend([("reg_second", a.seconds), ("reg_second_scale", vec![a.second_scale])]);
+            }
         }
         ModelParts { scalars, floats, ints }
     }
@@ -363,6 +369,12 @@ impl ReducedModel {
                 [] => 0.0,
                 [w] => *w,
                 w => return Err(bad("reg_weight", format!("{} values, expected 1", w.len()))),
+            },
+            seconds: p.float("reg_second").to_vec(),
+            second_scale: match p.float("reg_second_scale") {
+                [] => 0.0,
+                [s] => *s,
+                s => return Err(bad("reg_second_scale", format!("{} values, expected 1", s.len()))),
             },
         };
         let basis = Registered::from_arrays(&arrays).map_err(|e| bad("reg_modes", e.to_string()))?;
