@@ -126,8 +126,11 @@ pub enum BasisSpec {
     /// CPG.
     Cpg,
     /// Per query, the training snapshots nearest in the registered frame (translate with
-    /// whole-node shifts, one parameter component).
+    /// whole-node shifts, one or two parameter components).
     Neighbours,
+    /// Over two parameter components: one POD per interval between consecutive levels of the
+    /// second component, of the registered snapshots on its two levels (signed modes: offline).
+    LevelPod,
 }
 
 impl ApproximationSpec {
@@ -165,6 +168,7 @@ impl ApproximationSpec {
             BasisSpec::Pod => "pod",
             BasisSpec::Cpg => "cpg",
             BasisSpec::Neighbours => "neighbours",
+            BasisSpec::LevelPod => "level-pod",
         };
         match self {
             ApproximationSpec::Pod => "pod".into(),

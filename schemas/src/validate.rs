@@ -911,8 +911,18 @@ fn check_comparison(
             }
             ApproximationSpec::Registered { map, interpolation, refine, basis, primal_translates } => {
                 c.between(&format!("{field}.refine"), *refine, 1, 64)?;
+                if *basis == BasisSpec::LevelPod && dims != 2 {
+                    return Err(c.fail(
+                        &format!("{field}.basis"),
+                        format!(
+                            "is \"level-pod\", one POD per interval between the levels of a second parameter \
+                             component; this scene has {dims} parameter component(s)"
+                        ),
+                        "use basis = \"pod\"",
+                    ));
+                }
                 if let Some(k) = primal_translates {
-                    if *basis == BasisSpec::Pod {
+                    if matches!(basis, BasisSpec::Pod | BasisSpec::LevelPod) {
                         return Err(c.fail(
                             &format!("{field}.primal_translates"),
                             "is set for a registered POD, which has no online solve (its modes are signed)".into(),

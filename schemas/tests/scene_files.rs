@@ -255,7 +255,7 @@ fn hertz_text() -> String {
 /// Every bad `[comparison]` setting is refused with the field and a fix.
 #[test]
 fn bad_comparison_settings_are_named() {
-    let cases: [(&str, &[&str]); 15] = [
+    let cases: [(&str, &[&str]); 16] = [
         (
             "[comparison]\napproximations = [{ kind = \"local\", cells = [12] }]\n",
             &["comparison.approximations[0].cells[0]", "12 points", "at most 11 cells"],
@@ -281,6 +281,10 @@ fn bad_comparison_settings_are_named() {
         (
             "[comparison]\napproximations = [{ kind = \"registered\", map = \"moments\", basis = \"neighbours\" }]\n",
             &["comparison.approximations[0].basis", "interpolation = \"nodes\""],
+        ),
+        (
+            "[comparison]\napproximations = [{ kind = \"registered\", map = \"moments\", basis = \"level-pod\" }]\n",
+            &["comparison.approximations[0].basis", "level-pod", "1 parameter component", "basis = \"pod\""],
         ),
         (
             "[comparison]\napproximations = [{ kind = \"registered\", map = \"translate\", basis = \"pod\", primal_translates = 8 }]\n",

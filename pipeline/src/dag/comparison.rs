@@ -84,6 +84,7 @@ fn approach_of(spec: &ApproximationSpec) -> Approach {
                 BasisSpec::Pod => Inner::Pod,
                 BasisSpec::Cpg => Inner::Cpg,
                 BasisSpec::Neighbours => Inner::Neighbours,
+                BasisSpec::LevelPod => Inner::LevelPod,
             };
             Approach::Registered { map, inner }
         }

@@ -61,6 +61,10 @@ pub enum Inner {
     /// Per query, the training snapshots nearest in the registered frame
     /// ([`registration::Neighbours`]).
     Neighbours,
+    /// Over two parameter components: one POD per interval between consecutive levels of the
+    /// second component, of the registered snapshots on its two levels; a point takes the POD of
+    /// the interval that holds its second component ([`registration::Levels`]).
+    LevelPod,
 }
 
 /// One way of approximating the contact pressure, with its settings.
@@ -100,7 +104,7 @@ impl Approach {
     /// Whether it has a non-negative dual basis for the online solve
     /// ([`DualApprox::cone_basis`] is `Some`): all but POD and registered POD.
     pub fn has_cone_basis(&self) -> bool {
-        !matches!(self, Approach::Pod | Approach::Registered { inner: Inner::Pod, .. })
+        !matches!(self, Approach::Pod | Approach::Registered { inner: Inner::Pod | Inner::LevelPod, .. })
     }
 
     /// The approximation's name in tables and figures (`pod`, `cpg`, `angle-greedy`, `nnmf`,
@@ -120,6 +124,7 @@ impl Approach {
                     Inner::Pod => "pod",
                     Inner::Cpg => "cpg",
                     Inner::Neighbours => "neighbours",
+                    Inner::LevelPod => "level-pod",
                 }
             ),
         }

@@ -534,11 +534,37 @@ impl Map {
 pub struct Registered {
     map: Map,
     inner: Inner,
-    /// Reference modes, `len x k` (neighbours: every training snapshot, unit columns).
+    /// Reference modes, `len x k` (neighbours: every training snapshot, unit columns; level
+    /// PODs: the first interval's).
     modes: Mat<f64>,
     round_trip: (f64, f64),
     /// Neighbours: the per-query order ([`neighbours`]) and the most columns an m uses.
     neighbours: Option<(Neighbours, usize)>,
+    /// Level PODs: the second component's levels and each interval's modes.
+    levels: Option<Levels>,
+}
+
+/// One POD per interval between consecutive levels of the second parameter component
+/// ([`Inner::LevelPod`]). Over ironing-3d-2d's five press levels, the moments map's single POD
+/// of every training pressure holds the contact's width at every press at once (1.06 % at
+/// m = 5); the POD of the two levels that bracket a point's press holds only the change between
+/// them (docs/design-notes.md, "A registered POD per press interval").
+#[derive(Debug, Clone)]
+pub struct Levels {
+    /// The distinct second components of the training points, ascending.
+    pub values: Vec<f64>,
+    /// Interval `k`'s modes (`[values[k], values[k + 1]]`; one interval over one level).
+    pub modes: Vec<Mat<f64>>,
+}
+
+impl Levels {
+    /// The interval whose modes a point with second component `v` takes: the one that holds it
+    /// (the one above an inner level, the last at the top level, the first or last beyond the
+    /// levels; NaN: the first).
+    pub fn interval(&self, v: f64) -> usize {
+        let below = self.values.partition_point(|&x| x <= v);
+        below.saturating_sub(1).min(self.modes.len().saturating_sub(1))
+    }
 }
 
 impl Registered {
@@ -564,6 +590,37 @@ impl Registered {
         let mean = if counted > 0 { sum / counted as f64 } else { 0.0 };
         let round_trip = (mean, max);
         let modes = match inner {
+            Inner::LevelPod => {
+                let dims = training.params.first().map_or(1, Vec::len);
+                if dims != 2 || training.params.iter().any(|p| p.len() != 2) {
+                    return Err(DualError::NotApplicable(format!(
+                        "basis = \"level-pod\" takes one POD per interval between the levels of a second \
+                         parameter component; this scene has {dims} (use basis = \"pod\")"
+                    )));
+                }
+                let mut values: Vec<f64> = training.params.iter().map(|p| p[1]).collect();
+                values.sort_by(f64::total_cmp);
+                values.dedup_by(|a, b| a.to_bits() == b.to_bits());
+                let intervals: Vec<(f64, f64)> = if values.len() < 2 {
+                    let Some(&v) = values.first() else {
+                        return Err(DualError::NotApplicable("no training points".into()));
+                    };
+                    vec![(v, v)]
+                } else {
+                    values.windows(2).map(|w| (w[0], w[1])).collect()
+                };
+                let mut modes = Vec::with_capacity(intervals.len());
+                for (lo, hi) in intervals {
+                    // a level is one of the training values itself: the same bits
+                    let on = |j: usize, v: f64| training.params[j][1].to_bits() == v.to_bits();
+                    let cols: Vec<usize> = (0..count).filter(|&j| on(j, lo) || on(j, hi)).collect();
+                    let sub = Mat::from_fn(reg.nrows(), cols.len(), |i, c| reg[(i, cols[c])]);
+                    modes.push(pod_modes(sub.as_ref(), training.max_m())?);
+                }
+                let levels = Levels { values, modes };
+                let first = levels.modes[0].clone();
+                return Ok(Self { map, inner, modes: first, round_trip, neighbours: None, levels: Some(levels) });
+            }
             Inner::Pod => pod_modes(reg.as_ref(), training.max_m())?,
             Inner::Cpg => cpg_generators(reg.as_ref(), training.max_m())?,
             Inner::Neighbours => {
@@ -591,11 +648,30 @@ impl Registered {
                 let second = (dims == 2)
                     .then(|| neighbours::Second::of(&travels, training.params.iter().map(|p| p[1]).collect()));
                 let nb = Neighbours::fit(&map, reg.as_ref(), s, travels, second);
-                let registered = Self { map, inner, modes: reg, round_trip, neighbours: Some((nb, training.max_m())) };
+                let neighbours = Some((nb, training.max_m()));
+                let registered = Self { map, inner, modes: reg, round_trip, neighbours, levels: None };
                 return Ok(registered);
             }
         };
-        Ok(Self { map, inner, modes, round_trip, neighbours: None })
+        Ok(Self { map, inner, modes, round_trip, neighbours: None, levels: None })
+    }
+
+    /// The reference modes a point takes: a level POD's interval's (group `k`), else the one set.
+    fn modes_of(&self, group: usize) -> &Mat<f64> {
+        match &self.levels {
+            Some(lv) => &lv.modes[group.min(lv.modes.len() - 1)],
+            None => &self.modes,
+        }
+    }
+
+    /// The group of modes a point takes ([`Self::modes_of`]): its interval for level PODs, else 0.
+    fn group_at(&self, mu: &[f64]) -> usize {
+        self.levels.as_ref().map_or(0, |lv| lv.interval(mu.get(1).copied().unwrap_or(f64::NAN)))
+    }
+
+    /// The level PODs' levels and modes, if this is one.
+    pub fn levels(&self) -> Option<&Levels> {
+        self.levels.as_ref()
     }
 
     /// The reference columns in the order used at `mu` (the first [`DualApprox::size`]): the
@@ -616,8 +692,9 @@ impl Registered {
         let order: Vec<usize> = self.order_at(mu).collect();
         let mut out = Mat::zeros(n, order.len());
         let mut v = vec![0.0; n];
+        let modes = self.modes_of(self.group_at(mu));
         for (c, &j) in order.iter().enumerate() {
-            self.map.push(self.reference_column(j), mu, &mut v);
+            self.map.push(modes.col(j).try_as_col_major().expect("contiguous column").as_slice(), mu, &mut v);
             (0..n).for_each(|i| out[(i, c)] = v[i]);
         }
         out
@@ -643,13 +720,17 @@ impl DualApprox for Registered {
     fn residuals(&self, s: &[f64], mu: &[f64], ms: &[usize], out: &mut [f64]) -> Result<(), DualError> {
         let pushed = self.modes_at(mu, s.len());
         match self.inner {
-            Inner::Pod => SpanPrefix::new(pushed.as_ref()).residuals_of(s, ms, out),
+            Inner::Pod | Inner::LevelPod => SpanPrefix::new(pushed.as_ref()).residuals_of(s, ms, out),
             Inner::Cpg | Inner::Neighbours => ConePrefix::new(pushed.as_ref()).residuals_of(s, ms, out)?,
         }
         Ok(())
     }
 
     fn size(&self) -> usize {
+        if let Some(lv) = &self.levels {
+            // every interval holds at least this many
+            return lv.modes.iter().map(|m| m.ncols()).min().unwrap_or(0);
+        }
         match &self.neighbours {
             None => self.modes.ncols(),
             Some((_, most)) => self.modes.ncols().min(*most),
@@ -664,7 +745,7 @@ impl DualApprox for Registered {
 
     /// The first `m` pushed columns that are not zero, pushing no more than it needs.
     fn cone_columns(&self, mu: &[f64], m: usize) -> Option<(Vec<f64>, usize)> {
-        if self.inner == Inner::Pod {
+        if matches!(self.inner, Inner::Pod | Inner::LevelPod) {
             return None;
         }
         let n = self.map.surface.x.len();
@@ -697,9 +778,13 @@ impl DualApprox for Registered {
         }
         let mut r = vec![0.0; self.map.len()];
         self.map.pull(s, mu, &mut r);
-        let k = m.min(self.modes.ncols());
+        let group = self.group_at(mu);
+        let modes = self.modes_of(group);
+        let k = m.min(modes.ncols());
         let coords = match self.inner {
-            Inner::Pod => (0..k).map(|l| self.modes.col(l).iter().zip(&r).map(|(a, b)| a * b).sum()).collect(),
+            Inner::Pod | Inner::LevelPod => {
+                (0..k).map(|l| modes.col(l).iter().zip(&r).map(|(a, b)| a * b).sum()).collect()
+            }
             Inner::Cpg | Inner::Neighbours if k == 0 => Vec::new(),
             Inner::Cpg | Inner::Neighbours => {
                 let mut p =
@@ -707,20 +792,22 @@ impl DualApprox for Registered {
                 p.project(&r)?.coeffs
             }
         };
-        Ok(Some((0, coords)))
+        Ok(Some((group, coords)))
     }
 
-    /// The reference member `modes alpha`, pushed forward to `mu`.
-    fn member(&self, _group: usize, alpha: &[f64], mu: &[f64], _m: usize, out: &mut [f64]) {
+    /// The reference member `modes alpha` (a level POD: group `group`'s modes), pushed forward
+    /// to `mu`.
+    fn member(&self, group: usize, alpha: &[f64], mu: &[f64], _m: usize, out: &mut [f64]) {
         let mut r = vec![0.0; self.map.len()];
+        let modes = self.modes_of(group);
         for (l, &a) in alpha.iter().enumerate() {
-            r.iter_mut().zip(self.modes.col(l).iter()).for_each(|(o, q)| *o += a * q);
+            r.iter_mut().zip(modes.col(l).iter()).for_each(|(o, q)| *o += a * q);
         }
         self.map.push(&r, mu, out);
     }
 
     fn nonnegative(&self) -> bool {
-        self.inner != Inner::Pod
+        !matches!(self.inner, Inner::Pod | Inner::LevelPod)
     }
 
     fn facts(&self) -> Vec<Fact> {
@@ -734,6 +821,9 @@ impl DualApprox for Registered {
             if let Some(sec) = nb.second() {
                 facts.push(Fact::new("neighbour_second_scale", None, sec.scale));
             }
+        }
+        if let Some(lv) = &self.levels {
+            facts.push(Fact::new("level_intervals", None, lv.modes.len() as f64));
         }
         facts
     }
@@ -992,5 +1082,60 @@ mod tests {
             panic!("a non-uniform surface was accepted");
         };
         assert!(e.to_string().contains("linear"), "{e}");
+    }
+
+    /// Level PODs over two components: at each of three levels of the second component the
+    /// profile is its own shape (three independent bumps), moved by whole nodes with the first
+    /// component, and between two levels it is the linear blend of theirs. So an interval's POD
+    /// of its two levels' snapshots spans every profile between them with two modes, and
+    /// reproduces points off the grid to rounding, while one POD of all three levels needs
+    /// three. Its groups are the intervals, and a point one component short is refused.
+    #[test]
+    fn a_pod_per_interval_spans_the_blend_between_two_levels() {
+        let (n, h) = (80, 0.05);
+        let x = grid(n, h);
+        let shapes = [
+            |t: f64| (1.0 - (t / 0.3).powi(2)).max(0.0),
+            |t: f64| (1.0 - (t / 0.5).powi(2)).max(0.0).powi(2),
+            |t: f64| (1.0 - (t / 0.4).abs()).max(0.0),
+        ];
+        let levels = [1.0, 2.0, 3.0];
+        let profile = |xi: f64, mu: &[f64]| {
+            let t = (mu[1] - 1.0).clamp(0.0, 2.0);
+            let (k, th) = if t >= 1.0 { (1, t - 1.0) } else { (0, t) };
+            (1.0 - th) * shapes[k](xi - 1.5 - mu[0]) + th * shapes[k + 1](xi - 1.5 - mu[0])
+        };
+        // travels on whole nodes, so the shifts are exact
+        let params: Vec<Vec<f64>> =
+            levels.iter().flat_map(|&v| (0..6).map(move |j| vec![4.0 * h * j as f64, v])).collect();
+        let s = Mat::from_fn(n, params.len(), |i, j| profile(x[i], &params[j]));
+        let ms = [1usize, 2, 3];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &[], ms: &ms };
+        let nodes = MapKind::Translate { interpolation: Interpolation::Nodes };
+        let reg = Registered::build(&t, nodes, Inner::LevelPod).expect("level PODs");
+        let lv = reg.levels().expect("levels");
+        assert_eq!(lv.values, levels.to_vec());
+        assert_eq!(lv.modes.len(), 2, "two intervals between three levels");
+        // the interval above an inner level, the last at the top, the end ones beyond
+        let at: Vec<usize> = [0.0, 1.0, 1.5, 2.0, 2.5, 3.0, 9.0, f64::NAN].iter().map(|&v| lv.interval(v)).collect();
+        assert_eq!(at, vec![0, 0, 0, 1, 1, 1, 1, 0]);
+        let pod = Registered::build(&t, nodes, Inner::Pod).expect("one POD");
+        let mut out = [0.0; 3];
+        for mu in [[0.2, 1.3], [0.6, 1.9], [0.35, 2.5], [0.8, 2.05]] {
+            let col: Vec<f64> = x.iter().map(|&xi| profile(xi, &mu)).collect();
+            let norm = norm2(&col);
+            reg.residuals(&col, &mu, &ms, &mut out).expect("residuals");
+            // 1e-12: two modes span the blend exactly; what is left is the rounding of the SVD
+            assert!(out[1] / norm < 1e-12, "level PODs at {mu:?}: {:e}", out[1] / norm);
+            let (group, _) = reg.coefficients(&col, &mu, 2).expect("coefficients").expect("some");
+            assert_eq!(group, usize::from(mu[1] > 2.0), "the interval of {mu:?}");
+            pod.residuals(&col, &mu, &ms, &mut out).expect("residuals");
+            assert!(out[1] / norm > 1e-3, "one POD of all levels needs a third mode at {mu:?}");
+        }
+        assert!(!reg.nonnegative() && reg.arrays().is_none(), "signed modes: no online solve");
+        let one: Vec<Vec<f64>> = params.iter().map(|p| vec![p[0]]).collect();
+        let t1 = Training { snapshots: s.as_ref(), params: &one, surface: &x, across: &[], ms: &ms };
+        let err = Registered::build(&t1, nodes, Inner::LevelPod).expect_err("one component");
+        assert!(err.to_string().contains("level-pod"), "{err}");
     }
 }

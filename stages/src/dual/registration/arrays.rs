@@ -64,7 +64,7 @@ impl Registered {
     /// dual basis of the online solve).
     pub fn arrays(&self) -> Option<RegisteredArrays> {
         // a registered POD has no online solve
-        if self.inner == Inner::Pod {
+        if matches!(self.inner, Inner::Pod | Inner::LevelPod) {
             return None;
         }
         let m = &self.map;
@@ -218,7 +218,7 @@ impl Registered {
             Some((nb, a.generators))
         };
         let inner = if neighbours.is_some() { Inner::Neighbours } else { Inner::Cpg };
-        Ok(Self { map, inner, modes, round_trip: (f64::NAN, f64::NAN), neighbours })
+        Ok(Self { map, inner, modes, round_trip: (f64::NAN, f64::NAN), neighbours, levels: None })
     }
 }
 
