@@ -21,42 +21,21 @@ two agree to the interpolation's rounding, about 0.01 points, not to the last di
 
 Usage: scripts/vector_level_pod.py [SCENE [STORE]]   (default ironing-3d-2d, data/store)
 """
+import pathlib
 import sys
 
-import h5py
 import numpy as np
 import pandas as pd
 from scipy.interpolate import RegularGridInterpolator
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from vector_store import VectorStore  # noqa: E402
+
 scene = sys.argv[1] if len(sys.argv) > 1 else "ironing-3d-2d"
 store = sys.argv[2] if len(sys.argv) > 2 else "data/store"
-D = f"{store}/scenes/{scene}"
-train, test, model = h5py.File(f"{D}/train.h5"), h5py.File(f"{D}/test.h5"), h5py.File(f"{D}/model.h5")
-S, P, T, Q = train["dual"][:], train["parameters"][:], test["dual"][:], test["parameters"][:]
-x = model["reg_surface"][:]
-y = model["reg_across"][:] if "reg_across" in model else np.zeros_like(x)
-lines = [np.flatnonzero(np.isclose(y, v, rtol=0, atol=1e-9 * max(np.ptp(y), 1.0))) for v in np.unique(y)]
-lines = [line[np.argsort(x[line], kind="stable")] for line in lines]
-
-
-def tributary(xl):
-    w = np.empty(len(xl))
-    w[1:-1], w[0], w[-1] = 0.5 * (xl[2:] - xl[:-2]), 0.5 * (xl[1] - xl[0]), 0.5 * (xl[-1] - xl[-2])
-    return w
-
-
-W = [tributary(x[line]) for line in lines]
-has = S.sum(axis=0) > 0
-
-
-def moments(s):
-    """(c, a): centre and twice the standard deviation along x, over every line (crom's rule)."""
-    m0 = sum((w * s[line]).sum() for line, w in zip(lines, W))
-    c = sum((w * s[line] * x[line]).sum() for line, w in zip(lines, W)) / m0
-    var = sum((w * s[line] * ((x[line] - c) ** 2 + w * w / 12)).sum() for line, w in zip(lines, W)) / m0
-    return np.array([c, 2 * np.sqrt(var)])
-
-
+vs = VectorStore(scene, store)
+S, P, T, Q, x, lines, has, moments = vs.S, vs.P, vs.T, vs.Q, vs.x, vs.lines, vs.has, vs.moments
+D = vs.dir
 M = np.array([moments(S[:, j]) if has[j] else [np.nan, np.nan] for j in range(S.shape[1])])
 ux, uy = np.unique(P[:, 0]), np.unique(P[:, 1])
 G = np.full((len(ux), len(uy), 2), np.nan)
