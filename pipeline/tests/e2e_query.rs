@@ -312,7 +312,9 @@ fn a_scene_chooses_the_dual_approximation_of_its_model() {
 /// points, given by both components, answers as the online comparison measured its row (bit for
 /// bit: the median and 95th percentile dual error, the median number of non-zero dual
 /// coefficients). A points file without the second component is refused (exit 2, naming it) and
-/// writes nothing.
+/// writes nothing. Then the registered neighbours over both components, pinned as the model's
+/// dual basis, are stored with their second components (`reg_second`, a short one refused) and
+/// answer as measured in the same way.
 #[test]
 fn a_moments_map_over_two_components_is_stored_and_answers_as_measured() {
     let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
@@ -367,4 +369,31 @@ fn a_moments_map_over_two_components_is_stored_and_answers_as_measured() {
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("d_y") && text(&o).contains("fix:"), "{}", text(&o));
     assert_eq!(listing(&store), before, "a refused query wrote to the store");
+    // The same study with the registered neighbours over both components pinned as the model's
+    // dual basis (only the model stage and the report run again): the model keeps each
+    // generator's second component and their scale, a short one is refused, and the query
+    // answers as the online comparison measured that row.
+    let text_of = std::fs::read_to_string(scene).expect("scene");
+    let pinned = tmp.path().join("ironing-2d-small-neighbours.toml");
+    std::fs::write(
+        &pinned,
+        text_of.replace("seed = 20234", "seed = 20234\nmodel_dual = \"registered-translate-nodes-neighbours\""),
+    )
+    .expect("pinned scene");
+    let pinned = pinned.to_str().expect("utf8");
+    let o = crom(&store, &["--quiet", "run", pinned]);
+    assert!(o.status.success(), "{}", text(&o));
+    let model = StoredModel::read(&published.join("model.h5")).expect("model.h5");
+    assert_eq!(model.dual_basis, "registered-translate-nodes-neighbours");
+    let generators = usize::try_from(model.parts.scalar("reg_generators")).expect("count");
+    assert_eq!(model.parts.float("reg_second").len(), generators, "a second component per generator");
+    assert_eq!(model.parts.float("reg_second_scale").len(), 1);
+    assert!(crom_stages::rom::ReducedModel::from_parts(&model.parts).is_ok());
+    let mut short = model.parts.clone();
+    short.floats.iter_mut().filter(|(n, _)| *n == "reg_second").for_each(|(_, v)| {
+        v.pop();
+    });
+    assert!(crom_stages::rom::ReducedModel::from_parts(&short).is_err(), "a short reg_second accepted");
+    let q = query_checked(&store, pinned, "d_x,d_y", &lines, tmp.path());
+    check_registered(&published, &model, &q, "ironing-2d-small");
 }
