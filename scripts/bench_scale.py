@@ -8,7 +8,9 @@ each target beside the measured value. Part of `just bench`; not a test.
   C  ironing-fine with nested levels to 11, then grown to 12         each whole offline study
                                                                     <= 10 min, peak RSS <= 4 GiB;
                                                                     level 12 solves only new points
-  D  ironing-fine-2d (65 x 17 points), whole offline study          <= 10 min, peak RSS <= 4 GiB
+  D  ironing-fine-2d (65 x 17 points), whole offline study          <= 10 min, peak RSS <= 4 GiB;
+     each registered approximation's mean test error at <= 5 modes    <= 1 %
+  D3 ironing-3d-2d (33 x 5 points), whole offline study, and the same registered rows  <= 1 %
   E  16 385 ironing-coarse snapshots stored (`crom solve`, level 14) disk <= 1.1 x raw float64,
                                                                     index opens in pandas <= 2 s,
                                                                     one column reads in <= 10 ms
@@ -29,7 +31,7 @@ each target beside the measured value. Part of `just bench`; not a test.
 "Offline study" is `crom run --offline` (every stage but the online ROM and the report, whose
 speed `scripts/bench_rom.py` measures), timed with its peak RSS.
 
-Usage: scripts/bench_scale.py [A B C D E F F16 G G-small]   (default: A to G)
+Usage: scripts/bench_scale.py [A B C D D3 E F F16 G G-small]   (default: A to G)
 CROM_BIN=path/to/crom uses that binary and builds nothing (e.g. a debug build for G-small).
 """
 import json
@@ -131,12 +133,37 @@ def bench_c(tmp):
     row("grow 11 -> 12: points solved / reused", "2048 new only", f"{solved} / {reused}", solved == 2048)
 
 
+def vector_rows(store, scene):
+    """The registered pressure over a vector parameter (the scene's comparison.parquet): the best
+    registered approximation's mean test error at m <= 5 against the 1 % target, then every
+    registered approximation's best for comparison."""
+    import pandas as pd
+    cmp = pd.read_parquet(store / "scenes" / scene / "comparison" / "comparison.parquet")
+    test = cmp[(cmp.metric == "test") & (cmp.m <= 5) & cmp.approximation.str.startswith("registered")]
+    best = test.loc[test["mean"].idxmin()]
+    row(f"{scene}: registered pressure, mean test error at <= 5 modes", "<= 1 %",
+        f"{100 * best['mean']:.3f} % ({best.approximation}, m = {int(best.m)})", best["mean"] <= 0.01)
+    for name, rows in test.groupby("approximation", sort=True):
+        b = rows.loc[rows["mean"].idxmin()]
+        row(f"… {name}", "-", f"{100 * b['mean']:.3f} % at m = {int(b.m)}", True)
+
+
 def bench_d(tmp):
     header("D. ironing-fine-2d, 65 x 17 training points (cold)")
     store = pathlib.Path(tmp) / "d"
     wall, rss, out = crom(store, "run", "--offline", "ironing-fine-2d")
     row("whole offline study", "<= 600 s", f"{wall:.1f} s", wall <= 600)
     row("peak RSS", "<= 4 GiB", f"{rss / GIB:.2f} GiB", rss <= 4 * GIB)
+    vector_rows(store, "ironing-fine-2d")
+
+
+def bench_d3(tmp):
+    header("D3. ironing-3d-2d, 33 x 5 training points, 10^5 dofs (cold)")
+    store = pathlib.Path(tmp) / "d3"
+    wall, rss, out = crom(store, "run", "--offline", "ironing-3d-2d")
+    row("whole offline study", "-", f"{wall:.1f} s", True)
+    row("peak RSS", "-", f"{rss / GIB:.2f} GiB", True)
+    vector_rows(store, "ironing-3d-2d")
 
 
 def bench_e(tmp):
@@ -267,11 +294,12 @@ def bench_g_small(tmp):
 
 
 def main():
-    which = sys.argv[1:] or ["A", "B", "C", "D", "E", "F", "G"]
+    which = sys.argv[1:] or ["A", "B", "C", "D", "D3", "E", "F", "G"]
     if not os.environ.get("CROM_BIN"):
         subprocess.run(["just", "build"], cwd=REPO,
                        check=True)
-    benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "E": bench_e, "F": bench_f, "F16": bench_f16, "G": bench_g,
+    benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "D3": bench_d3, "E": bench_e, "F": bench_f,
+               "F16": bench_f16, "G": bench_g,
                "G-small": bench_g_small}
     for w in which:
         with tempfile.TemporaryDirectory() as tmp:
