@@ -18,6 +18,8 @@ each target beside the measured value. Part of `just bench`; not a test.
      whole offline study cold; growing 12 -> 13 against cold 13. Targets: level 13 <= 60 s,
      <= 1.5 GiB; level 14 <= 150 s, <= 2 GiB; growing <= 0.5 x cold.
 
+  D-dense  (not in the default list: about 26 minutes, 5.2 GB peak) ironing-fine-2d on 129 x 33
+     training points, whole study; the stored model at 64 random points   median <= 0.1 %
   F16  (not in the default list: each row takes about a quarter of an hour on 2 cores)
      ironing-coarse at train_level = 16 (65 537 + 65 536 points, primal 3.2 GB on disk) and
      ironing-fine at train_level = 14 (16 385 + 16 384, primal 3.1 GB), whole offline study
@@ -31,7 +33,7 @@ each target beside the measured value. Part of `just bench`; not a test.
 "Offline study" is `crom run --offline` (every stage but the online ROM and the report, whose
 speed `scripts/bench_rom.py` measures), timed with its peak RSS.
 
-Usage: scripts/bench_scale.py [A B C D D3 E F F16 G G-small]   (default: A to G)
+Usage: scripts/bench_scale.py [A B C D D3 D-dense E F F16 G G-small]   (default: A to G)
 CROM_BIN=path/to/crom uses that binary and builds nothing (e.g. a debug build for G-small).
 """
 import json
@@ -233,6 +235,32 @@ def bench_f16(tmp):
         shutil.rmtree(pathlib.Path(tmp) / f"f16-{base}", ignore_errors=True)
 
 
+def bench_d_dense(tmp):
+    """ironing-fine-2d on a grid twice as fine along the travel and the press (129 x 33 training
+    points): the whole study, then the stored model at 64 random points off the grid (uniform in
+    the grid's box, `random.seed(11)`), against the 0.1 % target of the stored vector model."""
+    import pandas as pd
+    header("D-dense. ironing-fine-2d on 129 x 33 training points: the stored vector model (cold)")
+    edits = [("train_level = 6", "train_level = 7"), ("train_level = 4", "train_level = 5")]
+    scene = variant(tmp, "ironing-fine-2d", "ironing-fine-2d-dense", edits)
+    store = pathlib.Path(tmp) / "d-dense"
+    wall, rss, _ = crom(store, "run", scene)
+    row("whole study (offline and online stages)", "-", f"{wall:.0f} s", True)
+    row("peak RSS", "-", f"{rss / GIB:.2f} GiB", True)
+    rng = random.Random(11)
+    points = pathlib.Path(tmp) / "points.csv"
+    points.write_text("d_x,d_y\n" + "".join(f"{rng.uniform(0.0, 3.0)},{rng.uniform(0.02, 0.06)}\n" for _ in range(64)))
+    out = pathlib.Path(tmp) / "q.parquet"
+    crom(store, "query", scene, "--points", points, "--check", "--out", out)
+    q = pd.read_parquet(out)
+    converged = int((q.outcome == "converged").sum())
+    med = q.dual_error.median()
+    speed = q.fom_seconds.median() / q.online_seconds.median()
+    row("stored model at 64 random points: median pressure error", "<= 0.1 %",
+        f"{100 * med:.3f} % (p95 {100 * q.dual_error.quantile(0.95):.2f} %), {converged}/64 converged, {speed:.1f}x",
+        med <= 1e-3 and converged == 64)
+
+
 def bench_g(tmp, cols=16_385, n_dof=6_164, n_contact=101, targets=True):
     """Import an external scene's snapshots from one HDF5 file, then again with the file unchanged."""
     import h5py
@@ -299,7 +327,7 @@ def main():
         subprocess.run(["just", "build"], cwd=REPO,
                        check=True)
     benches = {"A": bench_a, "B": bench_b, "C": bench_c, "D": bench_d, "D3": bench_d3, "E": bench_e, "F": bench_f,
-               "F16": bench_f16, "G": bench_g,
+               "D-dense": bench_d_dense, "F16": bench_f16, "G": bench_g,
                "G-small": bench_g_small}
     for w in which:
         with tempfile.TemporaryDirectory() as tmp:
