@@ -21,19 +21,19 @@ SciPy only it
 
 Usage: scripts/vector_neighbours.py [STORE]   (default data/store)
 """
+import pathlib
 import sys
 
-import h5py
 import numpy as np
 import pandas as pd
 from scipy.optimize import nnls
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from vector_store import VectorStore  # noqa: E402
+
 store = sys.argv[1] if len(sys.argv) > 1 else "data/store"
-D = f"{store}/scenes/ironing-fine-2d"
-train, test = h5py.File(f"{D}/train.h5"), h5py.File(f"{D}/test.h5")
-S, P, T, Q = train["dual"][:], train["parameters"][:], test["dual"][:], test["parameters"][:]
-model = h5py.File(f"{D}/model.h5")
-x = model["reg_surface"][:]
+vs = VectorStore("ironing-fine-2d", store)
+S, P, T, Q, x, model, D = vs.S, vs.P, vs.T, vs.Q, vs.x, vs.model, vs.dir
 order_x = np.argsort(x, kind="stable")
 # the node spacing as crom stores it (`reg_grid`): the training travels are binary fractions that
 # often leave two sides exactly the same score, which the rule breaks by side, so the last bit of

@@ -1,8 +1,9 @@
-"""What the vector-parameter scripts (vector_map_floor.py, vector_level_pod.py) read from a
-finished `crom run` of a vector-parameter scene, with NumPy only: the published training and
-test pressures and points, the contact nodes' abscissae and lines (model.h5's `reg_surface` and,
-on a contact area, `reg_across`), the lines' tributary weights, and each pressure's moments
-along x by crom's rule (centre, and twice the standard deviation with each node's own spread).
+"""What the vector-parameter scripts (vector_map_floor.py, vector_level_pod.py,
+vector_neighbours.py) read from a finished `crom run` of a vector-parameter scene, with NumPy
+and h5py only: the published training and test pressures and points, the contact nodes'
+abscissae and lines (model.h5's `reg_surface` and, on a contact area, `reg_across`), the lines'
+tributary weights, and each pressure's moments along x by crom's rule (centre, and twice the
+standard deviation with each node's own spread).
 """
 import h5py
 import numpy as np
@@ -21,7 +22,7 @@ class VectorStore:
     def __init__(self, scene, store):
         d = f"{store}/scenes/{scene}"
         train, test, model = h5py.File(f"{d}/train.h5"), h5py.File(f"{d}/test.h5"), h5py.File(f"{d}/model.h5")
-        self.dir = d
+        self.dir, self.model = d, model
         self.S, self.P = train["dual"][:], train["parameters"][:]
         self.T, self.Q = test["dual"][:], test["parameters"][:]
         self.x = model["reg_surface"][:]

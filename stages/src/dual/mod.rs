@@ -169,6 +169,13 @@ impl Training<'_> {
         self.ms.last().copied().unwrap_or(0)
     }
 
+    /// The number of parameter components every training point has (1 without points); `None`
+    /// where the points differ.
+    pub fn dims(&self) -> Option<usize> {
+        let d = self.params.first().map_or(1, Vec::len);
+        self.params.iter().all(|p| p.len() == d).then_some(d)
+    }
+
     /// The same training data without snapshot `i` (a leave-one-out fold).
     pub fn without(&self, i: usize) -> (Mat<f64>, Vec<Vec<f64>>) {
         let (n, count) = (self.snapshots.nrows(), self.snapshots.ncols());

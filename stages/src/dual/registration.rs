@@ -303,12 +303,11 @@ impl Map {
             across: training.across.to_vec(),
         };
         if let MapKind::Moments { .. } = kind {
-            let dims = training.params.first().map_or(1, Vec::len);
-            if training.params.iter().any(|p| p.len() != dims) {
+            let Some(dims) = training.dims() else {
                 return Err(DualError::NotApplicable(
                     "the training points have different numbers of components".into(),
                 ));
-            }
+            };
             for j in 0..s.ncols() {
                 if let Some((c, a)) = map.surface.moments(&col(j)) {
                     if dims == 1 {
@@ -535,7 +534,7 @@ pub struct Registered {
     map: Map,
     inner: Inner,
     /// Reference modes, `len x k` (neighbours: every training snapshot, unit columns; level
-    /// PODs: the first interval's).
+    /// PODs: none, each interval's are in `levels`).
     modes: Mat<f64>,
     round_trip: (f64, f64),
     /// Neighbours: the per-query order ([`neighbours`]) and the most columns an m uses.
@@ -567,6 +566,11 @@ impl Levels {
     }
 }
 
+/// A count of parameter components for a message ([`Training::dims`]).
+fn components(dims: Option<usize>) -> String {
+    dims.map_or_else(|| "points with differing numbers of components".into(), |d| d.to_string())
+}
+
 impl Registered {
     /// Fit the map, pull every training snapshot back, build the inner basis.
     pub fn build(training: &Training<'_>, kind: MapKind, inner: Inner) -> Result<Self, DualError> {
@@ -591,11 +595,12 @@ impl Registered {
         let round_trip = (mean, max);
         let modes = match inner {
             Inner::LevelPod => {
-                let dims = training.params.first().map_or(1, Vec::len);
-                if dims != 2 || training.params.iter().any(|p| p.len() != 2) {
+                let dims = training.dims();
+                if dims != Some(2) {
                     return Err(DualError::NotApplicable(format!(
                         "basis = \"level-pod\" takes one POD per interval between the levels of a second \
-                         parameter component; this scene has {dims} (use basis = \"pod\")"
+                         parameter component; this scene has {} (use basis = \"pod\")",
+                        components(dims)
                     )));
                 }
                 let mut values: Vec<f64> = training.params.iter().map(|p| p[1]).collect();
@@ -617,9 +622,10 @@ impl Registered {
                     let sub = Mat::from_fn(reg.nrows(), cols.len(), |i, c| reg[(i, cols[c])]);
                     modes.push(pod_modes(sub.as_ref(), training.max_m())?);
                 }
-                let levels = Levels { values, modes };
-                let first = levels.modes[0].clone();
-                return Ok(Self { map, inner, modes: first, round_trip, neighbours: None, levels: Some(levels) });
+                // every read of the modes goes through `modes_of`, which takes them from `levels`
+                let none = Mat::zeros(reg.nrows(), 0);
+                let levels = Some(Levels { values, modes });
+                return Ok(Self { map, inner, modes: none, round_trip, neighbours: None, levels });
             }
             Inner::Pod => pod_modes(reg.as_ref(), training.max_m())?,
             Inner::Cpg => cpg_generators(reg.as_ref(), training.max_m())?,
@@ -631,11 +637,12 @@ impl Registered {
                             .into(),
                     ));
                 }
-                let dims = training.params.first().map_or(1, Vec::len);
-                if dims > 2 || training.params.iter().any(|p| p.len() != dims) {
+                let dims = training.dims();
+                if !matches!(dims, Some(1 | 2)) {
                     return Err(DualError::NotApplicable(format!(
                         "basis = \"neighbours\" orders the training snapshots by the travel and at most one \
-                         more parameter component; this scene has {dims} (use basis = \"cpg\")"
+                         more parameter component; this scene has {} (use basis = \"cpg\")",
+                        components(dims)
                     )));
                 }
                 for j in 0..count {
@@ -645,7 +652,7 @@ impl Registered {
                     }
                 }
                 let travels: Vec<f64> = training.params.iter().map(|p| map.frame(p).0).collect();
-                let second = (dims == 2)
+                let second = (dims == Some(2))
                     .then(|| neighbours::Second::of(&travels, training.params.iter().map(|p| p[1]).collect()));
                 let nb = Neighbours::fit(&map, reg.as_ref(), s, travels, second);
                 let neighbours = Some((nb, training.max_m()));
@@ -692,17 +699,17 @@ impl Registered {
         let order: Vec<usize> = self.order_at(mu).collect();
         let mut out = Mat::zeros(n, order.len());
         let mut v = vec![0.0; n];
-        let modes = self.modes_of(self.group_at(mu));
+        let group = self.group_at(mu);
         for (c, &j) in order.iter().enumerate() {
-            self.map.push(modes.col(j).try_as_col_major().expect("contiguous column").as_slice(), mu, &mut v);
+            self.map.push(self.reference_column(group, j), mu, &mut v);
             (0..n).for_each(|i| out[(i, c)] = v[i]);
         }
         out
     }
 
-    /// Reference column `j`.
-    fn reference_column(&self, j: usize) -> &[f64] {
-        self.modes.col(j).try_as_col_major().expect("contiguous column").as_slice()
+    /// Reference column `j` of the modes of `group` ([`Self::modes_of`]).
+    fn reference_column(&self, group: usize, j: usize) -> &[f64] {
+        self.modes_of(group).col(j).try_as_col_major().expect("contiguous column").as_slice()
     }
 
     /// The per-query order of a neighbours basis (`None` for POD or CPG).
@@ -751,13 +758,13 @@ impl DualApprox for Registered {
         let n = self.map.surface.x.len();
         let mut cols: Vec<f64> = Vec::with_capacity(n * m.min(self.size()));
         let mut v = vec![0.0; n];
-        let mut k = 0;
+        let (mut k, group) = (0, self.group_at(mu));
         // only as far as the m-th non-zero column
         for j in self.order_at(mu) {
             if k == m {
                 break;
             }
-            self.map.push(self.reference_column(j), mu, &mut v);
+            self.map.push(self.reference_column(group, j), mu, &mut v);
             if v.iter().any(|&x| x != 0.0) {
                 cols.extend_from_slice(&v);
                 k += 1;
