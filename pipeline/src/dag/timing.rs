@@ -49,7 +49,7 @@ pub(crate) const MIN_TIMED: f64 = 2e-5;
 /// Cap on the repetitions of [`MIN_TIMED`].
 pub(crate) const MAX_REPEATS: usize = 1000;
 /// Points of a set that are timed, at most ([`timed_points`]).
-pub(crate) const TIMED_POINTS: usize = 32;
+pub(crate) const TIMED_POINTS: usize = 16;
 
 /// Which of `n` points are timed: all when `n <= TIMED_POINTS`, else [`TIMED_POINTS`] evenly
 /// spaced with both ends (point `k (n - 1) / (TIMED_POINTS - 1)` for k = 0, 1, …;

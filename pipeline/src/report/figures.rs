@@ -232,7 +232,7 @@ fn comparison_online(scene: &SceneConfig, t: &Table, all: &[String], dir: &Path)
             legend: Legend::LowerLeft,
         },
         series,
-        "Beyond the paper: the online reduced solve (exact algorithm, full primal basis) with each non-negative dual approximation, one point per dual size m (the dictionary: all atoms); errors over converged test points, times over the timed ones (32 evenly spaced, or all of fewer). Failures per row are in table_comparison_online.",
+        format!("Beyond the paper: the online reduced solve (exact algorithm, full primal basis) with each non-negative dual approximation, one point per dual size m (the dictionary: all atoms); errors over converged test points, times over the timed ones ({} evenly spaced, or all of fewer). Failures per row are in table_comparison_online.", crate::dag::timing::TIMED_POINTS),
     )
 }
 

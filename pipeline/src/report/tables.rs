@@ -128,7 +128,7 @@ fn online_tables(d: &ReportData, dir: &Path) -> Result<Vec<ReportTable>, CromErr
         &tradeoff_view(&d.tradeoff),
         dir,
         "table_tradeoff",
-        "Speed/accuracy trade over the test points: errors over converged points, times over the timed points (32 evenly spaced, or all of fewer; ms), speed-up = median full-order time / median online time in the same process, ρ = Spearman rank correlation of the indicator with the true error",
+        &format!("Speed/accuracy trade over the test points: errors over converged points, times over the timed points ({} evenly spaced, or all of fewer; ms), speed-up = median full-order time / median online time in the same process, ρ = Spearman rank correlation of the indicator with the true error", crate::dag::timing::TIMED_POINTS),
     )?,
     save(
         &stability_view(&d.tradeoff),
