@@ -291,9 +291,14 @@ pub struct ColumnWriter {
 }
 
 impl ColumnWriter {
-    /// Write column `j`.
+    /// Write column `j`. The column goes in as a `(rows, 1)` view onto the selection `(.., j..j + 1)`:
+    /// memory and file selections of the same shape let HDF5 copy it in one piece, where a
+    /// 1-D view onto `(.., j)` made it map the column element by element (ironing-fine's
+    /// online.h5, 508 columns: 0.23 s of one core; the file's bytes are the same).
     pub fn write(&self, j: usize, column: &[f64]) -> Result<(), CromError> {
-        self.ds.write_slice(column, (.., j)).map_err(|e| werr(&self.path, &self.name, e))
+        let view = ndarray::ArrayView2::from_shape((column.len(), 1), column)
+            .map_err(|e| CromError::artifact(&self.path, format!("{}: column {j}: {e}", self.name), FIX_WRITE))?;
+        self.ds.write_slice(view, (.., j..j + 1)).map_err(|e| werr(&self.path, &self.name, e))
     }
 }
 
@@ -406,5 +411,48 @@ impl H5In {
     pub fn attr_u64(&self, name: &str) -> Result<u64, CromError> {
         let a = self.file.attr(name).map_err(|e| rerr(&self.path, name, e))?;
         a.read_scalar::<u64>().map_err(|e| rerr(&self.path, name, e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The earlier column write, a 1-D view onto `(.., j)`, kept as the reference of
+    /// [`ColumnWriter::write`].
+    fn write_reference(w: &ColumnWriter, j: usize, column: &[f64]) {
+        w.ds.write_slice(column, (.., j)).expect("reference write");
+    }
+
+    /// Columns written in any order read back bit for bit, and the file is byte for byte the one
+    /// the reference write makes (the byte-identity of every stored online.h5 rests on it).
+    #[test]
+    fn a_column_writer_writes_the_reference_bytes() {
+        let dir = crate::scratch::tempdir().expect("tempdir");
+        let (rows, cols) = (37, 5);
+        let col = |j: usize| -> Vec<f64> { (0..rows).map(|i| (i as f64 + 0.1).sqrt() * (j as f64 - 1.7)).collect() };
+        let order = [3usize, 0, 4, 1, 2];
+        let mut bytes = Vec::new();
+        for reference in [false, true] {
+            let path = dir.path().join(format!("c{reference}.h5"));
+            {
+                let f = H5Out::create(&path).expect("create");
+                let w = f.column_writer("m", rows, cols, "test").expect("writer");
+                for j in order {
+                    if reference {
+                        write_reference(&w, j, &col(j));
+                    } else {
+                        w.write(j, &col(j)).expect("write");
+                    }
+                }
+            }
+            let m = H5In::open(&path).expect("open").matrix("m").expect("read");
+            for j in 0..cols {
+                let back: Vec<u64> = m.col(j).iter().map(|v| v.to_bits()).collect();
+                assert_eq!(back, col(j).iter().map(|v| v.to_bits()).collect::<Vec<_>>(), "column {j}");
+            }
+            bytes.push(std::fs::read(&path).expect("bytes"));
+        }
+        assert_eq!(bytes[0], bytes[1], "the file differs from the reference write's");
     }
 }
