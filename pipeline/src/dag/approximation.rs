@@ -51,8 +51,9 @@ impl StageKey for ApproximationKey {
     /// sweep's Gram products, the same sweeps and bases, `relative_residual` to the last bits;
     /// 5: NNMF's products with S over its non-zeros, m = 1's basis to the last bits; 6: NNMF's
     /// W scaled once after the sweeps, its Gram products by fused multiply-adds, to rounding; 7:
-    /// NNMF's ranks warm-started from the rank below and stopped at a relative gain of 1e-4).
-    const ALGORITHM_VERSION: u32 = 7;
+    /// NNMF's ranks warm-started from the rank below and stopped at a relative gain of 1e-4; 8:
+    /// stopped at 3e-4).
+    const ALGORITHM_VERSION: u32 = 8;
 }
 
 /// The dual sizes the online solve is run at (those up to the basis size; the dictionary is
