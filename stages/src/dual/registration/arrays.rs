@@ -229,6 +229,32 @@ mod tests {
     use crate::dual::registration::{Interpolation, MapKind, Registered, RegisteredArrays};
     use crate::dual::{DualApprox, Inner, Training};
 
+    /// `built`'s arrays, after checking that the basis rebuilt from them gives the same arrays
+    /// and pushes the first `m` generators to the same bits at every point of `points` (`what`
+    /// names the case in a failure).
+    fn survives_its_arrays(built: &Registered, points: &[&[f64]], m: usize, what: &str) -> RegisteredArrays {
+        let arrays = built.arrays().expect("a cone basis");
+        let back = Registered::from_arrays(&arrays).expect("rebuilt");
+        assert_eq!(back.arrays().as_ref(), Some(&arrays), "{what}");
+        for &mu in points {
+            let (a, b) = (built.cone_basis(mu, m).expect("a"), back.cone_basis(mu, m).expect("b"));
+            assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()), "{what} at {mu:?}");
+            for j in 0..a.ncols() {
+                for i in 0..a.nrows() {
+                    assert_eq!(a[(i, j)].to_bits(), b[(i, j)].to_bits(), "{what} at {mu:?}: ({i}, {j})");
+                }
+            }
+        }
+        arrays
+    }
+
+    /// Whether `arrays` with `edit` applied are refused.
+    fn refused(arrays: &RegisteredArrays, edit: impl Fn(&mut RegisteredArrays)) -> bool {
+        let mut a = arrays.clone();
+        edit(&mut a);
+        Registered::from_arrays(&a).is_err()
+    }
+
     /// Every map kind: the basis rebuilt from its arrays pushes its generators to the same bits
     /// at training points, between them and beyond the training range (on a surface given in
     /// a shuffled node order, so the dual-order round trip of the abscissae is exercised), and
@@ -252,34 +278,25 @@ mod tests {
             (MapKind::Moments { refine: 2 }, Inner::Cpg),
         ] {
             let built = Registered::build(&t, kind, inner).expect("build");
-            let arrays = built.arrays().expect("a cone basis");
-            let back = Registered::from_arrays(&arrays).expect("rebuilt");
-            assert_eq!(back.arrays().as_ref(), Some(&arrays), "{kind:?}");
-            for mu in [0.5, 0.77, 1.4, 3.2, -4.0, 40.0] {
-                let (a, b) = (built.cone_basis(&[mu], 3).expect("a"), back.cone_basis(&[mu], 3).expect("b"));
-                assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()), "{kind:?} at {mu}");
-                for j in 0..a.ncols() {
-                    for i in 0..n {
-                        assert_eq!(a[(i, j)].to_bits(), b[(i, j)].to_bits(), "{kind:?} at {mu}: ({i}, {j})");
-                    }
-                }
-            }
-            let mut short = arrays.clone();
-            short.modes.pop();
-            assert!(Registered::from_arrays(&short).is_err(), "{kind:?}: a short generator array");
-            let mut nan = arrays.clone();
-            nan.modes[0] = f64::NAN;
-            assert!(Registered::from_arrays(&nan).is_err(), "{kind:?}: a NaN generator");
-            let mut step = arrays.clone();
-            step.grid[1] = 0.0;
-            assert!(Registered::from_arrays(&step).is_err(), "{kind:?}: a zero grid step");
+            let points: Vec<[f64; 1]> = [0.5, 0.77, 1.4, 3.2, -4.0, 40.0].map(|mu| [mu]).to_vec();
+            let points: Vec<&[f64]> = points.iter().map(|p| p.as_slice()).collect();
+            let arrays = survives_its_arrays(&built, &points, 3, &format!("{kind:?}"));
+            assert!(
+                refused(&arrays, |a| {
+                    a.modes.pop();
+                }),
+                "{kind:?}: a short generator array"
+            );
+            assert!(refused(&arrays, |a| a.modes[0] = f64::NAN), "{kind:?}: a NaN generator");
+            assert!(refused(&arrays, |a| a.grid[1] = 0.0), "{kind:?}: a zero grid step");
             if inner == Inner::Neighbours {
-                let mut travels = arrays.clone();
-                travels.travels.pop();
-                assert!(Registered::from_arrays(&travels).is_err(), "a travel missing");
-                let mut weight = arrays.clone();
-                weight.weight = -1.0;
-                assert!(Registered::from_arrays(&weight).is_err(), "a negative weight");
+                assert!(
+                    refused(&arrays, |a| {
+                        a.travels.pop();
+                    }),
+                    "a travel missing"
+                );
+                assert!(refused(&arrays, |a| a.weight = -1.0), "a negative weight");
             }
         }
         let pod = Registered::build(&t, MapKind::Moments { refine: 2 }, Inner::Pod).expect("pod");
@@ -313,31 +330,19 @@ mod tests {
         for (row, mu) in arrays.table.chunks(4).zip(&params) {
             assert_eq!(&row[..2], mu.as_slice(), "the rows keep the fit's order");
         }
-        let back = Registered::from_arrays(&arrays).expect("rebuilt");
-        assert_eq!(back.arrays().as_ref(), Some(&arrays));
-        for mu in [[0.0, 1.0], [0.6, 1.5], [0.45, 1.75], [1.2, 2.5], [0.1, 2.9], [-1.0, 0.0], [3.0, 9.0]] {
-            let (a, b) = (built.cone_basis(&mu, 3).expect("a"), back.cone_basis(&mu, 3).expect("b"));
-            assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()), "at {mu:?}");
-            for j in 0..a.ncols() {
-                for i in 0..n {
-                    assert_eq!(a[(i, j)].to_bits(), b[(i, j)].to_bits(), "at {mu:?}: ({i}, {j})");
-                }
-            }
-        }
+        let points = [[0.0, 1.0], [0.6, 1.5], [0.45, 1.75], [1.2, 2.5], [0.1, 2.9], [-1.0, 0.0], [3.0, 9.0]];
+        let points: Vec<&[f64]> = points.iter().map(|p| p.as_slice()).collect();
+        assert_eq!(survives_its_arrays(&built, &points, 3, "two components"), arrays);
         // a point with one component reads the lowest level instead of indexing past the row
+        let back = Registered::from_arrays(&arrays).expect("rebuilt");
         assert!(back.cone_basis(&[0.3], 3).is_some());
-        let refused = |edit: &dyn Fn(&mut RegisteredArrays)| {
-            let mut a = arrays.clone();
-            edit(&mut a);
-            Registered::from_arrays(&a).is_err()
-        };
-        assert!(refused(&|a| {
+        assert!(refused(&arrays, |a| {
             a.table.pop();
         }));
-        assert!(refused(&|a| a.table[3] = 0.0), "a zero width");
-        assert!(refused(&|a| a.table[0] = f64::INFINITY), "a non-finite component");
-        assert!(refused(&|a| a.dims = 0));
-        assert!(refused(&|a| a.dims = 3), "rows of the wrong length");
+        assert!(refused(&arrays, |a| a.table[3] = 0.0), "a zero width");
+        assert!(refused(&arrays, |a| a.table[0] = f64::INFINITY), "a non-finite component");
+        assert!(refused(&arrays, |a| a.dims = 0));
+        assert!(refused(&arrays, |a| a.dims = 3), "rows of the wrong length");
         let mut translate = arrays.clone();
         translate.kind = MapKind::Translate { interpolation: Interpolation::Linear { refine: 4 } };
         translate.table.clear();
@@ -386,27 +391,14 @@ mod tests {
         assert_eq!(sides.len(), 4, "the first four columns bracket both components");
         let arrays = built.arrays().expect("a cone basis");
         assert_eq!(arrays.seconds, params.iter().map(|p| p[1]).collect::<Vec<_>>());
-        let back = Registered::from_arrays(&arrays).expect("rebuilt");
-        assert_eq!(back.arrays().as_ref(), Some(&arrays));
-        for mu in [[0.0, 1.0], [0.52, 1.5], [0.6, 1.75], [0.99, 2.2], [1.04, 2.5]] {
-            let (a, b) = (built.cone_basis(&mu, 5).expect("a"), back.cone_basis(&mu, 5).expect("b"));
-            assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()), "at {mu:?}");
-            for j in 0..a.ncols() {
-                for i in 0..n {
-                    assert_eq!(a[(i, j)].to_bits(), b[(i, j)].to_bits(), "at {mu:?}: ({i}, {j})");
-                }
-            }
-        }
-        let refused = |edit: &dyn Fn(&mut RegisteredArrays)| {
-            let mut a = arrays.clone();
-            edit(&mut a);
-            Registered::from_arrays(&a).is_err()
-        };
-        assert!(refused(&|a| {
+        let points = [[0.0, 1.0], [0.52, 1.5], [0.6, 1.75], [0.99, 2.2], [1.04, 2.5]];
+        let points: Vec<&[f64]> = points.iter().map(|p| p.as_slice()).collect();
+        assert_eq!(survives_its_arrays(&built, &points, 5, "neighbours over two components"), arrays);
+        assert!(refused(&arrays, |a| {
             a.seconds.pop();
         }));
-        assert!(refused(&|a| a.seconds[0] = f64::NAN), "a non-finite component");
-        assert!(refused(&|a| a.second_scale = 0.0), "a zero scale");
+        assert!(refused(&arrays, |a| a.seconds[0] = f64::NAN), "a non-finite component");
+        assert!(refused(&arrays, |a| a.second_scale = 0.0), "a zero scale");
     }
 
     /// A contact area (4 lines across the travel, shuffled dual order): the basis rebuilt from
@@ -431,28 +423,23 @@ mod tests {
             MapKind::Moments { refine: 2 },
         ] {
             let built = Registered::build(&t, kind, Inner::Cpg).expect("build");
-            let arrays = built.arrays().expect("a cone basis");
+            let points: Vec<[f64; 1]> = [0.0, 0.33, 0.9, 2.5].map(|mu| [mu]).to_vec();
+            let points: Vec<&[f64]> = points.iter().map(|p| p.as_slice()).collect();
+            let arrays = survives_its_arrays(&built, &points, 2, &format!("{kind:?}"));
             assert_eq!(arrays.across, y, "{kind:?}");
-            let back = Registered::from_arrays(&arrays).expect("rebuilt");
-            assert_eq!(back.arrays().as_ref(), Some(&arrays), "{kind:?}");
-            for mu in [0.0, 0.33, 0.9, 2.5] {
-                let (a, b) = (built.cone_basis(&[mu], 2).expect("a"), back.cone_basis(&[mu], 2).expect("b"));
-                assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()), "{kind:?} at {mu}");
-                for (p, q) in a
-                    .col_iter()
-                    .flat_map(|c| c.iter().copied().collect::<Vec<_>>())
-                    .zip(b.col_iter().flat_map(|c| c.iter().copied().collect::<Vec<_>>()))
-                {
-                    assert_eq!(p.to_bits(), q.to_bits(), "{kind:?} at {mu}");
-                }
-            }
-            let mut short = arrays.clone();
-            short.across.pop();
-            assert!(Registered::from_arrays(&short).is_err(), "{kind:?}: across coordinates missing");
-            let mut grid = arrays.clone();
-            grid.len += 1;
-            grid.modes.extend(std::iter::repeat_n(0.0, grid.generators));
-            assert!(Registered::from_arrays(&grid).is_err(), "{kind:?}: a grid that does not split into the lines");
+            assert!(
+                refused(&arrays, |a| {
+                    a.across.pop();
+                }),
+                "{kind:?}: across coordinates missing"
+            );
+            assert!(
+                refused(&arrays, |a| {
+                    a.len += 1;
+                    a.modes.extend(std::iter::repeat_n(0.0, a.generators));
+                }),
+                "{kind:?}: a grid that does not split into the lines"
+            );
         }
     }
 }

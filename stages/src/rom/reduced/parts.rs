@@ -184,6 +184,15 @@ fn floats_of(p: &ModelParts, name: &str, len: usize) -> Result<Vec<f64>, RomErro
     Ok(v.to_vec())
 }
 
+/// `parts.float(name)` as one optional value: 0 where absent, refused with more than one.
+fn optional_float(p: &ModelParts, name: &str) -> Result<f64, RomError> {
+    match p.float(name) {
+        [] => Ok(0.0),
+        [v] => Ok(*v),
+        v => Err(bad(name, format!("{} values, expected 1", v.len()))),
+    }
+}
+
 /// `parts.int(name)` as indices, checked to hold `len` values (any length when `None`), each
 /// below `bound`.
 fn indices_of(p: &ModelParts, name: &str, len: Option<usize>, bound: usize) -> Result<Vec<usize>, RomError> {
@@ -365,17 +374,9 @@ impl ReducedModel {
             modes: p.float("reg_modes").to_vec(),
             generators: size("reg_generators")?,
             travels: p.float("reg_travels").to_vec(),
-            weight: match p.float("reg_weight") {
-                [] => 0.0,
-                [w] => *w,
-                w => return Err(bad("reg_weight", format!("{} values, expected 1", w.len()))),
-            },
+            weight: optional_float(p, "reg_weight")?,
             seconds: p.float("reg_second").to_vec(),
-            second_scale: match p.float("reg_second_scale") {
-                [] => 0.0,
-                [s] => *s,
-                s => return Err(bad("reg_second_scale", format!("{} values, expected 1", s.len()))),
-            },
+            second_scale: optional_float(p, "reg_second_scale")?,
         };
         let basis = Registered::from_arrays(&arrays).map_err(|e| bad("reg_modes", e.to_string()))?;
         // (a model without warm starts has no points to compare with: `warm_dim` 0)
