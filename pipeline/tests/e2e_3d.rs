@@ -15,7 +15,7 @@ fn small_hertz3d(dir: &std::path::Path, edit: impl Fn(String) -> String) -> std:
     let text = std::fs::read_to_string(repo().join("data/scenes/hertz-3d.toml")).expect("hertz-3d.toml");
     let small = text
         .replace("name = \"hertz-3d\"", "name = \"hertz-3d-small\"")
-        .replace("n = 16\n", "n = 6\n")
+        .replace("n = 24\n", "n = 6\n")
         .replace("grading = 3.0", "grading = 1.5")
         .replace("n_train = 12", "n_train = 4")
         .replace("max_m = 11", "max_m = 3")

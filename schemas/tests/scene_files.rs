@@ -47,10 +47,10 @@ fn every_shipped_scene_loads_and_matches_scenes_md() {
                 assert_eq!(cfg.parameter.train_points().len(), 65 * 17);
             }
             (Model::Hertz3d(h), "hertz-3d") => {
-                // docs/scenes.md#hertz-3d: 16 elements a side graded with exponent 3, d up to 0.01
+                // docs/scenes.md#hertz-3d: 24 elements a side graded with exponent 3, d up to 0.01
                 assert_eq!(
                     (h.n, h.grading.to_bits(), h.contact_radius.to_bits()),
-                    (16, 3f64.to_bits(), 0.25f64.to_bits())
+                    (24, 3f64.to_bits(), 0.25f64.to_bits())
                 );
                 assert_eq!(cfg.parameter.train_points().len(), 12);
             }
