@@ -4,8 +4,8 @@
 //! `data/scenes/hertz-3d.toml`; the coarser meshes change only `n`.
 //!
 //! Theory: `crom_stages::contact3d::HertzSpheres` (Johnson, *Contact Mechanics*, sec. 4.2, two
-//! equal spheres). Measured: `F` = 4 x the top face's reaction (quarter model),
-//! `p0` the apex slave's pressure, `a` from `F = (2/3) pi a^2 p0`.
+//! equal spheres). Measured as the test measures (`HertzSpheres::measured`): `F` = 4 x the top
+//! face's reaction (quarter model), `p0` the apex slave's pressure, `a` from `F = (2/3) pi a^2 p0`.
 
 use crom_stages::contact::ContactSolveParams;
 use crom_stages::contact3d::{build_hertz3d, Hertz3dParams, HertzSpheres};
@@ -23,19 +23,11 @@ fn main() {
     for n in [16, 20, base.n] {
         let p = Hertz3dParams { n, ..base.clone() };
         let f = build_hertz3d(&p).expect("model").factor().expect("factor");
-        let m = f.model();
-        let apex = m
-            .slave_nodes()
-            .iter()
-            .position(|&k| m.mesh().nodes[k][0].hypot(m.mesh().nodes[k][1]) < 1e-12)
-            .expect("apex");
         for d in [0.001, 0.0025, 0.005, 0.0075, 0.01, 0.02, 0.04] {
             let t = std::time::Instant::now();
             let s = f.solve(&[d], &ContactSolveParams { rel_tol: 1e-10, max_iter: 500 }).expect("solve");
             let secs = t.elapsed().as_secs_f64();
-            let force = -4.0 * m.resultant(&s.u, m.driven_nodes())[2];
-            let p0 = s.pressure[apex];
-            let a = (3.0 * force / (2.0 * std::f64::consts::PI * p0)).sqrt();
+            let HertzSpheres { a, p0, force } = HertzSpheres::measured(f.model(), &s).expect("a slave on the axis");
             let HertzSpheres { a: a_th, p0: p0_th, force: f_th } = HertzSpheres::at(r, e, nu, d);
             let dev = |x: f64, y: f64| format!("{:+.2} %", 100.0 * (x / y - 1.0));
             println!(

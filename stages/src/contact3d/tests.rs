@@ -21,7 +21,7 @@ pub(crate) fn hertz_params(n: usize, grading: f64) -> Hertz3dParams {
 ///   a = sqrt(R* delta),  p0 = (2 E* / pi) sqrt(delta / R*),  F = (4/3) E* sqrt(R*) delta^(3/2)
 /// ```
 ///
-/// measured: `F` = 4 x the reaction on the top face (quarter model); `p0` = the pressure at the
+/// measured ([`HertzSpheres::measured`]): `F` = 4 x the reaction on the top face (quarter model); `p0` = the pressure at the
 /// apex slave (its force over its tributary area); `a` from `F = (2/3) pi a^2 p0` (the Hertz
 /// distribution's resultant). Within the issue's 3 %: `a`, `p0` and `F(delta)` at `delta / R` =
 /// 0.001, 0.0025 and 0.005 (a / R = 0.022 to 0.05), `a` and `p0` also at 0.01. `F` not at 0.01:
@@ -37,14 +37,9 @@ fn hertz_3d_matches_hertz_theory() {
     let crom_schemas::Model::Hertz3d(spec) = &scene.model else { panic!("hertz-3d is not a hertz3d scene") };
     let p = Hertz3dParams::from(spec);
     let f = build_hertz3d(&p).expect("model").factor().expect("factor");
-    let m = f.model();
-    let apex =
-        m.slave_nodes().iter().position(|&n| m.mesh().nodes[n][0].hypot(m.mesh().nodes[n][1]) < 1e-12).expect("apex");
     for d in [0.001, 0.0025, 0.005, 0.01] {
         let s = f.solve(&[d], &ContactSolveParams::default()).expect("solve");
-        let force = -4.0 * m.resultant(&s.u, m.driven_nodes())[2];
-        let p0 = s.pressure[apex];
-        let a = (3.0 * force / (2.0 * std::f64::consts::PI * p0)).sqrt();
+        let HertzSpheres { a, p0, force } = HertzSpheres::measured(f.model(), &s).expect("a slave on the axis");
         let theory = HertzSpheres::at(p.radius, p.material.young, p.material.poisson, d);
         if d <= 0.005 {
             assert_close!(force, theory.force, Tol::rel(0.03));

@@ -8,6 +8,9 @@
 //!   p(r) = p0 sqrt(1 - r^2 / a^2)  for r <= a,  0 beyond
 //! ```
 
+use super::model::Model3d;
+use crate::snapshot::Snapshot;
+
 /// The Hertz solution of two equal spheres at one approach.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HertzSpheres {
@@ -34,6 +37,19 @@ impl HertzSpheres {
     /// The pressure at distance `r` from the axis.
     pub fn pressure(&self, r: f64) -> f64 {
         self.p0 * (1.0 - (r / self.a).powi(2)).max(0.0).sqrt()
+    }
+
+    /// The same three quantities as a solve `s` of the quarter model `hertz-3d` (`model`) reads
+    /// them, the one definition its test and `just example hertz3d_theory` compare with theory:
+    /// `force` = 4 x the reaction on the top face, `p0` = the pressure of the slave on the axis
+    /// (its force over its tributary area), `a` from `F = (2/3) pi a^2 p0` (the Hertz
+    /// distribution's resultant). `None` when no slave lies on the axis.
+    pub fn measured(model: &Model3d, s: &Snapshot) -> Option<Self> {
+        let nodes = &model.mesh().nodes;
+        let apex = model.slave_nodes().iter().position(|&k| nodes[k][0].hypot(nodes[k][1]) < 1e-12)?;
+        let force = -4.0 * model.resultant(&s.u, model.driven_nodes())[2];
+        let p0 = s.pressure[apex];
+        Some(Self { a: (3.0 * force / (2.0 * std::f64::consts::PI * p0)).sqrt(), p0, force })
     }
 }
 
