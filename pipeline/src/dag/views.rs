@@ -11,7 +11,7 @@
 //! value 0. Each step is its own dataset because meshio's `TimeSeriesReader`, like most XDMF
 //! readers, reads whole datasets only. The parameter enters as the step's time (scalar
 //! parameters: the value; vector parameters: the step index) and as one point field per
-//! component, constant over the nodes (a compressed dataset of a few hundred bytes per step),
+//! component, constant over the nodes (a dataset of no stored chunk whose fill value is the value),
 //! since ParaView colours by point fields. The views of a basis have one step per mode (time =
 //! mode number): primal POD modes as `displacement`, dual POD and CPG generators as `pressure`
 //! on the contact surface (the truncated CPG basis is a prefix of the full one and is not
@@ -48,8 +48,9 @@ struct ViewsKey<'a> {
 
 impl StageKey for ViewsKey<'_> {
     const KIND: ArtifactKind = ArtifactKind::VIEWS;
-    /// Bump when the layout of the views changes.
-    const ALGORITHM_VERSION: u32 = 1;
+    /// Bump when the layout of the views changes (2: the per-step constants stored as fill
+    /// values, no chunk written; the same values read).
+    const ALGORITHM_VERSION: u32 = 2;
 }
 
 /// Every views file sits two directories below the store root (`views/<key>/`, and the staging
@@ -176,7 +177,7 @@ fn write_steps(h5: &H5Out, path: &str, mesh: &MeshFacts, steps: &[Step]) -> Resu
             }
         }
         for (name, value) in &s.constants {
-            g.vec_f64(name, &vec![*value; n], "constant over the nodes: a value of this step")?;
+            g.constant_f64(name, n, *value, "constant over the nodes: a value of this step")?;
             attributes.push(attr(name, "Scalar", "Node", vec![n], "Float", at(name)));
         }
         let m = &mesh.ref_path;

@@ -128,6 +128,16 @@ impl H5Out {
         set_units(&ds, &self.path, name, units)
     }
 
+    /// A 1-D float dataset of `n` equal values, stored as its fill value only: no chunk is
+    /// written, and every reader (HDF5, h5py, ParaView) reads `value` everywhere. The views'
+    /// per-step constants (a parameter component over all nodes) were written and deflated
+    /// in full, about 0.3 s of one core on ironing-fine's 508 steps.
+    pub fn constant_f64(&self, name: &str, n: usize, value: f64, units: &str) -> Result<(), CromError> {
+        let ds = self.group.new_dataset::<f64>().shape([n]).fill_value(value).create(name);
+        let ds = ds.map_err(|e| werr(&self.path, name, e))?;
+        set_units(&ds, &self.path, name, units)
+    }
+
     /// A 1-D integer dataset.
     pub fn vec_u64(&self, name: &str, data: &[u64]) -> Result<(), CromError> {
         let ds = self.dataset::<u64>(name, &[data.len()])?;

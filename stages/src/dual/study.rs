@@ -158,6 +158,7 @@ pub fn specificity(
             let mut rng = crate::metrics::specificity_stream(seed, m);
             let mut out = RunningStats::new();
             let mut member = vec![0.0; n];
+            let mut hint = 0;
             for _ in 0..samples {
                 if owners.is_empty() {
                     break;
@@ -172,7 +173,7 @@ pub fn specificity(
                     })
                     .collect();
                 model.member(*g, &alpha, &training.params[t], m, &mut member);
-                out.push(nearest.min_relative(&member));
+                out.push(nearest.min_relative(&member, &mut hint));
             }
             Ok(Some(out))
         })
@@ -212,24 +213,62 @@ impl Nearest {
     /// `iter().sum()` adds them, so every value and the minimum have the bits of the plain scan
     /// ([`nearest_reference`](tests) checks it); [`LANES`] snapshots at a time, so that their
     /// sums' latency chains overlap.
-    fn min_relative(&self, member: &[f64]) -> f64 {
+    ///
+    /// Exact pruning: a block of lanes is dropped once, after a multiple of [`CHECK_ROWS`]
+    /// rows, every one of its partial values `sqrt(partial) / ||s_j||` exceeds the best value
+    /// so far. Adding non-negative terms never decreases a floating-point sum, and `sqrt` and
+    /// the division are monotone, so a dropped lane's full value exceeds the best too and the
+    /// minimum keeps its bits. `hint` (a block index, updated to the winner's) is scanned
+    /// first: consecutive samples tend to share their nearest snapshot.
+    fn min_relative(&self, member: &[f64], hint: &mut usize) -> f64 {
+        self.scan(member, hint).0
+    }
+
+    /// [`Self::min_relative`] and the number of blocks dropped before their last row.
+    fn scan(&self, member: &[f64], hint: &mut usize) -> (f64, usize) {
         let n = self.n;
+        let blocks = if n == 0 { 0 } else { self.packed.len() / (n * LANES) };
         let mut best = f64::INFINITY;
-        for (k, block) in self.packed.chunks_exact((n * LANES).max(1)).enumerate() {
+        let mut dropped_blocks = 0;
+        if blocks == 0 {
+            return (best, 0);
+        }
+        let first = (*hint).min(blocks - 1);
+        for k in std::iter::once(first).chain((0..blocks).filter(|&k| k != first)) {
+            let block = &self.packed[k * n * LANES..(k + 1) * n * LANES];
+            let lanes = LANES.min(self.owners - k * LANES);
+            let norms = &self.norms[k * LANES..k * LANES + lanes];
             let mut acc = [0.0f64; LANES];
-            for (row, &b) in block.chunks_exact(LANES).zip(member) {
-                for (a, &x) in acc.iter_mut().zip(row) {
-                    *a += (x - b) * (x - b);
+            let mut dropped = false;
+            for (rows, part) in block.chunks(LANES * CHECK_ROWS).zip(member.chunks(CHECK_ROWS)) {
+                for (row, &b) in rows.chunks_exact(LANES).zip(part) {
+                    for (a, &x) in acc.iter_mut().zip(row) {
+                        *a += (x - b) * (x - b);
+                    }
+                }
+                if best < f64::INFINITY && acc.iter().zip(norms).all(|(a, norm)| a.sqrt() / norm > best) {
+                    dropped = true;
+                    break;
                 }
             }
-            let lanes = LANES.min(self.owners - k * LANES);
-            for (a, norm) in acc.iter().zip(&self.norms[k * LANES..]).take(lanes) {
-                best = best.min(a.sqrt() / norm);
+            if dropped {
+                dropped_blocks += 1;
+                continue;
+            }
+            for (a, norm) in acc.iter().zip(norms) {
+                let value = a.sqrt() / norm;
+                if value < best {
+                    best = value;
+                    *hint = k;
+                }
             }
         }
-        best
+        (best, dropped_blocks)
     }
 }
+
+/// Rows between two pruning checks of [`Nearest::min_relative`].
+const CHECK_ROWS: usize = 32;
 
 /// The nested-set error H(n) (eq. 19) of `approach`: built from the coarser level `lower` (at
 /// the largest m of its grid), the relative Frobenius error of the finer level's snapshots
@@ -286,12 +325,47 @@ mod tests {
         let norms: Vec<f64> = cols.iter().map(|c| norm2(c)).collect();
         for owners in [(0..count).collect::<Vec<_>>(), (0..16).collect(), vec![3, 5, 19], vec![]] {
             let nearest = Nearest::new(&cols, &norms, &owners);
+            let mut hint = 0;
             for _ in 0..50 {
                 let member: Vec<f64> = (0..n).map(|_| rng.uniform()).collect();
-                let (a, b) = (nearest.min_relative(&member), nearest_reference(&cols, &norms, &owners, &member));
+                let (a, b) =
+                    (nearest.min_relative(&member, &mut hint), nearest_reference(&cols, &norms, &owners, &member));
                 assert_eq!(a.to_bits(), b.to_bits(), "{owners:?}: {a} vs {b}");
             }
         }
+    }
+
+    /// The pruned scan gives the plain scan's bits where it prunes: moving bumps over 200 rows
+    /// (six pruning checks), members near one snapshot or between two, the hint carried over
+    /// from sample to sample as in [`specificity`]; and it does prune (a block dropped by the
+    /// first check of a sample whose nearest snapshot lies in another block).
+    #[test]
+    fn the_pruned_scan_is_the_plain_scan_bit_for_bit() {
+        let (n, count) = (200, 45);
+        let (s, _) = bumps(n, count, 7);
+        let cols: Vec<Vec<f64>> = (0..count).map(|j| (0..n).map(|i| s[(i, j)]).collect()).collect();
+        let norms: Vec<f64> = cols.iter().map(|c| norm2(c)).collect();
+        let mut rng = Rng::new(43);
+        for owners in [(0..count).collect::<Vec<_>>(), (0..count).step_by(3).collect(), vec![40, 2, 17]] {
+            let nearest = Nearest::new(&cols, &norms, &owners);
+            let mut hint = 0;
+            for t in 0..200 {
+                let (j, k) = (rng.below(count), rng.below(count));
+                let w = if t % 2 == 0 { 0.0 } else { rng.uniform() };
+                let member: Vec<f64> =
+                    (0..n).map(|i| (1.0 - w) * cols[j][i] + w * cols[k][i] + 1e-3 * rng.uniform()).collect();
+                let (a, b) =
+                    (nearest.min_relative(&member, &mut hint), nearest_reference(&cols, &norms, &owners, &member));
+                assert_eq!(a.to_bits(), b.to_bits(), "{owners:?}, sample {t}: {a} vs {b}");
+            }
+        }
+        // a member equal to snapshot 44 (the last block), its block scanned first: every other
+        // block's bumps lie away from it and exceed a best value of 0 before their last row
+        let nearest = Nearest::new(&cols, &norms, &(0..count).collect::<Vec<_>>());
+        let mut hint = 44 / LANES;
+        let (value, dropped) = nearest.scan(&cols[44], &mut hint);
+        assert_eq!((value, hint), (0.0, 44 / LANES));
+        assert_eq!(dropped, count.div_ceil(LANES) - 1);
     }
 
     /// Non-negative bumps moving along a line (a small contact-like set).
