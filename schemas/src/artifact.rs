@@ -468,6 +468,9 @@ pub mod rom {
 
     /// Online solution fields at the test points.
     pub const ONLINE: &str = "online.h5";
+    /// In [`ONLINE`], where the online stage measured a sample of a large test set only: the
+    /// test set's column of each solution (absent: every column, in order).
+    pub const TEST_COLUMNS: &str = "test_columns";
     /// Errors of the online solve at training and test points.
     pub const ERRORS: &str = "rom_errors.parquet";
     /// Columns of [`ERRORS`]; a vector parameter adds one column per component after

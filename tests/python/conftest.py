@@ -54,3 +54,20 @@ sys.path.insert(0, str(PYTHON_PACKAGE))
 @pytest.fixture(scope="session")
 def ironing_fine_store(tmp_path_factory) -> pathlib.Path:
     return run_scene(tmp_path_factory, "ironing-fine")
+
+
+@pytest.fixture(scope="session")
+def rope_large_store(tmp_path_factory) -> pathlib.Path:
+    """The rope on 1 100 training and 1 099 test points: more test points than the online stage
+    measures (1 024), so it measures a keyed sample of them."""
+    scenes = tmp_path_factory.mktemp("rope-large-scene")
+    text = (REPO / "data/scenes/rope.toml").read_text()
+    for old, new in (('n_train = 10', 'n_train = 1100'), ('name = "rope"', 'name = "rope-large"')):
+        assert old in text, old
+        text = text.replace(old, new)
+    scene = scenes / "rope-large.toml"
+    scene.write_text(text)
+    store = tmp_path_factory.mktemp("store-rope-large")
+    subprocess.run([str(crom_bin()), "--store", str(store), "--quiet", "run", str(scene)], cwd=REPO, check=True,
+                   capture_output=True)
+    return store

@@ -153,35 +153,48 @@ def test_the_report_shows_the_deformed_bodies_of_2d_scenes_only(hertz_store, rop
     assert not (rope / "fig_bodies.png").exists(), "the rope's set-up figure is fig02 (1-D)"
 
 
-@pytest.mark.parametrize("scene_fixture,scene", [("rope_store", "rope"), ("ironing_fine_store", "ironing-fine")])
+@pytest.mark.parametrize("scene_fixture,scene", [("rope_store", "rope"), ("ironing_fine_store", "ironing-fine"),
+                                                 ("rope_large_store", "rope-large")])
 def test_every_online_step_shows_the_online_solution_its_error_and_the_full_order_one(request, scene_fixture, scene):
     store = request.getfixturevalue(scene_fixture)
     sc = crom_data.open_store(store).scene(scene)
     mesh, test = sc.mesh(), sc.trainset("test")
-    n = len(mesh.nodes)
+    n, n_test = len(mesh.nodes), test.primal.shape[1]
     with h5py.File(sc.file("online.h5"), "r") as f:
-        online = {k: f[k][()] for k in ("primal", "dual", "primal_error", "dual_error", "converged")}
+        online = {k: f[k][()] for k in ("primal", "dual", "primal_error", "dual_error", "converged", "parameters")}
+        # a large test set is measured on a sample of 1 024 of its points, stored with it
+        cols = f["test_columns"][()] if "test_columns" in f else np.arange(n_test)
+    if n_test > 1024:
+        assert len(cols) == 1024 and np.all(np.diff(cols) > 0) and cols[-1] < n_test, cols
+        # a uniform draw, not a stride or a prefix: it reaches into the last tenth of the set
+        assert cols[-1] >= 0.9 * n_test and len(set(np.diff(cols))) > 1
+    else:
+        np.testing.assert_array_equal(cols, np.arange(n_test))
+    primal, dual = test.primal[:, cols], test.dual[:, cols]
+    np.testing.assert_array_equal(online["parameters"].reshape(len(cols), -1),
+                                  test.parameters.reshape(n_test, -1)[cols])
     # The stored error is the online field minus the test snapshot (same IEEE subtraction).
-    np.testing.assert_array_equal(online["primal_error"], online["primal"] - test.primal)
-    np.testing.assert_array_equal(online["dual_error"], online["dual"] - test.dual)
+    np.testing.assert_array_equal(online["primal_error"], online["primal"] - primal)
+    np.testing.assert_array_equal(online["dual_error"], online["dual"] - dual)
     # Cross-check with the error table (an independent path: reduced coordinates, H1 norm):
     # converged queries with a zero table error have a zero field error and vice versa.
     errors = sc.rom_errors()
     rows = errors[(errors["set"] == "test") & (errors["algorithm"] == "exact") & (errors["dual_basis"] == "full")
                   & (errors["r_primal"] == errors["r_primal"].max())]
-    assert len(rows) == test.primal.shape[1]
+    assert len(rows) == len(cols)
+    np.testing.assert_array_equal(rows["parameter"].to_numpy(), test.parameters.reshape(n_test, -1)[cols, 0])
     np.testing.assert_array_equal(online["converged"] == 1, (rows["outcome"] == "converged").to_numpy())
     field_zero = np.all(online["primal_error"] == 0, axis=0)
     table_zero = rows["primal_error"].to_numpy() == 0
     np.testing.assert_array_equal(field_zero, table_zero)
     _, _, steps = read_series(sc.xdmf("online"))
-    assert len(steps) == test.primal.shape[1]
+    assert len(steps) == len(cols)
     for k, (t, pd, _) in enumerate(steps):
         for field, matrix in (("displacement", online["primal"]), ("displacement_error", online["primal_error"]),
-                              ("displacement_fom", test.primal)):
+                              ("displacement_fom", primal)):
             np.testing.assert_array_equal(pd[field], expected_displacement(matrix[:, k], n, mesh.dofs_per_node))
         for field, matrix in (("pressure", online["dual"]), ("pressure_error", online["dual_error"]),
-                              ("pressure_fom", test.dual)):
+                              ("pressure_fom", dual)):
             np.testing.assert_array_equal(pd[field], expected_pressure(matrix[:, k], n, mesh.contact_nodes))
         assert np.all(pd["converged"] == online["converged"][k])
 

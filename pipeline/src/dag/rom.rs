@@ -65,6 +65,11 @@ pub(crate) struct RomKey {
     /// scenes without them are unchanged).
     #[serde(skip_serializing_if = "Option::is_none")]
     contact_sampling: Option<ContactSamplingSpec>,
+    /// The samples of a large set that are measured (absent where every set has at most
+    /// [`PAPER_POINTS`] points and every point is measured, so the keys of those scenes are
+    /// unchanged).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    measured: Option<Measured>,
 }
 
 impl RomKey {
@@ -72,7 +77,23 @@ impl RomKey {
     fn of(scene: &SceneConfig) -> Self {
         let p = RomParams::default();
         let contact_sampling = scene.study.contact_sampling.clone();
-        Self { max_iter: p.max_iter, gap_tol: p.gap_tol, u_tol: p.u_tol, contact_sampling }
+        let largest = scene.parameter.train_points().len().max(scene.parameter.test_points().len());
+        let measured = (largest > PAPER_POINTS).then_some(Measured {
+            points: MEASURED_POINTS,
+            paper_points: PAPER_POINTS,
+            seed: scene.study.seed,
+        });
+        Self { max_iter: p.max_iter, gap_tol: p.gap_tol, u_tol: p.u_tol, contact_sampling, measured }
+    }
+
+    /// The columns of set `which` (0 training, 1 test; `n` points) that are measured, and the
+    /// positions among them at which the paper's algorithm is measured when its dual basis is
+    /// large ([`Measured::columns`]); every point where nothing is sampled.
+    fn measured(&self, which: u64, n: usize) -> (Vec<usize>, Vec<usize>) {
+        match &self.measured {
+            Some(m) => m.columns(which, n),
+            None => ((0..n).collect(), (0..n).collect()),
+        }
     }
 
     /// The reduced solver's settings (the algorithm chosen per query).
@@ -102,6 +123,51 @@ impl StageKey for RomKey {
 }
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];
+
+/// Points of a set that the online stage measures, at most: a larger set is measured on a
+/// keyed sample of this many ([`Measured`]).
+pub(crate) const MEASURED_POINTS: usize = 1024;
+
+/// Points of a set at which the paper's Algorithm 1 is measured, at most, when its dual basis
+/// has more than [`PAPER_SWEEP_MAX_DUAL`] columns: the first of the same draw. Its cost per
+/// query grows with the dual basis (each iteration evaluates every reduced constraint and
+/// solves eq. 13 on the active ones): on ironing-fine-2d with 129 x 33 training points, at
+/// (392, 4257) modes, 79 ms per query, 337 s for the 4 257 training points alone.
+pub(crate) const PAPER_POINTS: usize = 256;
+
+/// Which points of a large set the online stage measures: [`MEASURED_POINTS`] of them drawn
+/// without replacement (a partial Fisher-Yates shuffle on a stream of the scene's seed and the
+/// set), and of those the first [`PAPER_POINTS`] drawn for the paper's algorithm where its dual
+/// basis is large. A uniform draw, not a stride: a tensor grid's points in storage order would
+/// alias with a stride (every fourth of 128 x 32 test points lies on 8 of the 32 presses).
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct Measured {
+    points: usize,
+    paper_points: usize,
+    seed: u64,
+}
+
+impl Measured {
+    /// The measured columns of set `which` (0 training, 1 test) of `n` points, ascending
+    /// (all of them up to [`Self::points`]), and the positions among them of the paper's
+    /// sample, ascending (all of them up to [`Self::paper_points`]).
+    fn columns(&self, which: u64, n: usize) -> (Vec<usize>, Vec<usize>) {
+        let k = n.min(self.points);
+        let mut order: Vec<usize> = (0..n).collect();
+        let mut rng =
+            crom_stages::rng::Rng::new(self.seed ^ 0x6d65_6173_7572_6564 ^ which.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        for i in 0..k {
+            let j = i + rng.below(n - i);
+            order.swap(i, j);
+        }
+        order.truncate(k);
+        let mut paper: Vec<usize> = order[..k.min(self.paper_points)].to_vec();
+        order.sort_unstable();
+        paper.sort_unstable();
+        let positions = paper.iter().filter_map(|c| order.binary_search(c).ok()).collect();
+        (order, positions)
+    }
+}
 
 /// The online stage's key spec. The timing constants are not in the key: they change the
 /// times, not the results.
@@ -166,7 +232,11 @@ fn run(
 ) -> Result<Key, CromError> {
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
     let (manifest, computed) = ctx.cached(ArtifactKind::ROM, spec, |staging| {
-        let fom = physics.fom_seconds(keys[1], &loaded.set(store, keys[1])?.parameters)?;
+        // the full-order solves are timed at the measured test points, as the queries
+        let test = loaded.set(store, keys[1])?;
+        let (cols, _) = settings.0.measured(1, test.parameters.len());
+        let points: Vec<Vec<f64>> = cols.iter().map(|&j| test.parameters[j].clone()).collect();
+        let fom = physics.fom_seconds(keys[1], &points)?;
         let phi = physics.responses(keys[0], &*loaded.set(store, keys[0])?, failure(&settings.1.scene))?;
         measure(physics.get()?, (store, &loaded, progress), settings, keys, (fom, phi), staging)
     })?;
@@ -209,24 +279,48 @@ fn measure(
     let params = settings.params();
     let scene = labels.scene.as_str();
     let fail = failure(scene);
-    let (train_set, test_set) = (loaded.set(store, train)?, loaded.set(store, test)?);
+    let (train_all, test_all) = (loaded.set(store, train)?, loaded.set(store, test)?);
+    // the measured points of each set: all of them, or a keyed sample of a large set
+    let (train_cols, train_paper) = settings.measured(0, train_all.parameters.len());
+    let (test_cols, test_paper) = settings.measured(1, test_all.parameters.len());
+    let (train_sub, test_sub);
+    let train_set: &trainset::TrainingSet = if train_cols.len() == train_all.parameters.len() {
+        &train_all
+    } else {
+        train_sub = train_all.columns(&train_cols);
+        &train_sub
+    };
+    let test_set: &trainset::TrainingSet = if test_cols.len() == test_all.parameters.len() {
+        &test_all
+    } else {
+        test_sub = test_all.columns(&test_cols);
+        &test_sub
+    };
     let bfile = H5In::open(&store.dir(ArtifactKind::BASIS, basis).join(bnames::FILE))?;
     let theta_full = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG, bnames::MODES))?;
     let theta_trunc = bfile.matrix(&format!("{}/{}", bnames::DUAL_CPG_TRUNCATED, bnames::MODES))?;
     drop(bfile);
     let op = phys.operator();
     let sweep = sweep_pairs(phi.cols, theta_full.cols, theta_trunc.cols);
-    let queries = train_set.parameters.len() + test_set.parameters.len();
+    let paper_at = [&train_paper[..], &test_paper[..]];
+    let error_rows: usize = [theta_full.cols, theta_trunc.cols]
+        .into_iter()
+        .map(|rl| {
+            let paper =
+                |k: usize, n: usize| if paper_limited(rl, paper_at[k].len(), n) { paper_at[k].len() } else { n };
+            let (n_train, n_test) = (train_set.parameters.len(), test_set.parameters.len());
+            n_train + n_test + paper(0, n_train) + paper(1, n_test)
+        })
+        .sum();
     let paper_pairs = sweep.iter().filter(|s| paper_pair(s, &sweep)).count();
     let sampled_pairs = settings.contact_sampling.as_ref().map_or(0, |cs| cs.ranks.len());
-    let mut progress =
-        progress.stage("online ROM", 2 + 2 * ALGORITHMS.len() * queries + sweep.len() + paper_pairs + sampled_pairs);
+    let mut progress = progress.stage("online ROM", 2 + error_rows + sweep.len() + paper_pairs + sampled_pairs);
     // offline: the reduced model at full ranks, error references
     // warm starts of the exact solve at the training points (the paper algorithm does not read
-    // them; `leading` drops them, so the sweep's models build their own)
+    // them; `leading` drops them, so the sweep's models build their own), all of them
     let full = ReducedModel::new(op, &phi.data, phi.cols, &theta_full.data, theta_full.cols)
         .map_err(|e| fail(e.to_string()))?
-        .with_warm_starts(&train_set.parameters, &params);
+        .with_warm_starts(&train_all.parameters, &params);
     let prefix = theta_trunc.data.len() <= theta_full.data.len()
         && theta_trunc.data == theta_full.data[..theta_trunc.data.len()];
     let trunc = if prefix {
@@ -235,36 +329,37 @@ fn measure(
         ReducedModel::new(op, &phi.data, phi.cols, &theta_trunc.data, theta_trunc.cols)
             .map_err(|e| fail(e.to_string()))?
     }
-    .with_warm_starts(&train_set.parameters, &params);
+    .with_warm_starts(&train_all.parameters, &params);
     let references = |set: &trainset::TrainingSet| {
         let refs: Vec<(&[f64], &[f64])> =
             set.parameters.iter().enumerate().map(|(j, mu)| (mu.as_slice(), set.primal.col(j))).collect();
         PrimalErrors::new(op, &phi.data, phi.cols, &refs)
     };
-    let (train_pe, test_pe) = rayon::join(|| references(&train_set), || references(&test_set));
+    let (train_pe, test_pe) = rayon::join(|| references(train_set), || references(test_set));
     // the full-order solve is timed at the test points (the speed-ups are test-set figures)
     let sets = [
-        ("train", &*train_set, train_pe, vec![f64::NAN; train_set.parameters.len()]),
-        ("test", &*test_set, test_pe, test_fom),
+        ("train", train_set, train_pe, vec![f64::NAN; train_set.parameters.len()]),
+        ("test", test_set, test_pe, test_fom),
     ];
     progress.inc("offline");
     let (_, _, test_pe, test_fom) = &sets[1];
     let test_pe = test_pe.as_ref().ok_or_else(|| fail("Phi^T H Phi is not positive definite".into()))?;
     let theta = (theta_full.cols, theta_trunc.cols, prefix);
-    let online = Online { op, params, scene, train: &train_set, test: &test_set, phi, theta, full, sweep };
+    let online = Online { op, params, scene, train: &train_all, test: test_set, phi, theta, full, sweep };
     let (mut trade, mut at_full_ranks) = online.sweep_rows((test_pe, test_fom), &mut progress);
     if let Some(cs) = &settings.contact_sampling {
         online.sampled_rows(cs, (test_pe, test_fom), &mut trade, &mut progress).map_err(fail)?;
     }
     let (errors, shown) =
-        online.error_rows(&trunc, &sets, &mut at_full_ranks, &labels.names, &mut progress).map_err(fail)?;
+        online.error_rows(&trunc, (&sets, paper_at), &mut at_full_ranks, &labels.names, &mut progress).map_err(fail)?;
     let (errors, query_times) = errors.tables();
     errors.write_parquet(&staging.path(names::ERRORS))?;
     query_times.write_parquet(&staging.path(names::TIMINGS))?;
     let (trade, trade_times) = trade.tables();
     trade.write_parquet(&staging.path(names::TRADEOFF))?;
     trade_times.write_parquet(&staging.path(names::TRADEOFF_TIMINGS))?;
-    write_online(&staging.path(names::ONLINE), op, &online.phi, &online.full, &test_set, &shown)?;
+    let sampled = (test_cols.len() < test_all.parameters.len()).then_some(&test_cols[..]);
+    write_online(&staging.path(names::ONLINE), op, &online.phi, &online.full, (test_set, sampled), &shown)?;
     progress.inc("written");
     progress.finish("computed");
     Ok(BTreeMap::from([
@@ -342,7 +437,7 @@ impl Online<'_> {
     fn error_rows(
         &self,
         trunc: &ReducedModel,
-        sets: &[(&str, &trainset::TrainingSet, Option<PrimalErrors>, Vec<f64>); 2],
+        (sets, paper_at): (&[(&str, &trainset::TrainingSet, Option<PrimalErrors>, Vec<f64>); 2], [&[usize]; 2]),
         at_full_ranks: &mut AtFullRanks,
         names: &[String],
         progress: &mut crate::progress::StageProgress,
@@ -352,12 +447,19 @@ impl Online<'_> {
         for (dual_basis, model) in [("full", &self.full), ("truncated", trunc)] {
             for alg in ALGORITHMS {
                 let p = RomParams { algorithm: alg, ..self.params };
-                for (set, data, pe, fom) in sets {
+                for ((set, data, pe, fom), paper) in sets.iter().zip(paper_at) {
                     let pe = pe.as_ref().ok_or_else(|| "Phi^T H Phi is not positive definite".to_string())?;
+                    let n = data.parameters.len();
+                    // the paper's algorithm on a large dual basis: at its sample only
+                    let limited = alg == Algorithm::Paper && paper_limited(model.ranks().1, paper.len(), n);
+                    let at: Vec<usize> = if limited { paper.to_vec() } else { (0..n).collect() };
                     let cached = if *set == "test" { at_full_ranks.remove(&(alg.name(), dual_basis)) } else { None };
-                    let rows = cached.unwrap_or_else(|| solve_set(model, data, &p));
+                    let rows = match cached {
+                        Some(rows) if rows.len() == at.len() => rows,
+                        _ => solve_at(model, data, &at, &p),
+                    };
                     let keep = *set == "test" && dual_basis == "full" && alg == Algorithm::Exact;
-                    for (j, q) in rows.into_iter().enumerate() {
+                    for (q, &j) in rows.into_iter().zip(&at) {
                         let errs = (pe.relative(j, &q.sol.u_hat), dual_error(self.op, model, &q.sol, data, j));
                         let ranks = model.ranks();
                         errors.push(self.scene, set, dual_basis, alg, &data.parameters[j], ranks, errs, &q, fom[j]);
@@ -373,6 +475,12 @@ impl Online<'_> {
     }
 }
 
+/// Whether the paper's algorithm with `r_l` dual modes is measured at a sample of `sample` of
+/// a set's `n` measured points only ([`PAPER_POINTS`]).
+fn paper_limited(r_l: usize, sample: usize, n: usize) -> bool {
+    r_l > PAPER_SWEEP_MAX_DUAL && sample < n
+}
+
 /// `online.h5`: the online solution at every test point as fields, with its pointwise error
 /// against the test snapshot (reconstructed here, outside every timer, one block of columns at
 /// a time so that a large test set never needs the whole matrices in memory).
@@ -381,7 +489,7 @@ fn write_online(
     op: &dyn ContactOperator,
     phi: &ColMatrix,
     model: &ReducedModel,
-    test: &trainset::TrainingSet,
+    (test, sampled): (&trainset::TrainingSet, Option<&[usize]>),
     shown: &[ReducedSolution],
 ) -> Result<(), CromError> {
     let (n, m, k) = (test.primal.rows, test.dual.rows, shown.len());
@@ -434,6 +542,10 @@ fn write_online(
         f.table_f64("parameters", k, names_len, &flat, "parameter values of each column")?;
     }
     let converged: Vec<u64> = shown.iter().map(|s| u64::from(s.outcome == RomOutcome::Converged)).collect();
+    if let Some(cols) = sampled {
+        // a sample of a large test set: which column of the test set each solution is at
+        f.vec_u64(names::TEST_COLUMNS, &cols.iter().map(|&c| c as u64).collect::<Vec<_>>())?;
+    }
     f.vec_u64("converged", &converged)
 }
 
@@ -457,16 +569,21 @@ const INF_SUP_SAMPLES: usize = 8;
 /// indicator timed separately, once, right after the point's first solve (at the timed points
 /// only).
 fn solve_set(model: &ReducedModel, set: &trainset::TrainingSet, p: &RomParams) -> Vec<Query> {
-    let stride = set.parameters.len().div_ceil(INF_SUP_SAMPLES).max(1);
+    solve_at(model, set, &(0..set.parameters.len()).collect::<Vec<_>>(), p)
+}
+
+/// [`solve_set`] at the columns `at` of the set only, in that order.
+fn solve_at(model: &ReducedModel, set: &trainset::TrainingSet, at: &[usize], p: &RomParams) -> Vec<Query> {
+    let stride = at.len().div_ceil(INF_SUP_SAMPLES).max(1);
     time_each(
-        set.parameters.iter().enumerate(),
+        at.iter().enumerate().map(|(i, &j)| (i, &set.parameters[j])),
         RomWork::default(),
         |w, (_, mu)| model.solve_in(mu, p, w),
         |i| i.outcome == RomOutcome::Converged,
-        |w, &(j, mu), info| {
+        |w, &(i, mu), info| {
             let sol = w.solution(&info);
             // at the solve's own linearisation, before the indicator re-pairs
-            let inf_sup = if j % stride == 0 { model.inf_sup(w) } else { None };
+            let inf_sup = if i % stride == 0 { model.inf_sup(w) } else { None };
             let t = Instant::now();
             let indicator = model.indicator(mu, w);
             let indicator_seconds = t.elapsed().as_secs_f64();
@@ -711,6 +828,50 @@ impl ErrorRows {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The measured sample: every point of a set up to MEASURED_POINTS, else that many distinct
+    /// columns, ascending, the same on every call, another draw for the other set; the paper's
+    /// positions index PAPER_POINTS of them. On a 128 x 32 tensor grid in storage order (the
+    /// vector scene's test points) every one of the 32 presses is drawn about 32 times, where a
+    /// stride of four would draw 8 of them.
+    #[test]
+    fn the_measured_sample_is_a_uniform_draw_of_distinct_columns() {
+        let m = Measured { points: MEASURED_POINTS, paper_points: PAPER_POINTS, seed: 20234 };
+        for n in [0, 1, 200, PAPER_POINTS, 300, MEASURED_POINTS] {
+            let (cols, paper) = m.columns(1, n);
+            assert_eq!(cols, (0..n).collect::<Vec<_>>(), "{n}");
+            assert_eq!(paper.len(), n.min(PAPER_POINTS), "{n}");
+            assert!(paper.windows(2).all(|w| w[0] < w[1]) && paper.iter().all(|&p| p < n), "{n}");
+        }
+        let n = 128 * 32;
+        let (cols, paper) = m.columns(1, n);
+        assert_eq!(cols.len(), MEASURED_POINTS);
+        assert!(cols.windows(2).all(|w| w[0] < w[1]) && cols[MEASURED_POINTS - 1] < n);
+        assert_eq!(m.columns(1, n), (cols.clone(), paper.clone()), "the same draw on every call");
+        assert_ne!(m.columns(0, n).0, cols, "the training set has its own draw");
+        assert_eq!(paper.len(), PAPER_POINTS);
+        assert!(paper.windows(2).all(|w| w[0] < w[1]) && paper[PAPER_POINTS - 1] < MEASURED_POINTS);
+        let mut per_press = [0usize; 32];
+        for c in &cols {
+            per_press[c % 32] += 1;
+        }
+        // 1 024 draws over 32 presses: 32 each on average, a standard deviation of about 5.5
+        assert!(per_press.iter().all(|&k| (12..=52).contains(&k)), "{per_press:?}");
+    }
+
+    /// The sample enters the stage's key only where a set is larger than PAPER_POINTS: the
+    /// keys of the shipped scenes with smaller sets stay what they were.
+    #[test]
+    fn only_large_sets_put_the_sample_into_the_key() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/scenes");
+        for (file, sampled) in
+            [("ironing-fine.toml", false), ("ironing-3d-2d.toml", false), ("ironing-fine-2d.toml", true)]
+        {
+            let scene = SceneConfig::load(&dir.join(file)).expect("shipped scene");
+            let key = serde_json::to_string(&RomKey::of(&scene)).expect("json");
+            assert_eq!(key.contains("\"measured\""), sampled, "{file}: {key}");
+        }
+    }
 
     fn cols(t: &Table) -> Vec<String> {
         t.columns.iter().map(|(n, _)| n.clone()).collect()

@@ -48,8 +48,9 @@ impl<'s> Shared<'s> {
 pub(crate) struct LazyPhysics<'s> {
     scene: &'s SceneConfig,
     built: Option<Physics>,
-    /// The full-order solve times at the points of one set (its key), measured on first use.
-    fom: Option<(Key, Vec<f64>)>,
+    /// The full-order solve times at some points of one set (its key, the points), measured on
+    /// first use.
+    fom: Option<(Key, Vec<Vec<f64>>, Vec<f64>)>,
     /// The POD of one training set's responses (its key), computed on first use.
     responses: Option<(Key, std::sync::Arc<crate::io::h5::ColMatrix>)>,
     /// The POD of one training set's responses and their translates (its key and the shift).
@@ -62,19 +63,20 @@ impl<'s> LazyPhysics<'s> {
         Self { scene, built: None, fom: None, responses: None, translated: None }
     }
 
-    /// The full-order solve time at each point of the set `set` (its key; `parameters` its
-    /// points), measured on the first call in this process ([`online::fom_seconds`]) and handed to
-    /// every later stage that asks for the same set: the trade-off and the online comparison
-    /// then state their speed-ups against one measurement, and the full-order solves are timed
-    /// once per run instead of once per stage.
+    /// The full-order solve time at each of `parameters`, points of the set `set` (its key; all
+    /// of them, or the sample of them an online stage measures), measured on the first call in
+    /// this process ([`online::fom_seconds`]) and handed to every later stage that asks for the
+    /// same points of the same set: the trade-off and the online comparison then state their
+    /// speed-ups against one measurement, and the full-order solves are timed once per run
+    /// instead of once per stage.
     pub(crate) fn fom_seconds(&mut self, set: &Key, parameters: &[Vec<f64>]) -> Result<Vec<f64>, CromError> {
-        if let Some((of, seconds)) = &self.fom {
-            if of == set && seconds.len() == parameters.len() {
+        if let Some((of, points, seconds)) = &self.fom {
+            if of == set && points.as_slice() == parameters {
                 return Ok(seconds.clone());
             }
         }
         let seconds = online::fom_seconds(self.get()?, parameters);
-        self.fom = Some((set.clone(), seconds.clone()));
+        self.fom = Some((set.clone(), parameters.to_vec(), seconds.clone()));
         Ok(seconds)
     }
 
@@ -179,6 +181,11 @@ mod tests {
         let other = physics.fom_seconds(&b, &points).expect("rope");
         assert_ne!(bits(&other), bits(&first), "another set is timed afresh");
         assert_eq!(bits(&physics.fom_seconds(&b, &points).expect("rope")), bits(&other));
+        // other points of the same set (a sample an online stage measures): timed afresh
+        let sample: Vec<Vec<f64>> = points.iter().step_by(2).cloned().collect();
+        let part = physics.fom_seconds(&b, &sample).expect("rope");
+        assert_eq!(part.len(), sample.len());
+        assert_ne!(bits(&part), bits(&other[..sample.len()]), "a sample of the set is timed afresh");
     }
 
     /// The response basis is computed once per training set and handed out again (the same

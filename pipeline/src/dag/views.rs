@@ -458,9 +458,24 @@ fn online(
         };
         let n_contact = f.shape("dual")?.first().copied().unwrap_or(0);
         let converged = f.vec_u64("converged")?;
+        // a sample of a large test set: the test set's column of each solution
+        let columns =
+            if f.contains(rom_names::TEST_COLUMNS) { Some(f.vec_u64(rom_names::TEST_COLUMNS)?) } else { None };
         drop(f);
         // The test set's own steps give the full-order fields, renamed, and the parameter.
         let mut steps = set_steps(&root, &stats, names_of, (n_dof, n_contact))?;
+        if let Some(columns) = &columns {
+            let n = steps.len();
+            if columns.len() != k || columns.iter().any(|&c| c as usize >= n) {
+                return Err(CromError::artifact(
+                    &online_file,
+                    format!("{} test columns for {k} online solutions of {n} test points", columns.len()),
+                    "delete the rom artifact and rerun",
+                ));
+            }
+            let mut all: Vec<Option<Step>> = steps.into_iter().map(Some).collect();
+            steps = columns.iter().filter_map(|&c| all[c as usize].take()).collect();
+        }
         if k != steps.len() || converged.len() != k {
             return Err(CromError::artifact(
                 &online_file,

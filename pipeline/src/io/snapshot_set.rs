@@ -14,3 +14,21 @@ pub(crate) struct TrainingSet {
     /// Parameter points, one value per component each.
     pub parameters: Vec<Vec<f64>>,
 }
+
+impl TrainingSet {
+    /// The columns `cols` of this set, in that order (a copy).
+    pub(crate) fn columns(&self, cols: &[usize]) -> TrainingSet {
+        let pick = |m: &ColMatrix| {
+            let mut data = Vec::with_capacity(m.rows * cols.len());
+            for &j in cols {
+                data.extend_from_slice(m.col(j));
+            }
+            ColMatrix { rows: m.rows, cols: cols.len(), data }
+        };
+        TrainingSet {
+            primal: pick(&self.primal),
+            dual: pick(&self.dual),
+            parameters: cols.iter().map(|&j| self.parameters[j].clone()).collect(),
+        }
+    }
+}
