@@ -18,7 +18,7 @@ each target beside the measured value. Part of `just bench`; not a test.
      whole offline study cold; growing 12 -> 13 against cold 13. Targets: level 13 <= 60 s,
      <= 1.5 GiB; level 14 <= 150 s, <= 2 GiB; growing <= 0.5 x cold.
 
-  D-dense  (not in the default list: about 26 minutes, 5.3 GB peak) ironing-fine-2d on 129 x 33
+  D-dense  (not in the default list: about 7 minutes, 5.5 GB peak) ironing-fine-2d on 129 x 33
      training points with max_m = 32, whole study; the stored model at 64 random points
      median <= 0.1 %
   F16  (not in the default list: each row takes about a quarter of an hour on 2 cores)
