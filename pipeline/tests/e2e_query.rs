@@ -327,9 +327,9 @@ fn a_moments_map_over_two_components_is_stored_and_answers_as_measured() {
             ("name = \"ironing-fine-2d\"", "name = \"ironing-2d-small\""),
             ("nx = 200\nny = 40", "nx = 50\nny = 10"),
             ("nx = 60\nny = 60", "nx = 15\nny = 15"),
-            ("train_level = 6", "train_level = 3"),
-            ("train_level = 4", "train_level = 1"),
-            ("max_m = 16", "max_m = 4"),
+            ("train_level = 7", "train_level = 3"),
+            ("train_level = 5", "train_level = 1"),
+            ("max_m = 32", "max_m = 4"),
             ("loo_folds = 32", "loo_folds = 4"),
             (
                 "  { kind = \"pod\" },\n  { kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"pod\" },\n",

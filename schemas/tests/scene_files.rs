@@ -41,10 +41,10 @@ fn every_shipped_scene_loads_and_matches_scenes_md() {
                 assert_eq!((i.slab.nx, i.slab.ny, i.iron.nx, i.iron.ny), (200, 40, 60, 60));
             }
             (Model::Ironing(i), "ironing-fine-2d") => {
-                // The fine mesh, with d_y a parameter axis: 65 x 17 training points.
+                // The fine mesh, with d_y a parameter axis: 129 x 33 training points.
                 assert_eq!((i.slab.nx, i.slab.ny, i.iron.nx, i.iron.ny), (200, 40, 60, 60));
                 assert_eq!((i.d_y, cfg.parameter.names()), (None, vec!["d_x", "d_y"]));
-                assert_eq!(cfg.parameter.train_points().len(), 65 * 17);
+                assert_eq!(cfg.parameter.train_points().len(), 129 * 33);
             }
             (Model::Hertz3d(h), "hertz-3d") => {
                 // docs/scenes.md#hertz-3d: 24 elements a side graded with exponent 3, d up to 0.01
@@ -172,11 +172,11 @@ fn vector_parameters_are_checked_against_the_model() {
     );
     SceneConfig::from_toml_str(&nb, Path::new("ok.toml")).expect("neighbours on two components");
     // An axis with both grid settings.
-    let grid = base.replace("train_level = 4", "train_level = 4\nn_train = 9");
+    let grid = base.replace("train_level = 5", "train_level = 5\nn_train = 9");
     let err = SceneConfig::from_toml_str(&grid, Path::new("bad.toml")).expect_err("two grids");
     assert_names(&err, &["parameter.axes[0].train_level"]);
-    // Too many points on a tensor grid: 8 193 x 17 = 139 281 > 2^17 + 1.
-    let big = base.replace("train_level = 6", "train_level = 13");
+    // Too many points on a tensor grid: 4 097 x 33 = 135 201 > 2^17 + 1.
+    let big = base.replace("train_level = 7", "train_level = 12");
     let err = SceneConfig::from_toml_str(&big, Path::new("bad.toml")).expect_err("too many points");
     assert_names(&err, &["parameter", "training points"]);
 }

@@ -25,7 +25,7 @@ def scene_2d(tmp: pathlib.Path) -> pathlib.Path:
     text = (REPO / "data/scenes/ironing-fine-2d.toml").read_text()
     for a, b in COARSE.items():
         text = text.replace(a, b)
-    text = text.replace("train_level = 6", "train_level = 1").replace("train_level = 4", "train_level = 1")
+    text = text.replace("train_level = 7", "train_level = 1").replace("train_level = 5", "train_level = 1")
     text = text.replace('name = "ironing-fine-2d"', 'name = "ironing-2d-small"')
     path = tmp / "ironing-2d-small.toml"
     path.write_text(text)

@@ -60,7 +60,7 @@ pub fn frame(s: MatRef<'_, f64>) -> Frame {
 /// The largest frame worth building for N snapshots: the frame costs about
 /// `n N (q + B)^2 / B` and a direct SVD of a tall n x N matrix `n N^2`, so the frame pays while
 /// `(q + B)^2 < N B`. Measured: ironing-coarse's 6 164 x 2 049 displacements (q = 192) 11 s
-/// direct against 2 s framed; ironing-fine-2d's 11 800 x 1 105 (rank 391) the other way.
+/// direct against 2 s framed; ironing-fine-2d's 11 800 x 1 105 on 65 x 17 points (rank 391) the other way.
 pub fn frame_pays_up_to(count: usize) -> usize {
     (((count * FRAME_BLOCK) as f64).sqrt() as usize).saturating_sub(FRAME_BLOCK)
 }

@@ -60,7 +60,7 @@ pub const POD_FRAME_ABOVE: usize = 1025;
 /// [`POD_FRAME_ABOVE`] snapshots, when it has at most
 /// [`frame_pays_up_to`](super::frame::frame_pays_up_to) columns (else `None`: the direct SVD
 /// is as cheap). Measured: ironing-coarse level 12 (6 164 x 4 097, q = 192) 192 s → 48 s
-/// offline; ironing-fine-2d (11 800 x 1 105, rank 391) keeps the direct SVD.
+/// offline; ironing-fine-2d on 65 x 17 points (11 800 x 1 105, rank 391) keeps the direct SVD.
 pub fn pod_frame(s: MatRef<'_, f64>) -> Option<super::Frame> {
     (s.ncols() > POD_FRAME_ABOVE)
         .then(|| super::frame::frame_within(s, super::frame::frame_pays_up_to(s.ncols())))
