@@ -213,3 +213,18 @@ def test_a_vector_parameter_is_the_step_index_as_time_and_one_field_per_componen
         assert np.all(pd["d_x"] == ts.parameters[k, 0]) and np.all(pd["d_y"] == ts.parameters[k, 1])
         np.testing.assert_array_equal(pd["displacement"],
                                       expected_displacement(ts.primal[:, k], len(mesh.nodes), mesh.dofs_per_node))
+
+
+def test_a_sampled_test_set_is_named_in_the_report(rope_store, rope_large_store):
+    """The report says how many points a sampled large set shows (1 024 of each set of the
+    1 100 + 1 099-point rope, counted from the error table), and a set measured whole is not
+    said to be sampled."""
+    large = (crom_data.open_store(rope_large_store).scene("rope-large").report_dir / "index.html").read_text()
+    errors = crom_data.open_store(rope_large_store).scene("rope-large").rom_errors()
+    exact = errors[(errors["dual_basis"] == "full") & (errors["algorithm"] == "exact")]
+    n_train, n_test = (exact["set"] == "train").sum(), (exact["set"] == "test").sum()
+    assert (n_train, n_test) == (1024, 1024)
+    assert f"online solve, {n_test} of the 1099 test points (drawn at random), full dual basis" in large
+    assert f"at {n_train} of the 1100 training and {n_test} of the 1099 test points, drawn at random" in large
+    small = (crom_data.open_store(rope_store).scene("rope").report_dir / "index.html").read_text()
+    assert "online solve, test points, full dual basis" in small and "drawn at random" not in small

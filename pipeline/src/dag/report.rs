@@ -42,9 +42,10 @@ impl StageKey for ReportKey {
     /// Bump when the report's content changes (10: the sampled-surface series of the trade-off
     /// figure; 11: the stored reduced model among the facts; 12: the captions say that times are
     /// over the timed sample of test points, and a full study's report lists what its plan
-    /// skipped, and a surface-drawn scene the full-order and online pressure side by side). The
-    /// scene joined the key without a bump: the key changed with it.
-    const ALGORITHM_VERSION: u32 = 12;
+    /// skipped, and a surface-drawn scene the full-order and online pressure side by side; 13:
+    /// the online error figures say how many points a sampled large set shows). The scene
+    /// joined the key without a bump: the key changed with it.
+    const ALGORITHM_VERSION: u32 = 13;
 }
 
 /// The artifacts a report shows.

@@ -530,8 +530,12 @@ fn rom_rows(d: &ReportData, set: &str, basis: &str) -> (Vec<f64>, Vec<f64>, Vec<
 
 fn rom_errors(scene: &SceneConfig, d: &ReportData, dir: &Path, basis: &str) -> Result<Figure, CromError> {
     let mut series = Vec::new();
-    for set in ["train", "test"] {
+    // a large set is measured on a sample (the online stage's `measured`): say how many points
+    let sizes = [scene.parameter.train_points().len(), scene.parameter.test_points().len()];
+    let mut shown = [0; 2];
+    for (k, set) in ["train", "test"].into_iter().enumerate() {
         let (mu, pe, de) = rom_rows(d, set, basis);
+        shown[k] = mu.len();
         let what = if set == "train" { "training points" } else { "test points" };
         series.push(Series::line(&format!("primal (H1), {what}"), mu.clone(), pe).mark(Mark::Points));
         series.push(Series::line(&format!("dual (L2), {what}"), mu, de).mark(Mark::Points));
@@ -554,7 +558,15 @@ fn rom_errors(scene: &SceneConfig, d: &ReportData, dir: &Path, basis: &str) -> R
         Axes { x: &scene.parameter.name, y: "relative error", log_x: false, log_y: true, legend: Legend::MiddleRight },
         series,
         format!(
-            "Relative errors of the online reduced solve (Algorithm 1) at training and test points with the {basis} CPG dual basis (paper Figs. 3, 7)."
+            "Relative errors of the online reduced solve (Algorithm 1) at {} with the {basis} CPG dual basis (paper Figs. 3, 7).",
+            if shown[0] < sizes[0] || shown[1] < sizes[1] {
+                format!(
+                    "{} of the {} training and {} of the {} test points, drawn at random (a large set is measured on a sample)",
+                    shown[0], sizes[0], shown[1], sizes[1]
+                )
+            } else {
+                "training and test points".to_string()
+            }
         ),
     )
 }

@@ -36,9 +36,23 @@ pub(crate) fn write_index(
         ),
     ];
     let mut facts = facts.to_vec();
+    // a large test set is measured on a sample (the online stage's `measured`)
+    let tests = scene.parameter.test_points().len();
+    let t = &d.rom_errors;
+    let measured = match (t.strs("set"), t.strs("dual_basis"), t.strs("algorithm")) {
+        (Some(set), Some(basis), Some(alg)) => {
+            (0..set.len()).filter(|&i| set[i] == "test" && basis[i] == "full" && alg[i] == "exact").count()
+        }
+        _ => tests,
+    };
+    let which = if measured < tests {
+        format!("online solve, {measured} of the {tests} test points (drawn at random)")
+    } else {
+        "online solve, test points".to_string()
+    };
     for basis in ["full", "truncated"] {
         if let Some(line) = online_summary(d, basis) {
-            facts.push((format!("online solve, test points, {basis} dual basis"), line));
+            facts.push((format!("{which}, {basis} dual basis"), line));
         }
     }
     if let Some(m) = &d.model {
