@@ -89,7 +89,7 @@ impl RomKey {
     /// The columns of set `which` (0 training, 1 test; `n` points) that are measured, and the
     /// positions among them at which the paper's algorithm is measured when its dual basis is
     /// large ([`Measured::columns`]); every point where nothing is sampled.
-    fn measured(&self, which: u64, n: usize) -> (Vec<usize>, Vec<usize>) {
+    fn measured(&self, which: u64, n: usize) -> Sample {
         match &self.measured {
             Some(m) => m.columns(which, n),
             None => ((0..n).collect(), (0..n).collect()),
@@ -135,6 +135,10 @@ pub(crate) const MEASURED_POINTS: usize = 1024;
 /// (392, 4257) modes, 79 ms per query, 337 s for the 4 257 training points alone.
 pub(crate) const PAPER_POINTS: usize = 256;
 
+/// The measured columns of a set, and the positions among them of the paper's sample
+/// ([`Measured::columns`]).
+type Sample = (Vec<usize>, Vec<usize>);
+
 /// Which points of a large set the online stage measures: [`MEASURED_POINTS`] of them drawn
 /// without replacement (a partial Fisher-Yates shuffle on a stream of the scene's seed and the
 /// set), and of those the first [`PAPER_POINTS`] drawn for the paper's algorithm where its dual
@@ -151,7 +155,7 @@ impl Measured {
     /// The measured columns of set `which` (0 training, 1 test) of `n` points, ascending
     /// (all of them up to [`Self::points`]), and the positions among them of the paper's
     /// sample, ascending (all of them up to [`Self::paper_points`]).
-    fn columns(&self, which: u64, n: usize) -> (Vec<usize>, Vec<usize>) {
+    fn columns(&self, which: u64, n: usize) -> Sample {
         let k = n.min(self.points);
         let mut order: Vec<usize> = (0..n).collect();
         let mut rng =
@@ -232,13 +236,14 @@ fn run(
 ) -> Result<Key, CromError> {
     let (store, loaded, progress) = (ctx.store, std::sync::Arc::clone(&ctx.loaded), ctx.progress);
     let (manifest, computed) = ctx.cached(ArtifactKind::ROM, spec, |staging| {
-        // the full-order solves are timed at the measured test points, as the queries
-        let test = loaded.set(store, keys[1])?;
-        let (cols, _) = settings.0.measured(1, test.parameters.len());
-        let points: Vec<Vec<f64>> = cols.iter().map(|&j| test.parameters[j].clone()).collect();
+        let (train, test) = (loaded.set(store, keys[0])?, loaded.set(store, keys[1])?);
+        // the measured points of each set (all of them, or a keyed sample of a large set), drawn
+        // once: the full-order solves are timed at the test sample, as the queries
+        let sample = [settings.0.measured(0, train.parameters.len()), settings.0.measured(1, test.parameters.len())];
+        let points: Vec<Vec<f64>> = sample[1].0.iter().map(|&j| test.parameters[j].clone()).collect();
         let fom = physics.fom_seconds(keys[1], &points)?;
-        let phi = physics.responses(keys[0], &*loaded.set(store, keys[0])?, failure(&settings.1.scene))?;
-        measure(physics.get()?, (store, &loaded, progress), settings, keys, (fom, phi), staging)
+        let phi = physics.responses(keys[0], &train, failure(&settings.1.scene))?;
+        measure(physics.get()?, (store, &loaded, progress), settings, keys, (fom, phi, sample), staging)
     })?;
     if !computed {
         progress.stage("online ROM", 1).finish("cached");
@@ -273,16 +278,15 @@ fn measure(
     (store, loaded, progress): (&crate::store::Store, &super::inputs::loaded::Loaded, crate::progress::Progress),
     (settings, labels): (&RomKey, &Labels),
     [train, test, basis]: [&Key; 3],
-    (test_fom, phi): (Vec<f64>, Arc<ColMatrix>),
+    (test_fom, phi, sample): (Vec<f64>, Arc<ColMatrix>, [Sample; 2]),
     staging: &crate::store::Staging,
 ) -> Result<BTreeMap<String, serde_json::Value>, CromError> {
     let params = settings.params();
     let scene = labels.scene.as_str();
     let fail = failure(scene);
     let (train_all, test_all) = (loaded.set(store, train)?, loaded.set(store, test)?);
-    // the measured points of each set: all of them, or a keyed sample of a large set
-    let (train_cols, train_paper) = settings.measured(0, train_all.parameters.len());
-    let (test_cols, test_paper) = settings.measured(1, test_all.parameters.len());
+    // the measured points of each set ([`RomKey::measured`]) and the paper's among them
+    let [(train_cols, train_paper), (test_cols, test_paper)] = sample;
     let (train_sub, test_sub);
     let train_set: &trainset::TrainingSet = if train_cols.len() == train_all.parameters.len() {
         &train_all

@@ -509,7 +509,7 @@ fn compactness(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure
 }
 
 /// Rows of the ROM error table for one set and dual basis: (parameter, primal error, dual error).
-fn rom_rows(d: &ReportData, set: &str, basis: &str) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+pub(super) fn rom_rows(d: &ReportData, set: &str, basis: &str) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let t = &d.rom_errors;
     let (Some(sets), Some(bases), Some(mu), Some(pe), Some(de)) =
         (t.strs("set"), t.strs("dual_basis"), t.f64s("parameter"), t.f64s("primal_error"), t.f64s("dual_error"))

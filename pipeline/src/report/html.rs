@@ -38,14 +38,8 @@ pub(crate) fn write_index(
     let mut facts = facts.to_vec();
     // a large test set is measured on a sample (the online stage's `measured`)
     let tests = scene.parameter.test_points().len();
-    let t = &d.rom_errors;
-    let measured = match (t.strs("set"), t.strs("dual_basis"), t.strs("algorithm")) {
-        (Some(set), Some(basis), Some(alg)) => {
-            (0..set.len()).filter(|&i| set[i] == "test" && basis[i] == "full" && alg[i] == "exact").count()
-        }
-        _ => tests,
-    };
-    let which = if measured < tests {
+    let measured = super::figures::rom_rows(d, "test", "full").0.len();
+    let which = if (1..tests).contains(&measured) {
         format!("online solve, {measured} of the {tests} test points (drawn at random)")
     } else {
         "online solve, test points".to_string()
