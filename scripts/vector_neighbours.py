@@ -2,13 +2,14 @@
 """The registered neighbours over a vector parameter, rebuilt independently of crom's Rust code
 (docs/results.md#the-vector-parameter-ironing-fine-2d).
 
-Reads a finished `crom run ironing-fine-2d`: its published train.h5 and test.h5, the contact
-nodes' abscissae and their spacing from model.h5's `reg_surface` and `reg_grid`, and crom's
-comparison.parquet. With NumPy and
-SciPy only it
+Reads a finished `crom run SCENE` whose stored model is the registered neighbours
+(ironing-fine-2d; ironing-3d-2d on 65 x 33 points, `scripts/bench_scale.py D3-dense`): its
+published train.h5 and test.h5, the contact nodes' abscissae, lines and spacing from model.h5's
+`reg_surface`, `reg_across` (a contact area) and `reg_grid`, and crom's comparison.parquet.
+With NumPy and SciPy only it
 
-1. shifts every pressure by whole nodes, k(c) = round(c / h) for the travel c = d_x, leaving the
-   part of a node rho(c) = c / h - k(c);
+1. shifts every pressure by whole nodes along each line of the contact, k(c) = round(c / h) for
+   the travel c = d_x, leaving the part of a node rho(c) = c / h - k(c);
 2. orders the training pressures at a point (c, mu2) by the rule of docs/design-notes.md
    ("Registered neighbours over a vector parameter"): four sides (rho_j - rho wrapped into
    (-1/2, 1/2] above 0 or not, mu2_j above mu2 or not) take turns in the order of their best
@@ -19,7 +20,7 @@ SciPy only it
 4. prints the mean relative test error on the cone of the first m columns (non-negative least
    squares, Euclidean norm) beside crom's `test` row for registered-translate-nodes-neighbours.
 
-Usage: scripts/vector_neighbours.py [STORE]   (default data/store)
+Usage: scripts/vector_neighbours.py [SCENE [STORE]]   (default ironing-fine-2d, data/store)
 """
 import pathlib
 import sys
@@ -31,8 +32,9 @@ from scipy.optimize import nnls
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from vector_store import VectorStore  # noqa: E402
 
-store = sys.argv[1] if len(sys.argv) > 1 else "data/store"
-vs = VectorStore("ironing-fine-2d", store)
+scene = sys.argv[1] if len(sys.argv) > 1 else "ironing-fine-2d"
+store = sys.argv[2] if len(sys.argv) > 2 else "data/store"
+vs = VectorStore(scene, store)
 S, P, T, Q, x, model, D = vs.S, vs.P, vs.T, vs.Q, vs.x, vs.model, vs.dir
 order_x = np.argsort(x, kind="stable")
 # the node spacing as crom stores it (`reg_grid`): the training travels are binary fractions that
@@ -45,16 +47,18 @@ MS = [1, 2, 3, 4, 5, 6, 8, 16]
 
 
 def shift(s, k):
-    """The pressure moved by k nodes along x (zero where nothing moves in)."""
-    v, out = s[order_x], np.zeros_like(s)
-    moved = np.zeros_like(v)
-    if k > 0:
-        moved[k:] = v[:-k]
-    elif k < 0:
-        moved[:k] = v[-k:]
-    else:
-        moved = v
-    out[order_x] = moved
+    """The pressure moved by k nodes along x on every line (zero where nothing moves in)."""
+    out = np.zeros_like(s)
+    for line in vs.lines:
+        v = s[line]
+        moved = np.zeros_like(v)
+        if k > 0:
+            moved[k:] = v[:-k]
+        elif k < 0:
+            moved[:k] = v[-k:]
+        else:
+            moved = v
+        out[line] = moved
     return out
 
 

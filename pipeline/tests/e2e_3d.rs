@@ -82,8 +82,8 @@ fn a_3d_scene_runs_its_whole_study() {
 }
 
 /// Bad 3-D scene files exit 2 naming the field, and nothing is written: a symmetry plane missing
-/// (the hemispheres free to slide along y), a registered neighbours basis (its order is built on
-/// a contact curve), a reduced quadrature of the contact constraints (fitted to 2-D rows).
+/// (the hemispheres free to slide along y), primal translates (of a 2-D slab), a reduced
+/// quadrature of the contact constraints (fitted to 2-D rows).
 #[test]
 fn bad_3d_scenes_are_refused_before_anything_is_written() {
     let dir = tempdir().expect("tempdir");
@@ -95,11 +95,11 @@ fn bad_3d_scenes_are_refused_before_anything_is_written() {
             }),
         ),
         (
-            "comparison.approximations[6]",
+            "comparison.approximations[6].primal_translates",
             Box::new(|s: String| {
                 s.replace(
                     "  { kind = \"dictionary\" },",
-                    "  { kind = \"dictionary\" },\n  { kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"neighbours\" },",
+                    "  { kind = \"dictionary\" },\n  { kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"neighbours\", primal_translates = 4 },",
                 )
             }),
         ),
@@ -151,11 +151,17 @@ fn small_ironing3d(dir: &std::path::Path) -> std::path::PathBuf {
 fn a_3d_contact_area_registers_in_the_comparison_and_online() {
     let dir = tempdir().expect("tempdir");
     let scene = small_ironing3d(dir.path());
-    let pinned = std::fs::read_to_string(&scene).expect("scene").replace(
-        "specificity_samples = 50",
-        "specificity_samples = 50\nmodel_dual = \"registered-translate-nodes-cpg\"\nmodel_ranks = [9, 4]",
-    );
-    std::fs::write(&scene, pinned).expect("write scene");
+    let neighbours =
+        "  { kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"neighbours\" },";
+    let text0 = std::fs::read_to_string(&scene).expect("scene");
+    let pinned = text0
+        .replace(
+            "specificity_samples = 50",
+            "specificity_samples = 50\nmodel_dual = \"registered-translate-nodes-cpg\"\nmodel_ranks = [9, 4]",
+        )
+        .replace("  { kind = \"dictionary\" },", &format!("  {{ kind = \"dictionary\" }},\n{neighbours}"));
+    assert!(pinned.contains(neighbours), "the shipped comparison lists the dictionary");
+    std::fs::write(&scene, &pinned).expect("write scene");
     let store = dir.path().join("store");
     let out = crom(&store, &["run", scene.to_str().expect("utf-8")]);
     assert!(out.status.success(), "{}", text(&out));
@@ -189,7 +195,9 @@ fn a_3d_contact_area_registers_in_the_comparison_and_online() {
     else {
         panic!("online_comparison.parquet lacks a documented column");
     };
-    for name in ["registered-translate-nodes-cpg", "registered-translate-linear-cpg"] {
+    for name in
+        ["registered-translate-nodes-cpg", "registered-translate-linear-cpg", "registered-translate-nodes-neighbours"]
+    {
         let mine: Vec<usize> = (0..a.len()).filter(|&i| a[i] == name).collect();
         assert!(!mine.is_empty(), "{name} has no online rows");
         assert!(mine.iter().all(|&i| converged[i] == points[i] && points[i] == 8), "{name}");
@@ -199,6 +207,23 @@ fn a_3d_contact_area_registers_in_the_comparison_and_online() {
     let across = model.dataset("reg_across").expect("reg_across").read_raw::<f64>().expect("f64");
     assert_eq!(across.len(), 3 * 17, "one across coordinate per slave: 3 lines of 17");
     let points: Vec<String> = ["0.4", "1.7", "2.9"].map(String::from).to_vec();
+    let q = query_checked(&store, scene.to_str().expect("utf-8"), "d_x", &points, dir.path());
+    let outcome = q.strs("outcome").expect("outcome");
+    assert!(q.rows() == 3 && outcome.iter().all(|o| o == "converged"), "{outcome:?}");
+    // the neighbours pinned instead: only the model stage runs again, and the stored model
+    // carries their per-query order (the training travels) over the lines
+    let neighbours_pinned = pinned
+        .replace(
+            "model_dual = \"registered-translate-nodes-cpg\"",
+            "model_dual = \"registered-translate-nodes-neighbours\"",
+        )
+        .replace("model_ranks = [9, 4]", "model_ranks = [9, 2]");
+    std::fs::write(&scene, neighbours_pinned).expect("write scene");
+    let out = crom(&store, &["run", scene.to_str().expect("utf-8")]);
+    assert!(out.status.success() && text(&out).contains("0 solved"), "{}", text(&out));
+    let model = hdf5::File::open(store.join("scenes/ironing-3d-small/model.h5")).expect("model.h5");
+    let travels = model.dataset("reg_travels").expect("reg_travels").read_raw::<f64>().expect("f64");
+    assert_eq!(travels.len(), 9, "one travel per training point");
     let q = query_checked(&store, scene.to_str().expect("utf-8"), "d_x", &points, dir.path());
     let outcome = q.strs("outcome").expect("outcome");
     assert!(q.rows() == 3 && outcome.iter().all(|o| o == "converged"), "{outcome:?}");

@@ -797,9 +797,9 @@ fn check_planes(c: &Checker<'_>, at: &str, planes: &[crate::scene::PlaneSpec]) -
 }
 
 /// A 3-D scene: no reduced quadrature of the contact constraints (it fits node-to-segment rows;
-/// the 3-D online solve sums over every supported slave), no registered neighbours basis (its
-/// order is built on a contact curve) and no primal translates (of a 2-D slab). The other
-/// registered maps act along x on each line of the contact area.
+/// the 3-D online solve sums over every supported slave) and no primal translates (of a 2-D
+/// slab). The registered maps, the neighbours' whole-node shifts included, act along x on each
+/// line of the contact area.
 fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError> {
     if scene.study.contact_sampling.is_some() {
         return Err(c.fail(
@@ -810,13 +810,6 @@ fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError
     }
     let entries = scene.comparison.as_ref().map_or(&[][..], |cmp| cmp.approximations.as_slice());
     for (i, a) in entries.iter().enumerate() {
-        if matches!(a, ApproximationSpec::Registered { basis: BasisSpec::Neighbours, .. }) {
-            return Err(c.fail(
-                &format!("comparison.approximations[{i}]"),
-                "is a registered neighbours basis, whose per-query order is built and tested on a contact curve (2-D) only, and a 3-D scene's contact is an area".into(),
-                "use basis = \"pod\" or \"cpg\" for a 3-D scene's registered entries",
-            ));
-        }
         if matches!(a, ApproximationSpec::Registered { primal_translates: Some(_), .. }) {
             return Err(c.fail(
                 &format!("comparison.approximations[{i}].primal_translates"),

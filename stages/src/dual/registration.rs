@@ -964,6 +964,59 @@ mod tests {
         }
     }
 
+    /// Registered neighbours on a contact area (the staggered lines of
+    /// [`a_contact_area_registers_line_by_line`], in a scrambled order): a profile
+    /// `f(x - c) g(y)` at travels off the node grid (0.137 j, node spacing 0.1, so every
+    /// training point leaves its own part of a node). The whole-node shifts keep the area's node
+    /// spacing as their step, and at every training point the first neighbour is that snapshot,
+    /// pushed back onto itself: the profile stays on every line, so the shifts lose nothing and
+    /// the column is the unit snapshot to the rounding of its norm (1e-14 absolute on entries of
+    /// at most 1). A second column brackets the point's part of a node from the other side.
+    #[test]
+    fn a_contact_area_takes_registered_neighbours() {
+        let h = 0.1;
+        let (nx, ny) = (40usize, 5usize);
+        let mut pts: Vec<(f64, f64)> = Vec::new();
+        for l in 0..ny {
+            for i in (l % 3)..nx {
+                pts.push((i as f64 * h, 0.2 * l as f64));
+            }
+        }
+        let n = pts.len();
+        let perm: Vec<usize> = (0..n).map(|k| (k * 37) % n).collect();
+        let x: Vec<f64> = perm.iter().map(|&k| pts[k].0).collect();
+        let y: Vec<f64> = perm.iter().map(|&k| pts[k].1).collect();
+        let bump = |t: f64| (1.0 - ((t - 1.0) / 0.5).powi(2)).max(0.0);
+        let g = |y: f64| 1.0 + y * y;
+        let params: Vec<Vec<f64>> = (0..12).map(|j| vec![0.137 * j as f64]).collect();
+        let s = Mat::from_fn(n, params.len(), |i, j| bump(x[i] - params[j][0]) * g(y[i]));
+        let ms = [1usize, 2];
+        let t = Training { snapshots: s.as_ref(), params: &params, surface: &x, across: &y, ms: &ms };
+        let reg = Registered::build(&t, MapKind::Translate { interpolation: Interpolation::Nodes }, Inner::Neighbours)
+            .expect("build");
+        assert_eq!(reg.map().surface.lines(), ny);
+        let nb = reg.neighbours().expect("a neighbours basis");
+        assert_eq!(nb.step.to_bits(), h.to_bits(), "the step is the lines' node spacing");
+        for (j, mu) in params.iter().enumerate() {
+            let (cols, k) = reg.cone_columns(mu, 2).expect("a cone basis");
+            assert_eq!(k, 2, "two non-zero columns at {mu:?}");
+            let norm = s.col(j).norm_l2();
+            for i in 0..n {
+                let want = s[(i, j)] / norm;
+                assert!((cols[i] - want).abs() <= 1e-14, "training point {j}, node {i}: {} against {want}", cols[i]);
+            }
+            let second = reg.order_at(mu).nth(1).expect("a second column");
+            // Δρ of the second column wrapped into (−½, ½]: on the side Δρ > 0 (the first, the
+            // point itself, has Δρ = 0, the side Δρ ≤ 0)
+            let mut d = nb.rho[second] - nb.rho[j];
+            d -= d.round();
+            assert!(
+                d > 0.0 || d.to_bits() == (-0.5f64).to_bits(),
+                "the second column at {mu:?} is on the side Δρ ≤ 0: {d}"
+            );
+        }
+    }
+
     /// Linear interpolation: the round trip is first order in the reference spacing (halving
     /// it halves the error) for a smooth profile and for a jump, and the smooth profile's
     /// error is far smaller (the orders of the module doc). The mapped values stay

@@ -80,7 +80,7 @@ pub struct Neighbours {
     /// The weight `w`.
     pub(super) weight: f64,
     /// `ρ(c_j)` of each column (computed once).
-    rho: Vec<f64>,
+    pub(super) rho: Vec<f64>,
     /// Over a vector parameter: each column's second component and the scale `s` (module doc).
     second: Option<Second>,
 }
