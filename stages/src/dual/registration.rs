@@ -876,6 +876,24 @@ mod tests {
         assert!(pod.size() > 5);
     }
 
+    /// The abscissae and across coordinates of a staggered contact area: `ny` lines 0.2 apart
+    /// of nodes `h` apart up to `(nx - 1) h`, line `l` starting `l % 3` nodes later, in a dual
+    /// order scrambled by a fixed permutation.
+    fn staggered_area(h: f64, nx: usize, ny: usize) -> (Vec<f64>, Vec<f64>) {
+        let mut pts: Vec<(f64, f64)> = Vec::new();
+        for l in 0..ny {
+            for i in (l % 3)..nx {
+                pts.push((i as f64 * h, 0.2 * l as f64));
+            }
+        }
+        let n = pts.len();
+        let perm: Vec<usize> = (0..n).map(|k| (k * 37) % n).collect();
+        let mut sorted = perm.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..n).collect::<Vec<_>>(), "37 is prime to n");
+        (perm.iter().map(|&k| pts[k].0).collect(), perm.iter().map(|&k| pts[k].1).collect())
+    }
+
     /// A contact area: lines of slave nodes across the travel, in a scrambled dual order, some
     /// lines starting a few nodes later than others (a staggered structured patch). A profile
     /// `f(x - mu) g(y)` translates along every line at once, so whole-node shifts register it
@@ -887,26 +905,8 @@ mod tests {
     fn a_contact_area_registers_line_by_line() {
         let h = 0.1;
         let (nx, ny) = (40usize, 5usize);
-        // line l starts l % 3 nodes later; dual order scrambled by a fixed permutation
-        let mut pts: Vec<(f64, f64)> = Vec::new();
-        for l in 0..ny {
-            for i in (l % 3)..nx {
-                pts.push((i as f64 * h, 0.2 * l as f64));
-            }
-        }
-        let n = pts.len();
-        let perm: Vec<usize> = (0..n).map(|k| (k * 37) % n).collect();
-        assert_eq!(
-            {
-                let mut p = perm.clone();
-                p.sort();
-                p
-            },
-            (0..n).collect::<Vec<_>>(),
-            "37 is prime to n"
-        );
-        let x: Vec<f64> = perm.iter().map(|&k| pts[k].0).collect();
-        let y: Vec<f64> = perm.iter().map(|&k| pts[k].1).collect();
+        let (x, y) = staggered_area(h, nx, ny);
+        let n = x.len();
         let bump = |t: f64| (1.0 - ((t - 1.0) / 0.5).powi(2)).max(0.0);
         let g = |y: f64| 1.0 + y * y;
         let params: Vec<Vec<f64>> = (0..10).map(|j| vec![j as f64 * 2.0 * h]).collect();
@@ -974,18 +974,9 @@ mod tests {
     /// at most 1). A second column brackets the point's part of a node from the other side.
     #[test]
     fn a_contact_area_takes_registered_neighbours() {
-        let h = 0.1;
-        let (nx, ny) = (40usize, 5usize);
-        let mut pts: Vec<(f64, f64)> = Vec::new();
-        for l in 0..ny {
-            for i in (l % 3)..nx {
-                pts.push((i as f64 * h, 0.2 * l as f64));
-            }
-        }
-        let n = pts.len();
-        let perm: Vec<usize> = (0..n).map(|k| (k * 37) % n).collect();
-        let x: Vec<f64> = perm.iter().map(|&k| pts[k].0).collect();
-        let y: Vec<f64> = perm.iter().map(|&k| pts[k].1).collect();
+        let (h, ny) = (0.1, 5usize);
+        let (x, y) = staggered_area(h, 40, ny);
+        let n = x.len();
         let bump = |t: f64| (1.0 - ((t - 1.0) / 0.5).powi(2)).max(0.0);
         let g = |y: f64| 1.0 + y * y;
         let params: Vec<Vec<f64>> = (0..12).map(|j| vec![0.137 * j as f64]).collect();
