@@ -82,8 +82,10 @@ impl StageKey for OnlineApproximationKey {
     /// query timed alone, one at a time, the results the same; 10: the timing runs in rounds
     /// over the points, the results the same; 11: the exact step's curvature applied through
     /// each term's two rows, the same answers to 1e-10; 12: the first linearisation's positions
-    /// from the warm-start samples' displacements, the same answers to 1e-10).
-    const ALGORITHM_VERSION: u32 = 12;
+    /// from the warm-start samples' displacements, the same answers to 1e-10; 13: half steps
+    /// once the plain re-pairing cycles, the same answers where it did not, but for starts lent
+    /// by samples that cycled before: ironing-fine's NNMF rows move).
+    const ALGORITHM_VERSION: u32 = 13;
 }
 
 impl OnlineApproximationKey {

@@ -118,8 +118,10 @@ impl StageKey for RomKey {
     /// the results the same; 16: the exact step's curvature applied through each term's two
     /// rows, the same answers to 1e-10 — docs/design-notes.md#an-exact-corrected-step; 17: the
     /// first linearisation's positions from the warm-start samples' displacements, the same
-    /// answers to 1e-10).
-    const ALGORITHM_VERSION: u32 = 17;
+    /// answers to 1e-10; 18: half steps once the plain re-pairing cycles, the same answers
+    /// where it did not, but for starts lent by samples that cycled before —
+    /// docs/design-notes.md#half-steps-after-a-cycling-re-pairing).
+    const ALGORITHM_VERSION: u32 = 18;
 }
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];

@@ -123,7 +123,7 @@ impl ReducedModel {
         w.seen.clear();
         w.seen.push(w.lin.pairing_hash());
         let (mut steps, mut smooth, mut last_du, mut probed) = (0, false, 0.0f64, false);
-        let mut newton = true;
+        let (mut newton, mut damped) = (true, false);
         for _ in 0..p.max_iter {
             let out = self.solve_linearised_qp(w, tol, max_steps);
             steps += w.qp.steps;
@@ -167,17 +167,28 @@ impl ReducedModel {
             if newton && smooth && w.lin.newton() {
                 self.curvature_step(w, p.exact_step);
             }
+            if damped {
+                // after the plain re-pairing cycled: half the step (the fixed points are the same)
+                for (x, u) in w.x.iter_mut().zip(&w.u_hat) {
+                    *x = u + 0.5 * (*x - u);
+                }
+            }
             w.u_hat.copy_from_slice(&w.x);
             let changed = self.linearize(w);
             if changed {
                 // a pairing seen before, reached by a change: the re-pairing cycles
                 let h = w.lin.pairing_hash();
                 if w.seen.contains(&h) {
-                    if !newton {
+                    if damped {
                         return ((steps, w.qp.active.len(), RomOutcome::Cycled), false);
                     }
-                    // the corrected steps cycle: go on with the plain re-pairing, which decides
-                    newton = false;
+                    // the corrected steps cycle: go on with the plain re-pairing; that cycling
+                    // too, with half steps, which decide
+                    if newton {
+                        newton = false;
+                    } else {
+                        damped = true;
+                    }
                     w.seen.clear();
                 }
                 w.seen.push(h);
