@@ -283,7 +283,8 @@ def bench_d3_dense(tmp):
     neighbours reach the stored vector model's target in 3-D (docs/results.md)."""
     header("D3-dense. ironing-3d-2d, 65 x 33 training points, max_m = 32: the stored 3-D vector model (cold)")
     # the stored model pinned to the neighbours: by the default rule (converged at every test
-    # point) it would be the study's CPG basis, since 8 of the 2 048 test points cycle with them
+    # point) it was the study's CPG basis while 8 of the 2 048 test points cycled with them
+    # (before the half steps after a cycling re-pairing; not re-measured since)
     edits = [("train_level = 5", "train_level = 6"), ("train_level = 2", "train_level = 5"), ("max_m = 16", "max_m = 32"),
              ("seed = 20236", "seed = 20236\nmodel_dual = \"registered-translate-nodes-neighbours\"")]
     scene = variant(tmp, "ironing-3d-2d", "ironing-3d-2d-65x33", edits)
