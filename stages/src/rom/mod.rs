@@ -47,7 +47,10 @@
 //! the rows, solve again, until the pairing repeats and `û` stops moving. Once the pairing has
 //! settled, each step is Newton-corrected for the gaps' curvature (`curvature`: the term of
 //! the Lagrangian's Hessian the fixed-point iteration drops), which turns its linear rate of
-//! about 1e-2 into about 2e-4 and leaves the fixed point unchanged. A slave is searched
+//! about 1e-2 into about 2e-4 and leaves the fixed point unchanged. A pairing reached again by a
+//! change is a cycle: the first drops the Newton correction, the second makes every later step
+//! a half step toward the QP's answer (the same fixed points), the third ends the solve
+//! `cycled`. A slave is searched
 //! again only when it may have moved by its safe radius since its last search (budgets along
 //! the path of `y`, [`ReducedModel`]'s `linearize_with`); a later round of the vertex-zone rule
 //! resumes from the previous round's answer.
