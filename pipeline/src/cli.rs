@@ -102,6 +102,11 @@ pub enum Command {
         /// without it they are refused.
         #[arg(long)]
         allow_extrapolation: bool,
+        /// The re-pairing's stopping distance to its fixed point, relative to the reduced
+        /// coordinates (a number in (0, 1); default: the model's own, 1e-10). Larger answers
+        /// sooner and moves each answer by about this much (docs/user-guide.md#querying-the-reduced-model).
+        #[arg(long, value_name = "TOL")]
+        u_tol: Option<f64>,
     },
     /// Bring a scene's study up to date (cached stages are not recomputed) and print where its
     /// report is.

@@ -161,7 +161,7 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
             println!("{}\n  run it with: crom run {}", path.display(), path.display());
             Ok(())
         }
-        Command::Query { scene, at, points, out, check, fields, allow_extrapolation } => {
+        Command::Query { scene, at, points, out, check, fields, allow_extrapolation, u_tol } => {
             let config = SceneConfig::load(&scenes::resolve(scene, &cli.scenes)?)?;
             let req = query::Request {
                 at: at.clone(),
@@ -170,6 +170,7 @@ pub fn run(cli: &Cli) -> Result<(), CromError> {
                 check: *check,
                 allow_extrapolation: *allow_extrapolation,
                 fields: fields.clone(),
+                u_tol: *u_tol,
             };
             query::run(&cli.store, &config, scene, &req)
         }

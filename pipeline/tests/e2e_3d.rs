@@ -4,28 +4,61 @@
 
 mod common;
 
-use common::{crom, query_checked, repo, text};
+use common::{crom, query_checked, text, variant};
 use crom_pipeline::scratch::tempdir;
 
 /// An edit of a scene file's text.
 type Edit = Box<dyn Fn(String) -> String>;
 
-/// The shipped hertz-3d scene made small: 6 elements a side, 4 training points.
+/// The shipped hertz-3d scene made small: 6 elements a side, 4 training points; `edit` applied
+/// last.
 fn small_hertz3d(dir: &std::path::Path, edit: impl Fn(String) -> String) -> std::path::PathBuf {
-    let text = std::fs::read_to_string(repo().join("data/scenes/hertz-3d.toml")).expect("hertz-3d.toml");
-    let small = text
-        .replace("name = \"hertz-3d\"", "name = \"hertz-3d-small\"")
-        .replace("n = 24\n", "n = 6\n")
-        .replace("grading = 3.0", "grading = 1.5")
-        .replace("n_train = 12", "n_train = 4")
-        .replace("max_m = 11", "max_m = 3")
-        .replace("loo_folds = 12", "loo_folds = 4")
-        .replace("cells = [2, 3]", "cells = [2]")
-        .replace("specificity_samples = 1000", "specificity_samples = 50");
-    assert_ne!(small, text);
-    let path = dir.join("hertz-3d-small.toml");
+    let path = variant(
+        dir,
+        "hertz-3d",
+        "hertz-3d-small.toml",
+        &[
+            ("name = \"hertz-3d\"", "name = \"hertz-3d-small\""),
+            ("n = 24\n", "n = 6\n"),
+            ("grading = 3.0", "grading = 1.5"),
+            ("n_train = 12", "n_train = 4"),
+            ("max_m = 11", "max_m = 3"),
+            ("loo_folds = 12", "loo_folds = 4"),
+            ("cells = [2, 3]", "cells = [2]"),
+            (SPECIFICITY, SPECIFICITY_SMALL),
+        ],
+    );
+    let small = std::fs::read_to_string(&path).expect("scene");
     std::fs::write(&path, edit(small)).expect("write scene");
     path
+}
+
+/// The specificity samples of the shipped 3-D scenes, and of their small test versions.
+const SPECIFICITY: &str = "specificity_samples = 1000";
+const SPECIFICITY_SMALL: &str = "specificity_samples = 50";
+
+/// A shipped ironing-3d scene (`shipped`: `ironing-3d` or `ironing-3d-2d`) made small as `name`:
+/// its block and die meshes replaced (`[nx, ny, nz]` of each), 4 cross-validation folds, 50
+/// specificity samples, and `edits` (each must apply).
+fn small_ironing(
+    dir: &std::path::Path,
+    (shipped, name): (&str, &str),
+    (block, die): ([usize; 3], [usize; 3]),
+    edits: &[(&str, &str)],
+) -> std::path::PathBuf {
+    let mesh = |[x, y, z]: [usize; 3]| format!("nx = {x}\nny = {y}\nnz = {z}");
+    let (block, die) = (mesh(block), mesh(die));
+    let (from, to) = (format!("name = \"{shipped}\""), format!("name = \"{name}\""));
+    let folds = if shipped == "ironing-3d" { "loo_folds = 16" } else { "loo_folds = 32" };
+    let mut all = vec![
+        (from.as_str(), to.as_str()),
+        ("nx = 100\nny = 15\nnz = 20", block.as_str()),
+        ("nx = 20\nny = 10\nnz = 10", die.as_str()),
+        (folds, "loo_folds = 4"),
+        (SPECIFICITY, SPECIFICITY_SMALL),
+    ];
+    all.extend_from_slice(edits);
+    variant(dir, shipped, &format!("{name}.toml"), &all)
 }
 
 /// The whole study runs on a 3-D scene: the mesh holds hexahedra with three coordinates and
@@ -123,20 +156,12 @@ fn bad_3d_scenes_are_refused_before_anything_is_written() {
 /// The shipped ironing-3d scene made small: 20 x 3 x 4 block elements (3 lines of 17 slaves
 /// across the travel), a 4 x 2 x 2 die, 9 training points.
 fn small_ironing3d(dir: &std::path::Path) -> std::path::PathBuf {
-    let text = std::fs::read_to_string(repo().join("data/scenes/ironing-3d.toml")).expect("ironing-3d.toml");
-    let small = text
-        .replace("name = \"ironing-3d\"", "name = \"ironing-3d-small\"")
-        .replace("nx = 100\nny = 15\nnz = 20", "nx = 20\nny = 3\nnz = 4")
-        .replace("nx = 20\nny = 10\nnz = 10", "nx = 4\nny = 2\nnz = 2")
-        .replace("train_level = 7", "train_level = 3")
-        .replace("max_m = 32", "max_m = 4")
-        .replace("loo_folds = 16", "loo_folds = 4")
-        .replace("cells = [4, 16]", "cells = [2]")
-        .replace("specificity_samples = 1000", "specificity_samples = 50");
-    assert!(small.contains("nx = 20\nny = 3\nnz = 4") && small.contains("nx = 4\nny = 2\nnz = 2"), "{small}");
-    let path = dir.join("ironing-3d-small.toml");
-    std::fs::write(&path, small).expect("write scene");
-    path
+    small_ironing(
+        dir,
+        ("ironing-3d", "ironing-3d-small"),
+        ([20, 3, 4], [4, 2, 2]),
+        &[("train_level = 7", "train_level = 3"), ("max_m = 32", "max_m = 4"), ("cells = [4, 16]", "cells = [2]")],
+    )
 }
 
 /// A 3-D contact area registers through the pipeline: the shipped ironing-3d comparison (its
@@ -237,22 +262,23 @@ fn a_3d_contact_area_registers_in_the_comparison_and_online() {
 #[test]
 fn a_cycling_re_pairing_converges_with_half_steps() {
     let dir = tempdir().expect("tempdir");
-    let shipped = std::fs::read_to_string(repo().join("data/scenes/ironing-3d-2d.toml")).expect("ironing-3d-2d.toml");
+    let scene = small_ironing(
+        dir.path(),
+        ("ironing-3d-2d", "ironing-3d-2d-small"),
+        ([40, 6, 8], [8, 4, 4]),
+        &[
+            ("train_level = 5", "train_level = 4"),
+            ("seed = 20236", "seed = 20236\nmodel_dual = \"registered-translate-nodes-neighbours\""),
+        ],
+    );
+    // the comparison reduced to the neighbours
+    let text0 = std::fs::read_to_string(&scene).expect("scene");
     let neighbours =
         "  { kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"neighbours\" },";
-    let start = shipped.find("approximations = [").expect("a comparison");
-    let end = start + shipped[start..].find("\n]").expect("its end") + 2;
-    let small = format!("{}approximations = [\n{neighbours}\n]{}", &shipped[..start], &shipped[end..])
-        .replace("name = \"ironing-3d-2d\"", "name = \"ironing-3d-2d-small\"")
-        .replace("nx = 100\nny = 15\nnz = 20", "nx = 40\nny = 6\nnz = 8")
-        .replace("nx = 20\nny = 10\nnz = 10", "nx = 8\nny = 4\nnz = 4")
-        .replace("train_level = 5", "train_level = 4")
-        .replace("loo_folds = 32", "loo_folds = 4")
-        .replace("specificity_samples = 1000", "specificity_samples = 50")
-        .replace("seed = 20236", "seed = 20236\nmodel_dual = \"registered-translate-nodes-neighbours\"");
-    assert!(small.contains("nx = 40\nny = 6\nnz = 8") && small.contains("model_dual"), "{small}");
-    let scene = dir.path().join("ironing-3d-2d-small.toml");
-    std::fs::write(&scene, small).expect("write scene");
+    let start = text0.find("approximations = [").expect("a comparison");
+    let end = start + text0[start..].find("\n]").expect("its end") + 2;
+    std::fs::write(&scene, format!("{}approximations = [\n{neighbours}\n]{}", &text0[..start], &text0[end..]))
+        .expect("write scene");
     let store = dir.path().join("store");
     let out = crom(&store, &["run", scene.to_str().expect("utf-8")]);
     assert!(out.status.success(), "{}", text(&out));

@@ -56,6 +56,8 @@ pub struct Request {
     pub allow_extrapolation: bool,
     /// `--fields`: the reconstructed fields, HDF5 + XDMF.
     pub fields: Option<PathBuf>,
+    /// `--u-tol`: the re-pairing's stopping tolerance instead of the model's.
+    pub u_tol: Option<f64>,
 }
 
 /// A loaded model and where it came from.
@@ -249,6 +251,12 @@ pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> 
             fix: "name the fields file FILE.h5 (FILE.xdmf is written beside it)".into(),
         });
     }
+    if let Some(t) = req.u_tol.filter(|t| !(*t > 0.0 && *t < 1.0)) {
+        return Err(CromError::Usage {
+            message: format!("--u-tol {t}: not a tolerance in (0, 1)"),
+            fix: "give the re-pairing's relative stopping distance in (0, 1), e.g. --u-tol 1e-6, or leave it out for the model's own".into(),
+        });
+    }
     let out_kind = match &req.out {
         None => None,
         Some(p) => match p.extension().and_then(|e| e.to_str()) {
@@ -284,7 +292,7 @@ pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> 
         };
         flags.push(domain.check(p, &at, req.allow_extrapolation)?);
     }
-    let params = params(s);
+    let params = RomParams { u_tol: req.u_tol.unwrap_or(s.u_tol), ..params(s) };
     let model = &loaded.model;
     let mut rows: Vec<Row> = points
         .par_iter()
