@@ -42,5 +42,10 @@ class OutsideDomain(InvalidPoint):
     `allow_extrapolation=True` was not given)."""
 
 
+class InvalidSetting(CromDataError, ValueError):
+    """A setting given to open a reduced model is out of range (`Scene.rom(u_tol=...)` outside
+    (0, 1))."""
+
+
 class NativeMissing(CromDataError, ImportError):
     """The native extension `crom_native` that solves reduced models is not installed."""

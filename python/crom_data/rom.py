@@ -37,7 +37,7 @@ import os
 
 import numpy as np
 
-from .errors import InvalidPoint, NativeMissing
+from .errors import InvalidPoint, InvalidSetting, NativeMissing
 
 try:  # the native part; its absence is reported when a model is opened
     from . import crom_native as _native  # the checkout's build, put here by `just build`
@@ -213,6 +213,8 @@ class ReducedModel:
         self.ranks: tuple[int, int] = native.ranks
         self.n_contact: int = native.n_contact
         self.info: dict = native.info()
+        # the re-pairing's stopping distance of the solves (`info["u_tol"]` unless opened with one)
+        self.u_tol: float = native.u_tol
         self._set = frozenset(self.names)
 
     def __repr__(self) -> str:
@@ -266,12 +268,18 @@ class ReducedModel:
         return Batch(self, a, self._native.solve_many(a.tobytes(), len(a), allow_extrapolation, threads))
 
 
-def open_model(scene, entry: str = "model.h5") -> ReducedModel:
+def open_model(scene, entry: str = "model.h5", u_tol: float | None = None) -> ReducedModel:
     """The model of a published study (used by `Scene.rom`): the entry is verified against its
-    manifest (schema version included) before the native code loads and verifies it again."""
+    manifest (schema version included) before the native code loads and verifies it again.
+    `u_tol`: the re-pairing's stopping distance instead of the model's."""
+    if u_tol is not None and (isinstance(u_tol, bool) or not isinstance(u_tol, (int, float))
+                              or not 0.0 < u_tol < 1.0):
+        raise InvalidSetting(f"scene {scene.name!r}: u_tol={u_tol!r} is not a tolerance in (0, 1); give the "
+                             "re-pairing's relative stopping distance, e.g. u_tol=1e-6, or None for the model's own")
     native = _require_native()
     path = scene.file(entry)
     e = scene.entries[entry]
     fix = (f"run `crom --store {scene.store.root} verify` (it quarantines a damaged artifact), then "
            f"`crom --store {scene.store.root} run {scene.name}`")
-    return ReducedModel(scene, path.parent, native.Model.open(str(scene.store.root), str(e["key"]), fix))
+    return ReducedModel(scene, path.parent, native.Model.open(str(scene.store.root), str(e["key"]), fix,
+                                                              None if u_tol is None else float(u_tol)))

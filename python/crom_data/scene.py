@@ -342,12 +342,14 @@ class Scene:
                                   f"{self._rerun()}")
         return pd.concat([a, b.drop(columns=keys)], axis=1)
 
-    def rom(self):
+    def rom(self, u_tol: float | None = None):
         """The study's stored reduced model (`model.h5`), loaded to be solved:
         `rom.solve(d_x=1.2345)`, `rom.solve_many(points)` (see `crom_data.rom`). Needs the native
-        extension (`scripts/setup.sh` builds it) and an online run (not `--offline`)."""
+        extension (`scripts/setup.sh` builds it) and an online run (not `--offline`). `u_tol`: the
+        re-pairing's stopping distance, relative, in (0, 1), instead of the model's own
+        (`rom.info["u_tol"]`), as `crom query --u-tol`: larger answers sooner."""
         from .rom import open_model
-        return open_model(self)
+        return open_model(self, u_tol=u_tol)
 
     @property
     def report_dir(self) -> pathlib.Path:

@@ -19,8 +19,8 @@ import pandas as pd
 import pytest
 
 import crom_data
-from crom_data.errors import (ArtifactMissing, CromDataError, InvalidPoint, OutsideDomain, SceneNotFound,
-                              SchemaTooNew)
+from crom_data.errors import (ArtifactMissing, CromDataError, InvalidPoint, InvalidSetting, OutsideDomain,
+                              SceneNotFound, SchemaTooNew)
 from conftest import REPO, crom_bin
 
 STORES = {"rope": "rope_store", "hertz": "hertz_store"}
@@ -110,6 +110,39 @@ def test_solve_many_is_a_loop_of_solve_on_one_and_two_threads(hertz_store):
     assert batch.displacement(5).tobytes() == single[5].displacement.tobytes()
     frame = batch.to_frame()
     assert list(frame[name]) == list(points) and (frame["outcome"] == batch.outcome).all()
+
+
+def test_a_model_opened_with_u_tol_is_the_query_with_u_tol_bit_for_bit(hertz_store, tmp_path):
+    """`Scene.rom(u_tol=...)` solves as `crom query --u-tol` (the binary, the independent
+    source): the same linearisations and the same pressure bits at points across the domain,
+    fewer linearisations in all than the model's own tolerance (the setting reaches the solve),
+    and `rom.u_tol` says which tolerance the solves use. Out-of-range values raise
+    `InvalidSetting` naming u_tol."""
+    sc = crom_data.open_store(hertz_store).scene("hertz")
+    own, loose = sc.rom(), sc.rom(u_tol=1e-4)
+    assert own.u_tol == own.info["u_tol"] == 1e-10 and loose.u_tol == 1e-4 and loose.info["u_tol"] == 1e-10
+    name, = loose.names
+    (lo, hi), = loose.domain.values()
+    values = [lo + (hi - lo) * float(f) for f in np.linspace(0.03, 0.97, 12)]
+    points = tmp_path / "points.csv"
+    points.write_text(name + "\n" + "\n".join(repr(v) for v in values) + "\n")
+    out = tmp_path / "answers.parquet"
+    p = subprocess.run([str(crom_bin()), "--store", str(hertz_store), "query", "hertz", "--points", str(points),
+                    "--out", str(out), "--u-tol", "1e-4"], cwd=REPO, capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    table = pd.read_parquet(out)
+    lin_own = lin_loose = 0
+    for j, v in enumerate(values):
+        r = loose.solve(**{name: v})
+        assert r.converged and r.linearizations == table.iloc[j]["linearizations"], v
+        assert float(r.pressure.max()).hex() == float(table.iloc[j]["max_pressure"]).hex(), v
+        lin_loose += r.linearizations
+        lin_own += own.solve(**{name: v}).linearizations
+    assert lin_loose < lin_own, (lin_loose, lin_own)
+    for bad in (0.0, 1.0, -1e-6, math.nan, math.inf, "1e-6", True):
+        with pytest.raises(InvalidSetting, match=r"u_tol=.* not a tolerance in \(0, 1\)"):
+            sc.rom(u_tol=bad)
+    assert issubclass(InvalidSetting, (CromDataError, ValueError))
 
 
 def test_the_hertz_model_is_the_most_accurate_candidate_the_study_measured(hertz_store):

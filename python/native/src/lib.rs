@@ -149,15 +149,24 @@ fn answer_tuple<'py>(py: Python<'py>, a: &Answer, extrapolated: bool, total: f64
 #[pymethods]
 impl Model {
     /// Load the model artifact `key` of the store at `root`; `fix` is the fix every load error
-    /// names.
+    /// names. `u_tol`: the re-pairing's stopping distance instead of the model's (`crom query
+    /// --u-tol`), in (0, 1).
     #[staticmethod]
-    fn open(py: Python<'_>, root: PathBuf, key: String, fix: String) -> PyResult<Self> {
+    #[pyo3(signature = (root, key, fix, u_tol=None))]
+    fn open(py: Python<'_>, root: PathBuf, key: String, fix: String, u_tol: Option<f64>) -> PyResult<Self> {
+        if let Some(t) = u_tol.filter(|t| !(*t > 0.0 && *t < 1.0)) {
+            return Err(error(
+                py,
+                "InvalidSetting",
+                format!("u_tol={t}: not a tolerance in (0, 1); give the re-pairing's relative stopping distance, e.g. u_tol=1e-6, or None for the model's own"),
+            ));
+        }
         let loaded = py.detach(|| load_artifact(&root, &Key(key), &fix)).map_err(|e| crom_error(py, e))?;
         let s = &loaded.stored;
         let bounds =
             Bounds { names: s.parameter_names.clone(), min: s.parameter_min.clone(), max: s.parameter_max.clone() };
         Ok(Self {
-            params: params(s),
+            params: RomParams { u_tol: u_tol.unwrap_or(s.u_tol), ..params(s) },
             bounds,
             loaded,
             work: Mutex::new((RomWork::default(), None)),
@@ -199,6 +208,13 @@ impl Model {
     /// The contact nodes' tributary weights, `bytes` of `f64`.
     fn weights<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
         f64_bytes(py, self.loaded.model.weights())
+    }
+
+    /// The re-pairing's stopping distance the solves use (the model's unless `open` was given
+    /// another).
+    #[getter]
+    fn u_tol(&self) -> f64 {
+        self.params.u_tol
     }
 
     /// The stored settings and measurements: a dict of `algorithm`, `dual_basis`, `max_iter`,
