@@ -84,10 +84,8 @@ impl StageKey for OnlineApproximationKey {
     /// each term's two rows, the same answers to 1e-10; 12: the first linearisation's positions
     /// from the warm-start samples' displacements, the same answers to 1e-10; 13: half steps
     /// once the plain re-pairing cycles, the same answers where it did not, but for starts lent
-    /// by samples that cycled before: ironing-fine's NNMF rows move; 14: in 3-D a certified
-    /// slave's projection starts from its last pair and a small dual basis's rows are summed
-    /// over the contact dofs, the same answers to 1e-10).
-    const ALGORITHM_VERSION: u32 = 14;
+    /// by samples that cycled before: ironing-fine's NNMF rows move).
+    const ALGORITHM_VERSION: u32 = 13;
 }
 
 impl OnlineApproximationKey {

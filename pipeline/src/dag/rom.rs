@@ -120,11 +120,8 @@ impl StageKey for RomKey {
     /// first linearisation's positions from the warm-start samples' displacements, the same
     /// answers to 1e-10; 18: half steps once the plain re-pairing cycles, the same answers
     /// where it did not, but for starts lent by samples that cycled before —
-    /// docs/design-notes.md#half-steps-after-a-cycling-re-pairing; 19: in 3-D a certified
-    /// slave's projection starts from its last pair and a small dual basis's rows are summed
-    /// over the contact dofs, the same answers to 1e-10 —
-    /// docs/design-notes.md#the-online-solve-in-3-d-re-pairs-with-the-solvers-rule).
-    const ALGORITHM_VERSION: u32 = 19;
+    /// docs/design-notes.md#half-steps-after-a-cycling-re-pairing).
+    const ALGORITHM_VERSION: u32 = 18;
 }
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];

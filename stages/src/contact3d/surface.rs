@@ -313,8 +313,6 @@ pub struct FacetGrid {
     found: Vec<(f64, usize, Closest)>,
     /// The facets of the current square by their boxes' horizontal distance.
     boxed: Vec<(f64, usize)>,
-    /// [`Self::pair_near`]'s start: a facet and the spot its projection starts from.
-    hint: Option<(usize, Closest)>,
 }
 
 impl FacetGrid {
@@ -343,7 +341,6 @@ impl FacetGrid {
             have_normal: vec![false; nn],
             found: Vec::new(),
             boxed: Vec::new(),
-            hint: None,
         }
     }
 
@@ -442,39 +439,6 @@ impl FacetGrid {
         self.finish(surface, xm, p, facet, cl)
     }
 
-    /// [`Self::pair_at`] for a slave whose last pair was `last`: where that was on a facet's
-    /// interior, that facet's projection starts from the last one's reference coordinates
-    /// (the slave and the masters moved a little since) instead of from the facet's closest
-    /// point, and the located facet's closest point is measured only if no facet takes the
-    /// projection. The same rule at the same positions; Newton from a nearer start reaches the
-    /// same root, to its rounding.
-    pub fn pair_near(
-        &mut self,
-        surface: &MasterSurface,
-        xm: &[[f64; 3]],
-        p: [f64; 3],
-        facet: usize,
-        last: &Pair3,
-    ) -> Pair3 {
-        self.found.clear();
-        if let Feature::Facet(g) = last.feature {
-            let mut r = [0.0; 2];
-            for (k, &(_, w)) in last.support.iter().enumerate() {
-                let c = facet::corner_ref(k);
-                r = [r[0] + w * c[0], r[1] + w * c[1]];
-            }
-            self.hint = Some((g, Closest { spot: Spot::Interior(r), x: p, d2: 0.0 }));
-        }
-        let pair = self.project_around(surface, xm, p, facet);
-        self.hint = None;
-        if let Some(pair) = pair {
-            return pair;
-        }
-        let cl = facet::closest(&surface.corners(facet, xm), p);
-        self.normals_of(surface, xm, facet);
-        surface.pair_of(facet, &cl, p, xm, &self.nodal)
-    }
-
     /// [`Self::pair`], and what its search proves ([`Located`]; `None` without facets).
     pub fn pair_located(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], p: [f64; 3]) -> (Pair3, Option<Located>) {
         if surface.facets.is_empty() {
@@ -565,38 +529,21 @@ impl FacetGrid {
     /// Step 2 of the rule (module docs) for the slave at `p` located on facet `f` with closest
     /// point `cl` (`self.found` holding the closest points the search measured).
     fn finish(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], p: [f64; 3], f: usize, cl: Closest) -> Pair3 {
-        if let Some(pair) = self.project_around(surface, xm, p, f) {
-            return pair;
-        }
-        self.normals_of(surface, xm, f);
-        surface.pair_of(f, &cl, p, xm, &self.nodal)
-    }
-
-    /// The normal projection of `p` onto the facets around facet `f`, lowest index first: the
-    /// first that lands in its square, or `None`. A facet with an entry in `self.found` starts
-    /// from its spot.
-    fn project_around(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], p: [f64; 3], f: usize) -> Option<Pair3> {
         // the normal projection onto the facets around the closest one, lowest index first
         for &g in &surface.around[f] {
             if !self.cone(surface, xm, g).may_project(p) {
                 // no point of the facet has `p` on its normal line (`project` would fail)
                 continue;
             }
-            // from the last pair's point first ([`Self::pair_near`]); where that does not land
-            // in the square, as the search would
-            if let Some((_, near)) = self.hint.filter(|h| h.0 == g) {
-                if let Some(pair) = surface.project(g, p, xm, &self.nodal, Some(near)) {
-                    return Some(pair);
-                }
-            }
             // the closest point of a facet the search measured is reused as the projection's
             // start (the same function of the same corners and point: the same bits)
             let start = self.found.iter().find(|x| x.1 == g).map(|x| x.2);
             if let Some(pair) = surface.project(g, p, xm, &self.nodal, start) {
-                return Some(pair);
+                return pair;
             }
         }
-        None
+        self.normals_of(surface, xm, f);
+        surface.pair_of(f, &cl, p, xm, &self.nodal)
     }
 }
 
@@ -812,11 +759,8 @@ mod tests {
     /// every master node move by random amounts up to 1e-3 ... 0.3 (each a random direction and
     /// length) and, wherever the certificate holds for the sum of the two largest moves, the
     /// search at the new positions locates the same facet and [`FacetGrid::pair_at`] returns
-    /// the search's pair bit for bit (`Pair3`'s `==` on every float), and
-    /// [`FacetGrid::pair_near`] from the first position's pair the same pair to 1e-9 (a Newton
-    /// solve from another start stops within its convergence bound, 1e-11 of a reference
-    /// coordinate, of the same root, on unit facets). The draws include certificates that hold
-    /// and that fail (both counted), so the test sees both branches.
+    /// the search's pair bit for bit (`Pair3`'s `==` on every float). The draws include
+    /// certificates that hold and that fail (both counted), so the test sees both branches.
     #[test]
     fn a_searchs_certificate_holds_where_it_says_and_its_shortcut_is_the_search() {
         let (s, x) = patch(0.2);
@@ -826,11 +770,11 @@ mod tests {
             let n = facet::dot(v, v).sqrt().max(1e-300);
             v.map(|c| c / n * len)
         };
-        let (mut held, mut refused, mut hinted) = (0, 0, 0);
+        let (mut held, mut refused) = (0, 0);
         for k in 0..4000 {
             let p0 = [rng.uniform_in(-0.5, 3.5), rng.uniform_in(-0.5, 3.5), rng.uniform_in(-0.6, 1.2)];
             let mut g0 = FacetGrid::new(&s, &x);
-            let (last, at) = g0.pair_located(&s, &x, p0);
+            let (_, at) = g0.pair_located(&s, &x, p0);
             let at = at.expect("facets");
             let scale = [1e-3, 1e-2, 0.1, 0.3][k % 4];
             let len = rng.uniform() * scale;
@@ -857,24 +801,8 @@ mod tests {
             assert_eq!(again.expect("facets").facet, at.facet, "case {k}: the certificate held");
             let mut g2 = FacetGrid::new(&s, &x1);
             assert_eq!(g2.pair_at(&s, &x1, p1, at.facet), want, "case {k}");
-            // from the last pair: the same pair to the projection's rounding
-            let near = g2.pair_near(&s, &x1, p1, at.facet, &last);
-            assert_eq!((near.feature, near.len), (want.feature, want.len), "case {k}: pair_near");
-            let close = |a: f64, b: f64| (a - b).abs() <= 1e-9;
-            for (a, b) in near.support.iter().zip(&want.support) {
-                assert!(
-                    a.0 == b.0 && close(a.1, b.1),
-                    "case {k}: support {:?} against {:?}",
-                    near.support,
-                    want.support
-                );
-            }
-            let normal = near.normal.iter().zip(&want.normal).all(|(a, b)| close(*a, *b));
-            assert!(normal && close(near.gap, want.gap), "case {k}: {near:?} against {want:?}");
-            hinted += usize::from(matches!(last.feature, Feature::Facet(_)));
         }
         assert!(held > 500 && refused > 500, "held {held}, refused {refused}");
-        assert!(hinted > 300, "{hinted} pairs from a last facet pair");
     }
 
     /// The cases of the rule, each with its gap and normal:

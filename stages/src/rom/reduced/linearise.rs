@@ -79,11 +79,6 @@ pub(super) struct LinState {
     pub(super) chat: Vec<f64>,
     pub(super) ghat0: Vec<f64>,
     pub(super) slave_weight: Vec<f64>,
-    /// 3-D, summed: the dual columns' weights on each contact dof (`r_l` per dof, zero between
-    /// uses) and the dofs they touch ([`ReducedModel::assemble3`]).
-    pub(super) dof_weight: Vec<f64>,
-    pub(super) dofs: Vec<usize>,
-    pub(super) dof_used: Vec<bool>,
     /// The Newton correction's buffers: forces per slave (zero between uses), the step and
     /// `H` times it.
     pub(super) force: Vec<f64>,

@@ -15,7 +15,7 @@
 
 use super::{ReducedModel, RomWork};
 use crate::contact3d::surface::{FacetGrid, MasterSurface, Pair3};
-use crate::rom::la::{axpy, dot};
+use crate::rom::la::dot;
 
 /// `|a - b|` (infinite when either is not finite: a slave placed for the first time).
 fn norm3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
@@ -128,9 +128,7 @@ impl ReducedModel {
                     l.moved3[s] += norm3(&xs, &l.last3[s]) + masters_moved;
                     l.last3[s] = xs;
                     match l.located3[s] {
-                        Some(at) if at.holds(l.moved3[s]) => {
-                            grid.pair_near(&d.master, &l.xm3, xs, at.facet, &l.pairs3[s])
-                        }
+                        Some(at) if at.holds(l.moved3[s]) => grid.pair_at(&d.master, &l.xm3, xs, at.facet),
                         _ => {
                             let (p, at) = grid.pair_located(&d.master, &l.xm3, xs);
                             l.located3[s] = at;
@@ -153,13 +151,9 @@ impl ReducedModel {
         changed
     }
 
-    /// The gap rows of the paired supported slaves (`cphi`, `g0`); for a small dual basis
-    /// ([`Self::sums_rows`]) the reduced rows instead, summed over the contact dofs
-    /// ([`Self::assemble3_summed`]).
+    /// The gap rows of the paired supported slaves (`cphi`, `g0`), then, for a small dual
+    /// basis, the reduced rows summed ([`Self::sum_rows`]).
     fn assemble3(&self, d: &Nts3, w: &mut RomWork) {
-        if self.sums_rows() {
-            return self.assemble3_summed(d, w);
-        }
         let ru = self.r_u;
         let l = &mut w.lin;
         l.ps.clear();
@@ -188,72 +182,6 @@ impl ReducedModel {
             l.g0.push(g0);
         }
         self.sum_rows(w);
-    }
-
-    /// The reduced rows of a small dual basis summed over the contact dofs instead of over
-    /// the slaves' rows: with `t_as = θ_as w_s` and slave `s`'s row `Σ_k c_sk Psi_c[k]` (15
-    /// dofs `k`: its own three and its facet's corners'),
-    ///
-    /// ```text
-    /// Ĉ_a = Σ_s t_as Σ_k c_sk Psi_c[k] = Σ_k F_ak Psi_c[k],   F_ak = Σ_s t_as c_sk,
-    /// ĝ0_a = Σ_k F_ak base_k,
-    /// ```
-    ///
-    /// so each touched dof's row of `Psi_c` is read once, not once per slave whose row reaches
-    /// it (a master corner is shared by up to four facets' slaves), and no per-slave row is
-    /// formed. `ps` and `g0` are kept as by the per-slave assembly; `cphi` is not (nothing
-    /// reads it where the rows are summed).
-    fn assemble3_summed(&self, d: &Nts3, w: &mut RomWork) {
-        let (ru, rl) = (self.r_u, self.r_l);
-        let l = &mut w.lin;
-        let ncd = 3 * (d.ns + d.nm);
-        if l.dof_weight.len() != ncd * rl {
-            l.dof_weight.clear();
-            l.dof_weight.resize(ncd * rl, 0.0);
-            l.dof_used.clear();
-            l.dof_used.resize(ncd, false);
-        }
-        l.dofs.clear();
-        l.ps.clear();
-        l.g0.clear();
-        for &s in &d.supp {
-            l.ps_of[s] = usize::MAX;
-            let p = l.pairs3[s];
-            if !p.is_paired() {
-                continue;
-            }
-            l.ps_of[s] = l.ps.len();
-            l.ps.push(s);
-            let gw = self.gap_weight(s);
-            let mut g0 = 0.0;
-            for (cd, c) in p.row(s, d.ns) {
-                g0 += c * l.base[cd];
-                if !l.dof_used[cd] {
-                    l.dof_used[cd] = true;
-                    l.dofs.push(cd);
-                }
-                for e in self.by_node.0[s]..self.by_node.0[s + 1] {
-                    l.dof_weight[cd * rl + self.by_node.1[e]] += self.by_node.2[e] * gw * c;
-                }
-            }
-            l.g0.push(g0);
-        }
-        l.chat.clear();
-        l.chat.resize(rl * ru, 0.0);
-        l.ghat0.clear();
-        l.ghat0.resize(rl, 0.0);
-        for &cd in &l.dofs {
-            let f = &mut l.dof_weight[cd * rl..(cd + 1) * rl];
-            let row = &d.phi_c[cd * ru..(cd + 1) * ru];
-            for (a, out) in l.chat.chunks_exact_mut(ru).enumerate() {
-                if f[a] != 0.0 {
-                    axpy(f[a], row, out);
-                }
-                l.ghat0[a] += f[a] * l.base[cd];
-            }
-            f.iter_mut().for_each(|v| *v = 0.0);
-            l.dof_used[cd] = false;
-        }
     }
 
     /// The indicator's surface terms in 3-D: over every non-fixed slave paired at the answer,
@@ -316,14 +244,11 @@ impl ReducedModel {
 mod tests {
     use faer::MatRef;
 
-    use crate::assert_all_close;
     use crate::basis::pod_full;
     use crate::contact::ContactSolveParams;
     use crate::contact3d::tests::{hertz_params, ironing_params};
     use crate::contact3d::{build_hertz3d, build_ironing3d, Factored3d};
-    use crate::float_cmp::Tol;
     use crate::rom::reduced::test_support::{assert_round_trip, columns};
-    use crate::rom::reduced::SurfaceData;
     use crate::rom::{Algorithm, ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};
     use crate::snapshot::Snapshot;
 
@@ -395,55 +320,6 @@ mod tests {
             let at: Vec<Vec<f64>> = mus.iter().map(|&m| vec![m]).collect();
             assert_round_trip(&rom, &at);
         }
-    }
-
-    /// A small dual basis's reduced rows, summed over the contact dofs in 3-D
-    /// ([`ReducedModel::assemble3_summed`]), are the slaves' gap rows summed under the basis: on
-    /// a small ironing-3d (5 training points, full primal rank, the leading 1, 2 and 3 of the
-    /// training pressures as the dual basis), re-linearised at the answers of 4 points between
-    /// the training points, `chat` and `ghat0` against `Σ_s θ_as w_s (Σ_k c_sk Psi_c[k])` and
-    /// `Σ_s θ_as w_s (Σ_k c_sk base_k)` formed here product by product from the pairs, slave
-    /// by slave. The two add the same products (15 per paired slave) in other orders, so they
-    /// agree to rounding: 1e-13 of the largest product's magnitude times their number.
-    #[test]
-    fn summed_3d_rows_are_the_slave_rows_summed() {
-        let ironing = build_ironing3d(&ironing_params()).expect("ironing").factor().expect("factor");
-        let mus = [0.1, 0.2, 0.3, 0.4, 0.5];
-        let (rom, _, _) = full_rom3(&ironing, &mus);
-        let p = RomParams::default();
-        let mut checked = 0;
-        for rl in 1..=3 {
-            let model = rom.leading(mus.len(), rl);
-            let SurfaceData::Nts3(d) = &model.surf else { panic!("a 3-D surface") };
-            let ru = model.r_u;
-            for x in [0.15, 0.25, 0.33, 0.45] {
-                let mut w = RomWork::default();
-                assert_eq!(model.solve(&[x], &p, &mut w).outcome, RomOutcome::Converged, "r_l {rl} d_x {x}");
-                model.linearize(&mut w);
-                let l = &w.lin;
-                let (mut chat, mut ghat0, mut largest) = (vec![0.0; rl * ru], vec![0.0; rl], 0.0f64);
-                for &s in &l.ps {
-                    for e in model.by_node.0[s]..model.by_node.0[s + 1] {
-                        let (a, t) = (model.by_node.1[e], model.by_node.2[e] * model.gap_weight(s));
-                        for (cd, c) in l.pairs3[s].row(s, d.ns) {
-                            for (o, v) in chat[a * ru..(a + 1) * ru].iter_mut().zip(&d.phi_c[cd * ru..(cd + 1) * ru]) {
-                                *o += t * c * v;
-                                largest = largest.max((t * c * v).abs());
-                            }
-                            ghat0[a] += t * c * l.base[cd];
-                            largest = largest.max((t * c * l.base[cd]).abs());
-                        }
-                    }
-                }
-                let terms = 15 * l.ps.len();
-                assert!(!l.ps.is_empty() && chat.iter().any(|&v| v != 0.0), "r_l {rl} d_x {x}: rows under the basis");
-                let tol = Tol::abs(1e-13 * largest * terms as f64);
-                assert_all_close!(&l.chat, &chat, tol);
-                assert_all_close!(&l.ghat0, &ghat0, tol);
-                checked += 1;
-            }
-        }
-        assert_eq!(checked, 12);
     }
 
     /// A dual basis set per query starts its re-pairing from the training points' answers in
