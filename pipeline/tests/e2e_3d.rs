@@ -115,12 +115,13 @@ fn a_3d_scene_runs_its_whole_study() {
 }
 
 /// Bad 3-D scene files exit 2 naming the field, and nothing is written: a symmetry plane missing
-/// (the hemispheres free to slide along y), primal translates (of a 2-D slab), a reduced
-/// quadrature of the contact constraints (fitted to 2-D rows).
+/// (the hemispheres free to slide along y), primal translates (of a 2-D slab), a registered map on
+/// hertz-3d (whose round contact area no map registers), a reduced quadrature of the contact
+/// constraints (fitted to 2-D rows).
 #[test]
 fn bad_3d_scenes_are_refused_before_anything_is_written() {
     let dir = tempdir().expect("tempdir");
-    let cases: [(&str, Edit); 3] = [
+    let cases: [(&str, Edit); 4] = [
         (
             "model.hertz3d.symmetry",
             Box::new(|s: String| {
@@ -133,6 +134,15 @@ fn bad_3d_scenes_are_refused_before_anything_is_written() {
                 s.replace(
                     "  { kind = \"dictionary\" },",
                     "  { kind = \"dictionary\" },\n  { kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"neighbours\", primal_translates = 4 },",
+                )
+            }),
+        ),
+        (
+            "comparison.approximations[6].map",
+            Box::new(|s: String| {
+                s.replace(
+                    "  { kind = \"dictionary\" },",
+                    "  { kind = \"dictionary\" },\n  { kind = \"registered\", map = \"moments\", basis = \"cpg\" },",
                 )
             }),
         ),

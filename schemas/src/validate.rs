@@ -817,6 +817,19 @@ fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError
                 "remove primal_translates from a 3-D scene's registered entries",
             ));
         }
+        if matches!(scene.model, Model::Hertz3d(_)) && matches!(a, ApproximationSpec::Registered { .. }) {
+            // measured on the shipped mesh: the moments map's registered POD reads a test error
+            // of 0.88 or more at every m (the plain POD 5e-3 at 11 modes), its CPG 13 to 20
+            // (relative) online
+            return Err(c.fail(
+                &format!("comparison.approximations[{i}].map"),
+                "is set on hertz3d, whose contact area is a disc that widens with d; the registered maps \
+                 shift or stretch lines of slaves along one axis (the die's travel on ironing3d's block), \
+                 which the nodes of a hemisphere's cap do not form, so no map registers it"
+                    .into(),
+                "remove the registered entries from this scene's [comparison]",
+            ));
+        }
     }
     Ok(())
 }

@@ -508,6 +508,12 @@ fn compactness(scene: &SceneConfig, d: &ReportData, dir: &Path) -> Result<Figure
     )
 }
 
+/// Whether `shown` rows of a set of `size` points are a sample (the online stage measures a large
+/// set at points drawn at random): some rows, fewer than the points.
+pub(super) fn sampled(shown: usize, size: usize) -> bool {
+    (1..size).contains(&shown)
+}
+
 /// Rows of the ROM error table for one set and dual basis: (parameter, primal error, dual error).
 pub(super) fn rom_rows(d: &ReportData, set: &str, basis: &str) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let t = &d.rom_errors;
@@ -559,7 +565,7 @@ fn rom_errors(scene: &SceneConfig, d: &ReportData, dir: &Path, basis: &str) -> R
         series,
         format!(
             "Relative errors of the online reduced solve (Algorithm 1) at {} with the {basis} CPG dual basis (paper Figs. 3, 7).",
-            if shown[0] < sizes[0] || shown[1] < sizes[1] {
+            if sampled(shown[0], sizes[0]) || sampled(shown[1], sizes[1]) {
                 format!(
                     "{} of the {} training and {} of the {} test points, drawn at random (a large set is measured on a sample)",
                     shown[0], sizes[0], shown[1], sizes[1]

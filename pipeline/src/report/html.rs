@@ -39,7 +39,7 @@ pub(crate) fn write_index(
     // a large test set is measured on a sample (the online stage's `measured`)
     let tests = scene.parameter.test_points().len();
     let measured = super::figures::rom_rows(d, "test", "full").0.len();
-    let which = if (1..tests).contains(&measured) {
+    let which = if super::figures::sampled(measured, tests) {
         format!("online solve, {measured} of the {tests} test points (drawn at random)")
     } else {
         "online solve, test points".to_string()
