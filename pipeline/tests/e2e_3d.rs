@@ -21,7 +21,7 @@ fn small_hertz3d(dir: &std::path::Path, edit: impl Fn(String) -> String) -> std:
             ("name = \"hertz-3d\"", "name = \"hertz-3d-small\""),
             ("n = 24\n", "n = 6\n"),
             ("grading = 3.0", "grading = 1.5"),
-            ("n_train = 12", "n_train = 4"),
+            ("n_train = 48", "n_train = 4"),
             ("max_m = 11", "max_m = 3"),
             ("loo_folds = 12", "loo_folds = 4"),
             ("cells = [2, 3]", "cells = [2]"),

@@ -47,12 +47,13 @@ fn every_shipped_scene_loads_and_matches_scenes_md() {
                 assert_eq!(cfg.parameter.train_points().len(), 129 * 33);
             }
             (Model::Hertz3d(h), "hertz-3d") => {
-                // docs/scenes.md#hertz-3d: 24 elements a side graded with exponent 3, d up to 0.01
+                // docs/scenes.md#hertz-3d: 24 elements a side graded with exponent 3, d up to 0.01,
+                // 48 training points
                 assert_eq!(
                     (h.n, h.grading.to_bits(), h.contact_radius.to_bits()),
                     (24, 3f64.to_bits(), 0.25f64.to_bits())
                 );
-                assert_eq!(cfg.parameter.train_points().len(), 12);
+                assert_eq!(cfg.parameter.train_points().len(), 48);
             }
             (Model::Ironing3d(i), "ironing-3d") => {
                 // docs/scenes.md#ironing-3d: 100 x 15 x 20 and 20 x 10 x 10 elements, 129 points
