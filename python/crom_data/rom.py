@@ -33,6 +33,7 @@ is `lift(μ) + Φ û`), `dual_coefficients` the pressure's λ̂ (`pressure = Θ 
 from __future__ import annotations
 
 import functools
+import numbers
 import os
 
 import numpy as np
@@ -272,7 +273,7 @@ def open_model(scene, entry: str = "model.h5", u_tol: float | None = None) -> Re
     """The model of a published study (used by `Scene.rom`): the entry is verified against its
     manifest (schema version included) before the native code loads and verifies it again.
     `u_tol`: the re-pairing's stopping distance instead of the model's."""
-    if u_tol is not None and (isinstance(u_tol, bool) or not isinstance(u_tol, (int, float))
+    if u_tol is not None and (isinstance(u_tol, bool) or not isinstance(u_tol, numbers.Real)
                               or not 0.0 < u_tol < 1.0):
         raise InvalidSetting(f"scene {scene.name!r}: u_tol={u_tol!r} is not a tolerance in (0, 1); give the "
                              "re-pairing's relative stopping distance, e.g. u_tol=1e-6, or None for the model's own")

@@ -139,6 +139,7 @@ def test_a_model_opened_with_u_tol_is_the_query_with_u_tol_bit_for_bit(hertz_sto
         lin_loose += r.linearizations
         lin_own += own.solve(**{name: v}).linearizations
     assert lin_loose < lin_own, (lin_loose, lin_own)
+    assert sc.rom(u_tol=np.float32(1e-4)).u_tol == float(np.float32(1e-4))  # any real number
     for bad in (0.0, 1.0, -1e-6, math.nan, math.inf, "1e-6", True):
         with pytest.raises(InvalidSetting, match=r"u_tol=.* not a tolerance in \(0, 1\)"):
             sc.rom(u_tol=bad)
