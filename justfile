@@ -66,11 +66,13 @@ paraview SCENE SET="train" WARP="1" OUT="paraview.png":
     xvfb-run -a pvbatch scripts/render_paraview.py "${CROM_STORE:-data/store}/scenes/{{SCENE}}/{{SET}}.xdmf" {{OUT}} {{WARP}}
 
 # The 3-D targets: hertz-3d against Hertz theory, the 10^5-dof ironing-3d model (factorisation,
-# contact operators, a sweep's snapshots; peak memory), and the whole cold ironing-3d study.
+# contact operators, a sweep's snapshots; peak memory), the whole cold ironing-3d study, and the
+# stored 3-D models at random points (accuracy, convergence, speed-up; with and without --u-tol).
 bench-3d: build
     just example hertz3d_theory
     /usr/bin/time -f "bench_contact3d: peak memory %M KB" just example bench_contact3d
     tmp=$(mktemp -d) && /usr/bin/time -f "whole cold crom run ironing-3d: %e s, peak %M KB" "${CARGO_TARGET_DIR:-target}/release/crom" -q --store "$tmp/store" run ironing-3d > /dev/null && rm -rf "$tmp"
+    CROM_BIN="${CARGO_TARGET_DIR:-target}/release/crom" {{python}} scripts/bench_3d_query.py
 
 # The 3-D level-10 rows: ironing-3d at train_level = 10 offline on the single-node Slurm and
 # locally, and the two stores compared byte for byte (about 25 minutes; not part of `just bench`).
