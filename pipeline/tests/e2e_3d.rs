@@ -38,8 +38,8 @@ const SPECIFICITY: &str = "specificity_samples = 1000";
 const SPECIFICITY_SMALL: &str = "specificity_samples = 50";
 
 /// A shipped ironing-3d scene (`shipped`: `ironing-3d` or `ironing-3d-2d`) made small as `name`:
-/// its block and die meshes replaced (`[nx, ny, nz]` of each), 4 cross-validation folds, 50
-/// specificity samples, and `edits` (each must apply).
+/// its block and die meshes replaced (`[nx, ny, nz]` of each), 50 specificity samples, and
+/// `edits` (each must apply).
 fn small_ironing(
     dir: &std::path::Path,
     (shipped, name): (&str, &str),
@@ -49,12 +49,10 @@ fn small_ironing(
     let mesh = |[x, y, z]: [usize; 3]| format!("nx = {x}\nny = {y}\nnz = {z}");
     let (block, die) = (mesh(block), mesh(die));
     let (from, to) = (format!("name = \"{shipped}\""), format!("name = \"{name}\""));
-    let folds = if shipped == "ironing-3d" { "loo_folds = 16" } else { "loo_folds = 32" };
     let mut all = vec![
         (from.as_str(), to.as_str()),
         ("nx = 100\nny = 15\nnz = 20", block.as_str()),
         ("nx = 20\nny = 10\nnz = 10", die.as_str()),
-        (folds, "loo_folds = 4"),
         (SPECIFICITY, SPECIFICITY_SMALL),
     ];
     all.extend_from_slice(edits);
@@ -170,7 +168,12 @@ fn small_ironing3d(dir: &std::path::Path) -> std::path::PathBuf {
         dir,
         ("ironing-3d", "ironing-3d-small"),
         ([20, 3, 4], [4, 2, 2]),
-        &[("train_level = 7", "train_level = 3"), ("max_m = 32", "max_m = 4"), ("cells = [4, 16]", "cells = [2]")],
+        &[
+            ("train_level = 7", "train_level = 3"),
+            ("max_m = 32", "max_m = 4"),
+            ("loo_folds = 16", "loo_folds = 4"),
+            ("cells = [4, 16]", "cells = [2]"),
+        ],
     )
 }
 
@@ -178,8 +181,8 @@ fn small_ironing3d(dir: &std::path::Path) -> std::path::PathBuf {
 /// registered entries included) runs on a small mesh; the registered approximations' curves are
 /// stored beside the others, and the registered POD on whole-node shifts beats the plain POD at
 /// every m of the test error (the die's pressure travels with `d_x` along every line of slaves,
-/// so the shift removes what plain modes spend their rank on); the registered CPG bases are
-/// and neighbours are solved online at every test point (converged everywhere, nothing skipped);
+/// so the shift removes what plain modes spend their rank on); the registered CPG bases and the
+/// neighbours are solved online at every test point (converged everywhere, nothing skipped);
 /// a stored model pinned to the registered CPG (`study.model_dual`) carries its lines across the
 /// travel, so that `crom query --check` answers with it; and so does one pinned to the
 /// neighbours, with their training travels.
@@ -278,6 +281,7 @@ fn a_cycling_re_pairing_converges_with_half_steps() {
         ([40, 6, 8], [8, 4, 4]),
         &[
             ("train_level = 5", "train_level = 4"),
+            ("loo_folds = 32", "loo_folds = 4"),
             ("seed = 20236", "seed = 20236\nmodel_dual = \"registered-translate-nodes-neighbours\""),
         ],
     );

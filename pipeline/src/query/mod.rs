@@ -163,13 +163,23 @@ pub fn load_artifact(root: &Path, key: &Key, fix: &str) -> Result<Loaded, CromEr
     Ok(Loaded { stored, model, dir, mesh: None, root: root.to_path_buf(), key: key.clone() })
 }
 
-/// The exact online solve's settings stored with the model.
-pub fn params(stored: &StoredModel) -> RomParams {
+/// A re-pairing tolerance given in place of the model's (`crom query --u-tol`, Python's
+/// `Scene.rom(u_tol=…)`), as given; `Err` with the value unless it lies in (0, 1).
+pub fn checked_u_tol(u_tol: Option<f64>) -> Result<Option<f64>, f64> {
+    match u_tol {
+        Some(t) if !(t > 0.0 && t < 1.0) => Err(t),
+        other => Ok(other),
+    }
+}
+
+/// The exact online solve's settings stored with the model, with `u_tol` in place of the stored
+/// one where given (checked by [`checked_u_tol`]).
+pub fn params(stored: &StoredModel, u_tol: Option<f64>) -> RomParams {
     RomParams {
         algorithm: Algorithm::Exact,
         max_iter: usize::try_from(stored.max_iter).unwrap_or(usize::MAX),
         gap_tol: stored.gap_tol,
-        u_tol: stored.u_tol,
+        u_tol: u_tol.unwrap_or(stored.u_tol),
         exact_step: usize::try_from(stored.exact_step).unwrap_or(0),
     }
 }
@@ -251,12 +261,10 @@ pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> 
             fix: "name the fields file FILE.h5 (FILE.xdmf is written beside it)".into(),
         });
     }
-    if let Some(t) = req.u_tol.filter(|t| !(*t > 0.0 && *t < 1.0)) {
-        return Err(CromError::Usage {
-            message: format!("--u-tol {t}: not a tolerance in (0, 1)"),
-            fix: "give the re-pairing's relative stopping distance in (0, 1), e.g. --u-tol 1e-6, or leave it out for the model's own".into(),
-        });
-    }
+    let u_tol = checked_u_tol(req.u_tol).map_err(|t| CromError::Usage {
+        message: format!("--u-tol {t}: not a tolerance in (0, 1)"),
+        fix: "give the re-pairing's relative stopping distance in (0, 1), e.g. --u-tol 1e-6, or leave it out for the model's own".into(),
+    })?;
     let out_kind = match &req.out {
         None => None,
         Some(p) => match p.extension().and_then(|e| e.to_str()) {
@@ -292,7 +300,7 @@ pub fn run(root: &Path, scene: &SceneConfig, scene_arg: &str, req: &Request) -> 
         };
         flags.push(domain.check(p, &at, req.allow_extrapolation)?);
     }
-    let params = RomParams { u_tol: req.u_tol.unwrap_or(s.u_tol), ..params(s) };
+    let params = params(s, u_tol);
     let model = &loaded.model;
     let mut rows: Vec<Row> = points
         .par_iter()

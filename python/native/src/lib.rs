@@ -26,7 +26,7 @@ use std::time::Instant;
 use crom_pipeline::cache::Key;
 use crom_pipeline::error::CromError;
 use crom_pipeline::io::model::Reconstruction;
-use crom_pipeline::query::{answer, fields, load_artifact, params, Answer, Loaded};
+use crom_pipeline::query::{answer, checked_u_tol, fields, load_artifact, params, Answer, Loaded};
 use crom_stages::rom::{QueryModel, ReducedModel, RomOutcome, RomParams, RomWork};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
@@ -154,19 +154,19 @@ impl Model {
     #[staticmethod]
     #[pyo3(signature = (root, key, fix, u_tol=None))]
     fn open(py: Python<'_>, root: PathBuf, key: String, fix: String, u_tol: Option<f64>) -> PyResult<Self> {
-        if let Some(t) = u_tol.filter(|t| !(*t > 0.0 && *t < 1.0)) {
-            return Err(error(
+        let u_tol = checked_u_tol(u_tol).map_err(|t| {
+            error(
                 py,
                 "InvalidSetting",
                 format!("u_tol={t}: not a tolerance in (0, 1); give the re-pairing's relative stopping distance, e.g. u_tol=1e-6, or None for the model's own"),
-            ));
-        }
+            )
+        })?;
         let loaded = py.detach(|| load_artifact(&root, &Key(key), &fix)).map_err(|e| crom_error(py, e))?;
         let s = &loaded.stored;
         let bounds =
             Bounds { names: s.parameter_names.clone(), min: s.parameter_min.clone(), max: s.parameter_max.clone() };
         Ok(Self {
-            params: RomParams { u_tol: u_tol.unwrap_or(s.u_tol), ..params(s) },
+            params: params(s, u_tol),
             bounds,
             loaded,
             work: Mutex::new((RomWork::default(), None)),

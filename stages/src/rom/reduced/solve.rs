@@ -123,7 +123,7 @@ impl ReducedModel {
         w.seen.clear();
         w.seen.push(w.lin.pairing_hash());
         let (mut steps, mut smooth, mut last_du, mut probed) = (0, false, 0.0f64, false);
-        let (mut newton, mut damped) = (true, false);
+        let mut stepping = StepKind::Corrected;
         for _ in 0..p.max_iter {
             let out = self.solve_linearised_qp(w, tol, max_steps);
             steps += w.qp.steps;
@@ -164,10 +164,10 @@ impl ReducedModel {
             // curvature once the pairing has settled (a step across a change of pairing is
             // outside the curvature's reach; measured, correcting those too made the ironing-fine
             // queries 8 % slower: more corrections than linearisations saved)
-            if newton && smooth && w.lin.newton() {
+            if stepping == StepKind::Corrected && smooth && w.lin.newton() {
                 self.curvature_step(w, p.exact_step);
             }
-            if damped {
+            if stepping == StepKind::Halved {
                 // after the plain re-pairing cycled: half the step (the fixed points are the same)
                 for (x, u) in w.x.iter_mut().zip(&w.u_hat) {
                     *x = u + 0.5 * (*x - u);
@@ -179,16 +179,13 @@ impl ReducedModel {
                 // a pairing seen before, reached by a change: the re-pairing cycles
                 let h = w.lin.pairing_hash();
                 if w.seen.contains(&h) {
-                    if damped {
-                        return ((steps, w.qp.active.len(), RomOutcome::Cycled), false);
-                    }
                     // the corrected steps cycle: go on with the plain re-pairing; that cycling
                     // too, with half steps, which decide
-                    if newton {
-                        newton = false;
-                    } else {
-                        damped = true;
-                    }
+                    stepping = match stepping {
+                        StepKind::Corrected => StepKind::Plain,
+                        StepKind::Plain => StepKind::Halved,
+                        StepKind::Halved => return ((steps, w.qp.active.len(), RomOutcome::Cycled), false),
+                    };
                     w.seen.clear();
                 }
                 w.seen.push(h);
@@ -298,6 +295,18 @@ impl ReducedModel {
             Oracle { m: self, lin }.values(zero, s);
         }
     }
+}
+
+/// How the exact solve steps to its next linearisation point; each cycle of the re-pairing moves
+/// it one on, and a cycle of half steps ends the solve `cycled`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum StepKind {
+    /// The QP's answer, Newton-corrected for the gaps' curvature once the pairing has settled.
+    Corrected,
+    /// The QP's answer.
+    Plain,
+    /// Half the way to the QP's answer.
+    Halved,
 }
 
 /// The QP's multipliers scattered into `w.lam`, and its active set kept as the next QP's start.
