@@ -16,6 +16,8 @@
 //! * A scene that asks for the full ranks (`study.model_ranks`) gets the model whose every test
 //!   point the online stage tabled (`rom_errors.parquet`, exact, full CPG basis): point by
 //!   point, the query's outcome, steps, indicator terms and dual error have the same bits.
+//! * A scene that sets `study.online_u_tol` gets it in the online stages and the stored model: a
+//!   plain query answers as `--u-tol` with that value does, bit for bit.
 //! * Over a two-component parameter (a small ironing-fine-2d) the stored model carries the
 //!   registered CPG on the moments map and answers the test points as the online comparison
 //!   measured it.
@@ -266,6 +268,63 @@ fn damaged_parts_are_caught_where_they_are_read(store: &Path) {
     let o = crom(store, &one);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("failed verification") && text(&o).contains("model.h5"), "{}", text(&o));
+}
+
+/// `study.online_u_tol` sets the exact solve's re-pairing tolerance of the whole study: on a
+/// hertz whose scene sets 1e-4, the online stage, the comparison's online stages and the stored
+/// model record 1e-4 (every such artifact's manifest, and the model file); a plain query
+/// answers as `--u-tol 1e-4` does, bit for bit (answers, steps and linearisations at 20 points),
+/// and `--u-tol 1e-10` (the solver's own default) takes more linearisations in all (measured:
+/// 136 against 111). With the setting ignored in any of the three stages, that stage's
+/// manifests read 1e-10 and the test fails (checked by reverting the online stage's).
+#[test]
+fn a_scene_sets_the_online_tolerance_of_its_study_and_model() {
+    let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
+    let store = tmp.path().join("store");
+    let scene = common::variant(
+        tmp.path(),
+        "hertz",
+        "hertz-loose.toml",
+        &[("seed = 20232", "seed = 20232\nonline_u_tol = 1e-4")],
+    );
+    let scene = scene.to_str().expect("utf8");
+    let o = crom(&store, &["--quiet", "run", scene]);
+    assert!(o.status.success(), "{}", text(&o));
+    let mut stages = std::collections::BTreeMap::new();
+    for stage in ["rom", "model", "online-approximation"] {
+        for dir in std::fs::read_dir(store.join(stage)).expect(stage).flatten() {
+            let m: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(dir.path().join("manifest.json")).expect("manifest"))
+                    .expect("json");
+            assert_eq!(m["parameters"]["u_tol"].as_f64(), Some(1e-4), "{stage} {}", dir.path().display());
+            *stages.entry(stage).or_insert(0) += 1;
+        }
+    }
+    assert_eq!(stages.len(), 3, "every online stage ran: {stages:?}");
+    let model = StoredModel::read(&store.join("scenes/hertz/model.h5")).expect("model");
+    assert_eq!(model.u_tol.to_bits(), 1e-4f64.to_bits(), "the stored model's u_tol");
+    let points = tmp.path().join("points.csv");
+    let lines: Vec<String> = (0..20).map(|k| format!("{}", 0.03 + 0.0135 * k as f64)).collect();
+    std::fs::write(&points, format!("d\n{}\n", lines.join("\n"))).expect("points");
+    let answer = |extra: &[&str]| -> Table {
+        let out = tmp.path().join(format!("q{}.parquet", extra.concat()));
+        let mut args = vec!["query", scene, "--points", points.to_str().expect("utf8"), "--out"];
+        args.push(out.to_str().expect("utf8"));
+        args.extend_from_slice(extra);
+        let o = crom(&store, &args);
+        assert!(o.status.success(), "{args:?}: {}", text(&o));
+        read_parquet(&out).expect("answers")
+    };
+    let (plain, same, tight) = (answer(&[]), answer(&["--u-tol", "1e-4"]), answer(&["--u-tol", "1e-10"]));
+    for c in ["u_hat_norm", "lambda_hat_norm", "contact_force"] {
+        let bits = |q: &Table| q.f64s(c).expect(c).iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&plain), bits(&same), "{c}: the plain query is the stored tolerance's");
+    }
+    for c in ["iterations", "linearizations"] {
+        assert_eq!(plain.u64s(c).expect(c), same.u64s(c).expect(c), "{c}");
+    }
+    let lin = |q: &Table| q.u64s("linearizations").expect("linearizations").iter().sum::<u64>();
+    assert!(lin(&plain) < lin(&tight), "linearisations: {} stored, {} at 1e-10", lin(&plain), lin(&tight));
 }
 
 #[test]

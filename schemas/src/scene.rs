@@ -446,6 +446,14 @@ pub struct StudySpec {
     /// as most accurate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_dual: Option<String>,
+    /// The online solve's re-pairing tolerance `u_tol` (optional, in `(0, 1)`): the relative
+    /// distance to the re-pairing's fixed point at which the exact solve stops, in the online
+    /// stage, the comparison's online stages and the stored model (`crom query --u-tol`
+    /// overrides it per query). Default: the solver's own, 1e-10. A looser value takes fewer
+    /// linearisations; how far it moves the answers is measured per scene
+    /// (docs/scenes.md#study-settings).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub online_u_tol: Option<f64>,
 }
 
 /// `study.model_dual` for the study's CPG basis (the online trade-off's rows).

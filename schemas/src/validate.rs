@@ -182,6 +182,16 @@ impl SceneConfig {
         if let Some(dual) = &self.study.model_dual {
             check_model_dual(&c, dual, self.comparison.as_ref())?;
         }
+        if let Some(t) = self.study.online_u_tol {
+            c.finite("study.online_u_tol", t)?;
+            if !(t > 0.0 && t < 1.0) {
+                return Err(c.fail(
+                    "study.online_u_tol",
+                    format!("is {t}, not a tolerance in (0, 1)"),
+                    "give the online solve's relative stopping distance in (0, 1), e.g. 1e-6, or remove the key for 1e-10",
+                ));
+            }
+        }
         match &self.model {
             Model::Rope(r) => check_rope(&c, r),
             Model::Hertz(h) => check_hertz(&c, h),
@@ -321,6 +331,13 @@ impl SceneConfig {
                 "study.model_dual",
                 "is set, but an external scene has no reduced model (it needs the full-order operators)".into(),
                 "remove study.model_dual",
+            ));
+        }
+        if self.study.online_u_tol.is_some() {
+            return Err(c.fail(
+                "study.online_u_tol",
+                "is set, but an external scene has no online solve (it needs the full-order operators)".into(),
+                "remove study.online_u_tol",
             ));
         }
         check_study(c, &self.study)?;

@@ -409,6 +409,23 @@ fn model_ranks_are_checked() {
     assert_names(&load_err(&with("[4]")), &["model_ranks"]);
 }
 
+/// `study.online_u_tol`: accepted strictly between 0 and 1 (the exact solve's relative stopping
+/// distance); 0, 1, a negative value, infinity and NaN are refused naming the field, and an
+/// external scene (no online solve) refuses the key.
+#[test]
+fn the_online_tolerance_is_checked() {
+    let with = |setting: &str| rope_text().replace("[study]\n", &format!("[study]\nonline_u_tol = {setting}\n"));
+    let cfg = SceneConfig::from_toml_str(&with("1e-6"), Path::new("ok.toml")).expect("a valid setting");
+    assert_eq!(cfg.study.online_u_tol.map(f64::to_bits), Some(1e-6f64.to_bits()));
+    let plain = SceneConfig::from_toml_str(&rope_text(), Path::new("ok.toml")).expect("rope");
+    assert_eq!(plain.study.online_u_tol, None, "absent unless given");
+    for bad in ["0.0", "1.0", "-1e-6", "inf", "nan", "2.0"] {
+        assert_names(&load_err(&with(bad)), &["study.online_u_tol"]);
+    }
+    let ext = external_text(EXTERNAL).replace("[study]\n", "[study]\nonline_u_tol = 1e-6\n");
+    assert_names(&load_err(&ext), &["study.online_u_tol", "no online solve"]);
+}
+
 /// A stored model carries a registered CPG on the moments map over one parameter component and
 /// over several (its table keeps each training point's components): `study.model_dual` naming
 /// it is accepted on ironing-fine-2d and on hertz; naming the registered POD of the same map is

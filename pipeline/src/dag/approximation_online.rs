@@ -103,7 +103,7 @@ impl OnlineApproximationKey {
             nnls: NnlsKey::used(),
             max_iter: p.max_iter,
             gap_tol: p.gap_tol,
-            u_tol: p.u_tol,
+            u_tol: scene.study.online_u_tol.unwrap_or(p.u_tol),
             ws_start: WS_START,
             starts_3d: scene.model.is_3d(),
         })

@@ -120,7 +120,7 @@ impl ModelKey {
         Self {
             max_iter: params.max_iter,
             gap_tol: params.gap_tol,
-            u_tol: params.u_tol,
+            u_tol: scene.study.online_u_tol.unwrap_or(params.u_tol),
             contact_sampling: scene.study.contact_sampling.clone(),
             model_ranks: scene.study.model_ranks,
             model_dual: scene.study.model_dual.clone(),

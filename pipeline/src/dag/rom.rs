@@ -83,7 +83,8 @@ impl RomKey {
             paper_points: PAPER_POINTS,
             seed: scene.study.seed,
         });
-        Self { max_iter: p.max_iter, gap_tol: p.gap_tol, u_tol: p.u_tol, contact_sampling, measured }
+        let u_tol = scene.study.online_u_tol.unwrap_or(p.u_tol);
+        Self { max_iter: p.max_iter, gap_tol: p.gap_tol, u_tol, contact_sampling, measured }
     }
 
     /// The columns of set `which` (0 training, 1 test; `n` points) that are measured, and the
