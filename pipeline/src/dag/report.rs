@@ -43,9 +43,11 @@ impl StageKey for ReportKey {
     /// figure; 11: the stored reduced model among the facts; 12: the captions say that times are
     /// over the timed sample of test points, and a full study's report lists what its plan
     /// skipped, and a surface-drawn scene the full-order and online pressure side by side; 13:
-    /// the online error figures say how many points a sampled large set shows). The scene
-    /// joined the key without a bump: the key changed with it.
-    const ALGORITHM_VERSION: u32 = 13;
+    /// the online error figures say how many points a sampled large set shows; 14: a chart's
+    /// legend moves to the corner that covers the fewest drawn points, and the online error
+    /// figures' caption names the exact solve they show). The scene joined the key without a
+    /// bump: the key changed with it.
+    const ALGORITHM_VERSION: u32 = 14;
 }
 
 /// The artifacts a report shows.

@@ -5,6 +5,7 @@ use std::path::Path;
 use std::sync::Once;
 
 use plotters::coord::Shift;
+use plotters::element::MultiLineText;
 use plotters::prelude::*;
 
 use crate::error::CromError;
@@ -88,7 +89,8 @@ pub struct Chart {
     pub log_x: bool,
     /// The series.
     pub series: Vec<Series>,
-    /// Where the legend goes.
+    /// Where the legend goes, unless its box there would cover more of the drawn points than
+    /// at another corner ([`clear_position`]).
     pub legend: Legend,
 }
 
@@ -118,6 +120,52 @@ impl Legend {
             Legend::MiddleRight => SeriesLabelPosition::MiddleRight,
         }
     }
+}
+
+/// The legend box's margin inside the plotting area and the marker column's width (plotters'
+/// series-label layout: `5` from the area's edge, `legend_area_size` 30, `margin` 10).
+const LEGEND_EDGE: i32 = 5;
+const LEGEND_MARKER: i32 = 30;
+const LEGEND_MARGIN: i32 = 10;
+/// Half a point marker's size in pixels (the [`Mark::Points`] circles' radius).
+const MARKER_RADIUS: i32 = 4;
+
+/// Where the legend box of `label` (the labels' text block, pixels) lies at `pos` in a plotting
+/// area of `area` pixels, as plotters lays it out: `(x0, y0, x1, y1)`.
+fn legend_box(pos: Legend, label: (i32, i32), area: (i32, i32)) -> (i32, i32, i32, i32) {
+    let (w, h) = (label.0 + LEGEND_MARKER + 2 * LEGEND_MARGIN, label.1 + 2 * LEGEND_MARGIN);
+    let x = match pos {
+        Legend::UpperLeft | Legend::LowerLeft => LEGEND_EDGE,
+        Legend::UpperRight | Legend::LowerRight | Legend::MiddleRight => area.0 - w - LEGEND_EDGE,
+    };
+    let y = match pos {
+        Legend::UpperLeft | Legend::UpperRight => LEGEND_EDGE,
+        Legend::MiddleRight => (area.1 - h) / 2,
+        Legend::LowerLeft | Legend::LowerRight => area.1 - h - LEGEND_EDGE,
+    };
+    (x, y, x + w, y + h)
+}
+
+/// The legend's place: `preferred`, unless its box there covers more of `points` (pixels in the
+/// plotting area, a marker's radius around each) than at another corner; then the corner that
+/// covers the fewest, the first in the order upper right, upper left, lower right, lower left,
+/// middle right on a tie. A chart's drawn points stay readable wherever the data put them (a
+/// fixed corner covered hertz-3d's online errors).
+fn clear_position(preferred: Legend, points: &[(i32, i32)], label: (i32, i32), area: (i32, i32)) -> Legend {
+    let covered = |pos: Legend| {
+        let (x0, y0, x1, y1) = legend_box(pos, label, area);
+        let r = MARKER_RADIUS;
+        points.iter().filter(|&&(x, y)| x + r >= x0 && x - r <= x1 && y + r >= y0 && y - r <= y1).count()
+    };
+    let order = [Legend::UpperRight, Legend::UpperLeft, Legend::LowerRight, Legend::LowerLeft, Legend::MiddleRight];
+    let mut best = (covered(preferred), preferred);
+    for pos in order {
+        let c = covered(pos);
+        if c < best.0 {
+            best = (c, pos);
+        }
+    }
+    best.1
 }
 
 /// Tick label: `1e-6` style on log axes, a short decimal otherwise.
@@ -261,11 +309,43 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, chart: &Chart) -> Res
                 anno.label(s.name.as_str())
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(3)));
             }
+            // the drawn points in the plotting area's pixels (a line's too, at four points per
+            // segment), and the labels' text block as plotters measures it
+            let (px, py) = ctx.plotting_area().get_pixel_range();
+            let mut drawn: Vec<(i32, i32)> = Vec::new();
+            for s in &chart.series {
+                let pts: Vec<(i32, i32)> =
+                    s.x.iter()
+                        .zip(&s.y)
+                        .filter(|(x, y)| x.is_finite() && y.is_finite())
+                        .map(|(x, y)| {
+                            let (bx, by) = ctx.backend_coord(&(*x, clamp(*y)));
+                            (bx - px.start, by - py.start)
+                        })
+                        .collect();
+                drawn.extend_from_slice(&pts);
+                if s.mark != Mark::Points {
+                    for w in pts.windows(2) {
+                        drawn.extend((1..4).map(|k| {
+                            let t = k as f64 / 4.0;
+                            let lerp = |a: i32, b: i32| a + (t * (b - a) as f64).round() as i32;
+                            (lerp(w[0].0, w[1].0), lerp(w[0].1, w[1].1))
+                        }));
+                    }
+                }
+            }
+            let font: TextStyle = ("sans-serif", 14).into_font().into();
+            let mut text = MultiLineText::<_, &str>::new((0, 0), &font);
+            for s in &chart.series {
+                text.push_line(s.name.as_str());
+            }
+            let label = text.estimate_dimension().map_err(|e| format!("{e:?}"))?;
+            let area = (px.end - px.start, py.end - py.start);
             ctx.configure_series_labels()
                 .background_style(WHITE.mix(0.85))
                 .border_style(BLACK)
                 .label_font(("sans-serif", 14))
-                .position(chart.legend.position())
+                .position(clear_position(chart.legend, &drawn, label, area).position())
                 .draw()
                 .map_err(|e| e.to_string())?;
         }};
@@ -329,4 +409,32 @@ fn draw_spy<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, spy: &Spy) -> Res
     });
     ctx.draw_series(cells).map_err(|e| e.to_string())?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{clear_position, legend_box, Legend};
+
+    /// The legend stays where the chart asks while that corner is clear, moves to the corner
+    /// covering the fewest points otherwise (the first in the stated order on a tie), and the box
+    /// is where plotters draws it: 5 px from the area's edges, the text block plus 30 px of marker
+    /// column and 10 px of margin each side. A 600 x 400 area, a 100 x 40 text block (box 150 x 60).
+    #[test]
+    fn the_legend_takes_the_clearest_corner() {
+        let (label, area) = ((100, 40), (600, 400));
+        assert_eq!(legend_box(Legend::UpperRight, label, area), (445, 5, 595, 65));
+        assert_eq!(legend_box(Legend::LowerLeft, label, area), (5, 335, 155, 395));
+        assert_eq!(legend_box(Legend::MiddleRight, label, area), (445, 170, 595, 230));
+        // nothing drawn: where asked
+        assert_eq!(clear_position(Legend::MiddleRight, &[], label, area), Legend::MiddleRight);
+        // a point under the asked corner (and one in the lower left): the upper right is clear
+        let pts = [(500, 200), (50, 380)];
+        assert_eq!(clear_position(Legend::MiddleRight, &pts, label, area), Legend::UpperRight);
+        // a marker's radius counts: a point 3 px outside the upper right box is covered
+        let pts = [(598, 30), (500, 200)];
+        assert_eq!(clear_position(Legend::UpperRight, &pts, label, area), Legend::UpperLeft);
+        // every corner covered once but the lower right twice: the asked one stays
+        let pts = [(500, 30), (50, 30), (50, 380), (500, 380), (520, 390), (500, 200)];
+        assert_eq!(clear_position(Legend::UpperLeft, &pts, label, area), Legend::UpperLeft);
+    }
 }

@@ -564,7 +564,7 @@ fn rom_errors(scene: &SceneConfig, d: &ReportData, dir: &Path, basis: &str) -> R
         Axes { x: &scene.parameter.name, y: "relative error", log_x: false, log_y: true, legend: Legend::MiddleRight },
         series,
         format!(
-            "Relative errors of the online reduced solve (Algorithm 1) at {} with the {basis} CPG dual basis (paper Figs. 3, 7).",
+            "Relative errors of the online reduced solve (crom's exact solve; the paper's Figs. 3 and 7 show its Algorithm 1) at {} with the {basis} CPG dual basis.",
             if sampled(shown[0], sizes[0]) || sampled(shown[1], sizes[1]) {
                 format!(
                     "{} of the {} training and {} of the {} test points, drawn at random (a large set is measured on a sample)",
