@@ -51,6 +51,16 @@ fn listing(store: &Path) -> Vec<(String, u64)> {
     out
 }
 
+/// Write the variant of a shipped scene (`common::variant(dir, base, file, edits)`), run its whole
+/// study into `store` (it must succeed) and return the variant's path.
+fn run_variant(store: &Path, dir: &Path, base: &str, file: &str, edits: &[(&str, &str)]) -> String {
+    let scene = common::variant(dir, base, file, edits);
+    let scene = scene.to_str().expect("utf8").to_string();
+    let o = crom(store, &["--quiet", "run", &scene]);
+    assert!(o.status.success(), "{}", text(&o));
+    scene
+}
+
 /// The rows of the online stage's table `errors` (`rom_errors.parquet`) at the test points with
 /// the exact solve and the full dual basis.
 fn exact_full_test_rows(errors: &Table) -> Vec<usize> {
@@ -281,15 +291,13 @@ fn damaged_parts_are_caught_where_they_are_read(store: &Path) {
 fn a_scene_sets_the_online_tolerance_of_its_study_and_model() {
     let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
-    let scene = common::variant(
+    let scene = &run_variant(
+        &store,
         tmp.path(),
         "hertz",
         "hertz-loose.toml",
         &[("seed = 20232", "seed = 20232\nonline_u_tol = 1e-4")],
     );
-    let scene = scene.to_str().expect("utf8");
-    let o = crom(&store, &["--quiet", "run", scene]);
-    assert!(o.status.success(), "{}", text(&o));
     let mut stages = std::collections::BTreeMap::new();
     for stage in ["rom", "model", "online-approximation"] {
         for dir in std::fs::read_dir(store.join(stage)).expect(stage).flatten() {
@@ -331,15 +339,13 @@ fn a_scene_sets_the_online_tolerance_of_its_study_and_model() {
 fn a_model_at_the_full_ranks_answers_every_test_point_as_the_online_stage() {
     let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
-    let scene = common::variant(
+    let scene = &run_variant(
+        &store,
         tmp.path(),
         "rope",
         "rope-full-model.toml",
         &[("seed = 20231", "seed = 20231\nmodel_ranks = [1000, 1000]")],
     );
-    let scene = scene.to_str().expect("utf8");
-    let o = crom(&store, &["--quiet", "run", scene]);
-    assert!(o.status.success(), "{}", text(&o));
     let errors = read_parquet(&store.join("scenes/rope/rom_errors.parquet")).expect("errors");
     let rows = exact_full_test_rows(&errors);
     let mu = errors.f64s("parameter").expect("parameter");
@@ -384,23 +390,19 @@ fn a_scene_chooses_the_dual_approximation_of_its_model() {
     let t = text(&o);
     assert!(t.contains("study.model_dual") && t.contains("registered-moments-cpg") && t.contains("fix:"), "{t}");
     assert!(!store.exists(), "a refused scene created the store");
-    let cpg = common::variant(tmp.path(), "hertz", "hertz-cpg.toml", &[(seed, "seed = 20232\nmodel_dual = \"cpg\"")]);
-    let cpg = cpg.to_str().expect("utf8");
-    let o = crom(&store, &["--quiet", "run", cpg]);
-    assert!(o.status.success(), "{}", text(&o));
+    let cpg =
+        &run_variant(&store, tmp.path(), "hertz", "hertz-cpg.toml", &[(seed, "seed = 20232\nmodel_dual = \"cpg\"")]);
     let model = StoredModel::read(&store.join("scenes/hertz/model.h5")).expect("model");
     assert!(["full", "truncated"].contains(&model.dual_basis.as_str()), "{}", model.dual_basis);
     assert_eq!(model.parts.scalar("reg_map"), 0);
     check_against(&store, ("hertz", cpg), "d", tmp.path());
-    let pinned = common::variant(
+    let pinned = &run_variant(
+        &store,
         tmp.path(),
         "hertz",
         "hertz-reg3.toml",
         &[(seed, "seed = 20232\nmodel_dual = \"registered-moments-cpg\"\nmodel_ranks = [12, 3]")],
     );
-    let pinned = pinned.to_str().expect("utf8");
-    let o = crom(&store, &["--quiet", "run", pinned]);
-    assert!(o.status.success(), "{}", text(&o));
     let model = StoredModel::read(&store.join("scenes/hertz/model.h5")).expect("model");
     assert_eq!((model.dual_basis.as_str(), model.parts.scalar("reg_m")), ("registered-moments-cpg", 3));
     check_against(&store, ("hertz", pinned), "d", tmp.path());
@@ -420,7 +422,8 @@ fn a_scene_chooses_the_dual_approximation_of_its_model() {
 fn a_moments_map_over_two_components_is_stored_and_answers_as_measured() {
     let tmp = crom_pipeline::scratch::tempdir().expect("tempdir");
     let store = tmp.path().join("store");
-    let scene = common::variant(
+    let scene = &run_variant(
+        &store,
         tmp.path(),
         "ironing-fine-2d",
         "ironing-2d-small.toml",
@@ -438,9 +441,6 @@ fn a_moments_map_over_two_components_is_stored_and_answers_as_measured() {
             ),
         ],
     );
-    let scene = scene.to_str().expect("utf8");
-    let o = crom(&store, &["--quiet", "run", scene]);
-    assert!(o.status.success(), "{}", text(&o));
     let published = store.join("scenes/ironing-2d-small");
     let model = StoredModel::read(&published.join("model.h5")).expect("model.h5");
     assert_eq!(model.dual_basis, "registered-moments-cpg");
