@@ -67,7 +67,7 @@ paraview SCENE SET="train" WARP="1" OUT="paraview.png":
 
 # The 3-D targets: hertz-3d against Hertz theory, the 10^5-dof ironing-3d model (factorisation,
 # contact operators, a sweep's snapshots; peak memory), the whole cold ironing-3d study, and the
-# stored 3-D models at random points (accuracy, convergence, speed-up; with and without --u-tol).
+# stored 3-D models at random points (accuracy, convergence, speed-up; at the scene's online_u_tol and at --u-tol 1e-10).
 bench-3d: build
     just example hertz3d_theory
     /usr/bin/time -f "bench_contact3d: peak memory %M KB" just example bench_contact3d
