@@ -456,6 +456,12 @@ pub struct StudySpec {
     pub online_u_tol: Option<f64>,
 }
 
+/// Whether `t` is a re-pairing tolerance `u_tol`: a relative distance in `(0, 1)` (NaN is not).
+/// The one rule for `study.online_u_tol`, `crom query --u-tol` and `Scene.rom(u_tol=…)`.
+pub fn is_u_tol(t: f64) -> bool {
+    t > 0.0 && t < 1.0
+}
+
 /// `study.model_dual` for the study's CPG basis (the online trade-off's rows).
 pub const MODEL_DUAL_CPG: &str = "cpg";
 

@@ -184,7 +184,7 @@ impl SceneConfig {
         }
         if let Some(t) = self.study.online_u_tol {
             c.finite("study.online_u_tol", t)?;
-            if !(t > 0.0 && t < 1.0) {
+            if !crate::scene::is_u_tol(t) {
                 return Err(c.fail(
                     "study.online_u_tol",
                     format!("is {t}, not a tolerance in (0, 1)"),

@@ -44,7 +44,7 @@ use super::comparison::{self, contact_surface, item};
 use super::convert::view;
 use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::online::{dual_error, OnlineBase};
+use super::online::{dual_error, online_params, OnlineBase};
 use super::shared::LazyPhysics;
 use super::shared::Shared;
 use super::timing::time_each;
@@ -96,14 +96,14 @@ impl OnlineApproximationKey {
         if !item.approach.has_cone_basis() {
             return None;
         }
-        let p = RomParams::default();
+        let p = online_params(scene);
         Some(Self {
             approximation: item.spec,
             max_m: cmp.max_m,
             nnls: NnlsKey::used(),
             max_iter: p.max_iter,
             gap_tol: p.gap_tol,
-            u_tol: scene.study.online_u_tol.unwrap_or(p.u_tol),
+            u_tol: p.u_tol,
             ws_start: WS_START,
             starts_3d: scene.model.is_3d(),
         })

@@ -50,7 +50,7 @@ use super::comparison::{contact_surface, item_of};
 use super::ctx::Ctx;
 use super::graph::{Input, Published, StageDef};
 use super::labels::Labels;
-use super::online::{subsample, SAMPLING_FIT_POINTS};
+use super::online::{online_params, subsample, SAMPLING_FIT_POINTS};
 use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -115,12 +115,12 @@ impl ModelKey {
     /// The scene's settings of the stored model; `registered`: its registered CPG
     /// approximations that have an online stage.
     fn of(scene: &SceneConfig, registered: Vec<RegisteredKey>) -> Self {
-        let params = RomParams::default();
+        let params = online_params(scene);
         let (_, parameter_min, parameter_max) = domain(scene);
         Self {
             max_iter: params.max_iter,
             gap_tol: params.gap_tol,
-            u_tol: scene.study.online_u_tol.unwrap_or(params.u_tol),
+            u_tol: params.u_tol,
             contact_sampling: scene.study.contact_sampling.clone(),
             model_ranks: scene.study.model_ranks,
             model_dual: scene.study.model_dual.clone(),

@@ -1,12 +1,14 @@
 //! What the online stages share: the full-order solve times a speed-up divides by, the primal
 //! basis of the online solve (the POD of the training contact responses, with or without their
 //! translates), the dual error every online table states, the subsample of training points
-//! that fits the reduced quadrature, and the online approximations' shared base
+//! that fits the reduced quadrature, the solver's settings a scene asks for
+//! ([`online_params`]), and the online approximations' shared base
 //! ([`OnlineBase`]). The rom, online-approximation and model stages use them; the run keeps the
 //! costly ones once per process (`shared::LazyPhysics`).
 
+use crom_schemas::SceneConfig;
 use crom_stages::basis::{pod_by_gram, pod_full};
-use crom_stages::rom::{ContactOperator, PrimalErrors, ReducedModel, ReducedSolution};
+use crom_stages::rom::{ContactOperator, PrimalErrors, ReducedModel, ReducedSolution, RomParams};
 use faer::MatRef;
 
 use super::timing::time_sample;
@@ -19,6 +21,13 @@ use crate::physics::Physics;
 /// the fit's rows grow as points x 2 states x r_dual x 4 (values and three derivative
 /// directions), 32 x 2 x 60 x 4 = 15 360 rows of 143 slaves at ironing-fine's (128, 60).
 pub(crate) const SAMPLING_FIT_POINTS: usize = 32;
+
+/// The reduced solver's settings of `scene`'s online stages and stored model: the solver's
+/// defaults, with the scene's `study.online_u_tol` where it sets one.
+pub(crate) fn online_params(scene: &SceneConfig) -> RomParams {
+    let p = RomParams::default();
+    RomParams { u_tol: scene.study.online_u_tol.unwrap_or(p.u_tol), ..p }
+}
 
 /// At most `n` of `points`, evenly spaced with both ends.
 pub(crate) fn subsample(points: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {

@@ -43,7 +43,7 @@ use serde_json::json;
 use super::ctx::Ctx;
 use super::graph::{Input, Published, StageDef};
 use super::labels::Labels;
-use super::online::{dual_error, subsample, SAMPLING_FIT_POINTS};
+use super::online::{dual_error, online_params, subsample, SAMPLING_FIT_POINTS};
 use super::shared::LazyPhysics;
 use super::shared::Shared;
 use super::timing::time_each;
@@ -75,7 +75,7 @@ pub(crate) struct RomKey {
 impl RomKey {
     /// The scene's online settings.
     fn of(scene: &SceneConfig) -> Self {
-        let p = RomParams::default();
+        let p = online_params(scene);
         let contact_sampling = scene.study.contact_sampling.clone();
         let largest = scene.parameter.train_points().len().max(scene.parameter.test_points().len());
         let measured = (largest > PAPER_POINTS).then_some(Measured {
@@ -83,8 +83,7 @@ impl RomKey {
             paper_points: PAPER_POINTS,
             seed: scene.study.seed,
         });
-        let u_tol = scene.study.online_u_tol.unwrap_or(p.u_tol);
-        Self { max_iter: p.max_iter, gap_tol: p.gap_tol, u_tol, contact_sampling, measured }
+        Self { max_iter: p.max_iter, gap_tol: p.gap_tol, u_tol: p.u_tol, contact_sampling, measured }
     }
 
     /// The columns of set `which` (0 training, 1 test; `n` points) that are measured, and the

@@ -167,7 +167,7 @@ pub fn load_artifact(root: &Path, key: &Key, fix: &str) -> Result<Loaded, CromEr
 /// `Scene.rom(u_tol=…)`), as given; `Err` with the value unless it lies in (0, 1).
 pub fn checked_u_tol(u_tol: Option<f64>) -> Result<Option<f64>, f64> {
     match u_tol {
-        Some(t) if !(t > 0.0 && t < 1.0) => Err(t),
+        Some(t) if !crom_schemas::scene::is_u_tol(t) => Err(t),
         other => Ok(other),
     }
 }

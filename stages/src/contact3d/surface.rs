@@ -642,19 +642,31 @@ impl Cone {
         Self { centre, rho: rho * (1.0 + 1e-6), nu, tan, e1, e2, hull, h, slack }
     }
 
-    /// Whether a normal projection of `p` onto the facet may exist.
+    /// Whether a normal projection of `p` onto the facet may exist: the ball form, then the hull
+    /// form of the bound.
     fn may_project(&self, p: [f64; 3]) -> bool {
+        if !self.ball_admits(p) {
+            return false;
+        }
+        if !self.tan.is_finite() {
+            return true;
+        }
+        let d = facet::sub(p, self.centre);
+        let along = facet::dot(d, self.nu);
+        let q = [facet::dot(d, self.e1), facet::dot(d, self.e2)];
+        hull_distance(q, &self.hull) <= self.tan * (along.abs() + self.h) + self.slack
+    }
+
+    /// The ball form of the bound alone: whether `p` lies within the double cone about the ball of
+    /// radius `rho` (always, when the normals' spread has no finite bound).
+    fn ball_admits(&self, p: [f64; 3]) -> bool {
         if !self.tan.is_finite() {
             return true;
         }
         let d = facet::sub(p, self.centre);
         let along = facet::dot(d, self.nu);
         let perp = (facet::dot(d, d) - along * along).max(0.0).sqrt();
-        if perp - self.rho > self.tan * (along.abs() + self.rho) {
-            return false;
-        }
-        let q = [facet::dot(d, self.e1), facet::dot(d, self.e2)];
-        hull_distance(q, &self.hull) <= self.tan * (along.abs() + self.h) + self.slack
+        perp - self.rho <= self.tan * (along.abs() + self.rho)
     }
 }
 
@@ -915,10 +927,7 @@ mod tests {
                         succeeded += 1;
                         assert!(cone.may_project(p), "case {case}, point {p:?}: facet {g} projects it");
                     } else if !cone.may_project(p) {
-                        let d = facet::sub(p, cone.centre);
-                        let along = facet::dot(d, cone.nu);
-                        let perp = (facet::dot(d, d) - along * along).max(0.0).sqrt();
-                        hull_only += usize::from(perp - cone.rho <= cone.tan * (along.abs() + cone.rho));
+                        hull_only += usize::from(cone.ball_admits(p));
                     }
                 }
             }
