@@ -8,7 +8,10 @@
 //! normal and weights frozen: `C Psi` is the row combined with `Psi_c`, the constant part the
 //! row applied to `X_c + u0_c(mu)`. Everything after (the rows summed under the dual basis, the
 //! QP, the re-pairing loop) is the 2-D node-to-segment path's. A slave whose last search still
-//! proves its facet is paired on it without a search ([`ReducedModel::linearize3`]); the 2-D
+//! proves its facet is paired on it without a search ([`ReducedModel::linearize3`]), the
+//! first linearisation with the proofs of the nearest warm-start sample
+//! ([`super::WarmStarts::locate3`]), and a search measures the slave's last located facet first
+//! (its hint); the 2-D
 //! path's vertex-zone rule (3-D has no ties) and Newton correction for the gaps' curvature
 //! (first-order re-pairing steps) are not used. Its cost per linearisation: the searches that
 //! are not proved, a projection per supported slave, `O((n_s + n_m) r_u)` for the positions.
@@ -130,7 +133,9 @@ impl ReducedModel {
                     match l.located3[s] {
                         Some(at) if at.holds(l.moved3[s]) => grid.pair_at(&d.master, &l.xm3, xs, at.facet),
                         _ => {
-                            let (p, at) = grid.pair_located(&d.master, &l.xm3, xs);
+                            // the last located facet (or the sample's) is likely near: measured first
+                            let hint = l.located3[s].map(|at| at.facet);
+                            let (p, at) = grid.pair_located(&d.master, &l.xm3, xs, hint);
                             l.located3[s] = at;
                             l.moved3[s] = 0.0;
                             p
@@ -249,6 +254,7 @@ mod tests {
     use crate::contact3d::tests::{hertz_params, ironing_params};
     use crate::contact3d::{build_hertz3d, build_ironing3d, Factored3d};
     use crate::rom::reduced::test_support::{assert_round_trip, columns};
+    use crate::rom::reduced::SurfaceData;
     use crate::rom::{Algorithm, ContactOperator, ReducedModel, RomOutcome, RomParams, RomWork};
     use crate::snapshot::Snapshot;
 
@@ -319,6 +325,52 @@ mod tests {
             assert!(2 * paper_converged > mus.len(), "Algorithm 1 converged at {paper_converged} points");
             let at: Vec<Vec<f64>> = mus.iter().map(|&m| vec![m]).collect();
             assert_round_trip(&rom, &at);
+        }
+    }
+
+    /// A query's first linearisation carries its nearest sample's search proofs
+    /// (`WarmStarts::locate3`, docs/design-notes.md#certificates-instead-of-searches) and its
+    /// located facets as the searches' hints: a small hertz-3d and a small ironing-3d, full bases
+    /// at 5 training points, the warm library at the first and the last (the die 0.4 apart, 4
+    /// facets). At 4 points between them the seeded start holds a proof for every supported
+    /// slave, and the answers (coordinates and multipliers, as bits), outcomes and
+    /// linearisation counts equal those of the same model with the proofs dropped, where every
+    /// slave is searched. A proof carried too far, or a hint that changed a search, changes a
+    /// pair and so the answer: trusting every carried proof regardless of the distance fails
+    /// the test (checked).
+    #[test]
+    fn a_query_starts_from_its_samples_proofs_and_keeps_its_answer() {
+        let hertz = build_hertz3d(&hertz_params(8, 3.0)).expect("hertz").factor().expect("factor");
+        let ironing = build_ironing3d(&ironing_params()).expect("ironing").factor().expect("factor");
+        let cases: [(&Factored3d, [f64; 5], [f64; 4]); 2] = [
+            (&hertz, [0.004, 0.008, 0.012, 0.016, 0.02], [0.005, 0.009, 0.013, 0.019]),
+            (&ironing, [0.1, 0.2, 0.3, 0.4, 0.5], [0.15, 0.25, 0.33, 0.45]),
+        ];
+        let p = RomParams::default();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for (f, mus, tests) in cases {
+            let (rom, _, _) = full_rom3(f, &mus);
+            // the library at the two ends only: most queries lie farther than a facet from it
+            let points = [vec![mus[0]], vec![mus[4]]];
+            let seeded = rom.with_warm_starts(&points, &p);
+            let lib = &seeded.warm_starts;
+            assert_eq!(lib.located3.len(), 2, "proofs per sample");
+            assert_eq!(lib.at3.len(), 2, "positions per sample");
+            let mut bare = seeded.clone();
+            bare.warm_starts.located3.clear();
+            bare.warm_starts.at3.clear();
+            let (mut ws, mut wb) = (RomWork::default(), RomWork::default());
+            for d in tests {
+                ws.prepare(&seeded, &[d]);
+                seeded.seed_warm(&[d], &mut ws);
+                let SurfaceData::Nts3(n3) = &seeded.surf else { panic!("node-to-surface") };
+                assert!(n3.supp.iter().all(|&s| ws.lin.located3[s].is_some()), "{d}: a proof per supported slave");
+                let (a, b) = (seeded.solve(&[d], &p, &mut ws), bare.solve(&[d], &p, &mut wb));
+                assert_eq!(a.outcome, RomOutcome::Converged, "{d}");
+                assert_eq!((a.outcome, a.linearizations), (b.outcome, b.linearizations), "{d}");
+                assert_eq!(bits(&a.u_hat), bits(&b.u_hat), "{d}");
+                assert_eq!(bits(&a.lambda_hat), bits(&b.lambda_hat), "{d}");
+            }
         }
     }
 

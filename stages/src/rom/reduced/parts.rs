@@ -434,7 +434,7 @@ impl ReducedModel {
             n if n == n_warm * r_u => ys_flat.chunks(r_u.max(1)).map(<[f64]>::to_vec).collect(),
             n => return Err(bad("warm_y", format!("{n} values, expected 0 or {}", n_warm * r_u))),
         };
-        let mut warm_starts = WarmStarts { dim, points, sets, ys, moves: Vec::new() };
+        let mut warm_starts = WarmStarts { dim, points, sets, ys, ..WarmStarts::default() };
         let surf = match p.scalar("surface") {
             0 => SurfaceData::Fixed {
                 cphi: floats_of(p, "cphi", nc * r_u)?,
@@ -483,8 +483,10 @@ impl ReducedModel {
                 ))
             }
         };
-        if let SurfaceData::Nts { phi_c, .. } = &surf {
-            warm_starts.place(phi_c, r_u);
+        match &surf {
+            SurfaceData::Nts { phi_c, .. } => warm_starts.place(phi_c, r_u),
+            SurfaceData::Nts3(d) => warm_starts.locate3(d, r_u),
+            SurfaceData::Fixed { .. } => {}
         }
         let model = Self {
             r_u,

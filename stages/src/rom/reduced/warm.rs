@@ -1,7 +1,9 @@
 //! The warm-start library of the exact solve: sample parameters with their active sets (and,
 //! Type-2, their answers), and how a query starts from the nearest of them.
 
+use super::nts3::Nts3;
 use super::{Algorithm, ReducedModel, RomOutcome, RomParams, RomWork, SurfaceData};
+use crate::contact3d::surface::{FacetGrid, Located};
 use crate::dual::DualApprox;
 use crate::rom::la::dot;
 
@@ -19,6 +21,13 @@ pub(super) struct WarmStarts {
     /// them instead of from a row product per contact dof. Derived, not stored in the model
     /// file; empty (or stale in length) means the positions are computed.
     pub(super) moves: Vec<f64>,
+    /// Type-2 in 3-D: per sample, the contact nodes' positions at its answer (slaves, then
+    /// masters) and what a search of each non-fixed slave there proves
+    /// ([`crate::contact3d::surface::Located`]): a query's first linearisation carries these
+    /// proofs over from its nearest sample ([`ReducedModel::seed_warm`]). Derived, not stored
+    /// in the model file ([`WarmStarts::locate3`]); empty means every slave is searched.
+    pub(super) at3: Vec<Vec<[f64; 3]>>,
+    pub(super) located3: Vec<Vec<Option<Located>>>,
 }
 
 impl WarmStarts {
@@ -31,6 +40,48 @@ impl WarmStarts {
         }
         for y in &self.ys {
             self.moves.extend(phi_c.chunks_exact(r).map(|row| dot(row, y)));
+        }
+    }
+
+    /// Fill [`WarmStarts::at3`] and [`WarmStarts::located3`] for the 3-D surface `d` (`r`
+    /// primal columns): at each sample `(mu_k, y_k)` the contact nodes at
+    /// `X_c + u0_c(mu_k) + Psi_c y_k` and a search ([`FacetGrid::pair_located`]) of every
+    /// non-fixed slave with finite coordinates there. Any positions would do: a proof holds at
+    /// the positions it was found at, and a query adds how far its start lies from them.
+    pub(super) fn locate3(&mut self, d: &Nts3, r: usize) {
+        self.at3.clear();
+        self.located3.clear();
+        let dim = self.dim.max(1);
+        if r == 0 || self.ys.len() * dim != self.points.len() {
+            return;
+        }
+        let ncd = 3 * (d.ns + d.nm);
+        let mut base = vec![0.0; ncd];
+        for (k, y) in self.ys.iter().enumerate() {
+            // the positions a query at the sample would place there (`RomWork::prepare`, `place3`)
+            super::work::affine_into(&d.a_terms, &self.points[k * dim..(k + 1) * dim], &mut base);
+            let at: Vec<[f64; 3]> = (0..d.ns + d.nm)
+                .map(|c| {
+                    std::array::from_fn(|j| {
+                        let cd = 3 * c + j;
+                        (base[cd] + d.x_ref[c][j]) + dot(&d.phi_c[cd * r..(cd + 1) * r], y)
+                    })
+                })
+                .collect();
+            let xm = &at[d.ns..];
+            let mut grid = FacetGrid::new(&d.master, xm);
+            let located = (0..d.ns)
+                .map(|s| {
+                    let xs = at[s];
+                    if d.slave_fixed[s] || xs.iter().any(|v| !v.is_finite()) {
+                        None
+                    } else {
+                        grid.pair_located(&d.master, xm, xs, None).1
+                    }
+                })
+                .collect();
+            self.at3.push(at);
+            self.located3.push(located);
         }
     }
 }
@@ -161,6 +212,17 @@ impl ReducedModel {
             }
             l.placed_at_start = true;
         }
+        // 3-D: the nearest sample's proofs, found at its positions; the first linearisation
+        // adds how far each slave and the masters lie from those (`linearize3`)
+        if let (SurfaceData::Nts3(d), Some(located), Some(at)) = (&self.surf, lib.located3.get(k), lib.at3.get(k)) {
+            if located.len() == d.ns && at.len() == d.ns + d.nm && l.located3.len() == d.ns {
+                l.located3.copy_from_slice(located);
+                l.last3.copy_from_slice(&at[..d.ns]);
+                l.moved3.iter_mut().for_each(|m| *m = 0.0);
+                l.xm3_prev.clear();
+                l.xm3_prev.extend_from_slice(&at[d.ns..]);
+            }
+        }
     }
 }
 
@@ -230,8 +292,10 @@ fn sample(
             lib.ys.push(y);
         }
     }
-    if let SurfaceData::Nts { phi_c, .. } = &model.surf {
-        lib.place(phi_c, model.r_u);
+    match &model.surf {
+        SurfaceData::Nts { phi_c, .. } => lib.place(phi_c, model.r_u),
+        SurfaceData::Nts3(d) => lib.locate3(d, model.r_u),
+        _ => {}
     }
     lib
 }

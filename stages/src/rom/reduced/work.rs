@@ -123,7 +123,7 @@ impl RomWork {
 }
 
 /// `out[i] = terms[0][i] + sum_k mu_k terms[1 + k][i]`: affine terms evaluated at `mu`.
-fn affine_into(terms: &[Vec<f64>], mu: &[f64], out: &mut [f64]) {
+pub(super) fn affine_into(terms: &[Vec<f64>], mu: &[f64], out: &mut [f64]) {
     for (i, o) in out.iter_mut().enumerate() {
         *o = affine(&terms[0], &terms[1..], mu, i);
     }
