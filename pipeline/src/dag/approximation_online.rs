@@ -84,8 +84,9 @@ impl StageKey for OnlineApproximationKey {
     /// each term's two rows, the same answers to 1e-10; 12: the first linearisation's positions
     /// from the warm-start samples' displacements, the same answers to 1e-10; 13: half steps
     /// once the plain re-pairing cycles, the same answers where it did not, but for starts lent
-    /// by samples that cycled before: ironing-fine's NNMF rows move).
-    const ALGORITHM_VERSION: u32 = 13;
+    /// by samples that cycled before: ironing-fine's NNMF rows move; 14: a 3-D query answers
+    /// with its verified linearisation point, 2-D the same).
+    const ALGORITHM_VERSION: u32 = 14;
 }
 
 impl OnlineApproximationKey {

@@ -107,8 +107,9 @@ impl StageKey for ModelKey {
     /// approximation's own primal space with translates; 5: warm starts and measured errors
     /// from the exact step that applies the curvature through each term's two rows, the same
     /// answers to 1e-10; 6: the same with the first linearisation's positions from the
-    /// warm-start samples' displacements).
-    const ALGORITHM_VERSION: u32 = 6;
+    /// warm-start samples' displacements; 7: a 3-D query answers with its verified
+    /// linearisation point, 2-D the same).
+    const ALGORITHM_VERSION: u32 = 7;
 }
 
 impl ModelKey {

@@ -120,8 +120,10 @@ impl StageKey for RomKey {
     /// first linearisation's positions from the warm-start samples' displacements, the same
     /// answers to 1e-10; 18: half steps once the plain re-pairing cycles, the same answers
     /// where it did not, but for starts lent by samples that cycled before —
-    /// docs/design-notes.md#half-steps-after-a-cycling-re-pairing).
-    const ALGORITHM_VERSION: u32 = 18;
+    /// docs/design-notes.md#half-steps-after-a-cycling-re-pairing; 19: a 3-D query answers with
+    /// its verified linearisation point, within `u_tol` of the checked next iterate — 2-D the
+    /// same).
+    const ALGORITHM_VERSION: u32 = 19;
 }
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];

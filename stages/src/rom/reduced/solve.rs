@@ -120,6 +120,7 @@ impl ReducedModel {
         let tol = p.gap_tol * scale;
         let max_steps = 10 * (ru + self.r_l) + 10;
         let repairs = matches!(self.surf, SurfaceData::Nts { .. } | SurfaceData::Nts3(_));
+        let accepts_point = matches!(self.surf, SurfaceData::Nts3(_));
         w.seen.clear();
         w.seen.push(w.lin.pairing_hash());
         let (mut steps, mut smooth, mut last_du, mut probed) = (0, false, 0.0f64, false);
@@ -141,6 +142,7 @@ impl ReducedModel {
             let du = w.x.iter().zip(&w.u_hat).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
             let un = dot(&w.x, &w.x).sqrt();
             let estimate = fixed_point_distance(du, last_du, smooth);
+            let step_before = last_du;
             last_du = du;
             if !probed && estimate <= ZONE_PROBE * un {
                 probed = true;
@@ -148,6 +150,12 @@ impl ReducedModel {
                     w.u_hat.copy_from_slice(&w.x);
                     return ((steps, w.qp.active.len(), RomOutcome::Converged), true);
                 }
+            }
+            if accepts_point && smooth && point_within(du, step_before, p.u_tol * un) {
+                // 3-D: the linearisation point itself is the answer. Its pairing is verified
+                // (the linearisation at it changed none), and its distance to the fixed point
+                // is estimated within `u_tol`, so the check at the QP's answer is spared
+                return ((steps, w.qp.active.len(), RomOutcome::Converged), false);
             }
             if estimate <= p.u_tol * un {
                 // fixed point of the linearisation: converged if the pairing at the solution is
@@ -317,6 +325,17 @@ fn keep_qp_multipliers(w: &mut RomWork) {
     }
     w.warm.clear();
     w.warm.extend_from_slice(&w.qp.active);
+}
+
+/// Whether the point a step `du` (after a step `before`, no change of pairing between them)
+/// started from lies within `tol` of the fixed point: a linearly convergent iteration with
+/// ratio `rho = du / before < 1/2` is within `du / (1 - rho)` of it from that point (one step
+/// more than [`fixed_point_distance`] asks of the step's end). Used in 3-D, where the check of
+/// the pairing at the step's end is a pairing of every supported slave
+/// (docs/design-notes.md#the-online-solve-in-3-d-re-pairs-with-the-solvers-rule).
+fn point_within(du: f64, before: f64, tol: f64) -> bool {
+    let rho = if before > 0.0 { du / before } else { f64::INFINITY };
+    rho < 0.5 && du / (1.0 - rho) <= tol
 }
 
 /// Distance to the fixed point, estimated from the contraction of the last two steps `du` and
