@@ -328,6 +328,17 @@ mod tests {
         }
     }
 
+    /// A small hertz-3d (8 elements a side) and a small ironing-3d, factored, each with 5
+    /// training points and 4 points between them.
+    fn small_models() -> [(Factored3d, [f64; 5], [f64; 4]); 2] {
+        let hertz = build_hertz3d(&hertz_params(8, 3.0)).expect("hertz").factor().expect("factor");
+        let ironing = build_ironing3d(&ironing_params()).expect("ironing").factor().expect("factor");
+        [
+            (hertz, [0.004, 0.008, 0.012, 0.016, 0.02], [0.005, 0.009, 0.013, 0.019]),
+            (ironing, [0.1, 0.2, 0.3, 0.4, 0.5], [0.15, 0.25, 0.33, 0.45]),
+        ]
+    }
+
     /// In 3-D the exact solve answers with its linearisation point once that point's pairing is
     /// verified (the linearisation at it changed none) and its distance to the fixed point is
     /// estimated within `u_tol` (`point_within`), instead of checking the pairing at the next
@@ -340,20 +351,14 @@ mod tests {
     /// which `u_tol` does not bound, lie within 12.8 `u_tol`, as with the check (measured).
     #[test]
     fn the_verified_point_is_within_the_tolerance_of_the_fixed_point() {
-        let hertz = build_hertz3d(&hertz_params(8, 3.0)).expect("hertz").factor().expect("factor");
-        let ironing = build_ironing3d(&ironing_params()).expect("ironing").factor().expect("factor");
-        let cases: [(&Factored3d, [f64; 5], [f64; 4]); 2] = [
-            (&hertz, [0.004, 0.008, 0.012, 0.016, 0.02], [0.005, 0.009, 0.013, 0.019]),
-            (&ironing, [0.1, 0.2, 0.3, 0.4, 0.5], [0.15, 0.25, 0.33, 0.45]),
-        ];
         let rel = |x: &[f64], y: &[f64]| {
             let n = y.iter().map(|v| v * v).sum::<f64>().sqrt();
             x.iter().zip(y).map(|(s, t)| (s - t).powi(2)).sum::<f64>().sqrt() / n
         };
-        for (f, mus, tests) in cases {
-            let (rom, _, _) = full_rom3(f, &mus);
+        for (f, mus, tests) in &small_models() {
+            let (rom, _, _) = full_rom3(f, mus);
             let mut w = RomWork::default();
-            for d in tests {
+            for &d in tests {
                 let tight = rom.solve(&[d], &RomParams { u_tol: 1e-13, ..RomParams::default() }, &mut w);
                 assert_eq!(tight.outcome, RomOutcome::Converged, "{d}");
                 for u_tol in [1e-4, 1e-6] {
@@ -378,16 +383,10 @@ mod tests {
     /// the test (checked).
     #[test]
     fn a_query_starts_from_its_samples_proofs_and_keeps_its_answer() {
-        let hertz = build_hertz3d(&hertz_params(8, 3.0)).expect("hertz").factor().expect("factor");
-        let ironing = build_ironing3d(&ironing_params()).expect("ironing").factor().expect("factor");
-        let cases: [(&Factored3d, [f64; 5], [f64; 4]); 2] = [
-            (&hertz, [0.004, 0.008, 0.012, 0.016, 0.02], [0.005, 0.009, 0.013, 0.019]),
-            (&ironing, [0.1, 0.2, 0.3, 0.4, 0.5], [0.15, 0.25, 0.33, 0.45]),
-        ];
         let p = RomParams::default();
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        for (f, mus, tests) in cases {
-            let (rom, _, _) = full_rom3(f, &mus);
+        for (f, mus, tests) in &small_models() {
+            let (rom, _, _) = full_rom3(f, mus);
             // the library at the two ends only: most queries lie farther than a facet from it
             let points = [vec![mus[0]], vec![mus[4]]];
             let seeded = rom.with_warm_starts(&points, &p);
@@ -398,7 +397,7 @@ mod tests {
             bare.warm_starts.located3.clear();
             bare.warm_starts.at3.clear();
             let (mut ws, mut wb) = (RomWork::default(), RomWork::default());
-            for d in tests {
+            for &d in tests {
                 ws.prepare(&seeded, &[d]);
                 seeded.seed_warm(&[d], &mut ws);
                 let SurfaceData::Nts3(n3) = &seeded.surf else { panic!("node-to-surface") };
