@@ -905,10 +905,20 @@ mod tests {
         assert!(held > 500 && refused > 500, "held {held}, refused {refused}");
     }
 
-    /// [`hull_distance`] against the distance computed by hand: the square `[-1, 1]^2` listed in
-    /// order and listed crossed (0, 2, 1, 3: the same hull), a point inside (0), beside an edge
-    /// (1 from `(2, 0)`), past a corner (`sqrt 2` from `(2, 2)`), and a triangle with a repeated
-    /// corner.
+    /// The least of `values`, by a plain loop: rustc 1.95 (LLVM 22) compiled
+    /// `fold(f64::INFINITY, f64::min)` over the brute-force test's nine distances into a vector
+    /// minimum of the first eight that skipped the ninth
+    /// (docs/design-notes.md#a-miscompiled-minimum).
+    fn least(values: impl Iterator<Item = f64>) -> f64 {
+        let mut best = f64::INFINITY;
+        for v in values {
+            if v < best {
+                best = v;
+            }
+        }
+        best
+    }
+
     /// The search is the brute-force rule with any hint: on the bent patch and on a patch of
     /// random heights (so that the boxes' heights prune), 3 000 slaves at random above, below,
     /// beside and far above it (up to 3 facets away, where the squares grow) are located by
@@ -932,19 +942,11 @@ mod tests {
                 let top = [1.2, 3.0][k % 2];
                 let p = [rng.uniform_in(-1.0, 4.0), rng.uniform_in(-1.0, 4.0), rng.uniform_in(-0.8, top)];
                 let d: Vec<f64> = (0..9).map(|f| facet::closest(&s.corners(f, x), p).d2.sqrt()).collect();
-                // a plain loop: rustc 1.95 (LLVM 22) compiled `fold(f64::INFINITY, f64::min)` over
-                // these nine values into a vector minimum of the first eight that skipped the
-                // ninth (docs/design-notes.md#a-miscompiled-minimum)
-                let mut best = f64::INFINITY;
-                for &v in &d {
-                    if v < best {
-                        best = v;
-                    }
-                }
+                let best = least(d.iter().copied());
                 let (want, _) = g.pair_located(s, x, p, None);
                 let tie = best * (1.0 + 1e-12) + 1e-14 * g.size;
                 let winner = (0..9).find(|&f| d[f] <= tie).expect("a facet");
-                let second = (0..9).filter(|&f| f != winner).map(|f| d[f]).fold(f64::INFINITY, f64::min);
+                let second = least((0..9).filter(|&f| f != winner).map(|f| d[f]));
                 for hint in [None, Some(rng.below(9)), Some(winner)] {
                     let (pair, at) = g.pair_located(s, x, p, hint);
                     let at = at.expect("facets");
@@ -962,6 +964,10 @@ mod tests {
         }
     }
 
+    /// [`hull_distance`] against the distance computed by hand: the square `[-1, 1]^2` listed in
+    /// order and listed crossed (0, 2, 1, 3: the same hull), a point inside (0), beside an edge
+    /// (1 from `(2, 0)`), past a corner (`sqrt 2` from `(2, 2)`), and a triangle with a repeated
+    /// corner.
     #[test]
     fn the_hull_distance_is_the_distance_to_the_convex_hull() {
         let square = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];

@@ -141,8 +141,8 @@ impl ReducedModel {
             }
             let du = w.x.iter().zip(&w.u_hat).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
             let un = dot(&w.x, &w.x).sqrt();
-            let estimate = fixed_point_distance(du, last_du, smooth);
-            let step_before = last_du;
+            let rho = contraction(du, last_du, smooth);
+            let estimate = fixed_point_distance(du, rho);
             last_du = du;
             if !probed && estimate <= ZONE_PROBE * un {
                 probed = true;
@@ -151,7 +151,7 @@ impl ReducedModel {
                     return ((steps, w.qp.active.len(), RomOutcome::Converged), true);
                 }
             }
-            if accepts_point && smooth && point_within(du, step_before, p.u_tol * un) {
+            if accepts_point && point_within(du, rho, p.u_tol * un) {
                 // 3-D: the linearisation point itself is the answer. Its pairing is verified
                 // (the linearisation at it changed none), and its distance to the fixed point
                 // is estimated within `u_tol`, so the check at the QP's answer is spared
@@ -327,23 +327,29 @@ fn keep_qp_multipliers(w: &mut RomWork) {
     w.warm.extend_from_slice(&w.qp.active);
 }
 
-/// Whether the point a step `du` (after a step `before`, no change of pairing between them)
-/// started from lies within `tol` of the fixed point: a linearly convergent iteration with
-/// ratio `rho = du / before < 1/2` is within `du / (1 - rho)` of it from that point (one step
-/// more than [`fixed_point_distance`] asks of the step's end). Used in 3-D, where the check of
-/// the pairing at the step's end is a pairing of every supported slave
-/// (docs/design-notes.md#the-online-solve-in-3-d-re-pairs-with-the-solvers-rule).
-fn point_within(du: f64, before: f64, tol: f64) -> bool {
-    let rho = if before > 0.0 { du / before } else { f64::INFINITY };
+/// The contraction ratio of the re-pairing's last two steps `du` and `last_du` (`smooth`: no
+/// change of pairing between them), infinite where it cannot be read.
+fn contraction(du: f64, last_du: f64, smooth: bool) -> f64 {
+    if smooth && last_du > 0.0 {
+        du / last_du
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Whether the point a step `du` of ratio `rho` ([`contraction`]) started from lies within `tol`
+/// of the fixed point: a linearly convergent iteration with ratio `rho < 1/2` is within
+/// `du / (1 - rho)` of it from that point (one step more than [`fixed_point_distance`] asks of
+/// the step's end). Used in 3-D, where the check of the pairing at the step's end is a pairing
+/// of every supported slave (docs/design-notes.md#the-online-solve-in-3-d-re-pairs-with-the-solvers-rule).
+fn point_within(du: f64, rho: f64, tol: f64) -> bool {
     rho < 0.5 && du / (1.0 - rho) <= tol
 }
 
-/// Distance to the fixed point, estimated from the contraction of the last two steps `du` and
-/// `last_du` (`smooth`: no change of pairing between them): a linearly convergent iteration
-/// with ratio rho is within du rho / (1 - rho); the Newton-corrected one contracts faster as it
-/// converges, so this overestimates.
-fn fixed_point_distance(du: f64, last_du: f64, smooth: bool) -> f64 {
-    let rho = if smooth && last_du > 0.0 { du / last_du } else { f64::INFINITY };
+/// Distance to the fixed point of the end of a step `du` of ratio `rho` ([`contraction`]): a
+/// linearly convergent iteration with ratio rho is within du rho / (1 - rho); the
+/// Newton-corrected one contracts faster as it converges, so this overestimates.
+fn fixed_point_distance(du: f64, rho: f64) -> f64 {
     if rho < 0.5 {
         du * rho / (1.0 - rho)
     } else {
