@@ -85,8 +85,9 @@ impl StageKey for OnlineApproximationKey {
     /// from the warm-start samples' displacements, the same answers to 1e-10; 13: half steps
     /// once the plain re-pairing cycles, the same answers where it did not, but for starts lent
     /// by samples that cycled before: ironing-fine's NNMF rows move; 14: a 3-D query answers
-    /// with its verified linearisation point, 2-D the same).
-    const ALGORITHM_VERSION: u32 = 14;
+    /// with its verified linearisation point, 2-D the same; 15: in 3-D a feature renamed
+    /// across a shared node is not a change of the pairing, 2-D the same).
+    const ALGORITHM_VERSION: u32 = 15;
 }
 
 impl OnlineApproximationKey {

@@ -108,8 +108,9 @@ impl StageKey for ModelKey {
     /// from the exact step that applies the curvature through each term's two rows, the same
     /// answers to 1e-10; 6: the same with the first linearisation's positions from the
     /// warm-start samples' displacements; 7: a 3-D query answers with its verified
-    /// linearisation point, 2-D the same).
-    const ALGORITHM_VERSION: u32 = 7;
+    /// linearisation point, 2-D the same; 8: in 3-D a feature renamed across a shared node is
+    /// not a change of the pairing, 2-D the same).
+    const ALGORITHM_VERSION: u32 = 8;
 }
 
 impl ModelKey {

@@ -122,8 +122,9 @@ impl StageKey for RomKey {
     /// where it did not, but for starts lent by samples that cycled before —
     /// docs/design-notes.md#half-steps-after-a-cycling-re-pairing; 19: a 3-D query answers with
     /// its verified linearisation point, within `u_tol` of the checked next iterate — 2-D the
-    /// same).
-    const ALGORITHM_VERSION: u32 = 19;
+    /// same; 20: in 3-D a feature renamed across a shared node (`Pair3::continues`) is not a
+    /// change of the pairing, within `u_tol` of the answers before — 2-D the same).
+    const ALGORITHM_VERSION: u32 = 20;
 }
 
 const ALGORITHMS: [Algorithm; 2] = [Algorithm::Exact, Algorithm::Paper];

@@ -96,6 +96,19 @@ impl Pair3 {
         self.feature != Feature::Free
     }
 
+    /// Whether re-pairing a slave from `before` to `self` keeps its gap row continuous: the
+    /// same feature, or two paired features whose supports share a master node. The normal
+    /// projection is continuous across every shared edge and vertex (module docs: each facet
+    /// around them finds the same point, weights and normal there), so a slave whose feature
+    /// moves to a neighbouring one has had its row renamed and moved, not replaced; a slave
+    /// that becomes unpaired or pairs with a facet sharing no node has jumped.
+    pub fn continues(&self, before: &Pair3) -> bool {
+        self.feature == before.feature
+            || (self.is_paired()
+                && before.is_paired()
+                && self.support[..self.len].iter().any(|a| before.support[..before.len].iter().any(|b| a.0 == b.0)))
+    }
+
     /// On facet `f` (nodes `q`) at reference coordinates `r`: its four nodes with their
     /// shape-function weights (normal and gap still to set).
     fn on_facet(f: usize, q: [usize; 4], r: [f64; 2]) -> Pair3 {
@@ -1025,6 +1038,68 @@ mod tests {
             }
         }
         assert!(succeeded > 2000 && hull_only > 100, "succeeded {succeeded}, excluded by the hull only {hull_only}");
+    }
+
+    /// [`Pair3::continues`] says what the rule's continuity makes true: on the bent patch, slaves
+    /// 0.1 above the surface stepped by 1e-3 across the edge x = 2 (facets 4 to 5), across the
+    /// vertex (2, 2) along the diagonal (facets 4 to 8, which share node 10 only) and across the
+    /// edge y = 2, re-pair to other facets somewhere on each line (counted), and every such
+    /// rename continues the row: the gap rows of consecutive slaves (the slave's `n`, each
+    /// support node's `-w n`; the sum over nodes of the terms' differences) differ by at most
+    /// 1e-2, twice the step times the rows' largest rate (each of four bilinear weights changes
+    /// by at most 1 per unit length on unit facets, the normal by the bend's curvature 0.4:
+    /// 4.4 + 0.4 per unit length). A slave over facet 0 and one over facet 8 (no shared node) do
+    /// not continue, nor a paired slave and one past the free edge; their rows differ by at
+    /// least 1 (weights summing to 1 on other nodes, or no row).
+    #[test]
+    fn a_rename_across_a_shared_node_continues_the_row_and_a_jump_does_not() {
+        let (s, x) = patch(0.2);
+        let mut g = FacetGrid::new(&s, &x);
+        let height = |px: f64| 0.2 * (px - 1.5).powi(2) + 0.1;
+        // the row as (node or slave, 3-vector): the slave's own term under usize::MAX
+        let row = |p: &Pair3| -> Vec<(usize, [f64; 3])> {
+            let mut r = vec![(usize::MAX, p.normal)];
+            r.extend(p.support[..p.len].iter().map(|&(v, w)| (v, p.normal.map(|c| -w * c))));
+            r
+        };
+        let distance = |a: &Pair3, b: &Pair3| {
+            let (ra, rb) = (row(a), row(b));
+            let mut nodes: Vec<usize> = ra.iter().chain(&rb).map(|e| e.0).collect();
+            nodes.sort_unstable();
+            nodes.dedup();
+            let at = |r: &[(usize, [f64; 3])], v: usize| r.iter().find(|e| e.0 == v).map_or([0.0; 3], |e| e.1);
+            nodes
+                .iter()
+                .map(|&v| facet::dot(facet::sub(at(&ra, v), at(&rb, v)), facet::sub(at(&ra, v), at(&rb, v))).sqrt())
+                .sum::<f64>()
+        };
+        let mut renames = 0;
+        for (start, dir) in [([1.5, 1.5], [1.0, 0.0]), ([1.5, 1.5], [1.0, 1.0]), ([1.5, 1.5], [0.0, 1.0])] {
+            let at = |t: f64| {
+                let (px, py) = (start[0] + t * dir[0], start[1] + t * dir[1]);
+                [px, py, height(px)]
+            };
+            let mut last = g.pair(&s, &x, at(0.0));
+            for k in 1..=1000 {
+                let p = g.pair(&s, &x, at(1e-3 * k as f64));
+                assert!(p.is_paired(), "{start:?} + {k}e-3 {dir:?}");
+                if p.feature != last.feature {
+                    renames += 1;
+                    assert!(p.continues(&last), "{:?} -> {:?}", last.feature, p.feature);
+                }
+                assert!(distance(&p, &last) <= 1e-2, "{:?} -> {:?}: {}", last.feature, p.feature, distance(&p, &last));
+                last = p;
+            }
+        }
+        assert!(renames >= 3, "renames {renames}");
+        let (a, b) = (g.pair(&s, &x, [0.5, 0.5, height(0.5)]), g.pair(&s, &x, [2.5, 2.5, height(2.5)]));
+        assert_eq!((a.feature, b.feature), (Feature::Facet(0), Feature::Facet(8)));
+        assert!(!b.continues(&a) && !a.continues(&b) && distance(&a, &b) >= 1.0);
+        let free = g.pair(&s, &x, [3.8, 1.5, 0.0]);
+        let inside = g.pair(&s, &x, [2.5, 1.5, height(2.5)]);
+        assert_eq!(free, Pair3::UNPAIRED);
+        assert!(!free.continues(&inside) && !inside.continues(&free) && distance(&free, &inside) >= 1.0);
+        assert!(free.continues(&free) && inside.continues(&inside));
     }
 
     /// The cases of the rule, each with its gap and normal:

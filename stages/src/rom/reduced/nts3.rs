@@ -102,7 +102,9 @@ impl ReducedModel {
     }
 
     /// Type-2 in 3-D ([`Self::linearize_with`]): place every contact node, re-pair every
-    /// supported slave, rebuild the gap rows if `assemble`; whether a pairing changed.
+    /// supported slave, rebuild the gap rows if `assemble`; whether a pairing changed other
+    /// than continuously ([`Pair3::continues`]: a feature renamed across a shared node is not a
+    /// change).
     ///
     /// A slave whose last search still proves its facet ([`crate::contact3d::surface::Located::holds`]) is paired on that
     /// facet without a search ([`FacetGrid::pair_at`], the search's answer bit for bit): the
@@ -143,7 +145,9 @@ impl ReducedModel {
                     }
                 }
             };
-            changed |= p.feature != l.pairs3[s].feature;
+            // a feature renamed across a shared node moves the row continuously: not a change
+            // of the pairing the re-pairing's contraction estimate must restart after
+            changed |= !p.continues(&l.pairs3[s]);
             l.pairs3[s] = p;
         }
         l.xm3_prev.clear();

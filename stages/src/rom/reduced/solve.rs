@@ -153,8 +153,9 @@ impl ReducedModel {
             }
             if accepts_point && point_within(du, rho, p.u_tol * un) {
                 // 3-D: the linearisation point itself is the answer. Its pairing is verified
-                // (the linearisation at it changed none), and its distance to the fixed point
-                // is estimated within `u_tol`, so the check at the QP's answer is spared
+                // (the linearisation at it changed none, but for features renamed across a
+                // shared node, which move the rows continuously), and its distance to the fixed
+                // point is estimated within `u_tol`, so the check at the QP's answer is spared
                 return ((steps, w.qp.active.len(), RomOutcome::Converged), false);
             }
             if estimate <= p.u_tol * un {
