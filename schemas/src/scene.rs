@@ -429,8 +429,8 @@ pub struct StudySpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub loo_folds: Option<usize>,
     /// A reduced quadrature of the contact constraints (hyper-reduction, optional; node-to-segment
-    /// scenes only): the online stage adds trade-off rows of the exact solve on a sampled
-    /// surface at the given rank pairs (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints).
+    /// and node-to-surface scenes): the online stage adds trade-off rows of the exact solve on a
+    /// sampled surface at the given rank pairs (docs/design-notes.md#a-reduced-quadrature-of-the-contact-constraints).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact_sampling: Option<ContactSamplingSpec>,
     /// The ranks `[r_primal, r_dual]` of the reduced model the study stores for `crom query`
@@ -440,7 +440,8 @@ pub struct StudySpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_ranks: Option<[usize; 2]>,
     /// The dual approximation of the stored reduced model (optional): [`MODEL_DUAL_CPG`], the
-    /// study's CPG basis (the rows of the online trade-off), or the name of a registered CPG
+    /// study's CPG basis (the rows of the online trade-off), [`MODEL_DUAL_CPG_SAMPLED`], the
+    /// same on the sampled contact surface (`study.contact_sampling`'s rows), or the name of a registered CPG
     /// approximation of `[comparison]` (e.g. `registered-translate-nodes-cpg`), whose basis
     /// the model rebuilds at each query point. Default: whichever of those the study measured
     /// as most accurate.
@@ -464,6 +465,10 @@ pub fn is_u_tol(t: f64) -> bool {
 
 /// `study.model_dual` for the study's CPG basis (the online trade-off's rows).
 pub const MODEL_DUAL_CPG: &str = "cpg";
+
+/// `study.model_dual` for the study's CPG basis on the sampled contact surface (the online
+/// trade-off's `exact-sampled` rows; needs `study.contact_sampling`).
+pub const MODEL_DUAL_CPG_SAMPLED: &str = "cpg-sampled";
 
 /// `study.contact_sampling`: the quadrature's fit tolerance and the rank pairs it is measured
 /// at.

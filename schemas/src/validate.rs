@@ -8,7 +8,7 @@ use crate::comparison::{ApproximationSpec, BasisSpec, ComparisonSpec, Interpolat
 use crate::external::{ArraySource, ExternalSpec, ParameterSource};
 use crate::scene::{
     ContactSamplingSpec, Hertz3dSpec, HertzSpec, Ironing3dSpec, IroningSpec, MaterialSpec, Model, RopeSpec,
-    SceneConfig, SolverSpec, StudySpec, MODEL_DUAL_CPG,
+    SceneConfig, SolverSpec, StudySpec, MODEL_DUAL_CPG, MODEL_DUAL_CPG_SAMPLED,
 };
 use crate::SceneError;
 
@@ -180,7 +180,7 @@ impl SceneConfig {
             }
         }
         if let Some(dual) = &self.study.model_dual {
-            check_model_dual(&c, dual, self.comparison.as_ref())?;
+            check_model_dual(&c, dual, self.comparison.as_ref(), self.study.contact_sampling.is_some())?;
         }
         if let Some(t) = self.study.online_u_tol {
             c.finite("study.online_u_tol", t)?;
@@ -576,7 +576,7 @@ fn check_contact_sampling(c: &Checker<'_>, cs: &ContactSamplingSpec, model: &Mod
         return Err(c.fail(
             "study.contact_sampling",
             "is set for the rope, whose contact constraints are fixed rows (assembled once offline, no per-query work to sample)".into(),
-            "remove study.contact_sampling; it applies to the node-to-segment scenes (hertz, ironing)",
+            "remove study.contact_sampling; it applies to the scenes whose pairs change per query (hertz, ironing and their 3-D kin)",
         ));
     }
     c.finite("study.contact_sampling.tol", cs.tol)?;
@@ -813,18 +813,9 @@ fn check_planes(c: &Checker<'_>, at: &str, planes: &[crate::scene::PlaneSpec]) -
     Ok(())
 }
 
-/// A 3-D scene: no reduced quadrature of the contact constraints (it fits node-to-segment rows;
-/// the 3-D online solve sums over every supported slave) and no primal translates (of a 2-D
-/// slab). The registered maps, the neighbours' whole-node shifts included, act along x on each
+/// A 3-D scene: no primal translates (of a 2-D slab). The registered maps, the neighbours' whole-node shifts included, act along x on each
 /// line of the contact area.
 fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError> {
-    if scene.study.contact_sampling.is_some() {
-        return Err(c.fail(
-            "study.contact_sampling",
-            "is set, but the reduced quadrature of the contact constraints is fitted to node-to-segment (2-D) rows; a 3-D model's online solve sums over every supported slave".into(),
-            "remove study.contact_sampling",
-        ));
-    }
     let entries = scene.comparison.as_ref().map_or(&[][..], |cmp| cmp.approximations.as_slice());
     for (i, a) in entries.iter().enumerate() {
         if matches!(a, ApproximationSpec::Registered { primal_translates: Some(_), .. }) {
@@ -851,8 +842,24 @@ fn check_3d_study(c: &Checker<'_>, scene: &SceneConfig) -> Result<(), SceneError
     Ok(())
 }
 
-/// `study.model_dual`: `cpg` or the name of a registered CPG approximation of `[comparison]`.
-fn check_model_dual(c: &Checker<'_>, dual: &str, cmp: Option<&ComparisonSpec>) -> Result<(), SceneError> {
+/// `study.model_dual`: `cpg`, `cpg-sampled` (with `study.contact_sampling`) or the name of a
+/// registered CPG approximation of `[comparison]`.
+fn check_model_dual(
+    c: &Checker<'_>,
+    dual: &str,
+    cmp: Option<&ComparisonSpec>,
+    sampling: bool,
+) -> Result<(), SceneError> {
+    if dual == MODEL_DUAL_CPG_SAMPLED {
+        return match sampling {
+            true => Ok(()),
+            false => Err(c.fail(
+                "study.model_dual",
+                format!("is \"{dual}\", but the study samples no contact surface"),
+                "add study.contact_sampling (e.g. contact_sampling = { tol = 1e-6, ranks = [[40, 48]] }) with the ranks to store in study.model_ranks, or use \"cpg\"",
+            )),
+        };
+    }
     let registered: Vec<String> = cmp
         .map(|cmp| cmp.approximations.iter().filter(|a| a.storable()).map(ApproximationSpec::name).collect())
         .unwrap_or_default();
@@ -1126,6 +1133,20 @@ mod tests {
         };
         for (scene, ok) in [("hertz", "cpg"), ("hertz", "registered-moments-cpg"), ("rope", "cpg")] {
             assert!(parse(scene, ok).is_ok(), "{scene}: {ok}");
+        }
+        // the sampled surface's rows only where the study samples the surface
+        let sampled = include_str!("../../data/scenes/hertz.toml").replacen(
+            "seed = 20232",
+            "seed = 20232\nmodel_dual = \"cpg-sampled\"\ncontact_sampling = { tol = 0.0, ranks = [[12, 12]] }",
+            1,
+        );
+        assert!(SceneConfig::from_toml_str(&sampled, Path::new("s.toml")).is_ok(), "cpg-sampled with sampling");
+        match parse("hertz", "cpg-sampled") {
+            Err(SceneError::Invalid { field, fix, .. }) => {
+                assert_eq!(field, "study.model_dual");
+                assert!(fix.contains("study.contact_sampling"), "{fix}");
+            }
+            other => panic!("cpg-sampled without sampling: {other:?}"),
         }
         for (scene, bad, fix_says) in [
             ("hertz", "registered-moments-pod", "registered-moments-cpg"),

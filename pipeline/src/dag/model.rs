@@ -7,8 +7,8 @@
 //! registered CPG approximation of the scene's `[comparison]` (full primal rank, `m`
 //! generators pushed forward to each query's frame); the least median dual (pressure) error,
 //! then the least median primal error, then the fewest modes. A scene may restrict the
-//! candidates to one dual approximation (`study.model_dual`: `cpg` or a registered
-//! approximation's name) and ask for ranks (`study.model_ranks`, clipped to the bases; for a
+//! candidates to one dual approximation (`study.model_dual`: `cpg`, `cpg-sampled` for the
+//! sampled surface's rows, or a registered approximation's name) and ask for ranks (`study.model_ranks`, clipped to the bases; for a
 //! registered basis `[r_primal, m]`): the model at those ranks, with the row the study measured
 //! there, or nothing measured where it did not. A table without candidates (no dual mode at
 //! all: a scene without contact) keeps the model of the full bases, with nothing measured
@@ -38,7 +38,7 @@ use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{basis as bnames, comparison as cnames, model as names, rom as rom_names, ArtifactKind};
 use crom_schemas::comparison::ApproximationSpec;
-use crom_schemas::scene::{ContactSamplingSpec, MODEL_DUAL_CPG};
+use crom_schemas::scene::{ContactSamplingSpec, MODEL_DUAL_CPG, MODEL_DUAL_CPG_SAMPLED};
 use crom_schemas::SceneConfig;
 use crom_stages::dual::registration::Registered;
 use crom_stages::dual::{self, Approach, DualApprox, Inner};
@@ -233,11 +233,13 @@ impl StageDef for ModelStage {
             let fail = |m: String| CromError::Numerical { stage: "model", scene: labels.scene.clone(), message: m };
             // the candidates: the trade-off's rows, then each registered approximation's
             let mut candidates = Vec::new();
-            if settings.model_dual.as_deref().is_none_or(|d| d == MODEL_DUAL_CPG) {
+            // `cpg-sampled`: the sampled surface's rows only
+            let sampled = settings.model_dual.as_deref() == Some(MODEL_DUAL_CPG_SAMPLED);
+            if sampled || settings.model_dual.as_deref().is_none_or(|d| d == MODEL_DUAL_CPG) {
                 let rom_dir = store.dir(ArtifactKind::ROM, rom);
                 let trade = read_parquet(&rom_dir.join(rom_names::TRADEOFF))?;
                 let times = read_parquet(&rom_dir.join(rom_names::TRADEOFF_TIMINGS))?;
-                candidates.extend(choice::exact_rows(&trade, &times));
+                candidates.extend(choice::exact_rows(&trade, &times).into_iter().filter(|c| !sampled || c.sampled()));
             }
             for (k, input) in self.online.iter().enumerate() {
                 let dir = store.dir(ArtifactKind::ONLINE_APPROXIMATION, &input.key);
@@ -248,15 +250,23 @@ impl StageDef for ModelStage {
             let train_set = loaded.set(store, train)?;
             let phi = physics.responses(train, &train_set, fail)?;
             // a registered basis when the scene names one, the CPG basis otherwise
-            let pinned_registered = settings.model_dual.as_deref().filter(|d| *d != MODEL_DUAL_CPG).map(|_| 0);
+            let pinned_registered = settings
+                .model_dual
+                .as_deref()
+                .filter(|d| *d != MODEL_DUAL_CPG && *d != MODEL_DUAL_CPG_SAMPLED)
+                .map(|_| 0);
+            let algorithm = if sampled { rom_names::SAMPLED } else { Algorithm::Exact.name() };
             let row = match settings.model_ranks {
-                Some([ru, rl]) => choice::at_ranks(&candidates, pinned_registered, ru.min(phi.cols), rl),
+                Some([ru, rl]) => choice::at_ranks(&candidates, pinned_registered, algorithm, ru.min(phi.cols), rl),
                 None => choice::best(&candidates),
             };
             let mut pick = row.map_or_else(
                 || match pinned_registered {
                     Some(k) => Candidate { source: Source::Registered(k), ..Candidate::full_bases() },
-                    None => Candidate::full_bases(),
+                    None => Candidate {
+                        source: Source::Exact { algorithm: algorithm.into(), dual_basis: "full".into() },
+                        ..Candidate::full_bases()
+                    },
                 },
                 |row| candidates[row].clone(),
             );

@@ -57,6 +57,11 @@ impl Candidate {
         }
     }
 
+    /// Whether it is a row of the sampled contact surface (`exact-sampled`).
+    pub(crate) fn sampled(&self) -> bool {
+        matches!(&self.source, Source::Exact { algorithm, .. } if algorithm == rom_names::SAMPLED)
+    }
+
     /// Test points not converged.
     fn missed(&self) -> u64 {
         self.measured.points.saturating_sub(self.measured.converged)
@@ -135,12 +140,19 @@ pub(crate) fn best(candidates: &[Candidate]) -> Option<usize> {
         })
 }
 
-/// The candidate at ranks `(r_primal, r_dual)` from `source`'s kind (the exact solve on the full
-/// surface for the CPG basis; registered approximation `k` at `m = r_dual`), if measured.
-pub(crate) fn at_ranks(candidates: &[Candidate], registered: Option<usize>, ru: usize, rl: usize) -> Option<usize> {
+/// The candidate at ranks `(r_primal, r_dual)` from `source`'s kind (the CPG basis's rows of
+/// `algorithm`: the exact solve on the full surface, `exact`, or on the sampled one,
+/// `exact-sampled`; registered approximation `k` at `m = r_dual`), if measured.
+pub(crate) fn at_ranks(
+    candidates: &[Candidate],
+    registered: Option<usize>,
+    algorithm: &str,
+    ru: usize,
+    rl: usize,
+) -> Option<usize> {
     candidates.iter().position(|c| {
         let kind = match (&c.source, registered) {
-            (Source::Exact { algorithm, .. }, None) => algorithm == Algorithm::Exact.name(),
+            (Source::Exact { algorithm: a, .. }, None) => a == algorithm,
             (Source::Registered(k), Some(want)) => *k == want,
             _ => false,
         };
@@ -203,8 +215,14 @@ mod tests {
         assert_eq!(best(&c), Some(0), "a tie goes to the listed order");
         assert_eq!(best(&rows(&[(Some(0), 4, 4, 9, 1e-3, 1e-3)])), None);
         assert_eq!(best(&[]), None);
-        assert_eq!(at_ranks(&c, Some(0), 4, 4), Some(1));
-        assert_eq!(at_ranks(&c, None, 4, 4), Some(0));
-        assert_eq!(at_ranks(&c, Some(1), 4, 4), None);
+        assert_eq!(at_ranks(&c, Some(0), "exact", 4, 4), Some(1));
+        assert_eq!(at_ranks(&c, None, "exact", 4, 4), Some(0));
+        assert_eq!(at_ranks(&c, Some(1), "exact", 4, 4), None);
+        // the sampled surface's row at the same ranks, asked for by its algorithm
+        let mut c = rows(&[(None, 4, 4, 10, 1e-3, 1e-3), (None, 4, 4, 10, 2e-3, 1e-3)]);
+        c[1].source = Source::Exact { algorithm: rom_names::SAMPLED.into(), dual_basis: "full".into() };
+        assert_eq!(at_ranks(&c, None, rom_names::SAMPLED, 4, 4), Some(1));
+        assert_eq!(at_ranks(&c, None, "exact", 4, 4), Some(0));
+        assert!(c[1].sampled() && !c[0].sampled());
     }
 }

@@ -199,6 +199,7 @@ impl ReducedModel {
                     phi_c,
                     a_terms,
                     supp: Vec::new(),
+                    quad: None,
                     w_c,
                 };
                 d.supp = d.support(&by_node.0);

@@ -35,7 +35,8 @@
 //! node-to-segment; `facets` (u64, `4 · n_facets`, master-local node ids, outward), `plane_axis`
 //! (u64) and `plane_at` (f64), one per symmetry plane, `plane_tol` (f64, 1 value: the distance
 //! that puts a node on a plane); `w_c` (`(3 nn)²` or 0 values: the compliance on the contact
-//! dofs, kept when at most 4M entries, else the indicator's residual is NaN).
+//! dofs, kept when at most 4M entries, else the indicator's residual is NaN); `quad` as for
+//! node-to-segment, absent (not written) for the full surface.
 //!
 //! A registered dual basis rebuilt at each query point (`reg_map` > 0; then `r_dual` is 0, the
 //! `theta_*` arrays are empty, the `warm_*` arrays hold primal starts only — every active set
@@ -272,6 +273,10 @@ impl ReducedModel {
                     ("plane_at", planes.iter().map(|p| p.at).collect()),
                     ("plane_tol", vec![tol]),
                 ]);
+                if let Some(q) = &d.quad {
+                    // absent for the full surface, so its file keeps its layout
+                    floats.push(("quad", q.clone()));
+                }
                 ints.extend([
                     ("slave_fixed", flags(&d.slave_fixed)),
                     (SUPP, idx(&d.supp)),
@@ -530,6 +535,10 @@ impl ReducedModel {
         if supp.windows(2).any(|w| w[0] >= w[1]) {
             return Err(bad(SUPP, "not strictly increasing".into()));
         }
+        let quad = match p.float("quad").len() {
+            0 => None,
+            _ => Some(floats_of(p, "quad", nc)?),
+        };
         let facets = indices_of(p, "facets", None, nm)?;
         if facets.len() % 4 != 0 {
             return Err(bad("facets", format!("{} node ids, not four per facet", facets.len())));
@@ -556,6 +565,7 @@ impl ReducedModel {
             phi_c: floats_of(p, "phi_c", ncd * r_u)?,
             a_terms: split(floats_of(p, "a_terms", terms * ncd)?, terms),
             supp,
+            quad,
             w_c,
             x_ref,
         })

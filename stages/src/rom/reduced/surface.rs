@@ -61,6 +61,7 @@ impl ReducedModel {
     pub(super) fn gap_weight(&self, s: usize) -> f64 {
         match &self.surf {
             SurfaceData::Nts { quad: Some(q), .. } => q[s],
+            SurfaceData::Nts3(d) => d.quad.as_ref().map_or(self.weights[s], |q| q[s]),
             _ => self.weights[s],
         }
     }
@@ -69,6 +70,7 @@ impl ReducedModel {
     pub fn sampled_slaves(&self) -> Option<usize> {
         match &self.surf {
             SurfaceData::Nts { quad: Some(_), supp, .. } => Some(supp.len()),
+            SurfaceData::Nts3(d) => d.quad.as_ref().map(|_| d.supp.len()),
             _ => None,
         }
     }
@@ -91,9 +93,13 @@ impl ReducedModel {
         p: &RomParams,
         tol: f64,
     ) -> Result<(Self, crate::rom::sampling::Selection), RomError> {
-        let SurfaceData::Nts { supp, .. } = &self.surf else {
-            let all = crate::rom::sampling::Selection { columns: Vec::new(), weights: Vec::new(), residual: 0.0 };
-            return Ok((self.clone(), all));
+        let supp = match &self.surf {
+            SurfaceData::Nts { supp, .. } => supp,
+            SurfaceData::Nts3(d) => &d.supp,
+            SurfaceData::Fixed { .. } => {
+                let all = crate::rom::sampling::Selection { columns: Vec::new(), weights: Vec::new(), residual: 0.0 };
+                return Ok((self.clone(), all));
+            }
         };
         if !(tol.is_finite() && (0.0..1.0).contains(&tol)) {
             return Err(RomError::Sampling(format!(
@@ -137,15 +143,16 @@ impl ReducedModel {
         let a = faer::MatRef::from_column_major_slice(&by_col, rows, n);
         let sel = crate::rom::sampling::greedy_nnls(a, &b, tol, n).map_err(|e| RomError::Sampling(e.to_string()))?;
         let mut model = self.clone();
-        if let SurfaceData::Nts { supp, quad, .. } = &mut model.surf {
-            let mut q = vec![0.0; self.n_contact];
-            let mut chosen: Vec<usize> = sel.columns.iter().map(|&c| cols[c]).collect();
-            for (&c, &xi) in sel.columns.iter().zip(&sel.weights) {
-                q[cols[c]] = xi;
-            }
-            chosen.sort_unstable();
-            *supp = chosen;
-            *quad = Some(q);
+        let mut q = vec![0.0; self.n_contact];
+        let mut chosen: Vec<usize> = sel.columns.iter().map(|&c| cols[c]).collect();
+        for (&c, &xi) in sel.columns.iter().zip(&sel.weights) {
+            q[cols[c]] = xi;
+        }
+        chosen.sort_unstable();
+        match &mut model.surf {
+            SurfaceData::Nts { supp, quad, .. } => (*supp, *quad) = (chosen, Some(q)),
+            SurfaceData::Nts3(d) => (d.supp, d.quad) = (chosen, Some(q)),
+            SurfaceData::Fixed { .. } => {}
         }
         model.warm_starts = WarmStarts::default();
         Ok((model, sel))
@@ -169,8 +176,8 @@ impl ReducedModel {
         let mut values: Vec<f64> = Vec::new();
         let mut w = RomWork::default();
         let mut d = [0.0; SAMPLING_DIRECTIONS];
-        let SurfaceData::Nts { ns, phi_c, .. } = &self.surf else { return Vec::new() };
         let mut row = vec![0.0; ru];
+        let surf = &self.surf;
         let mut record = |w: &RomWork, values: &mut Vec<f64>| {
             let at = values.len();
             values.resize(at + per_state * cols.len(), 0.0);
@@ -181,9 +188,15 @@ impl ReducedModel {
                 if c == usize::MAX {
                     continue;
                 }
-                // the slave's own row (the assembly may have summed the rows instead)
-                combine_rows(&GapRow::new(s, *ns, &l.pairs[s]), phi_c, ru, &mut row);
-                let row = &row[..];
+                // the slave's own row: in 2-D from its pair (the assembly may have summed the
+                // rows instead), in 3-D the one the assembly keeps
+                let row = match surf {
+                    SurfaceData::Nts { ns, phi_c, .. } => {
+                        combine_rows(&GapRow::new(s, *ns, &l.pairs[s]), phi_c, ru, &mut row);
+                        &row[..]
+                    }
+                    _ => &l.cphi[k * ru..(k + 1) * ru],
+                };
                 let g = dot(row, &w.u_hat) + l.g0[k];
                 d.iter_mut().zip(&dirs).for_each(|(dt, z)| *dt = dot(row, z));
                 for e in self.by_node.0[s]..self.by_node.0[s + 1] {
@@ -195,11 +208,16 @@ impl ReducedModel {
                 }
             }
         };
+        let relinearise = matches!(self.surf, SurfaceData::Nts3(_));
         for mu in samples {
             w.prepare(self, mu);
             self.linearize(&mut w);
             record(&w, &mut values);
             if self.solve_in(mu, p, &mut w).outcome == RomOutcome::Converged {
+                if relinearise {
+                    // a 3-D answer may be the QP's answer past the last assembled rows
+                    self.linearize(&mut w);
+                }
                 record(&w, &mut values);
             }
         }
