@@ -428,6 +428,11 @@ impl Map {
         }
     }
 
+    /// The kind of map.
+    pub fn kind(&self) -> MapKind {
+        self.kind
+    }
+
     /// Reference grid length.
     pub fn len(&self) -> usize {
         self.len

@@ -57,6 +57,7 @@
 //! | `reg_weight` | f64 | 1 or 0 | neighbours basis: the weight `w` of the per-query order |
 //! | `reg_second`, `reg_second_scale` | f64 | `reg_generators` and 1, or 0 | neighbours basis over a vector parameter: each generator's second parameter component, and the scale of their distances (absent over one component) |
 //! | `reg_across` | f64 | `nc` or 0 | a 3-D contact area: each contact node's coordinate across the travel (y), whose lines the map acts along (absent for a contact curve) |
+//! | `reg_quad` | f64 | `reg_len` or 0 | a reduced quadrature of the contact constraints in the reference frame: each reference node's weight, non-negative (absent: every supported slave) |
 //!
 //! Scalars: `surface`, `r_primal`, `r_dual`, `n_contact`, `lift_terms`, `warm_dim`, and for
 //! Type-2 `n_slaves`, `n_masters`. `Θ` by column and the per-node norms of `phi_c` are derived
@@ -98,7 +99,7 @@ impl ModelParts {
         "reg_dims",
     ];
     /// Names of the float arrays.
-    pub const FLOATS: [&str; 27] = [
+    pub const FLOATS: [&str; 28] = [
         "khat_l",
         "u_of_y",
         "weights",
@@ -126,6 +127,7 @@ impl ModelParts {
         "reg_across",
         "reg_second",
         "reg_second_scale",
+        "reg_quad",
     ];
     /// Names of the integer arrays.
     pub const INTS: [&str; 9] = [
@@ -341,6 +343,9 @@ impl ReducedModel {
             if !a.seconds.is_empty() {
                 floats.extend([("reg_second", a.seconds), ("reg_second_scale", vec![a.second_scale])]);
             }
+            if let Some(q) = self.per_query.as_ref().and_then(|d| d.quad.as_ref()) {
+                floats.push(("reg_quad", q.to_vec()));
+            }
         }
         ModelParts { scalars, floats, ints }
     }
@@ -515,7 +520,21 @@ impl ReducedModel {
                         "a model with a registered dual basis stores no fixed one and no warm-start active sets".into(),
                     ));
                 }
-                model.with_registered_dual(basis, m)
+                let len = basis.map().len();
+                let mut model = model.with_registered_dual(basis, m)?;
+                let q = p.float("reg_quad");
+                if !q.is_empty() {
+                    if q.len() != len || q.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+                        return Err(bad(
+                            "reg_quad",
+                            format!("{} values, expected {len} finite non-negative weights", q.len()),
+                        ));
+                    }
+                    if let Some(d) = &mut model.per_query {
+                        d.quad = Some(std::sync::Arc::new(q.to_vec()));
+                    }
+                }
+                Ok(model)
             }
         }
     }

@@ -111,37 +111,11 @@ impl ReducedModel {
         }
         let rl = self.r_l;
         let cols = supp.clone();
-        let mut values = self.quadrature_rows(samples, p, &cols);
-        // rows: per state, r_l value rows then r_l rows per direction; row-major by state
-        let per_state = rl * (1 + SAMPLING_DIRECTIONS);
+        let values = self.quadrature_rows(samples, p, &cols);
         let (n, rows) = (cols.len(), values.len() / cols.len().max(1));
-        // the full sums (tributary weights) and a scale per block kind (values, derivatives)
-        let mut b: Vec<f64> =
-            (0..rows).map(|r| (0..n).map(|c| values[r * n + c] * self.weights[cols[c]]).sum()).collect();
-        let kind = |r: usize| usize::from((r % per_state) >= rl);
-        let mut scale = [0.0f64; 2];
-        for (r, v) in b.iter().enumerate() {
-            scale[kind(r)] = scale[kind(r)].max(v.abs());
-        }
-        for (r, v) in b.iter_mut().enumerate() {
-            let f = if scale[kind(r)] > 0.0 { 1.0 / scale[kind(r)] } else { 0.0 };
-            *v *= f;
-            values[r * n..(r + 1) * n].iter_mut().for_each(|x| *x *= f);
-        }
-        if b.iter().all(|v| *v == 0.0) {
-            // no training state puts a paired slave under a dual vector: a fit would keep no
-            // slave, and the model would constrain nothing
-            return Err(RomError::Sampling(
-                "no sample state has contact under the dual basis: nothing to fit the quadrature to".into(),
-            ));
-        }
-        // column-major for the greedy fit, which reads whole columns (a row-major matrix made
-        // each correlation a strided pass: 2.9 s of ironing-fine's fit at (128, 128))
-        let by_col: Vec<f64> =
-            (0..n).flat_map(|c| (0..rows).map(move |r| (r, c))).map(|(r, c)| values[r * n + c]).collect();
-        drop(values);
-        let a = faer::MatRef::from_column_major_slice(&by_col, rows, n);
-        let sel = crate::rom::sampling::greedy_nnls(a, &b, tol, n).map_err(|e| RomError::Sampling(e.to_string()))?;
+        // the full sums (tributary weights)
+        let b: Vec<f64> = (0..rows).map(|r| (0..n).map(|c| values[r * n + c] * self.weights[cols[c]]).sum()).collect();
+        let sel = fit_quadrature(values, b, n, rl, tol)?;
         let mut model = self.clone();
         let mut q = vec![0.0; self.n_contact];
         let mut chosen: Vec<usize> = sel.columns.iter().map(|&c| cols[c]).collect();
@@ -163,66 +137,129 @@ impl ReducedModel {
     /// each) to the reduced gaps and to their derivatives along [`SAMPLING_DIRECTIONS`] fixed
     /// directions; row-major, `r_l (1 + SAMPLING_DIRECTIONS)` rows per state.
     fn quadrature_rows(&self, samples: &[Vec<f64>], p: &RomParams, cols: &[usize]) -> Vec<f64> {
-        let (ru, rl) = (self.r_u, self.r_l);
         let mut col_of = vec![usize::MAX; self.n_contact];
         for (c, &s) in cols.iter().enumerate() {
             col_of[s] = c;
         }
-        let mut rng = crate::rng::Rng::new(40);
-        let dirs: Vec<Vec<f64>> =
-            (0..SAMPLING_DIRECTIONS).map(|_| (0..ru).map(|_| rng.uniform_in(-1.0, 1.0)).collect()).collect();
-        // rows: per state, r_l value rows then r_l rows per direction; row-major by state
-        let per_state = rl * (1 + SAMPLING_DIRECTIONS);
-        let mut values: Vec<f64> = Vec::new();
+        let dirs = sampling_directions(self.r_u);
+        let (mut values, mut sums, mut row) = (Vec::new(), Vec::new(), Vec::new());
         let mut w = RomWork::default();
-        let mut d = [0.0; SAMPLING_DIRECTIONS];
-        let mut row = vec![0.0; ru];
-        let surf = &self.surf;
-        let mut record = |w: &RomWork, values: &mut Vec<f64>| {
-            let at = values.len();
-            values.resize(at + per_state * cols.len(), 0.0);
-            let block = &mut values[at..];
-            let l = &w.lin;
-            for (k, &s) in l.ps.iter().enumerate() {
-                let c = col_of[s];
-                if c == usize::MAX {
-                    continue;
-                }
-                // the slave's own row: in 2-D from its pair (the assembly may have summed the
-                // rows instead), in 3-D the one the assembly keeps
-                let row = match surf {
-                    SurfaceData::Nts { ns, phi_c, .. } => {
-                        combine_rows(&GapRow::new(s, *ns, &l.pairs[s]), phi_c, ru, &mut row);
-                        &row[..]
-                    }
-                    _ => &l.cphi[k * ru..(k + 1) * ru],
-                };
-                let g = dot(row, &w.u_hat) + l.g0[k];
-                d.iter_mut().zip(&dirs).for_each(|(dt, z)| *dt = dot(row, z));
-                for e in self.by_node.0[s]..self.by_node.0[s + 1] {
-                    let (a, th) = (self.by_node.1[e], self.by_node.2[e]);
-                    block[a * cols.len() + c] += th * g;
-                    for (t, dt) in d.iter().enumerate() {
-                        block[((1 + t) * rl + a) * cols.len() + c] += th * dt;
-                    }
-                }
-            }
-        };
-        let relinearise = matches!(self.surf, SurfaceData::Nts3(_));
         for mu in samples {
-            w.prepare(self, mu);
-            self.linearize(&mut w);
-            record(&w, &mut values);
-            if self.solve_in(mu, p, &mut w).outcome == RomOutcome::Converged {
-                if relinearise {
-                    // a 3-D answer may be the QP's answer past the last assembled rows
-                    self.linearize(&mut w);
-                }
-                record(&w, &mut values);
-            }
+            self.fit_states(mu, p, &mut w, |w| {
+                self.record_state(w, (&col_of, cols.len(), self.r_l), &dirs, (&mut values, &mut sums), &mut row)
+            });
         }
         values
     }
+
+    /// The states a quadrature is fitted to at `mu` ([`Self::quadrature_rows`]): `record` at the
+    /// lift state (`û = 0`, linearised) and, where the exact solve converges, at its answer
+    /// (re-linearised in 3-D, where an answer may be the QP's answer past the last assembled
+    /// rows).
+    pub(super) fn fit_states(&self, mu: &[f64], p: &RomParams, w: &mut RomWork, mut record: impl FnMut(&RomWork)) {
+        w.prepare(self, mu);
+        self.linearize(w);
+        record(w);
+        if self.solve_in(mu, p, w).outcome == RomOutcome::Converged {
+            if matches!(self.surf, SurfaceData::Nts3(_)) {
+                self.linearize(w);
+            }
+            record(w);
+        }
+    }
+
+    /// One state's rows of a quadrature fit, appended to `values` (`rows · ncols`, row-major:
+    /// `rl` value rows, then `rl` rows per direction of `dirs`): each paired supported slave
+    /// `s` with a column `col_of[s]` adds its contributions `θ_as g_s` and `θ_as (row_s · z)`;
+    /// `sums` gets the state's full sums, every paired supported slave weighted by its
+    /// tributary measure. `rl` may exceed the model's dual rank (a basis set per query, whose
+    /// rank varies): the rows beyond it stay zero.
+    pub(super) fn record_state(
+        &self,
+        w: &RomWork,
+        (col_of, ncols, rl): (&[usize], usize, usize),
+        dirs: &[Vec<f64>],
+        (values, sums): (&mut Vec<f64>, &mut Vec<f64>),
+        row: &mut Vec<f64>,
+    ) {
+        let ru = self.r_u;
+        let per_state = rl * (1 + dirs.len());
+        let (at, sat) = (values.len(), sums.len());
+        values.resize(at + per_state * ncols, 0.0);
+        sums.resize(sat + per_state, 0.0);
+        row.resize(ru, 0.0);
+        let l = &w.lin;
+        for (k, &s) in l.ps.iter().enumerate() {
+            // the slave's own row: in 2-D from its pair (the assembly may have summed the rows
+            // instead), in 3-D the one the assembly keeps
+            let r: &[f64] = match &self.surf {
+                SurfaceData::Nts { ns, phi_c, .. } => {
+                    combine_rows(&GapRow::new(s, *ns, &l.pairs[s]), phi_c, ru, row);
+                    &row[..]
+                }
+                _ => &l.cphi[k * ru..(k + 1) * ru],
+            };
+            let g = dot(r, &w.u_hat) + l.g0[k];
+            let c = col_of[s];
+            for e in self.by_node.0[s]..self.by_node.0[s + 1] {
+                let (a, th) = (self.by_node.1[e], self.by_node.2[e]);
+                for t in 0..=dirs.len() {
+                    let v = th * if t == 0 { g } else { dot(r, &dirs[t - 1]) };
+                    sums[sat + t * rl + a] += self.weights[s] * v;
+                    if c != usize::MAX {
+                        values[at + (t * rl + a) * ncols + c] += v;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The greedy non-negative fit of a quadrature ([`ReducedModel::with_sampled_surface`]):
+/// `values` the rows (row-major, `n` columns; per state `rl` value rows then `rl` rows per
+/// direction), `b` their full sums; each block kind (values, derivatives) scaled by its largest
+/// full sum. Refused where no state has contact under the dual basis (the fit would keep
+/// nothing and the model constrain nothing).
+pub(super) fn fit_quadrature(
+    mut values: Vec<f64>,
+    mut b: Vec<f64>,
+    n: usize,
+    rl: usize,
+    tol: f64,
+) -> Result<crate::rom::sampling::Selection, RomError> {
+    let per_state = rl * (1 + SAMPLING_DIRECTIONS);
+    let rows = b.len();
+    let kind = |r: usize| usize::from((r % per_state) >= rl);
+    let mut scale = [0.0f64; 2];
+    for (r, v) in b.iter().enumerate() {
+        scale[kind(r)] = scale[kind(r)].max(v.abs());
+    }
+    for (r, v) in b.iter_mut().enumerate() {
+        let f = if scale[kind(r)] > 0.0 { 1.0 / scale[kind(r)] } else { 0.0 };
+        *v *= f;
+        values[r * n..(r + 1) * n].iter_mut().for_each(|x| *x *= f);
+    }
+    if b.iter().all(|v| *v == 0.0) {
+        // no training state puts a paired slave under a dual vector: a fit would keep no
+        // slave, and the model would constrain nothing
+        return Err(RomError::Sampling(
+            "no sample state has contact under the dual basis: nothing to fit the quadrature to".into(),
+        ));
+    }
+    // column-major for the greedy fit, which reads whole columns (a row-major matrix made
+    // each correlation a strided pass: 2.9 s of ironing-fine's fit at (128, 128))
+    let by_col: Vec<f64> =
+        (0..n).flat_map(|c| (0..rows).map(move |r| (r, c))).map(|(r, c)| values[r * n + c]).collect();
+    drop(values);
+    let a = faer::MatRef::from_column_major_slice(&by_col, rows, n);
+    crate::rom::sampling::greedy_nnls(a, &b, tol, n).map_err(|e| RomError::Sampling(e.to_string()))
+}
+
+/// The fixed directions of `û` (`r_u` components) along which a quadrature fit matches the
+/// constraints' derivatives ([`SAMPLING_DIRECTIONS`] of them, uniform in [-1, 1], seed 40).
+pub(super) fn sampling_directions(r_u: usize) -> Vec<Vec<f64>> {
+    let mut rng = crate::rng::Rng::new(40);
+    (0..SAMPLING_DIRECTIONS).map(|_| (0..r_u).map(|_| rng.uniform_in(-1.0, 1.0)).collect()).collect()
 }
 
 #[cfg(test)]
