@@ -185,7 +185,8 @@ fn small_ironing3d(dir: &std::path::Path) -> std::path::PathBuf {
 /// neighbours are solved online at every test point (converged everywhere, nothing skipped);
 /// a stored model pinned to the registered CPG (`study.model_dual`) carries its lines across the
 /// travel, so that `crom query --check` answers with it; and so does one pinned to the
-/// neighbours, with their training travels.
+/// neighbours, with their training travels; and the shipped one, the neighbours with a
+/// quadrature in their reference frame, measured online and stored with its weights.
 #[test]
 fn a_3d_contact_area_registers_in_the_comparison_and_online() {
     let dir = tempdir().expect("tempdir");
@@ -194,7 +195,10 @@ fn a_3d_contact_area_registers_in_the_comparison_and_online() {
         "  { kind = \"registered\", map = \"translate\", interpolation = \"nodes\", basis = \"neighbours\" },";
     let text0 = std::fs::read_to_string(&scene).expect("scene");
     assert!(text0.contains(neighbours), "the shipped comparison lists the registered neighbours");
-    let pinned = text0.replace(
+    // the shipped model: the neighbours on a surface sampled in their reference frame (last step)
+    let shipped = "model_dual = \"registered-translate-nodes-neighbours-sampled\"\n";
+    assert!(text0.contains(shipped), "ironing-3d.toml changed: update this test");
+    let pinned = text0.replace(shipped, "").replace(
         "specificity_samples = 50",
         "specificity_samples = 50\nmodel_dual = \"registered-translate-nodes-cpg\"\nmodel_ranks = [9, 4]",
     );
@@ -261,6 +265,31 @@ fn a_3d_contact_area_registers_in_the_comparison_and_online() {
     let model = hdf5::File::open(store.join("scenes/ironing-3d-small/model.h5")).expect("model.h5");
     let travels = model.dataset("reg_travels").expect("reg_travels").read_raw::<f64>().expect("f64");
     assert_eq!(travels.len(), 9, "one travel per training point");
+    let q = query_checked(&store, scene.to_str().expect("utf-8"), "d_x", &points, dir.path());
+    let outcome = q.strs("outcome").expect("outcome");
+    assert!(q.rows() == 3 && outcome.iter().all(|o| o == "converged"), "{outcome:?}");
+    // the shipped setting: the neighbours with a quadrature in their reference frame, measured
+    // by the online comparison (its `-sampled` rows, every test point converged) and stored
+    // with its weights; a query checks it
+    std::fs::write(&scene, &text0).expect("write scene");
+    let out = crom(&store, &["run", scene.to_str().expect("utf-8")]);
+    assert!(out.status.success() && text(&out).contains("0 solved"), "{}", text(&out));
+    let online: Vec<_> = std::fs::read_dir(store.join("online-comparison")).expect("online").flatten().collect();
+    let sampled: Vec<(u64, u64)> = online
+        .iter()
+        .filter_map(|d| {
+            crom_pipeline::io::table::read_parquet(&d.path().join(crom_schemas::artifact::comparison::ONLINE)).ok()
+        })
+        .flat_map(|t| {
+            let (a, p, c) =
+                (t.strs("approximation").expect("a"), t.u64s("points").expect("p"), t.u64s("converged").expect("c"));
+            (0..a.len()).filter(|&i| a[i].ends_with("-sampled")).map(|i| (p[i], c[i])).collect::<Vec<_>>()
+        })
+        .collect();
+    assert!(!sampled.is_empty() && sampled.iter().all(|&(p, c)| p == 8 && c == 8), "{sampled:?}");
+    let model = hdf5::File::open(store.join("scenes/ironing-3d-small/model.h5")).expect("model.h5");
+    let quad = model.dataset("reg_quad").expect("reg_quad").read_raw::<f64>().expect("f64");
+    assert!(quad.iter().any(|&w| w > 0.0) && quad.iter().all(|&w| w >= 0.0), "{quad:?}");
     let q = query_checked(&store, scene.to_str().expect("utf-8"), "d_x", &points, dir.path());
     let outcome = q.strs("outcome").expect("outcome");
     assert!(q.rows() == 3 && outcome.iter().all(|o| o == "converged"), "{outcome:?}");

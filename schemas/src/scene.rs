@@ -470,6 +470,15 @@ pub const MODEL_DUAL_CPG: &str = "cpg";
 /// trade-off's `exact-sampled` rows; needs `study.contact_sampling`).
 pub const MODEL_DUAL_CPG_SAMPLED: &str = "cpg-sampled";
 
+/// A registered approximation's name followed by this in `study.model_dual`: the same basis
+/// with a reduced quadrature of the contact constraints fitted in its reference frame (needs
+/// `study.contact_sampling` and whole-node shifts, `registered-translate-nodes-…`).
+pub const SAMPLED_SUFFIX: &str = "-sampled";
+
+/// The registered approximations a quadrature in the reference frame applies to (their names
+/// start so): whole-node shifts, whose pull and push move values exactly.
+pub const WHOLE_NODE_PREFIX: &str = "registered-translate-nodes-";
+
 /// `study.contact_sampling`: the quadrature's fit tolerance and the rank pairs it is measured
 /// at.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -8,7 +8,7 @@ use crate::comparison::{ApproximationSpec, BasisSpec, ComparisonSpec, Interpolat
 use crate::external::{ArraySource, ExternalSpec, ParameterSource};
 use crate::scene::{
     ContactSamplingSpec, Hertz3dSpec, HertzSpec, Ironing3dSpec, IroningSpec, MaterialSpec, Model, RopeSpec,
-    SceneConfig, SolverSpec, StudySpec, MODEL_DUAL_CPG, MODEL_DUAL_CPG_SAMPLED,
+    SceneConfig, SolverSpec, StudySpec, MODEL_DUAL_CPG, MODEL_DUAL_CPG_SAMPLED, SAMPLED_SUFFIX, WHOLE_NODE_PREFIX,
 };
 use crate::SceneError;
 
@@ -866,6 +866,23 @@ fn check_model_dual(
     if dual == MODEL_DUAL_CPG || registered.iter().any(|n| n == dual) {
         return Ok(());
     }
+    if let Some(base) = dual.strip_suffix(SAMPLED_SUFFIX).filter(|b| registered.iter().any(|n| n == b)) {
+        if !base.starts_with(WHOLE_NODE_PREFIX) {
+            return Err(c.fail(
+                "study.model_dual",
+                format!("is \"{dual}\": a quadrature in the reference frame needs whole-node shifts"),
+                &format!("sample a {WHOLE_NODE_PREFIX}… approximation, or name \"{base}\" without {SAMPLED_SUFFIX}"),
+            ));
+        }
+        if !sampling {
+            return Err(c.fail(
+                "study.model_dual",
+                format!("is \"{dual}\", but the study samples no contact surface"),
+                "add study.contact_sampling (e.g. contact_sampling = { tol = 1e-3, ranks = [[32, 8]] }), or name the approximation without -sampled",
+            ));
+        }
+        return Ok(());
+    }
     let fix = if registered.is_empty() {
         format!(
             "use \"{MODEL_DUAL_CPG}\" (the study's CPG basis), or add a registered CPG approximation to \
@@ -1141,6 +1158,25 @@ mod tests {
             1,
         );
         assert!(SceneConfig::from_toml_str(&sampled, Path::new("s.toml")).is_ok(), "cpg-sampled with sampling");
+        // a registered basis sampled in its reference frame: whole-node shifts, with sampling
+        match parse("hertz", "registered-moments-cpg-sampled") {
+            Err(SceneError::Invalid { field, fix, .. }) => {
+                assert_eq!(field, "study.model_dual");
+                assert!(fix.contains("registered-translate-nodes-"), "{fix}");
+            }
+            other => panic!("a moments map sampled: {other:?}"),
+        }
+        let ironing = include_str!("../../data/scenes/ironing-3d.toml");
+        assert!(SceneConfig::from_toml_str(ironing, Path::new("s.toml")).is_ok(), "the shipped sampled neighbours");
+        let unsampled = ironing.replace("contact_sampling = { tol = 5e-4, ranks = [[129, 8]] }\n", "");
+        assert!(unsampled.len() < ironing.len(), "ironing-3d.toml changed: update this test");
+        match SceneConfig::from_toml_str(&unsampled, Path::new("s.toml")) {
+            Err(SceneError::Invalid { field, fix, .. }) => {
+                assert_eq!(field, "study.model_dual");
+                assert!(fix.contains("study.contact_sampling"), "{fix}");
+            }
+            other => panic!("sampled neighbours without sampling: {other:?}"),
+        }
         match parse("hertz", "cpg-sampled") {
             Err(SceneError::Invalid { field, fix, .. }) => {
                 assert_eq!(field, "study.model_dual");

@@ -28,6 +28,7 @@ use std::time::Instant;
 
 use crom_schemas::artifact::{comparison as names, ArtifactKind};
 use crom_schemas::comparison::ApproximationSpec;
+use crom_schemas::scene::{SAMPLED_SUFFIX, WHOLE_NODE_PREFIX};
 use crom_schemas::SceneConfig;
 use crom_stages::dual::{self, Approach, DualApprox};
 use crom_stages::metrics::order::quantile;
@@ -44,7 +45,7 @@ use super::comparison::{self, contact_surface, item};
 use super::convert::view;
 use super::ctx::Ctx;
 use super::graph::{Input, StageDef};
-use super::online::{dual_error, online_params, OnlineBase};
+use super::online::{dual_error, online_params, sampled_registered, subsample, OnlineBase, SAMPLING_FIT_POINTS};
 use super::shared::LazyPhysics;
 use super::shared::Shared;
 use super::timing::time_each;
@@ -69,6 +70,11 @@ pub(crate) struct OnlineApproximationKey {
     /// scene's key, whose solves did already.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     starts_3d: bool,
+    /// `study.contact_sampling`'s fit tolerance, for a registered basis on whole-node shifts:
+    /// its rows are also measured with a quadrature fitted in the reference frame (named with
+    /// [`SAMPLED_SUFFIX`]). Absent otherwise, so the other keys are unchanged.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sampling: Option<f64>,
 }
 
 impl StageKey for OnlineApproximationKey {
@@ -99,6 +105,7 @@ impl OnlineApproximationKey {
             return None;
         }
         let p = online_params(scene);
+        let whole_nodes = item.spec.name().starts_with(WHOLE_NODE_PREFIX);
         Some(Self {
             approximation: item.spec,
             max_m: cmp.max_m,
@@ -108,6 +115,7 @@ impl OnlineApproximationKey {
             u_tol: p.u_tol,
             ws_start: WS_START,
             starts_3d: scene.model.is_3d(),
+            sampling: scene.study.contact_sampling.as_ref().filter(|_| whole_nodes).map(|cs| cs.tol),
         })
     }
 
@@ -295,6 +303,19 @@ fn run(
             let queries = solve_all(&source, &base, &test_set.parameters, &params, errors);
             rows.push(&name, m, r_primal, &queries, b.fom_median);
         }
+        if let (Some(tol), Approach::Registered { map, inner }) = (settings.sampling, &item.approach) {
+            // the same basis with a quadrature in its reference frame, as a stored model
+            // carries it (`sampled_registered`, the model stage's steps)
+            let fit = subsample(&train_set.parameters, SAMPLING_FIT_POINTS);
+            for m in ONLINE_MS.into_iter().filter(|&m| m <= model.size()) {
+                let reg =
+                    dual::registration::Registered::build(&training, *map, *inner).map_err(|e| fail(e.to_string()))?;
+                let stored = sampled_registered(base_model, reg, m, (&train_set.parameters, &fit), &params, tol)
+                    .map_err(fail)?;
+                let queries = solve_all(&Source::Stored, &stored, &test_set.parameters, &params, errors);
+                rows.push(&format!("{name}{SAMPLED_SUFFIX}"), m, r_primal, &queries, b.fom_median);
+            }
+        }
     }
     let staging = ctx.store.stage(spec)?;
     let (results, times) = rows.tables(scene);
@@ -340,6 +361,9 @@ enum Source<'a> {
     Fixed(std::borrow::Cow<'a, [f64]>, usize),
     /// Evaluated at each query's parameter, with at most this many columns (inside the timer).
     PerQuery(&'a dyn DualApprox, usize),
+    /// The model's own, set at each query's parameter as a stored model sets it
+    /// ([`ReducedModel::dual_at`], inside the timer).
+    Stored,
 }
 
 /// Every test point with the dual basis from `source`, each solve timed alone ([`time_each`]).
@@ -358,9 +382,11 @@ fn solve_all(
         points.iter().enumerate(),
         (rm, RomWork::default()),
         |(rm, w), (_, mu)| {
-            if let Source::PerQuery(model, m) = source {
+            match source {
                 // the step a stored model with a registered basis takes (`dual_at`)
-                rm.set_dual_of(*model, mu, *m);
+                Source::PerQuery(model, m) => rm.set_dual_of(*model, mu, *m),
+                Source::Stored => rm.dual_at(mu),
+                Source::Fixed(..) => {}
             }
             rm.solve_in(mu, params, w)
         },

@@ -38,7 +38,7 @@ use std::collections::BTreeMap;
 
 use crom_schemas::artifact::{basis as bnames, comparison as cnames, model as names, rom as rom_names, ArtifactKind};
 use crom_schemas::comparison::ApproximationSpec;
-use crom_schemas::scene::{ContactSamplingSpec, MODEL_DUAL_CPG, MODEL_DUAL_CPG_SAMPLED};
+use crom_schemas::scene::{ContactSamplingSpec, MODEL_DUAL_CPG, MODEL_DUAL_CPG_SAMPLED, SAMPLED_SUFFIX};
 use crom_schemas::SceneConfig;
 use crom_stages::dual::registration::Registered;
 use crom_stages::dual::{self, Approach, DualApprox, Inner};
@@ -50,7 +50,7 @@ use super::comparison::{contact_surface, item_of};
 use super::ctx::Ctx;
 use super::graph::{Input, Published, StageDef};
 use super::labels::Labels;
-use super::online::{online_params, subsample, SAMPLING_FIT_POINTS};
+use super::online::{online_params, sampled_registered, subsample, SAMPLING_FIT_POINTS};
 use super::shared::Shared;
 use crate::cache::{Key, KeySpec, StageKey};
 use crate::error::CromError;
@@ -180,7 +180,7 @@ impl ModelStage {
         let max_m = scene.comparison.as_ref().map_or(0, |c| c.max_m);
         let wanted = |spec: &ApproximationSpec| match scene.study.model_dual.as_deref() {
             None => true,
-            Some(name) => name == spec.name(),
+            Some(name) => name == spec.name() || name.strip_suffix(SAMPLED_SUFFIX) == Some(spec.name().as_str()),
         };
         let (registered, online): (Vec<RegisteredKey>, Vec<Input>) = online
             .iter()
@@ -241,11 +241,15 @@ impl StageDef for ModelStage {
                 let times = read_parquet(&rom_dir.join(rom_names::TRADEOFF_TIMINGS))?;
                 candidates.extend(choice::exact_rows(&trade, &times).into_iter().filter(|c| !sampled || c.sampled()));
             }
+            // a registered basis with a quadrature in its reference frame: `<name>-sampled`
+            let reg_sampled = settings.model_dual.as_deref().is_some_and(|d| d.ends_with(SAMPLED_SUFFIX) && !sampled);
             for (k, input) in self.online.iter().enumerate() {
                 let dir = store.dir(ArtifactKind::ONLINE_APPROXIMATION, &input.key);
                 let online = read_parquet(&dir.join(cnames::ONLINE))?;
                 let times = read_parquet(&dir.join(cnames::ONLINE_TIMINGS))?;
-                candidates.extend(choice::registered_rows(&online, &times, k));
+                let name = settings.registered[k].approximation.name();
+                let name = if reg_sampled { format!("{name}{SAMPLED_SUFFIX}") } else { name };
+                candidates.extend(choice::registered_rows(&online, &times, k, &name));
             }
             let train_set = loaded.set(store, train)?;
             let phi = physics.responses(train, &train_set, fail)?;
@@ -334,11 +338,26 @@ impl StageDef for ModelStage {
                     let m = pick.r_dual.min(reg.size());
                     let base = ReducedModel::new(op, &phi.data, phi.cols, &[], 0).map_err(|e| fail(e.to_string()))?;
                     let base = if pick.r_primal < phi.cols { base.leading(pick.r_primal, 0) } else { base };
-                    let model = base
-                        .with_primal_starts(&reg, m, &train_set.parameters, &params)
-                        .with_registered_dual(reg, m)
-                        .map_err(|e| fail(e.to_string()))?;
-                    (model, Algorithm::Exact.name().to_string(), key.approximation.name())
+                    let model = if reg_sampled {
+                        // with its quadrature in the reference frame, as the online comparison
+                        // measured it (`sampled_registered`)
+                        let cs = settings.contact_sampling.as_ref().ok_or_else(|| {
+                            fail(
+                                "study.model_dual names a sampled basis but the scene has no study.contact_sampling"
+                                    .into(),
+                            )
+                        })?;
+                        let fit = subsample(&train_set.parameters, SAMPLING_FIT_POINTS);
+                        sampled_registered(&base, reg, m, (&train_set.parameters, &fit), &params, cs.tol)
+                            .map_err(fail)?
+                    } else {
+                        base.with_primal_starts(&reg, m, &train_set.parameters, &params)
+                            .with_registered_dual(reg, m)
+                            .map_err(|e| fail(e.to_string()))?
+                    };
+                    let name = key.approximation.name();
+                    let name = if reg_sampled { format!("{name}{SAMPLED_SUFFIX}") } else { name };
+                    (model, Algorithm::Exact.name().to_string(), name)
                 }
             };
             let stored = StoredModel {

@@ -22,6 +22,25 @@ use crate::physics::Physics;
 /// directions), 32 x 2 x 60 x 4 = 15 360 rows of 143 slaves at ironing-fine's (128, 60).
 pub(crate) const SAMPLING_FIT_POINTS: usize = 32;
 
+/// The stored model of a registered basis with a reduced quadrature of the contact constraints
+/// in its reference frame: `base` started at the training points `train` with the basis
+/// (`with_primal_starts`), the basis set per query with at most `m` generators
+/// (`with_registered_dual`), the quadrature fitted at `fit` to `tol`
+/// (`with_registered_quadrature`). The online comparison measures it and the model stage
+/// stores it by these same steps, so the stored model answers as measured.
+pub(crate) fn sampled_registered(
+    base: &crom_stages::rom::ReducedModel,
+    reg: crom_stages::dual::registration::Registered,
+    m: usize,
+    (train, fit): (&[Vec<f64>], &[Vec<f64>]),
+    params: &crom_stages::rom::RomParams,
+    tol: f64,
+) -> Result<crom_stages::rom::ReducedModel, String> {
+    let started = base.clone().with_primal_starts(&reg, m, train, params);
+    let model = started.with_registered_dual(reg, m).map_err(|e| e.to_string())?;
+    model.with_registered_quadrature(fit, params, tol).map(|(model, _)| model).map_err(|e| e.to_string())
+}
+
 /// The reduced solver's settings of `scene`'s online stages and stored model: the solver's
 /// defaults, with the scene's `study.online_u_tol` where it sets one.
 pub(crate) fn online_params(scene: &SceneConfig) -> RomParams {

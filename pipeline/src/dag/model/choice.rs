@@ -89,12 +89,17 @@ pub(crate) fn exact_rows(trade: &Table, times: &Table) -> Vec<Candidate> {
         .collect()
 }
 
-/// The online comparison's rows of registered approximation `which` (its
-/// `online_comparison.parquet` and `online_comparison_timings.parquet`, same rows).
-pub(crate) fn registered_rows(online: &Table, times: &Table, which: usize) -> Vec<Candidate> {
-    let (Some(m), Some(ru)) = (online.u64s("m"), online.u64s("r_primal")) else { return Vec::new() };
+/// The online comparison's rows of registered approximation `which` named `name` (its
+/// `online_comparison.parquet` and `online_comparison_timings.parquet`, same rows; the table
+/// also holds the rows of the basis on a sampled surface, named with a suffix).
+pub(crate) fn registered_rows(online: &Table, times: &Table, which: usize, name: &str) -> Vec<Candidate> {
+    let (Some(m), Some(ru), Some(names)) = (online.u64s("m"), online.u64s("r_primal"), online.strs("approximation"))
+    else {
+        return Vec::new();
+    };
     let t = |c: &str, i: usize| times.f64s(c).and_then(|v| v.get(i).copied()).unwrap_or(f64::NAN);
     (0..online.rows())
+        .filter(|&i| names[i] == name)
         .map(|i| Candidate {
             source: Source::Registered(which),
             r_primal: ru[i] as usize,
