@@ -196,7 +196,7 @@ fn a_3d_contact_area_registers_in_the_comparison_and_online() {
     let text0 = std::fs::read_to_string(&scene).expect("scene");
     assert!(text0.contains(neighbours), "the shipped comparison lists the registered neighbours");
     // the shipped model: the neighbours on a surface sampled in their reference frame (last step)
-    let shipped = "model_dual = \"registered-translate-nodes-neighbours-sampled\"\n";
+    let shipped = "model_dual = \"registered-translate-nodes-neighbours-sampled\"\nmodel_ranks = [56, 3]\n";
     assert!(text0.contains(shipped), "ironing-3d.toml changed: update this test");
     let pinned = text0.replace(shipped, "").replace(
         "specificity_samples = 50",
@@ -269,9 +269,11 @@ fn a_3d_contact_area_registers_in_the_comparison_and_online() {
     let outcome = q.strs("outcome").expect("outcome");
     assert!(q.rows() == 3 && outcome.iter().all(|o| o == "converged"), "{outcome:?}");
     // the shipped setting: the neighbours with a quadrature in their reference frame, measured
-    // by the online comparison (its `-sampled` rows, every test point converged) and stored
-    // with its weights; a query checks it
-    std::fs::write(&scene, &text0).expect("write scene");
+    // by the online comparison (its `-sampled` rows, every test point converged) at the stored
+    // model's primal rank (here 6 of 9), and stored with its weights and that measured row; a
+    // query checks it
+    let leading = text0.replace("model_ranks = [56, 3]", "model_ranks = [6, 3]");
+    std::fs::write(&scene, &leading).expect("write scene");
     let out = crom(&store, &["run", scene.to_str().expect("utf-8")]);
     assert!(out.status.success() && text(&out).contains("0 solved"), "{}", text(&out));
     let online: Vec<_> = std::fs::read_dir(store.join("online-comparison")).expect("online").flatten().collect();
@@ -287,7 +289,20 @@ fn a_3d_contact_area_registers_in_the_comparison_and_online() {
         })
         .collect();
     assert!(!sampled.is_empty() && sampled.iter().all(|&(p, c)| p == 8 && c == 8), "{sampled:?}");
+    let ranks: Vec<u64> = online
+        .iter()
+        .filter_map(|d| {
+            crom_pipeline::io::table::read_parquet(&d.path().join(crom_schemas::artifact::comparison::ONLINE)).ok()
+        })
+        .flat_map(|t| {
+            let (a, r) = (t.strs("approximation").expect("a"), t.u64s("r_primal").expect("r"));
+            (0..a.len()).filter(|&i| a[i].ends_with("-sampled")).map(|i| r[i]).collect::<Vec<_>>()
+        })
+        .collect();
+    assert!(ranks.contains(&6), "the sampled rows at the stored model's primal rank: {ranks:?}");
     let model = hdf5::File::open(store.join("scenes/ironing-3d-small/model.h5")).expect("model.h5");
+    let attr = |name: &str| model.attr(name).expect("attr").read_scalar::<u64>().expect("u64");
+    assert_eq!((attr("r_primal"), attr("measured_points")), (6, 8), "the stored model is the measured row");
     let quad = model.dataset("reg_quad").expect("reg_quad").read_raw::<f64>().expect("f64");
     assert!(quad.iter().any(|&w| w > 0.0) && quad.iter().all(|&w| w >= 0.0), "{quad:?}");
     let q = query_checked(&store, scene.to_str().expect("utf-8"), "d_x", &points, dir.path());

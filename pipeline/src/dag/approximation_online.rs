@@ -75,6 +75,10 @@ pub(crate) struct OnlineApproximationKey {
     /// [`SAMPLED_SUFFIX`]). Absent otherwise, so the other keys are unchanged.
     #[serde(skip_serializing_if = "Option::is_none")]
     sampling: Option<f64>,
+    /// The primal rank of those rows: `study.model_ranks`' first where the scene names one (the
+    /// stored model's, so that the study measures the model it stores), else the full one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sampled_r_primal: Option<usize>,
 }
 
 impl StageKey for OnlineApproximationKey {
@@ -116,6 +120,11 @@ impl OnlineApproximationKey {
             ws_start: WS_START,
             starts_3d: scene.model.is_3d(),
             sampling: scene.study.contact_sampling.as_ref().filter(|_| whole_nodes).map(|cs| cs.tol),
+            sampled_r_primal: scene
+                .study
+                .model_ranks
+                .filter(|_| whole_nodes && scene.study.contact_sampling.is_some())
+                .map(|[ru, _]| ru),
         })
     }
 
@@ -307,13 +316,19 @@ fn run(
             // the same basis with a quadrature in its reference frame, as a stored model
             // carries it (`sampled_registered`, the model stage's steps)
             let fit = subsample(&train_set.parameters, SAMPLING_FIT_POINTS);
+            // at the stored model's primal rank where the scene names one (the model stage's
+            // `leading` of the same base)
+            let (sbase, sr) = match settings.sampled_r_primal.filter(|&r| r < r_primal) {
+                Some(r) => (std::borrow::Cow::Owned(base_model.leading(r, 0)), r),
+                None => (std::borrow::Cow::Borrowed(base_model), r_primal),
+            };
             for m in ONLINE_MS.into_iter().filter(|&m| m <= model.size()) {
                 let reg =
                     dual::registration::Registered::build(&training, *map, *inner).map_err(|e| fail(e.to_string()))?;
-                let stored = sampled_registered(base_model, reg, m, (&train_set.parameters, &fit), &params, tol)
-                    .map_err(fail)?;
+                let stored =
+                    sampled_registered(&sbase, reg, m, (&train_set.parameters, &fit), &params, tol).map_err(fail)?;
                 let queries = solve_all(&Source::Stored, &stored, &test_set.parameters, &params, errors);
-                rows.push(&format!("{name}{SAMPLED_SUFFIX}"), m, r_primal, &queries, b.fom_median);
+                rows.push(&format!("{name}{SAMPLED_SUFFIX}"), m, sr, &queries, b.fom_median);
             }
         }
     }
