@@ -322,11 +322,13 @@ fn run(
                 Some(r) => (std::borrow::Cow::Owned(base_model.leading(r, 0)), r),
                 None => (std::borrow::Cow::Borrowed(base_model), r_primal),
             };
+            // the basis itself (`model` is the same one, behind the approximation trait), built
+            // once and copied into each m's model
+            let reg =
+                dual::registration::Registered::build(&training, *map, *inner).map_err(|e| fail(e.to_string()))?;
             for m in ONLINE_MS.into_iter().filter(|&m| m <= model.size()) {
-                let reg =
-                    dual::registration::Registered::build(&training, *map, *inner).map_err(|e| fail(e.to_string()))?;
-                let stored =
-                    sampled_registered(&sbase, reg, m, (&train_set.parameters, &fit), &params, tol).map_err(fail)?;
+                let stored = sampled_registered(&sbase, reg.clone(), m, (&train_set.parameters, &fit), &params, tol)
+                    .map_err(fail)?;
                 let queries = solve_all(&Source::Stored, &stored, &test_set.parameters, &params, errors);
                 rows.push(&format!("{name}{SAMPLED_SUFFIX}"), m, sr, &queries, b.fom_median);
             }

@@ -534,7 +534,7 @@ impl Map {
 }
 
 /// POD, CPG or neighbours in the reference frame of a [`Map`].
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Registered {
     map: Map,
     inner: Inner,

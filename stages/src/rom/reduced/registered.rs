@@ -16,7 +16,7 @@
 
 use std::sync::Arc;
 
-use super::{ReducedModel, RomError, SurfaceData};
+use super::{ReducedModel, RomError};
 use crate::dual::registration::Registered;
 use crate::dual::DualApprox;
 
@@ -75,16 +75,9 @@ impl ReducedModel {
             if let Some(q) = &d.quad {
                 let mut at = vec![0.0; self.n_contact];
                 d.basis.map().push(q, mu, &mut at);
-                match &mut self.surf {
-                    SurfaceData::Nts3(n) => {
-                        n.supp.retain(|&s| at[s] > 0.0);
-                        n.quad = Some(at);
-                    }
-                    SurfaceData::Nts { supp, quad, .. } => {
-                        supp.retain(|&s| at[s] > 0.0);
-                        *quad = Some(at);
-                    }
-                    SurfaceData::Fixed { .. } => {}
+                if let Some((supp, quad)) = self.surf.quadrature_mut() {
+                    supp.retain(|&s| at[s] > 0.0);
+                    *quad = Some(at);
                 }
             }
             self.per_query = Some(d);
@@ -120,14 +113,7 @@ impl ReducedModel {
                 map.kind().name()
             )));
         }
-        if !(tol.is_finite() && (0.0..1.0).contains(&tol)) {
-            return Err(RomError::Sampling(format!(
-                "the relative residual tol = {tol} is not in [0, 1): give e.g. 1e-3 (0 fits exactly)"
-            )));
-        }
-        if samples.is_empty() {
-            return Err(RomError::Sampling("no sample parameters to fit to: pass the training points".into()));
-        }
+        super::surface::check_fit(samples, tol)?;
         let (len, rl) = (map.len(), d.m);
         let dirs = super::surface::sampling_directions(self.r_u);
         let (mut values, mut sums, mut row) = (Vec::new(), Vec::new(), Vec::new());

@@ -51,6 +51,18 @@ pub(super) enum SurfaceData {
     Nts3(Box<super::nts3::Nts3>),
 }
 
+impl SurfaceData {
+    /// A Type-2 surface's summed slaves and quadrature weights (node-to-segment or
+    /// node-to-surface alike); `None` for Type-1.
+    pub(super) fn quadrature_mut(&mut self) -> Option<(&mut Vec<usize>, &mut Option<Vec<f64>>)> {
+        match self {
+            SurfaceData::Nts { supp, quad, .. } => Some((supp, quad)),
+            SurfaceData::Nts3(d) => Some((&mut d.supp, &mut d.quad)),
+            SurfaceData::Fixed { .. } => None,
+        }
+    }
+}
+
 /// Directions of `û` along which [`ReducedModel::with_sampled_surface`] matches the
 /// constraints' derivatives (a sketch of `Ĉ`).
 pub const SAMPLING_DIRECTIONS: usize = 3;
@@ -101,14 +113,7 @@ impl ReducedModel {
                 return Ok((self.clone(), all));
             }
         };
-        if !(tol.is_finite() && (0.0..1.0).contains(&tol)) {
-            return Err(RomError::Sampling(format!(
-                "the relative residual tol = {tol} is not in [0, 1): give e.g. 3e-2 (0 fits exactly)"
-            )));
-        }
-        if samples.is_empty() {
-            return Err(RomError::Sampling("no sample parameters to fit to: pass the training points".into()));
-        }
+        check_fit(samples, tol)?;
         let rl = self.r_l;
         let cols = supp.clone();
         let values = self.quadrature_rows(samples, p, &cols);
@@ -123,10 +128,8 @@ impl ReducedModel {
             q[cols[c]] = xi;
         }
         chosen.sort_unstable();
-        match &mut model.surf {
-            SurfaceData::Nts { supp, quad, .. } => (*supp, *quad) = (chosen, Some(q)),
-            SurfaceData::Nts3(d) => (d.supp, d.quad) = (chosen, Some(q)),
-            SurfaceData::Fixed { .. } => {}
+        if let Some((supp, quad)) = model.surf.quadrature_mut() {
+            (*supp, *quad) = (chosen, Some(q));
         }
         model.warm_starts = WarmStarts::default();
         Ok((model, sel))
@@ -199,12 +202,17 @@ impl ReducedModel {
                 }
                 _ => &l.cphi[k * ru..(k + 1) * ru],
             };
-            let g = dot(r, &w.u_hat) + l.g0[k];
+            // the gap, then its derivatives along the directions: once per slave
+            let mut d = [0.0; 1 + SAMPLING_DIRECTIONS];
+            d[0] = dot(r, &w.u_hat) + l.g0[k];
+            for (dt, z) in d[1..].iter_mut().zip(dirs) {
+                *dt = dot(r, z);
+            }
             let c = col_of[s];
             for e in self.by_node.0[s]..self.by_node.0[s + 1] {
                 let (a, th) = (self.by_node.1[e], self.by_node.2[e]);
-                for t in 0..=dirs.len() {
-                    let v = th * if t == 0 { g } else { dot(r, &dirs[t - 1]) };
+                for (t, dt) in d[..=dirs.len()].iter().enumerate() {
+                    let v = th * dt;
                     sums[sat + t * rl + a] += self.weights[s] * v;
                     if c != usize::MAX {
                         values[at + (t * rl + a) * ncols + c] += v;
@@ -213,6 +221,21 @@ impl ReducedModel {
             }
         }
     }
+}
+
+/// A quadrature fit's inputs ([`ReducedModel::with_sampled_surface`],
+/// [`ReducedModel::with_registered_quadrature`]): refused for `tol` outside `[0, 1)` or no
+/// samples.
+pub(super) fn check_fit(samples: &[Vec<f64>], tol: f64) -> Result<(), RomError> {
+    if !(tol.is_finite() && (0.0..1.0).contains(&tol)) {
+        return Err(RomError::Sampling(format!(
+            "the relative residual tol = {tol} is not in [0, 1): give e.g. 3e-2 (0 fits exactly)"
+        )));
+    }
+    if samples.is_empty() {
+        return Err(RomError::Sampling("no sample parameters to fit to: pass the training points".into()));
+    }
+    Ok(())
 }
 
 /// The greedy non-negative fit of a quadrature ([`ReducedModel::with_sampled_surface`]):
