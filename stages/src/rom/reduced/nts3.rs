@@ -7,8 +7,8 @@
 //! each supported slave and builds its gap row `g = n . (x_s - sum_a w_a x_a)` with the pair's
 //! normal and weights frozen: `C Psi` is the row combined with `Psi_c`, the constant part the
 //! row applied to `X_c + u0_c(mu)`. Everything after (the rows summed under the dual basis, the
-//! QP, the re-pairing loop) is the 2-D node-to-segment path's. A slave whose last search still
-//! proves its facet is paired on it without a search ([`ReducedModel::linearize3`]), the
+//! QP, the re-pairing loop) is the 2-D node-to-segment path's. A slave whose last search's
+//! proof still decides its pair is paired without a search ([`ReducedModel::linearize3`]), the
 //! first linearisation with the proofs of the nearest warm-start sample
 //! ([`super::WarmStarts::locate3`]), and a search measures the slave's last located facet first
 //! (its hint); the 2-D
@@ -17,7 +17,7 @@
 //! are not proved, a projection per supported slave, `O((n_s + n_m) r_u)` for the positions.
 
 use super::{ReducedModel, RomWork};
-use crate::contact3d::surface::{FacetGrid, MasterSurface, Pair3};
+use crate::contact3d::surface::{FacetGrid, MasterSurface, Pair3, ONLINE_REACH};
 use crate::rom::la::dot;
 
 /// `|a - b|` (infinite when either is not finite: a slave placed for the first time).
@@ -110,10 +110,11 @@ impl ReducedModel {
     /// than continuously ([`Pair3::continues`]: a feature renamed across a shared node is not a
     /// change).
     ///
-    /// A slave whose last search still proves its facet ([`crate::contact3d::surface::Located::holds`]) is paired on that
-    /// facet without a search ([`FacetGrid::pair_at`], the search's answer bit for bit): the
-    /// distance it and the masters moved since is bounded by the sum, over the linearisations
-    /// since, of its own displacement and the largest master displacement.
+    /// A slave whose last search's proof still decides its pair ([`FacetGrid::pair_near`]: the
+    /// facets near the located one measured again, every other one proved farther) is paired
+    /// without a search, the search's answer bit for bit: the distance it and the masters moved
+    /// since is bounded by the sum, over the linearisations since, of its own displacement and
+    /// the largest master displacement. Its searches keep a near set ([`ONLINE_REACH`]).
     pub(super) fn linearize3(&self, d: &Nts3, w: &mut RomWork, assemble: bool) -> bool {
         // the supported slaves only: the others are neither paired nor in a row
         self.place3(d, w, d.supp.iter().copied());
@@ -136,12 +137,13 @@ impl ReducedModel {
                 Some(xs) => {
                     l.moved3[s] += norm3(&xs, &l.last3[s]) + masters_moved;
                     l.last3[s] = xs;
-                    match l.located3[s] {
-                        Some(at) if at.holds(l.moved3[s]) => grid.pair_at(&d.master, &l.xm3, xs, at.facet),
-                        _ => {
+                    let proved = l.located3[s].and_then(|at| grid.pair_near(&d.master, &l.xm3, xs, &at, l.moved3[s]));
+                    match proved {
+                        Some(p) => p,
+                        None => {
                             // the last located facet (or the sample's) is likely near: measured first
                             let hint = l.located3[s].map(|at| at.facet);
-                            let (p, at) = grid.pair_located(&d.master, &l.xm3, xs, hint);
+                            let (p, at) = grid.pair_located(&d.master, &l.xm3, xs, hint, ONLINE_REACH);
                             l.located3[s] = at;
                             l.moved3[s] = 0.0;
                             p
@@ -387,8 +389,9 @@ mod tests {
     /// slave, and the answers (coordinates and multipliers, as bits), outcomes and
     /// linearisation counts equal those of the same model with the proofs dropped, where every
     /// slave is searched. A proof carried too far, or a hint that changed a search, changes a
-    /// pair and so the answer: trusting every carried proof regardless of the distance fails
-    /// the test (checked).
+    /// pair and so the answer: pairing on every carried proof's facet without measuring its
+    /// near set again fails the test (checked). (Ignoring the distance alone does not: across
+    /// four facets the near set's own distances refuse the proof.)
     #[test]
     fn a_query_starts_from_its_samples_proofs_and_keeps_its_answer() {
         let p = RomParams::default();

@@ -3,7 +3,7 @@
 
 use super::nts3::Nts3;
 use super::{Algorithm, ReducedModel, RomOutcome, RomParams, RomWork, SurfaceData};
-use crate::contact3d::surface::{FacetGrid, Located};
+use crate::contact3d::surface::{FacetGrid, Located, ONLINE_REACH};
 use crate::dual::DualApprox;
 use crate::rom::la::dot;
 
@@ -76,7 +76,7 @@ impl WarmStarts {
                     if d.slave_fixed[s] || xs.iter().any(|v| !v.is_finite()) {
                         None
                     } else {
-                        grid.pair_located(&d.master, xm, xs, None).1
+                        grid.pair_located(&d.master, xm, xs, None, ONLINE_REACH).1
                     }
                 })
                 .collect();
