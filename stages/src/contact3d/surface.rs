@@ -447,7 +447,7 @@ impl FacetGrid {
 
     /// The pair of the slave at `p` (see the module docs).
     pub fn pair(&mut self, surface: &MasterSurface, xm: &[[f64; 3]], p: [f64; 3]) -> Pair3 {
-        self.pair_located(surface, xm, p, None, 0.0).0
+        self.search(surface, xm, p, None, None).0
     }
 
     /// The pair of the slave at `p` from the proof `at` of an earlier search, after the slave and
@@ -522,6 +522,19 @@ impl FacetGrid {
         hint: Option<usize>,
         reach: f64,
     ) -> (Pair3, Option<Located>) {
+        self.search(surface, xm, p, hint, Some(reach))
+    }
+
+    /// The search of [`Self::pair_located`]; its proof only with a `reach` (the full-order
+    /// solver's pairings, [`Self::pair`], keep none).
+    fn search(
+        &mut self,
+        surface: &MasterSurface,
+        xm: &[[f64; 3]],
+        p: [f64; 3],
+        hint: Option<usize>,
+        reach: Option<f64>,
+    ) -> (Pair3, Option<Located>) {
         if surface.facets.is_empty() {
             return (Pair3::UNPAIRED, None);
         }
@@ -556,7 +569,7 @@ impl FacetGrid {
         let mut everything;
         let tie_of = |best: f64, size: f64| best * (1.0 + 1e-12) + 1e-14 * size;
         // beyond the tie tolerance by this much a facet is neither measured nor in the near set
-        let reach = reach * self.size;
+        let (proof, reach) = (reach.is_some(), reach.unwrap_or(0.0) * self.size);
         let cell_of =
             |x: f64, o: f64, d: usize, cell: f64| ((x - o) / cell).floor().clamp(0.0, (d - 1) as f64) as usize;
         let best = loop {
@@ -617,6 +630,9 @@ impl FacetGrid {
         };
         let tie = tie_of(best, self.size);
         let (_, f, cl) = self.found.iter().filter(|x| x.0 <= tie).min_by_key(|x| x.1).copied().expect("a facet");
+        if !proof {
+            return (self.finish(surface, xm, p, f, cl), None);
+        }
         // the near set: the measured facets within `reach` of the tie tolerance, nearest first
         // (at most NEAR, the located one among them); every other facet is measured, pruned by
         // its box, or outside the last square (whose boxes lie more than `r` away horizontally)
@@ -1054,7 +1070,8 @@ mod tests {
     /// by measuring every facet: the least distance, ties within the search's tolerance (1e-12
     /// relative plus 1e-14 of the grid's facet extent) to the lowest index. The search without
     /// a hint, with a random facet and with the answer as the hint, each with no reach and with
-    /// 0.3 facets, locates that facet and returns the same pair bit for bit (`Pair3`'s `==`);
+    /// 0.3 facets, locates that facet and returns the same pair bit for bit (`Pair3`'s `==`),
+    /// as does the full-order solver's pairing, which keeps no proof;
     /// its proof's near set holds the located facet and every facet within the reach (short of
     /// [`NEAR`]), and its bound lies below every other facet's distance, to 1e-12 relative for
     /// the rounding (it fails if a box pruned a facet nearer than its bound, if the hint or the
@@ -1075,6 +1092,7 @@ mod tests {
                 let d: Vec<f64> = (0..9).map(|f| facet::closest(&s.corners(f, x), p).d2.sqrt()).collect();
                 let best = least(d.iter().copied());
                 let (want, _) = g.pair_located(s, x, p, None, 0.0);
+                assert_eq!(g.pair(s, x, p), want, "case {k}: the pairing without a proof");
                 let tie = best * (1.0 + 1e-12) + 1e-14 * g.size;
                 let winner = (0..9).find(|&f| d[f] <= tie).expect("a facet");
                 for (hint, reach) in
