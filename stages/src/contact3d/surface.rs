@@ -366,24 +366,7 @@ impl FacetGrid {
         }
         self.indexed = true;
         let nf = surface.facets.len();
-        let boxes: Vec<[f64; 6]> = (0..nf)
-            .map(|f| {
-                let c = surface.corners(f, xm);
-                let (inf, ninf) = (f64::INFINITY, f64::NEG_INFINITY);
-                let mut b = [inf, inf, ninf, ninf, inf, ninf];
-                for x in c {
-                    b = [
-                        b[0].min(x[0]),
-                        b[1].min(x[1]),
-                        b[2].max(x[0]),
-                        b[3].max(x[1]),
-                        b[4].min(x[2]),
-                        b[5].max(x[2]),
-                    ];
-                }
-                b
-            })
-            .collect();
+        let boxes: Vec<[f64; 6]> = (0..nf).map(|f| facet_box(&surface.corners(f, xm))).collect();
         let size =
             if nf > 0 { boxes.iter().map(|b| (b[2] - b[0]).max(b[3] - b[1])).sum::<f64>() / nf as f64 } else { 1.0 };
         let cell = if size > 0.0 && size.is_finite() { size } else { 1.0 };
@@ -488,7 +471,7 @@ impl FacetGrid {
                 continue;
             }
             let xf = surface.corners(f, xm);
-            if box_distance(&xf, p) > hi_of(best) {
+            if box_distance(&facet_box(&xf), p) > hi_of(best) {
                 continue;
             }
             let cl = facet::closest(&xf, p);
@@ -591,13 +574,7 @@ impl FacetGrid {
                     for &f in &self.items[self.start[c]..self.start[c + 1]] {
                         if self.stamp[f] != self.round {
                             self.stamp[f] = self.round;
-                            let b = self.boxes[f];
-                            let (dx, dy, dz) = (
-                                (b[0] - p[0]).max(p[0] - b[2]).max(0.0),
-                                (b[1] - p[1]).max(p[1] - b[3]).max(0.0),
-                                (b[4] - p[2]).max(p[2] - b[5]).max(0.0),
-                            );
-                            let boxed = (dx * dx + dy * dy + dz * dz).sqrt();
+                            let boxed = box_distance(&self.boxes[f], p);
                             if boxed > tie_of(best_so_far, self.size) + reach {
                                 // beyond the best so far already: not measured (see above)
                                 pruned = pruned.min(boxed);
@@ -812,21 +789,26 @@ impl Cone {
     }
 }
 
-/// The distance from `p` to the bounding box of the corners `xf`: no more than the distance to
-/// any point of the facet (its points are convex combinations of the corners). The search's
-/// boxes ([`FacetGrid::pair_located`]) are the same boxes, compared the same way.
-fn box_distance(xf: &[[f64; 3]; 4], p: [f64; 3]) -> f64 {
-    let mut d2 = 0.0;
-    for c in 0..3 {
-        let (mut lo, mut hi) = (xf[0][c], xf[0][c]);
-        for x in &xf[1..] {
-            lo = lo.min(x[c]);
-            hi = hi.max(x[c]);
-        }
-        let d = (lo - p[c]).max(p[c] - hi).max(0.0);
-        d2 += d * d;
+/// The bounding box `[x_min, y_min, x_max, y_max, z_min, z_max]` of a facet's corners `xf`
+/// (the search's index keeps the first four per facet).
+fn facet_box(xf: &[[f64; 3]; 4]) -> [f64; 6] {
+    let (inf, ninf) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut b = [inf, inf, ninf, ninf, inf, ninf];
+    for x in xf {
+        b = [b[0].min(x[0]), b[1].min(x[1]), b[2].max(x[0]), b[3].max(x[1]), b[4].min(x[2]), b[5].max(x[2])];
     }
-    d2.sqrt()
+    b
+}
+
+/// The distance from `p` to the box `b` ([`facet_box`]): no more than the distance to any point
+/// of the facet (its points are convex combinations of the corners).
+fn box_distance(b: &[f64; 6], p: [f64; 3]) -> f64 {
+    let (dx, dy, dz) = (
+        (b[0] - p[0]).max(p[0] - b[2]).max(0.0),
+        (b[1] - p[1]).max(p[1] - b[3]).max(0.0),
+        (b[4] - p[2]).max(p[2] - b[5]).max(0.0),
+    );
+    (dx * dx + dy * dy + dz * dz).sqrt()
 }
 
 /// The distance from `q` to the convex hull of the four points `pts` (0 inside): inside when in

@@ -14,7 +14,8 @@ impl ReducedModel {
     /// keep the primal part: what a dual basis that depends on the parameter (a registered or a
     /// local one, `crom_stages::dual`) needs per query. Costs `O(n_contact r_l)` for a Type-2
     /// problem (the sparse layouts and the supported slaves), `O(nnz(theta) r_u)` for Type-1
-    /// (`Ĉ` and `ĝ0`'s terms); no `n_dof` work.
+    /// (`Ĉ` and `ĝ0`'s terms); no `n_dof` work. A sampled surface's quadrature, fitted to the old
+    /// basis, is dropped (2-D and 3-D alike): the constraints sum over the new basis's support.
     pub fn set_dual(&mut self, theta: &[f64], r_l: usize) {
         let nc = self.n_contact;
         assert_eq!(theta.len(), nc * r_l, "theta shape");
@@ -27,7 +28,11 @@ impl ReducedModel {
                 *ghat = vec![vec![0.0; r_l]; cu0.len()];
                 reduce_fixed(by_node, &self.weights, r_u, cphi, cu0, chat, ghat);
             }
-            SurfaceData::Nts3(d) => d.supp = d.support(&by_node.0),
+            SurfaceData::Nts3(d) => {
+                // as in 2-D: a quadrature was fitted to the old basis, and the support is new
+                d.supp = d.support(&by_node.0);
+                d.quad = None;
+            }
             SurfaceData::Nts { ns, slave_fixed, supp, quad, .. } => {
                 supp.clear();
                 supp.extend((0..*ns).filter(|&s| !slave_fixed[s] && by_node.0[s + 1] > by_node.0[s]));

@@ -72,13 +72,14 @@ impl ReducedModel {
     pub fn dual_at(&mut self, mu: &[f64]) {
         if let Some(d) = self.per_query.take() {
             self.set_dual_of(d.basis.as_ref(), mu, d.m);
-            if let Some(q) = &d.quad {
-                let mut at = vec![0.0; self.n_contact];
+            let n = self.n_contact;
+            if let (Some(q), Some((supp, quad))) = (&d.quad, self.surf.quadrature_mut()) {
+                // the weights pushed forward to `mu`'s frame (the basis set above dropped the last
+                // query's), and the support cut to the slaves they reach
+                let mut at = vec![0.0; n];
                 d.basis.map().push(q, mu, &mut at);
-                if let Some((supp, quad)) = self.surf.quadrature_mut() {
-                    supp.retain(|&s| at[s] > 0.0);
-                    *quad = Some(at);
-                }
+                supp.retain(|&s| at[s] > 0.0);
+                *quad = Some(at);
             }
             self.per_query = Some(d);
         }
